@@ -1,0 +1,26 @@
+# Third-party packages, all from Debian (tools/install-deps.sh installs them).
+find_package(Eigen3 3.3 REQUIRED NO_MODULE)
+find_package(yaml-cpp REQUIRED)
+find_package(nlohmann_json 3 REQUIRED)
+find_package(CLI11 REQUIRED)
+
+# Bullet in double precision: Debian ships *-float64 libraries beside the float ones, described by
+# bullet-float64.pc, whose Cflags carry -DBT_USE_DOUBLE_PRECISION. Mixing precisions corrupts memory
+# silently, so nothing in magvine may use the plain `bullet` package.
+find_package(PkgConfig REQUIRED)
+pkg_check_modules(BULLET_F64 REQUIRED IMPORTED_TARGET bullet-float64)
+add_library(magvine_bullet INTERFACE)
+target_link_libraries(magvine_bullet INTERFACE PkgConfig::BULLET_F64)
+target_compile_definitions(magvine_bullet INTERFACE BT_USE_DOUBLE_PRECISION)
+add_library(magvine::bullet ALIAS magvine_bullet)
+
+if(MAGVINE_WITH_RENDER)
+  find_package(OpenCV 4 REQUIRED COMPONENTS core imgproc imgcodecs videoio)
+endif()
+
+if(MAGVINE_BUILD_TESTS)
+  find_package(GTest REQUIRED)
+endif()
+if(MAGVINE_BUILD_BENCHMARKS)
+  find_package(benchmark REQUIRED)
+endif()

@@ -1,0 +1,78 @@
+#include "commands.hpp"
+
+#include <cmath>
+#include <filesystem>
+#include <iostream>
+#include <sstream>
+
+#include "magvine/core/atomic_file.hpp"
+#include "magvine/core/error.hpp"
+#include "magvine/core/units.hpp"
+#include "magvine/magnetics/field_model.hpp"
+#include "magvine/scene/field_map.hpp"
+#include "magvine/scene/magnets_file.hpp"
+#include "magvine/scene/points_csv.hpp"
+
+namespace magvine::cli {
+
+int run_field(const FieldArgs& args) {
+  const magnetics::FieldModel model = scene::load_magnets_file(args.magnets);
+  const std::vector<Vec3> points = scene::read_points_csv(args.points);
+  std::vector<magnetics::FieldSample> samples(points.size());
+  magnetics::field_gradient_batch(model, model.rest_poses, points, samples);
+  for (std::size_t i = 0; i < samples.size(); ++i) {
+    // The field models are finite everywhere by construction; a non-finite value here is a bug, not input.
+    if (!samples[i].b.allFinite() || !samples[i].g.allFinite()) {
+      throw NumericalError("field: non-finite result at point " + std::to_string(i + 1));
+    }
+  }
+  if (args.out.empty()) {
+    scene::write_field_csv(std::cout, points, samples);
+  } else {
+    AtomicFile out(args.out);
+    scene::write_field_csv(out.stream(), points, samples);
+    out.commit();
+    std::cerr << "magvine field: " << points.size() << " points -> " << args.out << '\n';
+  }
+  return 0;
+}
+
+int run_field_map(const FieldMapArgs& args) {
+  const auto unit = parse_length_unit(args.units);
+  if (!unit) throw InputError("--units", 0, "", "must be mm, cm or m (got '" + args.units + "')");
+  const double s = metres_per(*unit);
+  scene::FieldMapSpec spec;
+  spec.plane = args.plane;
+  spec.half_width = args.extent * s;
+  spec.resolution = args.resolution;
+  {
+    std::stringstream ss(args.center);
+    std::string item;
+    int i = 0;
+    while (std::getline(ss, item, ',')) {
+      if (i >= 3) break;
+      try {
+        std::size_t used = 0;
+        spec.center[i] = std::stod(item, &used) * s;
+        if (used != item.size() || !std::isfinite(spec.center[i])) throw std::invalid_argument(item);
+      } catch (const std::exception&) {
+        throw InputError("--center", 0, "", "must be three numbers x,y,z (got '" + args.center + "')");
+      }
+      ++i;
+    }
+    if (i != 3) throw InputError("--center", 0, "", "must be three numbers x,y,z (got '" + args.center + "')");
+  }
+  const magnetics::FieldModel model = scene::load_magnets_file(args.magnets);
+  const std::filesystem::path dir(args.out_dir);
+  std::error_code ec;
+  std::filesystem::create_directories(dir, ec);
+  if (ec) throw InputError(args.out_dir, 0, "", "cannot create output folder: " + ec.message());
+  const auto csv = dir / "field_map.csv";
+  const auto json = dir / "field_map.json";
+  scene::write_field_map(model, spec, csv, json);
+  std::cerr << "magvine field-map: " << spec.resolution << "x" << spec.resolution << " samples in plane " << spec.plane
+            << " -> " << csv.string() << ", " << json.string() << '\n';
+  return 0;
+}
+
+}  // namespace magvine::cli

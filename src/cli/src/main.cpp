@@ -1,0 +1,70 @@
+// magvine: command-line entry point. Exit codes: 0 ok, 1 goal missed (where documented), 2 bad input,
+// 3 numerical failure (DESIGN.md).
+
+#include <CLI/CLI.hpp>
+#include <iostream>
+
+#include "commands.hpp"
+#include "magvine/config.hpp"
+#include "magvine/core/error.hpp"
+
+namespace {
+
+std::string build_info() {
+  std::string s = std::string("magvine ") + MAGVINE_VERSION + " (render: " + (magvine::config::kWithRender ? "on" : "off") +
+                  ", mpm: " + (magvine::config::kWithMpm ? "on" : "off") + ")";
+  return s;
+}
+
+}  // namespace
+
+int main(int argc, char** argv) {
+  using magvine::ExitCode;
+  CLI::App app{"magvine: magnetically steered soft robots in anatomy"};
+  app.set_version_flag("--version", build_info());
+  app.require_subcommand(1);
+
+  magvine::cli::FieldArgs field;
+  auto* field_cmd = app.add_subcommand("field", "B and its gradient at points (SI CSV in, SI CSV out)");
+  field_cmd->add_option("--magnets", field.magnets, "magnets file (YAML)")->required();
+  field_cmd->add_option("--points", field.points, "CSV with header x,y,z in metres")->required();
+  field_cmd->add_option("--out", field.out, "output CSV (default: stdout); written atomically");
+
+  magvine::cli::FieldMapArgs map;
+  auto* map_cmd = app.add_subcommand("field-map", "|B| and |grad B| on a plane (CSV + JSON for tools/plot_field_map.py)");
+  map_cmd->add_option("--magnets", map.magnets, "magnets file (YAML)")->required();
+  map_cmd->add_option("--plane", map.plane, "plane axes, e.g. xz (u = first, v = second)")->capture_default_str();
+  map_cmd->add_option("--center", map.center, "centre x,y,z in --units")->capture_default_str();
+  map_cmd->add_option("--extent", map.extent, "half-width of the square in --units")->capture_default_str();
+  map_cmd->add_option("--units", map.units, "mm | cm | m")->capture_default_str();
+  map_cmd->add_option("--resolution", map.resolution, "samples per side")->capture_default_str();
+  map_cmd->add_option("--out", map.out_dir, "output folder (field_map.csv, field_map.json)")->required();
+
+  try {
+    app.parse(argc, argv);
+  } catch (const CLI::CallForHelp& e) {
+    return app.exit(e);
+  } catch (const CLI::CallForAllHelp& e) {
+    return app.exit(e);
+  } catch (const CLI::CallForVersion& e) {
+    return app.exit(e);
+  } catch (const CLI::ParseError& e) {
+    std::cerr << "magvine: " << e.what() << " (see magvine --help)\n";
+    return static_cast<int>(ExitCode::kBadInput);
+  }
+
+  try {
+    if (field_cmd->parsed()) return magvine::cli::run_field(field);
+    if (map_cmd->parsed()) return magvine::cli::run_field_map(map);
+  } catch (const magvine::InputError& e) {
+    std::cerr << "magvine: " << e.what() << '\n';
+    return static_cast<int>(ExitCode::kBadInput);
+  } catch (const magvine::NumericalError& e) {
+    std::cerr << "magvine: numerical failure: " << e.what() << '\n';
+    return static_cast<int>(ExitCode::kNumericalFailure);
+  } catch (const std::exception& e) {
+    std::cerr << "magvine: internal error: " << e.what() << '\n';
+    return 4;
+  }
+  return 0;
+}

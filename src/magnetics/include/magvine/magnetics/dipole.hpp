@@ -1,0 +1,40 @@
+#pragma once
+/// Point dipole field and gradient (PHYSICS.md §1, fields.md §6).
+
+#include <cmath>
+
+#include "magvine/core/units.hpp"
+#include "magvine/magnetics/field_sample.hpp"
+
+namespace magvine::magnetics {
+
+/// Below this distance from a point dipole [m] the field is reported as zero instead of diverging.
+inline constexpr double kDipoleCoreRadius = 1e-9;
+
+/// B at offset r = x − p from a dipole of moment m [A·m²]:  B = μ0/(4π|r|³)(3 r̂ r̂ᵀ − I) m  [T].
+inline Vec3 dipole_field(const Vec3& m, const Vec3& r) {
+  const double d2 = r.squaredNorm();
+  if (d2 < kDipoleCoreRadius * kDipoleCoreRadius) return Vec3::Zero();
+  const double inv_d = 1.0 / std::sqrt(d2);
+  const Vec3 rh = r * inv_d;
+  const double k = kMu0 / (4.0 * kPi) * inv_d * inv_d * inv_d;
+  return k * (3.0 * rh.dot(m) * rh - m);
+}
+
+/// B and G_ij = ∂B_i/∂x_j of a dipole:  G = 3μ0/(4π|r|⁴)( m r̂ᵀ + r̂ mᵀ + (r̂·m)(I − 5 r̂ r̂ᵀ) ).
+inline FieldSample dipole_field_gradient(const Vec3& m, const Vec3& r) {
+  FieldSample out;
+  const double d2 = r.squaredNorm();
+  if (d2 < kDipoleCoreRadius * kDipoleCoreRadius) return out;
+  const double inv_d = 1.0 / std::sqrt(d2);
+  const Vec3 rh = r * inv_d;
+  const double rm = rh.dot(m);
+  const double k = kMu0 / (4.0 * kPi) * inv_d * inv_d * inv_d;
+  out.b = k * (3.0 * rm * rh - m);
+  const double kg = 3.0 * k * inv_d;
+  out.g.noalias() = kg * (m * rh.transpose() + rh * m.transpose() - 5.0 * rm * rh * rh.transpose());
+  out.g.diagonal().array() += kg * rm;
+  return out;
+}
+
+}  // namespace magvine::magnetics

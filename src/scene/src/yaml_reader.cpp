@@ -1,0 +1,112 @@
+#include "yaml_reader.hpp"
+
+#include <cmath>
+#include <sstream>
+
+#include "magvine/core/error.hpp"
+#include "magvine/core/text.hpp"
+
+namespace magvine::scene {
+
+int line_of(const YAML::Node& node) {
+  const YAML::Mark mark = node.Mark();
+  return mark.line >= 0 ? mark.line + 1 : 0;
+}
+
+YAML::Node parse_yaml(const std::string& text, const std::string& file) {
+  try {
+    return YAML::Load(text);
+  } catch (const YAML::Exception& e) {
+    throw InputError(file, e.mark.line >= 0 ? e.mark.line + 1 : 0, "", "YAML syntax error: " + e.msg);
+  }
+}
+
+YamlMap::YamlMap(const YAML::Node& node, std::string file, std::string path)
+    : m_node(node), m_file(std::move(file)), m_path(std::move(path)) {
+  if (!m_node.IsMap()) fail_at(m_node, m_path.empty() ? "(top level)" : m_path, "must be a mapping of key: value");
+}
+
+void YamlMap::allow_only(std::initializer_list<std::string_view> allowed) const {
+  for (const auto& kv : m_node) {
+    const std::string key = kv.first.as<std::string>();
+    bool ok = false;
+    for (auto a : allowed) ok = ok || key == a;
+    if (!ok) {
+      const std::vector<std::string_view> list(allowed);
+      std::string names;
+      for (auto a : allowed) names += (names.empty() ? "" : ", ") + std::string(a);
+      fail_at(kv.first, key_path(key),
+              "unknown key (did you mean '" + closest_match(key, list) + "'? allowed: " + names + ")");
+    }
+  }
+}
+
+bool YamlMap::has(const std::string& key) const { return static_cast<bool>(m_node[key]); }
+
+YAML::Node YamlMap::node(const std::string& key) const {
+  const YAML::Node n = m_node[key];
+  if (!n) fail(key, "missing required key");
+  return n;
+}
+
+double YamlMap::number(const std::string& key) const {
+  const YAML::Node n = node(key);
+  if (!n.IsScalar()) fail_at(n, key_path(key), "must be a number");
+  double v = 0.0;
+  try {
+    v = n.as<double>();
+  } catch (const YAML::Exception&) {
+    fail_at(n, key_path(key), "'" + n.Scalar() + "' is not a number");
+  }
+  if (!std::isfinite(v)) fail_at(n, key_path(key), "must be finite (got " + n.Scalar() + ")");
+  return v;
+}
+
+double YamlMap::positive(const std::string& key) const {
+  const double v = number(key);
+  if (!(v > 0.0)) fail_at(m_node[key], key_path(key), "must be > 0 (got " + m_node[key].Scalar() + ")");
+  return v;
+}
+
+std::string YamlMap::text(const std::string& key) const {
+  const YAML::Node n = node(key);
+  if (!n.IsScalar()) fail_at(n, key_path(key), "must be a single word");
+  return n.Scalar();
+}
+
+Vec3 YamlMap::vec3(const std::string& key) const {
+  const YAML::Node n = node(key);
+  if (!n.IsSequence() || n.size() != 3) fail_at(n, key_path(key), "must be a list of 3 numbers [a, b, c]");
+  Vec3 v;
+  for (int i = 0; i < 3; ++i) {
+    const YAML::Node e = n[i];
+    const std::string where = key_path(key) + "[" + std::to_string(i) + "]";
+    if (!e.IsScalar()) fail_at(e, where, "must be a number");
+    try {
+      v[i] = e.as<double>();
+    } catch (const YAML::Exception&) {
+      fail_at(e, where, "'" + e.Scalar() + "' is not a number");
+    }
+    if (!std::isfinite(v[i])) fail_at(e, where, "must be finite (got " + e.Scalar() + ")");
+  }
+  return v;
+}
+
+Vec3 YamlMap::nonzero_vec3(const std::string& key) const {
+  const Vec3 v = vec3(key);
+  if (v.norm() == 0.0) fail(key, "must not be the zero vector");
+  return v;
+}
+
+YamlMap YamlMap::map(const std::string& key) const { return YamlMap(node(key), m_file, key_path(key)); }
+
+void YamlMap::fail(const std::string& key, const std::string& what) const {
+  const YAML::Node n = m_node[key];
+  fail_at(n ? n : m_node, key_path(key), what);
+}
+
+void YamlMap::fail_at(const YAML::Node& node, const std::string& path, const std::string& what) const {
+  throw InputError(m_file, line_of(node), path, what);
+}
+
+}  // namespace magvine::scene

@@ -1,0 +1,56 @@
+#pragma once
+// Validating access to YAML nodes: every error names the file, the line and the key path, and unknown keys
+// get a "did you mean" suggestion. Private to the scene module (yaml-cpp types stay here).
+
+#include <yaml-cpp/yaml.h>
+
+#include <initializer_list>
+#include <string>
+#include <string_view>
+#include <vector>
+
+#include "magvine/core/eigen_types.hpp"
+
+namespace magvine::scene {
+
+class YamlMap {
+ public:
+  /// `node` must be a map (InputError otherwise). `path` is the key path used in messages ("magnets[0]").
+  YamlMap(const YAML::Node& node, std::string file, std::string path);
+
+  /// Throws for any key not in `allowed`, naming the closest allowed one.
+  void allow_only(std::initializer_list<std::string_view> allowed) const;
+  bool has(const std::string& key) const;
+
+  double number(const std::string& key) const;
+  double positive(const std::string& key) const;
+  std::string text(const std::string& key) const;
+  /// A 3-vector `[a, b, c]` of finite numbers.
+  Vec3 vec3(const std::string& key) const;
+  /// A 3-vector that must not be zero.
+  Vec3 nonzero_vec3(const std::string& key) const;
+  YamlMap map(const std::string& key) const;
+  /// The node at `key`, which must exist.
+  YAML::Node node(const std::string& key) const;
+
+  /// Throws InputError at this map's (or `key`'s) line.
+  [[noreturn]] void fail(const std::string& key, const std::string& what) const;
+  /// Throws InputError at `node`'s line with the given key path.
+  [[noreturn]] void fail_at(const YAML::Node& node, const std::string& path, const std::string& what) const;
+
+  const std::string& file() const { return m_file; }
+  const std::string& path() const { return m_path; }
+  std::string key_path(const std::string& key) const { return m_path.empty() ? key : m_path + "." + key; }
+
+ private:
+  YAML::Node m_node;
+  std::string m_file;
+  std::string m_path;
+};
+
+/// Parses YAML text; syntax errors become InputError with the file and line.
+YAML::Node parse_yaml(const std::string& text, const std::string& file);
+/// Line (1-based) of a node, 0 when unknown.
+int line_of(const YAML::Node& node);
+
+}  // namespace magvine::scene

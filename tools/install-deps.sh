@@ -1,0 +1,64 @@
+#!/usr/bin/env bash
+# Installs the Debian packages magvine needs to build, test and plot — and nothing else.
+# Idempotent: when every package is already installed it changes nothing and does not touch apt.
+# Runs as root, or through sudo otherwise. `apt-get update` runs only when a package has no install candidate.
+#
+# Usage: tools/install-deps.sh [--check]
+#   --check   only report missing packages (exit 1 if any), install nothing.
+set -euo pipefail
+
+# Why each package is here (README "Dependencies" repeats this):
+packages=(
+  build-essential cmake pkg-config     # compiler, build system, .pc lookups (Bullet's float64 libraries)
+  libeigen3-dev                        # linear algebra everywhere (MPL-2.0)
+  libbullet-dev                        # collision world; we link the *-float64 libraries (zlib licence)
+  libassimp-dev                        # mesh import: STL/OBJ/PLY/glTF/OFF (BSD-3)
+  libfcl-dev libccd-dev                # BVH distance queries (BSD-3)
+  libyaml-cpp-dev                      # scene and magnet files (MIT)
+  nlohmann-json3-dev                   # JSON reports (MIT)
+  libcli11-dev                         # command line (BSD-3)
+  libopencv-dev                        # optional render module: images and video (Apache-2.0)
+  libembree-dev                        # optional render module: CPU ray casting (Apache-2.0)
+  libgtest-dev libgmock-dev            # tests (BSD-3)
+  libbenchmark-dev                     # benchmarks (Apache-2.0)
+  python3 python3-numpy python3-matplotlib  # plots written by tools/*.py (PSF/BSD)
+)
+
+check_only=0
+[[ "${1:-}" == "--check" ]] && check_only=1
+
+missing=()
+for p in "${packages[@]}"; do
+  if ! dpkg-query -W -f='${Status}' "$p" 2>/dev/null | grep -q "install ok installed"; then
+    missing+=("$p")
+  fi
+done
+
+if [[ ${#missing[@]} -eq 0 ]]; then
+  echo "install-deps: all ${#packages[@]} packages present"
+  exit 0
+fi
+echo "install-deps: missing: ${missing[*]}"
+[[ $check_only -eq 1 ]] && exit 1
+
+if [[ $EUID -eq 0 ]]; then
+  sudo=()
+elif command -v sudo >/dev/null 2>&1; then
+  sudo=(sudo)
+else
+  echo "install-deps: not root and sudo is not available; install as root: apt-get install ${missing[*]}" >&2
+  exit 1
+fi
+
+export DEBIAN_FRONTEND=noninteractive
+# Refresh the package lists only when one of the missing packages has no candidate (fresh image, stale lists).
+needs_update=0
+for p in "${missing[@]}"; do
+  cand=$(apt-cache policy "$p" 2>/dev/null | awk '/Candidate:/ {print $2}')
+  if [[ -z "$cand" || "$cand" == "(none)" ]]; then needs_update=1; break; fi
+done
+if [[ $needs_update -eq 1 ]]; then
+  "${sudo[@]}" apt-get update -q
+fi
+"${sudo[@]}" apt-get install -y -q --no-install-recommends "${missing[@]}"
+echo "install-deps: installed ${#missing[@]} packages"
