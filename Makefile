@@ -1,7 +1,7 @@
 # magvine: the two commands of the README quick start, and a few more.
 #   make demo   installs dependencies, builds, writes the field map of the default EPM and prints where it is
 #   make test   installs dependencies, builds (warnings are errors), runs the whole ctest suite
-# Other targets: build, minimal (core-only configuration + its tests), bench, format, clean.
+# Other targets: build, minimal (core-only configuration + its tests), bench, format, lint (naming), clean.
 
 BUILD    ?= build
 MINIMAL  ?= build-minimal
@@ -10,7 +10,7 @@ PYTHON   ?= /usr/bin/python3
 DEMO_OUT ?= $(BUILD)/demo
 CMAKE_FLAGS ?=
 
-.PHONY: deps build demo test minimal bench format clean
+.PHONY: deps build demo test minimal bench format lint clean
 
 deps:
 	@tools/install-deps.sh
@@ -46,6 +46,9 @@ bench: deps
 
 format:
 	find src tests -name '*.?pp' | xargs clang-format -i
+
+lint: build
+	find src -name '*.cpp' | xargs -n1 clang-tidy -p $(BUILD) --quiet
 
 clean:
 	rm -rf $(BUILD) $(MINIMAL)
