@@ -1,7 +1,7 @@
 # magvine: the two commands of the README quick start, and a few more.
 #   make demo   installs dependencies, builds, writes the field map of the default EPM and prints where it is
 #   make test   installs dependencies, builds (warnings are errors), runs the whole ctest suite
-# Other targets: build, minimal (core-only configuration + its tests), bench, format, lint (naming), clean.
+# Other targets: build, minimal (core-only configuration + its tests), bench, figures, format, lint (naming), clean.
 
 BUILD    ?= build
 MINIMAL  ?= build-minimal
@@ -10,7 +10,7 @@ PYTHON   ?= /usr/bin/python3
 DEMO_OUT ?= $(BUILD)/demo
 CMAKE_FLAGS ?=
 
-.PHONY: deps build demo test minimal bench format lint clean
+.PHONY: deps build demo test minimal bench figures format lint clean
 
 deps:
 	@tools/install-deps.sh
@@ -43,6 +43,11 @@ bench: deps
 	cmake -S . -B $(BUILD) -DCMAKE_BUILD_TYPE=Release -DMAGVINE_BUILD_BENCHMARKS=ON $(CMAKE_FLAGS)
 	cmake --build $(BUILD) -j $(JOBS) --target bench_fields
 	$(BUILD)/tests/bench/bench_fields --benchmark_min_time=0.5
+
+# Regenerates the README figures in docs/figures (field-model error against runtime, about 10 s).
+figures: build
+	$(BUILD)/src/cli/magvine study field-models --magnets assets/magnets/epm_n52.yaml --out docs/figures
+	$(PYTHON) tools/plot_field_models.py docs/figures --out docs/figures/field_models.png
 
 format:
 	find src tests -name '*.?pp' | xargs clang-format -i

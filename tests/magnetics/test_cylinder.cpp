@@ -12,7 +12,7 @@
 #include "magvine/core/units.hpp"
 #include "magvine/magnetics/dipole.hpp"
 #include "support/compare.hpp"
-#include "support/quadrature.hpp"
+#include "magvine/magnetics/reference.hpp"
 
 namespace magvine::magnetics {
 namespace {
@@ -25,7 +25,7 @@ constexpr double kL = 0.1016;
 constexpr double kJ = 1.48;
 
 // Closed forms in double precision agree with quadrature/closed forms to ~1e-13 (fields.md §7); the
-// quadrature reference itself is good to ~1e-10 at ≥ 0.2 R from the surface.
+// quadrature reference (magnetics/reference.hpp, no shared code) is good to ~1e-10 at ≥ 0.2 R from the surface.
 constexpr double kClosedFormTol = 1e-12;
 constexpr double kQuadratureTol = 1e-8;
 // Central differences with Richardson extrapolation, step 3e-3 R: truncation O(h⁴) ≈ 1e-10 and the noise of the
@@ -120,7 +120,7 @@ TEST(Cylinder, AxialMatchesSurfaceCurrentQuadrature) {
   const double R = 0.02, L = 0.05;
   const CylinderMagnet c(R, L, Vec3(0, 0, 1.0));
   for (const Vec3& p : probe_points(R, 0.5 * L)) {
-    const Vec3 ref = test::cylinder_by_quadrature(R, 0.5 * L, p, true);
+    const Vec3 ref = cylinder_field_quadrature(c, p);
     EXPECT_TRUE(close(c.field(p), ref, kQuadratureTol, 1e-12)) << "p/R = " << (p / R).transpose();
   }
 }
@@ -129,8 +129,16 @@ TEST(Cylinder, DiametricMatchesSurfaceChargeQuadrature) {
   const double R = 0.02, L = 0.05;
   const CylinderMagnet c(R, L, Vec3(1.0, 0, 0));
   for (const Vec3& p : probe_points(R, 0.5 * L)) {
-    const Vec3 ref = test::cylinder_by_quadrature(R, 0.5 * L, p, false);
+    const Vec3 ref = cylinder_field_quadrature(c, p);
     EXPECT_TRUE(close(c.field(p), ref, kQuadratureTol, 1e-12)) << "p/R = " << (p / R).transpose();
+  }
+}
+
+TEST(Cylinder, ObliquePolarisationMatchesQuadrature) {
+  const double R = 0.02, L = 0.05;
+  const CylinderMagnet c(R, L, Vec3(0.3, -0.8, 0.5));
+  for (const Vec3& p : probe_points(R, 0.5 * L)) {
+    EXPECT_TRUE(close(c.field(p), cylinder_field_quadrature(c, p), kQuadratureTol, 1e-12)) << (p / R).transpose();
   }
 }
 

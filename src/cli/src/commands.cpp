@@ -10,6 +10,7 @@
 #include "magvine/core/units.hpp"
 #include "magvine/magnetics/field_model.hpp"
 #include "magvine/scene/field_map.hpp"
+#include "magvine/scene/field_study.hpp"
 #include "magvine/scene/magnets_file.hpp"
 #include "magvine/scene/points_csv.hpp"
 
@@ -72,6 +73,22 @@ int run_field_map(const FieldMapArgs& args) {
   scene::write_field_map(model, spec, csv, json);
   std::cerr << "magvine field-map: " << spec.resolution << "x" << spec.resolution << " samples in plane " << spec.plane
             << " -> " << csv.string() << ", " << json.string() << '\n';
+  return 0;
+}
+
+int run_study_field_models(const StudyArgs& args) {
+  const magnetics::FieldModel model = scene::load_magnets_file(args.magnets);
+  const magnetics::CylinderMagnet* magnet = nullptr;
+  for (const auto& s : model.sources) {
+    if ((magnet = std::get_if<magnetics::CylinderMagnet>(&s))) break;
+  }
+  if (!magnet) throw InputError(args.magnets, 0, "magnets", "contains no cylinder (with model: exact) to study");
+  std::error_code ec;
+  std::filesystem::create_directories(args.out_dir, ec);
+  if (ec) throw InputError(args.out_dir, 0, "", "cannot create output folder: " + ec.message());
+  scene::run_field_model_study(*magnet, scene::FieldStudySpec{}, args.out_dir);
+  std::cerr << "magvine study field-models: " << args.out_dir << "/field_models.csv, " << args.out_dir
+            << "/field_model_distance.csv\n";
   return 0;
 }
 

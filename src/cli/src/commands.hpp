@@ -26,4 +26,10 @@ struct FieldMapArgs {
 };
 int run_field_map(const FieldMapArgs& args);
 
+struct StudyArgs {
+  std::string magnets;  // the first cylinder in it is studied
+  std::string out_dir;
+};
+int run_study_field_models(const StudyArgs& args);
+
 }  // namespace magvine::cli

@@ -40,6 +40,14 @@ int main(int argc, char** argv) {
   map_cmd->add_option("--resolution", map.resolution, "samples per side")->capture_default_str();
   map_cmd->add_option("--out", map.out_dir, "output folder (field_map.csv, field_map.json)")->required();
 
+  magvine::cli::StudyArgs study;
+  auto* study_cmd = app.add_subcommand("study", "convergence studies: error against runtime");
+  study_cmd->require_subcommand(1);
+  auto* study_fields = study_cmd->add_subcommand(
+      "field-models", "exact cylinder vs dipole vs surface quadrature, against a fine quadrature (CSV)");
+  study_fields->add_option("--magnets", study.magnets, "magnets file; its first cylinder is studied")->required();
+  study_fields->add_option("--out", study.out_dir, "output folder")->required();
+
   try {
     app.parse(argc, argv);
   } catch (const CLI::CallForHelp& e) {
@@ -56,6 +64,7 @@ int main(int argc, char** argv) {
   try {
     if (field_cmd->parsed()) return magvine::cli::run_field(field);
     if (map_cmd->parsed()) return magvine::cli::run_field_map(map);
+    if (study_fields->parsed()) return magvine::cli::run_study_field_models(study);
   } catch (const magvine::InputError& e) {
     std::cerr << "magvine: " << e.what() << '\n';
     return static_cast<int>(ExitCode::kBadInput);
