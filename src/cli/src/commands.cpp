@@ -47,21 +47,22 @@ int run_field_map(const FieldMapArgs& args) {
   spec.half_width = args.extent * s;
   spec.resolution = args.resolution;
   {
+    const InputError bad("--center", 0, "", "must be three numbers x,y,z (got '" + args.center + "')");
     std::stringstream ss(args.center);
     std::string item;
     int i = 0;
     while (std::getline(ss, item, ',')) {
-      if (i >= 3) break;
+      if (i >= 3) throw bad;
       try {
         std::size_t used = 0;
         spec.center[i] = std::stod(item, &used) * s;
-        if (used != item.size() || !std::isfinite(spec.center[i])) throw std::invalid_argument(item);
-      } catch (const std::exception&) {
-        throw InputError("--center", 0, "", "must be three numbers x,y,z (got '" + args.center + "')");
+        if (used != item.size() || !std::isfinite(spec.center[i])) throw bad;
+      } catch (const std::logic_error&) {  // std::stod: invalid_argument, out_of_range
+        throw bad;
       }
       ++i;
     }
-    if (i != 3) throw InputError("--center", 0, "", "must be three numbers x,y,z (got '" + args.center + "')");
+    if (i != 3) throw bad;
   }
   const magnetics::FieldModel model = scene::load_magnets_file(args.magnets);
   const std::filesystem::path dir(args.out_dir);

@@ -1,6 +1,7 @@
 #include "magvine/scene/field_map.hpp"
 
 #include <algorithm>
+#include <cmath>
 #include <nlohmann/json.hpp>
 #include <vector>
 

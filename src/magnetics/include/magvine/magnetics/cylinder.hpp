@@ -15,8 +15,8 @@
 ///    logarithmically, the gradient like 1/distance) — as Magpylib does;
 ///  - on the side wall or an end face exactly: the mean of the inside and outside limits;
 ///  - inside: B includes J (B = μ0(H + M)); G is the gradient of B;
-///  - beyond kFarFieldDiameters diameters from the centre: the point dipole m = J·V/μ0 (relative error
-///    below 2e-7 there, where the closed forms start to lose digits to cancellation).
+///  - beyond kFarFieldDiameters diameters from the centre: the point dipole m = J·V/μ0, whose error there is
+///    ~1e-7 while the closed forms have lost about as much to cancellation (the switch jumps by ~3e-7).
 
 #include "magvine/magnetics/field_sample.hpp"
 
