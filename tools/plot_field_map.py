@@ -157,11 +157,11 @@ def main():
     bu, bv = comp[meta["plane"][0]], comp[meta["plane"][1]]
     fig, (ax_b, ax_g) = plt.subplots(1, 2, figsize=(12, 5.2), constrained_layout=True)
     u_mm, v_mm = panel(fig, ax_b, meta, g, 1e3 * g["B"], B_RANGE, B_LEVELS,
-                       "viridis", r"$|\mathbf{B}|$ [mT]", "%g mT", 155)
+                       "viridis", r"$|\mathbf{B}|$ [mT]", "mT", 100)
     ax_b.streamplot(u_mm, v_mm, bu, bv, density=1.3, color=(1, 1, 1, 0.55),
                     linewidth=0.6, arrowsize=0.7, zorder=4)
     panel(fig, ax_g, meta, g, 1e3 * g["gradB"], G_RANGE, G_LEVELS,
-          "magma", r"$\|\nabla\mathbf{B}\|_F$ [mT/m]", "%g mT/m", 40)
+          "magma", r"$\|\nabla\mathbf{B}\|_F$ [mT/m]", "mT/m", 70)
     ax_b.set_title(r"Field magnitude $|\mathbf{B}|$")
     ax_g.set_title(r"Gradient magnitude $\|\nabla\mathbf{B}\|_F$")
     if args.title:

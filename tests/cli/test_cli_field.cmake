@@ -77,4 +77,19 @@ execute_process(COMMAND ${MAGVINE} field --magnets ${WORK}/none.yaml --points ${
 expect_rc(${rc} 2 "missing files")
 execute_process(COMMAND ${MAGVINE} field --bogus RESULT_VARIABLE rc ERROR_QUIET)
 expect_rc(${rc} 2 "unknown option")
+# 4. field-map: a 5 × 5 grid writes 25 rows and the JSON; a bad plane is exit 2 with nothing written.
+execute_process(COMMAND ${MAGVINE} field-map --magnets ${SRC}/assets/magnets/epm_n52.yaml --resolution 5
+                        --out ${WORK}/map RESULT_VARIABLE rc ERROR_VARIABLE err)
+expect_rc(${rc} 0 "field-map")
+file(STRINGS ${WORK}/map/field_map.csv lines)
+list(LENGTH lines n)
+if(NOT n EQUAL 26 OR NOT EXISTS ${WORK}/map/field_map.json)
+  message(FATAL_ERROR "field-map wrote ${n} lines")
+endif()
+execute_process(COMMAND ${MAGVINE} field-map --magnets ${SRC}/assets/magnets/epm_n52.yaml --plane xx
+                        --out ${WORK}/badmap RESULT_VARIABLE rc ERROR_VARIABLE err)
+expect_rc(${rc} 2 "field-map bad plane")
+if(EXISTS ${WORK}/badmap)
+  message(FATAL_ERROR "field-map created its output folder despite a bad plane")
+endif()
 message(STATUS "cli_field: all checks passed")

@@ -66,9 +66,6 @@ int run_field_map(const FieldMapArgs& args) {
   }
   const magnetics::FieldModel model = scene::load_magnets_file(args.magnets);
   const std::filesystem::path dir(args.out_dir);
-  std::error_code ec;
-  std::filesystem::create_directories(dir, ec);
-  if (ec) throw InputError(args.out_dir, 0, "", "cannot create output folder: " + ec.message());
   const auto csv = dir / "field_map.csv";
   const auto json = dir / "field_map.json";
   scene::write_field_map(model, spec, csv, json);

@@ -53,6 +53,11 @@ void write_field_map(const magnetics::FieldModel& model, const FieldMapSpec& spe
   }
   if (!(spec.half_width > 0.0) || !std::isfinite(spec.half_width)) throw InputError("--extent", 0, "", "must be > 0");
   if (spec.resolution < 2 || spec.resolution > 4001) throw InputError("--resolution", 0, "", "must be in 2..4001");
+  {
+    std::error_code ec;
+    std::filesystem::create_directories(csv.parent_path(), ec);
+    if (ec) throw InputError(csv.parent_path().string(), 0, "", "cannot create output folder: " + ec.message());
+  }
   const int iu = axis_index(spec.plane[0]);
   const int iv = axis_index(spec.plane[1]);
 

@@ -19,7 +19,7 @@ struct FieldMapSpec {
 ///  - `csv`: columns u,v,x,y,z,Bx,By,Bz,B,gradB in SI (gradB = Frobenius norm of G [T/m]);
 ///  - `json`: the plane, the grid and, per source, its kind, name, projected outline and magnetisation
 ///    direction in plane coordinates (for drawing).
-/// Both are written atomically. Throws InputError for a bad spec.
+/// Both are written atomically; the folder is created once the spec is valid. Throws InputError otherwise.
 void write_field_map(const magnetics::FieldModel& model, const FieldMapSpec& spec, const std::filesystem::path& csv,
                      const std::filesystem::path& json);
 
