@@ -92,4 +92,17 @@ expect_rc(${rc} 2 "field-map bad plane")
 if(EXISTS ${WORK}/badmap)
   message(FATAL_ERROR "field-map created its output folder despite a bad plane")
 endif()
+# 5. The plot of a field map (the demo's second step): a PNG; a missing input is exit 2 with no PNG.
+execute_process(COMMAND ${PYTHON} ${SRC}/tools/plot_field_map.py ${WORK}/map/field_map.csv --out ${WORK}/map.png
+                RESULT_VARIABLE rc ERROR_VARIABLE err)
+expect_rc(${rc} 0 "plot_field_map: ${err}")
+if(NOT EXISTS ${WORK}/map.png)
+  message(FATAL_ERROR "plot_field_map wrote no PNG")
+endif()
+execute_process(COMMAND ${PYTHON} ${SRC}/tools/plot_field_map.py ${WORK}/none.csv --out ${WORK}/none.png
+                RESULT_VARIABLE rc ERROR_QUIET)
+expect_rc(${rc} 2 "plot_field_map missing input")
+if(EXISTS ${WORK}/none.png)
+  message(FATAL_ERROR "plot_field_map left a PNG after a failure")
+endif()
 message(STATUS "cli_field: all checks passed")
