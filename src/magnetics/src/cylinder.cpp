@@ -165,11 +165,10 @@ CylinderMagnet::CylinderMagnet(double radius, double length, const Vec3& polaris
   m_sin_t = m_j_transverse > 0.0 ? polarisation.y() / m_j_transverse : 0.0;
   const double far = kFarFieldDiameters * 2.0 * std::max(radius, m_half_length);
   m_far_radius2 = far * far;
+  m_dipole = m_j * volume() / kMu0;
 }
 
 double CylinderMagnet::volume() const { return kPi * m_radius * m_radius * 2.0 * m_half_length; }
-
-Vec3 CylinderMagnet::dipole_moment() const { return m_j * volume() / kMu0; }
 
 Vec3 CylinderMagnet::field(const Vec3& p) const { return evaluate<false>(p).b; }
 

@@ -43,7 +43,7 @@ class CylinderMagnet {
   /// Volume π R² L [m³].
   double volume() const;
   /// Equivalent dipole moment J·V/μ0 [A·m²], local frame.
-  Vec3 dipole_moment() const;
+  const Vec3& dipole_moment() const { return m_dipole; }
 
   /// B at a local point [T].
   Vec3 field(const Vec3& p) const;
@@ -61,6 +61,7 @@ class CylinderMagnet {
   double m_j_transverse;   // |(J_x, J_y)| [T]
   double m_cos_t, m_sin_t; // direction of the transverse part in the local xy plane
   double m_far_radius2;    // squared switch distance to the dipole model [m²]
+  Vec3 m_dipole;           // J·V/μ0 [A·m²], local frame
 };
 
 }  // namespace magvine::magnetics
