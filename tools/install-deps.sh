@@ -60,5 +60,10 @@ done
 if [[ $needs_update -eq 1 ]]; then
   "${sudo[@]}" apt-get update -q
 fi
-"${sudo[@]}" apt-get install -y -q --no-install-recommends "${missing[@]}"
+if ! "${sudo[@]}" apt-get install -y -q --no-install-recommends "${missing[@]}"; then
+  # Stale package lists (files moved on the mirror): refresh once and retry.
+  [[ $needs_update -eq 1 ]] && exit 1
+  "${sudo[@]}" apt-get update -q
+  "${sudo[@]}" apt-get install -y -q --no-install-recommends "${missing[@]}"
+fi
 echo "install-deps: installed ${#missing[@]} packages"
