@@ -81,9 +81,7 @@ int run_study_field_models(const StudyArgs& args) {
     if ((magnet = std::get_if<magnetics::CylinderMagnet>(&s))) break;
   }
   if (!magnet) throw InputError(args.magnets, 0, "magnets", "contains no cylinder (with model: exact) to study");
-  std::error_code ec;
-  std::filesystem::create_directories(args.out_dir, ec);
-  if (ec) throw InputError(args.out_dir, 0, "", "cannot create output folder: " + ec.message());
+  create_output_directory(args.out_dir);
   scene::run_field_model_study(*magnet, scene::FieldStudySpec{}, args.out_dir);
   std::cerr << "magvine study field-models: " << args.out_dir << "/field_models.csv, " << args.out_dir
             << "/field_model_distance.csv\n";

@@ -42,6 +42,13 @@ void AtomicFile::commit() {
   m_committed = true;
 }
 
+void create_output_directory(const std::filesystem::path& dir) {
+  if (dir.empty()) return;
+  std::error_code ec;
+  std::filesystem::create_directories(dir, ec);
+  if (ec) throw InputError(dir.string(), 0, "", "cannot create output folder: " + ec.message());
+}
+
 void write_file_atomically(const std::filesystem::path& target, const std::string& content) {
   AtomicFile f(target);
   f.stream() << content;

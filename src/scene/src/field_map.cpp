@@ -53,11 +53,7 @@ void write_field_map(const magnetics::FieldModel& model, const FieldMapSpec& spe
   }
   if (!(spec.half_width > 0.0) || !std::isfinite(spec.half_width)) throw InputError("--extent", 0, "", "must be > 0");
   if (spec.resolution < 2 || spec.resolution > 4001) throw InputError("--resolution", 0, "", "must be in 2..4001");
-  {
-    std::error_code ec;
-    std::filesystem::create_directories(csv.parent_path(), ec);
-    if (ec) throw InputError(csv.parent_path().string(), 0, "", "cannot create output folder: " + ec.message());
-  }
+  create_output_directory(csv.parent_path());
   const int iu = axis_index(spec.plane[0]);
   const int iv = axis_index(spec.plane[1]);
 
@@ -84,11 +80,7 @@ void write_field_map(const magnetics::FieldModel& model, const FieldMapSpec& spe
     const double values[10] = {p[iu] - spec.center[iu], p[iv] - spec.center[iv], p.x(), p.y(), p.z(),
                                samples[k].b.x(), samples[k].b.y(), samples[k].b.z(), samples[k].b.norm(),
                                samples[k].g.norm()};
-    for (int i = 0; i < 10; ++i) {
-      if (i) row += ',';
-      append_number(row, values[i]);
-    }
-    row += '\n';
+    append_csv_row(row, values);
     out_csv.stream() << row;
   }
 

@@ -97,6 +97,14 @@ void append_number(std::string& s, double v) {
   s.append(buf, res.ptr);
 }
 
+void append_csv_row(std::string& s, std::span<const double> values) {
+  for (std::size_t i = 0; i < values.size(); ++i) {
+    if (i) s += ',';
+    append_number(s, values[i]);
+  }
+  s += '\n';
+}
+
 std::string field_csv_header() { return "x,y,z,Bx,By,Bz,G11,G12,G13,G21,G22,G23,G31,G32,G33"; }
 
 void write_field_csv(std::ostream& out, std::span<const Vec3> points, std::span<const magnetics::FieldSample> samples) {
@@ -108,11 +116,7 @@ void write_field_csv(std::ostream& out, std::span<const Vec3> points, std::span<
     const double values[15] = {points[k].x(), points[k].y(), points[k].z(), s.b.x(), s.b.y(), s.b.z(),
                                s.g(0, 0), s.g(0, 1), s.g(0, 2), s.g(1, 0), s.g(1, 1), s.g(1, 2),
                                s.g(2, 0), s.g(2, 1), s.g(2, 2)};
-    for (int i = 0; i < 15; ++i) {
-      if (i) row += ',';
-      append_number(row, values[i]);
-    }
-    row += '\n';
+    append_csv_row(row, values);
     out << row;
   }
 }

@@ -29,6 +29,9 @@ class AtomicFile {
   bool m_committed = false;
 };
 
+/// Creates `dir` and its parents if missing; InputError naming the folder if that fails.
+void create_output_directory(const std::filesystem::path& dir);
+
 /// Writes `content` to `target` atomically.
 void write_file_atomically(const std::filesystem::path& target, const std::string& content);
 

@@ -4,6 +4,7 @@
 /// shares no code with the closed forms. Writes CSVs for tools/plot_field_models.py.
 
 #include <filesystem>
+#include <vector>
 
 #include "magvine/magnetics/cylinder.hpp"
 

@@ -29,5 +29,7 @@ void write_field_csv(std::ostream& out, std::span<const Vec3> points, std::span<
 
 /// Appends the shortest round-trip decimal form of v.
 void append_number(std::string& s, double v);
+/// Appends `values` comma-separated (shortest round-trip form) and a newline.
+void append_csv_row(std::string& s, std::span<const double> values);
 
 }  // namespace magvine::scene
