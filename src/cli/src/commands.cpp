@@ -5,6 +5,8 @@
 #include <iostream>
 #include <sstream>
 
+#include "magvine/anatomy/mesh_io.hpp"
+#include "magvine/anatomy/mesh_report.hpp"
 #include "magvine/core/atomic_file.hpp"
 #include "magvine/core/error.hpp"
 #include "magvine/core/units.hpp"
@@ -39,9 +41,7 @@ int run_field(const FieldArgs& args) {
 }
 
 int run_field_map(const FieldMapArgs& args) {
-  const auto unit = parse_length_unit(args.units);
-  if (!unit) throw InputError("--units", 0, "", "must be mm, cm or m (got '" + args.units + "')");
-  const double s = metres_per(*unit);
+  const double s = metres_per(parse_units_option(args.units));
   scene::FieldMapSpec spec;
   spec.plane = args.plane;
   spec.half_width = args.extent * s;
@@ -85,6 +85,22 @@ int run_study_field_models(const StudyArgs& args) {
   scene::run_field_model_study(*magnet, scene::FieldStudySpec{}, args.out_dir);
   std::cerr << "magvine study field-models: " << args.out_dir << "/field_models.csv, " << args.out_dir
             << "/field_model_distance.csv\n";
+  return 0;
+}
+
+LengthUnit parse_units_option(const std::string& text) {
+  const auto unit = parse_length_unit(text);
+  if (!unit) throw InputError("--units", 0, "", "must be mm, cm or m (got '" + text + "')");
+  return *unit;
+}
+
+int run_mesh_check(const MeshCheckArgs& args) {
+  const LengthUnit units = parse_units_option(args.units);
+  const anatomy::ImportedMesh imported = anatomy::import_mesh(args.file, {.units = units});
+  const anatomy::MeshReport report = anatomy::analyse_mesh(imported.mesh);
+  const std::string json = anatomy::report_json(args.file, imported, report, units);
+  if (!args.out.empty()) write_file_atomically(args.out, json);
+  std::cout << (args.json ? json : anatomy::report_summary(args.file, imported, report));
   return 0;
 }
 

@@ -5,8 +5,12 @@
 #include <string>
 
 #include "magvine/core/eigen_types.hpp"
+#include "magvine/core/units.hpp"
 
 namespace magvine::cli {
+
+/// Parses a --units value (mm | cm | m); InputError naming the option otherwise.
+LengthUnit parse_units_option(const std::string& text);
 
 struct FieldArgs {
   std::string magnets;
@@ -31,5 +35,13 @@ struct StudyArgs {
   std::string out_dir;
 };
 int run_study_field_models(const StudyArgs& args);
+
+struct MeshCheckArgs {
+  std::string file;
+  std::string units = "mm";
+  bool json = false;     // JSON on stdout instead of the summary
+  std::string out;       // also write the JSON report here (atomically)
+};
+int run_mesh_check(const MeshCheckArgs& args);
 
 }  // namespace magvine::cli

@@ -48,6 +48,17 @@ int main(int argc, char** argv) {
   study_fields->add_option("--magnets", study.magnets, "magnets file; its first cylinder is studied")->required();
   study_fields->add_option("--out", study.out_dir, "output folder")->required();
 
+  magvine::cli::MeshCheckArgs mesh_check;
+  auto* mesh_cmd = app.add_subcommand("mesh", "anatomy mesh tools");
+  mesh_cmd->require_subcommand(1);
+  auto* mesh_check_cmd = mesh_cmd->add_subcommand(
+      "check", "mesh diagnostics: counts, size, watertightness, genus, openings; exit 0 usable, 2 unusable");
+  mesh_check_cmd->add_option("file", mesh_check.file, "mesh file (STL, OBJ, PLY, glTF/GLB, OFF, ...)")->required();
+  mesh_check_cmd->add_option("--units", mesh_check.units, "unit of the file's coordinates: mm | cm | m")
+      ->capture_default_str();
+  mesh_check_cmd->add_flag("--json", mesh_check.json, "print the JSON report instead of the summary");
+  mesh_check_cmd->add_option("--out", mesh_check.out, "also write the JSON report to this file");
+
   try {
     app.parse(argc, argv);
   } catch (const CLI::CallForHelp& e) {
@@ -65,6 +76,7 @@ int main(int argc, char** argv) {
     if (field_cmd->parsed()) return magvine::cli::run_field(field);
     if (map_cmd->parsed()) return magvine::cli::run_field_map(map);
     if (study_fields->parsed()) return magvine::cli::run_study_field_models(study);
+    if (mesh_check_cmd->parsed()) return magvine::cli::run_mesh_check(mesh_check);
   } catch (const magvine::InputError& e) {
     std::cerr << "magvine: " << e.what() << '\n';
     return static_cast<int>(ExitCode::kBadInput);

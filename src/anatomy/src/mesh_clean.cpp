@@ -1,0 +1,136 @@
+#include "magvine/anatomy/mesh_clean.hpp"
+
+#include <algorithm>
+#include <cmath>
+#include <cstdint>
+#include <limits>
+#include <vector>
+
+namespace magvine::anatomy {
+namespace {
+
+constexpr std::uint32_t kEmpty = std::numeric_limits<std::uint32_t>::max();
+
+// Open-addressing hash of quantised positions → new vertex index. Faster than std::unordered_map by a wide
+// margin on millions of STL corners, and the table is sized once.
+class CellTable {
+ public:
+  explicit CellTable(std::size_t expected) {
+    std::size_t size = 16;
+    while (size < 2 * expected) size *= 2;
+    m_keys.resize(size);
+    m_values.assign(size, kEmpty);
+    m_mask = size - 1;
+  }
+  // Returns the stored value for `key`, or stores `value` and returns it.
+  std::uint32_t find_or_insert(const std::array<std::int64_t, 3>& key, std::uint32_t value) {
+    std::uint64_t h = static_cast<std::uint64_t>(key[0]) * 0x9E3779B97F4A7C15ull;
+    h ^= static_cast<std::uint64_t>(key[1]) * 0xC2B2AE3D27D4EB4Full + (h << 6) + (h >> 2);
+    h ^= static_cast<std::uint64_t>(key[2]) * 0x165667B19E3779F9ull + (h << 6) + (h >> 2);
+    for (std::size_t i = h & m_mask;; i = (i + 1) & m_mask) {
+      if (m_values[i] == kEmpty) {
+        m_keys[i] = key;
+        m_values[i] = value;
+        return value;
+      }
+      if (m_keys[i] == key) return m_values[i];
+    }
+  }
+
+ private:
+  std::vector<std::array<std::int64_t, 3>> m_keys;
+  std::vector<std::uint32_t> m_values;
+  std::size_t m_mask = 0;
+};
+
+}  // namespace
+
+CleanStats weld_and_clean(TriangleMesh& mesh, double tolerance) {
+  CleanStats stats;
+  if (mesh.triangles.empty()) {
+    stats.unused_removed = mesh.vertices.size();
+    mesh.vertices.clear();
+    return stats;
+  }
+  const Aabb box = bounding_box(mesh);
+  if (!(tolerance > 0.0)) tolerance = kWeldRelativeTolerance * std::max((box.max - box.min).norm(), 1e-300);
+  const double inv = 1.0 / tolerance;
+
+  // Weld: visit corners in triangle order, so new vertex ids follow first use and unused vertices vanish.
+  CellTable table(mesh.vertices.size());
+  std::vector<std::uint32_t> remap(mesh.vertices.size(), kEmpty);
+  std::vector<Vec3> welded;
+  welded.reserve(mesh.vertices.size());
+  for (Triangle& tri : mesh.triangles) {
+    for (std::uint32_t& v : tri) {
+      if (remap[v] == kEmpty) {
+        const Vec3& p = mesh.vertices[v];
+        const std::array<std::int64_t, 3> key{std::llround((p.x() - box.min.x()) * inv),
+                                              std::llround((p.y() - box.min.y()) * inv),
+                                              std::llround((p.z() - box.min.z()) * inv)};
+        const auto next = static_cast<std::uint32_t>(welded.size());
+        remap[v] = table.find_or_insert(key, next);
+        if (remap[v] == next) welded.push_back(p);
+      }
+      v = remap[v];
+    }
+  }
+  std::size_t used = 0;
+  for (const std::uint32_t r : remap) used += r != kEmpty ? 1 : 0;
+  stats.unused_removed = mesh.vertices.size() - used;
+  stats.vertices_welded = used - welded.size();
+  mesh.vertices = std::move(welded);
+
+  // Degenerate triangles: a repeated vertex, or exactly zero area (collinear corners).
+  std::vector<Triangle> kept;
+  kept.reserve(mesh.triangles.size());
+  for (std::size_t t = 0; t < mesh.triangles.size(); ++t) {
+    const Triangle& tri = mesh.triangles[t];
+    const bool repeated = tri[0] == tri[1] || tri[1] == tri[2] || tri[0] == tri[2];
+    if (repeated || area_vector(mesh, t).squaredNorm() == 0.0) {
+      ++stats.degenerate_removed;
+    } else {
+      kept.push_back(tri);
+    }
+  }
+
+  // Duplicates: the same vertex set as an earlier triangle, whatever the winding. Sort (sorted triple, index)
+  // and keep the first of each run.
+  std::vector<std::pair<Triangle, std::uint32_t>> keys(kept.size());
+  for (std::size_t t = 0; t < kept.size(); ++t) {
+    Triangle s = kept[t];
+    std::sort(s.begin(), s.end());
+    keys[t] = {s, static_cast<std::uint32_t>(t)};
+  }
+  std::sort(keys.begin(), keys.end());
+  std::vector<char> drop(kept.size(), 0);
+  for (std::size_t i = 1; i < keys.size(); ++i) {
+    if (keys[i].first == keys[i - 1].first) {
+      drop[keys[i].second] = 1;
+      ++stats.duplicate_removed;
+    }
+  }
+  mesh.triangles.clear();
+  for (std::size_t t = 0; t < kept.size(); ++t) {
+    if (drop[t] == 0) mesh.triangles.push_back(kept[t]);
+  }
+
+  // Removing triangles can orphan vertices: compact once more.
+  std::vector<std::uint32_t> compact(mesh.vertices.size(), kEmpty);
+  std::vector<Vec3> vertices;
+  vertices.reserve(mesh.vertices.size());
+  for (Triangle& tri : mesh.triangles) {
+    for (std::uint32_t& v : tri) {
+      if (compact[v] == kEmpty) {
+        compact[v] = static_cast<std::uint32_t>(vertices.size());
+        vertices.push_back(mesh.vertices[v]);
+      }
+      v = compact[v];
+    }
+  }
+  stats.unused_removed += mesh.vertices.size() - vertices.size();
+  mesh.vertices = std::move(vertices);
+  return stats;
+}
+
+}  // namespace magvine::anatomy
