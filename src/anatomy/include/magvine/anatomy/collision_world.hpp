@@ -1,0 +1,133 @@
+#pragma once
+/// Contact, ray and inside/outside queries against a static triangle mesh (the airway wall), backed by Bullet's
+/// quantized BVH and its triangle info map (edge angles) in double precision. Bullet stays inside the .cpp.
+///
+/// Contact model (one-sided wall). The mesh is oriented with outward normals (into tissue for an airway lumen).
+/// Bodies live on one side of it, the *free side*: by default inside the lumen, against the normals. Every query
+/// body is a sphere (centre c, radius r) or a capsule (segment a–b, radius r) and gets contacts
+///   point  — on the wall [m],
+///   normal — unit, from the wall toward the body: the direction that pushes the body back to the free side,
+///   depth  — r − normal·(x − point) > 0, the penetration of the body along `normal` [m], where x is the body's
+///            axis point that produced the contact,
+/// built per triangle t (with free-side unit normal n_t) from three feature kinds:
+///  * Face: the axis point x whose foot lies inside t (centre for a sphere; for a capsule the point of the segment
+///    part over t that lies lowest along n_t). normal = n_t, point = foot of x, depth = r − n_t·(x − point). This
+///    holds on both sides of t's plane, so a body whose axis has crossed the wall is still pushed back to the free
+///    side (depth > r then). Behind the wall by h, the prism over t widens by h·tan(bend) across each valley edge
+///    (bend capped at 60°), so an axis point that crossed next to a valley edge or vertex, in the gap between the
+///    faces' prisms, is still pushed back. A body lying wholly behind the wall (|n_t·(x − point)| ≥ r) has no
+///    contact: use `contains` to detect a body that has left the lumen.
+///  * Ridge edge: an edge where the wall bends away from the free side (it juts into the free space; a carina seen
+///    from the lumen). The closest point q on the edge to the axis, when the direction q → x lies in the edge's
+///    normal cone (the arc from n_t to the neighbour's normal, angle taken from Bullet's btTriangleInfoMap):
+///    normal = that direction, depth = r − |x − q|. Outside the cone a face is the nearest feature and reports it.
+///  * Boundary edge (an open mesh's rim): like a ridge whose arc runs from n_t to the in-plane direction m leaving t;
+///    behind the rim's plane the normal is m (a knife edge).
+/// Flat edges, valley edges (the wall bends toward the free side, e.g. everywhere on the inside of a tube) and
+/// vertices inside smooth patches never give contacts of their own: the body's nearest point there always lies on a
+/// face (its foot is inside some triangle), so those faces report it with their own normal. This is what removes
+/// the snagging edge/vertex normals of a finely tessellated smooth wall. Feet exactly on a shared edge or vertex
+/// count for every triangle that shares it (inclusive test, relative tolerance 1e-9 of the triangle size).
+/// Vertex contacts (the end of a ridge edge) use that edge's cone, so a spike tip gets the nearest edge's normal.
+/// Merging: contacts whose normals differ by less than `merge_angle` are one contact, the deepest; when more distinct
+/// contacts exist than the caller's span holds, the deepest are kept. Results are sorted deepest first.
+///
+/// Model: immutable after construction, queries are const, allocation-free and safe to call from several threads at
+/// once (each query keeps its scratch on the stack, so there is no workspace to pass).
+
+#include <cstddef>
+#include <cstdint>
+#include <memory>
+#include <optional>
+#include <span>
+
+#include "magvine/anatomy/triangle_mesh.hpp"
+#include "magvine/core/units.hpp"
+
+namespace magvine::anatomy {
+
+/// Which side of the outward-oriented surface the query bodies live on.
+enum class FreeSide {
+  kInside,   ///< against the normals: inside a closed lumen (airways; the default)
+  kOutside,  ///< along the normals: around obstacles seen from outside
+};
+
+/// Construction options of a CollisionWorld.
+struct CollisionWorldOptions {
+  FreeSide free_side = FreeSide::kInside;
+  /// Contacts whose normals differ by less than this angle are merged into the deepest one [rad]. A sphere pressed
+  /// into a finely tessellated smooth wall straddles several faces a few degrees apart (a 64-gon tube: 5.6°) and
+  /// would otherwise get one contact per face, multiplying the wall force; 20° merges those and keeps genuine
+  /// corners (a cap meeting the wall, a carina) apart. 0 merges only identical normals. Must be in [0, π/2).
+  double merge_angle = 20.0 * kDegToRad;
+};
+
+/// One contact between a query body and the wall (see the file comment for the exact semantics).
+struct Contact {
+  Vec3 point = Vec3::Zero();    ///< contact point on the wall, world frame [m]
+  Vec3 normal = Vec3::UnitZ();  ///< unit normal from the wall toward the body (push-out direction), world frame
+  double depth = 0.0;           ///< penetration along `normal`, > 0 [m]
+  std::uint32_t triangle = 0;   ///< index of the triangle that produced it, into `mesh().triangles`
+};
+
+/// First intersection of a ray with the wall.
+struct RayHit {
+  double distance = 0.0;        ///< from the ray origin along the unit direction [m]
+  Vec3 point = Vec3::Zero();    ///< hit point, world frame [m]
+  Vec3 normal = Vec3::UnitZ();  ///< unit face normal turned toward the ray origin (normal·direction ≤ 0)
+  std::uint32_t triangle = 0;   ///< index into `mesh().triangles`
+  bool front_face = false;      ///< the ray arrived on the side the triangle's outward normal points to
+};
+
+/// What construction found in the mesh.
+struct CollisionWorldStats {
+  std::size_t triangles = 0;             ///< triangles in the mesh
+  std::size_t degenerate_triangles = 0;  ///< zero-area triangles (no normal): ignored by every query
+  std::size_t ridge_edges = 0;           ///< triangle edges that bend away from the free side (counted per side)
+  std::size_t boundary_edges = 0;        ///< triangle edges without a neighbour (open mesh rims)
+  double build_seconds = 0.0;            ///< wall time of BVH + triangle info map + tables [s]
+};
+
+/// Static collision geometry of one mesh [m]. Keeps its own copy of the mesh. Movable, not copyable.
+class CollisionWorld {
+ public:
+  /// Builds the quantized BVH and the edge tables. Throws InputError for an empty mesh, non-finite vertices,
+  /// out-of-range indices, more than 2^21 triangles (Bullet's per-part limit) or a bad `merge_angle`.
+  explicit CollisionWorld(const TriangleMesh& mesh, const CollisionWorldOptions& options = {});
+  ~CollisionWorld();
+  CollisionWorld(CollisionWorld&&) noexcept;
+  CollisionWorld& operator=(CollisionWorld&&) noexcept;
+  CollisionWorld(const CollisionWorld&) = delete;
+  CollisionWorld& operator=(const CollisionWorld&) = delete;
+
+  /// Contacts of the sphere (centre [m], radius > 0 [m]) with the wall, written to `out` deepest first.
+  /// Returns how many were written (≤ out.size()). Allocation-free.
+  std::size_t sphere_contacts(const Vec3& centre, double radius, std::span<Contact> out) const;
+
+  /// Contacts of the capsule around segment a–b [m] with radius > 0 [m]; a == b is a sphere. As sphere_contacts.
+  std::size_t capsule_contacts(const Vec3& a, const Vec3& b, double radius, std::span<Contact> out) const;
+
+  /// First hit of the ray origin + s·direction, 0 ≤ s ≤ max_distance [m], `direction` a unit vector; nullopt when
+  /// it hits nothing. Both faces count. A ray through a shared edge or vertex hits (inclusive test). Allocation-free.
+  std::optional<RayHit> ray_cast(const Vec3& origin, const Vec3& direction, double max_distance) const;
+
+  /// Whether `point` [m] is inside the volume the mesh encloses (the lumen of a closed airway), by ray parity: rays
+  /// along `parity_directions()` in order until three give an unambiguous count, then the majority of those.
+  /// A ray is ambiguous when it passes within 1e-9 (relative) of an edge or vertex, grazes a face or starts on
+  /// the surface. Meaningful for closed meshes only; points on the surface may go either way. Allocation-free.
+  bool contains(const Vec3& point) const;
+
+  /// The fixed, deliberately irregular unit directions `contains` casts, in order.
+  static std::span<const Vec3> parity_directions();
+
+  /// The world's own copy of the mesh [m].
+  const TriangleMesh& mesh() const;
+  const CollisionWorldOptions& options() const;
+  const CollisionWorldStats& stats() const;
+
+ private:
+  struct Impl;
+  std::unique_ptr<const Impl> m_impl;
+};
+
+}  // namespace magvine::anatomy

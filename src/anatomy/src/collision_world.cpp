@@ -1,0 +1,623 @@
+#include "magvine/anatomy/collision_world.hpp"
+
+#include <BulletCollision/CollisionDispatch/btInternalEdgeUtility.h>
+#include <BulletCollision/CollisionShapes/btTriangleInfoMap.h>
+#include <btBulletCollisionCommon.h>
+
+#include <algorithm>
+#include <array>
+#include <chrono>
+#include <cmath>
+#include <limits>
+#include <string>
+#include <utility>
+#include <vector>
+
+#include "magvine/core/check.hpp"
+#include "magvine/core/error.hpp"
+#include "magvine/core/units.hpp"
+
+namespace magvine::anatomy {
+namespace {
+
+static_assert(sizeof(Vec3) == 3 * sizeof(double), "Bullet reads the vertex array in place as packed doubles");
+static_assert(sizeof(Triangle) == 3 * sizeof(std::uint32_t), "Bullet reads the index array in place");
+static_assert(sizeof(btScalar) == sizeof(double), "magvine links Bullet's double-precision build only");
+
+/// Bullet packs (part, triangle) into one int with 10 bits for the part: 2^21 triangles per part.
+constexpr std::size_t kMaxTriangles = std::size_t{1} << (31 - MAX_NUM_PARTS_IN_BITS);
+
+/// Inclusive face test: a foot counts as inside a triangle down to this fraction of the triangle's size outside
+/// it, so a foot exactly on a shared edge or vertex belongs to every triangle sharing it despite rounding (which is
+/// ~1e-16 relative); 1e-9 stays far above rounding and far below any geometric feature.
+constexpr double kFaceInclusionTol = 1e-9;
+/// Ray parity: a crossing within this barycentric margin of an edge or vertex, or a face whose normal is within
+/// this cosine of perpendicular to the ray, makes the ray ambiguous (counted 0, 1 or 2 times by rounding).
+constexpr double kParityEdgeTol = 1e-9;
+constexpr double kParityGrazeTol = 1e-9;
+/// Valley bends are clamped to this for the widening above: behind a right-angled corner the gap is unbounded.
+constexpr double kMaxValleyTan = 1.7320508075688772;  // tan 60°
+/// contains() stops after this many unambiguous rays and returns their majority.
+constexpr int kParityVotes = 3;
+
+/// Per-triangle flags: bit k (0..2) = edge k (corner k → corner k+1) gives its own contacts (ridge or boundary).
+constexpr std::uint8_t kEdgeMask = 0x7;
+constexpr std::uint8_t kDegenerate = 0x8;
+/// Bit 4 + k: edge k is a boundary edge (no neighbour), so nothing beyond it reports contacts of its own.
+constexpr unsigned kBoundaryShift = 4;
+
+/// What the contact queries read per triangle.
+struct TriangleData {
+  Vec3 normal = Vec3::Zero();        ///< unit normal pointing to the free side (zero when degenerate)
+  Vec3 bound_centre = Vec3::Zero();  ///< centroid: centre of a bounding sphere [m]
+  double bound_radius = 0.0;         ///< largest centroid–corner distance [m]
+  double face_tol = 0.0;             ///< inclusion margin of the edge functions [m²]
+  std::array<double, 3> arc_cos{};   ///< per emitting edge: end of its normal arc, cos and sin of the bend angle
+  std::array<double, 3> arc_sin{};
+  /// Per valley edge: tan(bend)·|edge| [m]. A centre that has crossed the wall behind a valley by depth h lies in
+  /// neither face's prism (the gap between them is h·tan(bend) wide), so each face's prism widens by h·tan(bend)
+  /// across its valley edges; the two contacts it then gets are merged when their normals are close.
+  std::array<double, 3> valley_margin{};
+  std::uint8_t flags = 0;
+};
+
+/// Geometry tables shared by the queries; spans point into the owning Impl's mesh copy.
+struct Tables {
+  std::span<const Vec3> vertices;
+  std::span<const Triangle> triangles;
+  std::vector<TriangleData> data;
+  double side = -1.0;       ///< free-side normal = side · outward normal
+  double merge_cos = 1.0;   ///< cos(merge_angle)
+  Vec3 box_min = Vec3::Zero();
+  Vec3 box_max = Vec3::Zero();
+};
+
+btVector3 to_bt(const Vec3& v) { return {v.x(), v.y(), v.z()}; }
+
+/// Collects contacts into the caller's span: merges equal normals (keeps the deepest) and, once full, replaces the
+/// shallowest contact with a deeper one.
+class ContactSink {
+ public:
+  ContactSink(std::span<Contact> out, double merge_cos) : m_out(out), m_merge_cos(merge_cos) {}
+
+  void add(const Vec3& point, const Vec3& normal, double depth, std::uint32_t triangle) {
+    for (std::size_t i = 0; i < m_count; ++i) {
+      if (m_out[i].normal.dot(normal) >= m_merge_cos) {
+        if (depth > m_out[i].depth) m_out[i] = Contact{point, normal, depth, triangle};
+        return;
+      }
+    }
+    if (m_count < m_out.size()) {
+      m_out[m_count++] = Contact{point, normal, depth, triangle};
+      return;
+    }
+    if (m_count == 0) return;
+    std::size_t shallowest = 0;
+    for (std::size_t i = 1; i < m_count; ++i) {
+      if (m_out[i].depth < m_out[shallowest].depth) shallowest = i;
+    }
+    if (depth > m_out[shallowest].depth) m_out[shallowest] = Contact{point, normal, depth, triangle};
+  }
+
+  /// Sorts deepest first (ties by triangle index, so the order is deterministic) and returns the count.
+  std::size_t finish() {
+    std::sort(m_out.begin(), m_out.begin() + static_cast<std::ptrdiff_t>(m_count),
+              [](const Contact& a, const Contact& b) {
+                return a.depth != b.depth ? a.depth > b.depth : a.triangle < b.triangle;
+              });
+    return m_count;
+  }
+
+ private:
+  std::span<Contact> m_out;
+  std::size_t m_count = 0;
+  double m_merge_cos;
+};
+
+/// Contact of body axis point x with edge k of triangle t (a ridge or boundary edge), q its closest point on the
+/// edge. The normal is the direction q → x clamped into the edge's arc of normals
+///   n(φ) = n_t cos φ + m sin φ,  φ ∈ [0, β],
+/// with n_t the free-side normal, m the in-plane unit vector leaving t across the edge and β the bend angle from
+/// the triangle info map (π/2 for a boundary edge). depth = r − n·(x − q), less the along-edge offset when q is a
+/// corner (see below). Outside the arc the edge is not the nearest feature of a ridge: on t's side face t reports
+/// it, beyond the far end the neighbour face does, and inside the solid under the ridge x projects into one of the
+/// two faces, so a ridge edge reports nothing there (a clamped normal would double the neighbour's face contact).
+/// A boundary edge has no neighbour: beyond its far end (x behind the rim's plane) the normal is the in-plane
+/// direction m, a knife edge.
+void edge_contact(const Tables& w, const TriangleData& d, int k, const Vec3& edge, const Vec3& x, const Vec3& q,
+                  double r, std::uint32_t t, ContactSink& sink) {
+  const Vec3 f = x - q;
+  if (f.squaredNorm() >= r * r) return;
+  const Vec3 outward = w.side * d.normal;
+  const Vec3 m = edge.cross(outward) / edge.norm();
+  const double fx = f.dot(d.normal);
+  const double fy = f.dot(m);
+  const double c = d.arc_cos[static_cast<std::size_t>(k)];
+  const double s = d.arc_sin[static_cast<std::size_t>(k)];
+  const double perp2 = fx * fx + fy * fy;
+  const bool boundary = (d.flags & (1u << (kBoundaryShift + static_cast<unsigned>(k)))) != 0;
+  Vec3 normal;
+  if (perp2 > 0.0 && fy >= 0.0 && fx * s - fy * c >= 0.0) {
+    normal = (fx * d.normal + fy * m) / std::sqrt(perp2);  // inside the arc: the true feature normal
+  } else if (boundary && perp2 > 0.0 && fx * c + fy * s > fx) {
+    normal = m;  // beyond a rim: the knife edge pushes outward in the sheet's plane
+  } else {
+    return;
+  }
+  // At an end of the edge (q clamped to a corner) f also runs along the edge; that offset lowers the depth so
+  // the neighbouring edge, whose interior point is nearer, wins the merge and a lone spike tip gets its distance.
+  const double along = f.dot(edge) / edge.norm();
+  const double nf = normal.dot(f);
+  const double depth = r - nf - (std::hypot(nf, along) - std::abs(nf));
+  if (depth > 0.0) sink.add(q, normal, depth, t);
+}
+
+/// Closest points of segments p0 + s·u and q0 + t·v, s, t ∈ [0, 1] (v non-zero): the textbook clamped solution of
+/// the 2×2 normal equations, parallel segments handled by fixing s = 0 first.
+std::pair<double, double> closest_segment_parameters(const Vec3& p0, const Vec3& u, const Vec3& q0, const Vec3& v) {
+  const Vec3 r = p0 - q0;
+  const double a = u.squaredNorm();
+  const double e = v.squaredNorm();
+  const double f = v.dot(r);
+  if (a <= std::numeric_limits<double>::min()) return {0.0, std::clamp(f / e, 0.0, 1.0)};
+  const double c = u.dot(r);
+  const double b = u.dot(v);
+  const double denom = a * e - b * b;
+  double s = denom > 1e-14 * a * e ? std::clamp((b * f - c * e) / denom, 0.0, 1.0) : 0.0;
+  double t = (b * s + f) / e;
+  if (t < 0.0) {
+    t = 0.0;
+    s = std::clamp(-c / a, 0.0, 1.0);
+  } else if (t > 1.0) {
+    t = 1.0;
+    s = std::clamp((b - c) / a, 0.0, 1.0);
+  }
+  return {s, t};
+}
+
+/// Sphere against the triangles the BVH reports.
+class SphereQuery final : public btNodeOverlapCallback {
+ public:
+  SphereQuery(const Tables& w, const Vec3& centre, double radius, ContactSink& sink)
+      : m_w(w), m_c(centre), m_r(radius), m_sink(sink) {}
+
+  void processNode(int /*sub_part*/, int triangle_index) override {
+    const auto t = static_cast<std::uint32_t>(triangle_index);
+    const TriangleData& d = m_w.data[t];
+    if ((d.flags & kDegenerate) != 0) return;
+    const double reach = m_r + d.bound_radius;
+    if ((m_c - d.bound_centre).squaredNorm() >= reach * reach) return;
+    const Triangle& tri = m_w.triangles[t];
+    const std::array<const Vec3*, 3> v = {&m_w.vertices[tri[0]], &m_w.vertices[tri[1]], &m_w.vertices[tri[2]]};
+    // Signed distance to the plane, free side positive; the sphere must straddle the plane to touch anything of t.
+    const double s = d.normal.dot(m_c - *v[0]);
+    if (s >= m_r || s <= -m_r) return;
+    const std::array<Vec3, 3> e = {*v[1] - *v[0], *v[2] - *v[1], *v[0] - *v[2]};
+    // Face: the foot of the centre is inside t iff all three edge functions n·(e_k × (c − v_k)) are ≥ 0.
+    const Vec3 outward = m_w.side * d.normal;
+    const double behind = std::max(0.0, -s);
+    bool inside = true;
+    for (std::size_t k = 0; k < 3 && inside; ++k) {
+      inside = outward.dot(e[k].cross(m_c - *v[k])) >= -d.face_tol - behind * d.valley_margin[k];
+    }
+    if (inside) m_sink.add(m_c - s * d.normal, d.normal, m_r - s, t);
+    if ((d.flags & kEdgeMask) == 0) return;
+    for (int k = 0; k < 3; ++k) {
+      if ((d.flags & (1u << k)) == 0) continue;
+      const auto ku = static_cast<std::size_t>(k);
+      const double tau = std::clamp((m_c - *v[ku]).dot(e[ku]) / e[ku].squaredNorm(), 0.0, 1.0);
+      edge_contact(m_w, d, k, e[ku], m_c, *v[ku] + tau * e[ku], m_r, t, m_sink);
+    }
+  }
+
+ private:
+  const Tables& m_w;
+  Vec3 m_c;
+  double m_r;
+  ContactSink& m_sink;
+};
+
+/// Capsule (segment a + τ·ab, τ ∈ [0, 1]) against the triangles the BVH reports.
+class CapsuleQuery final : public btNodeOverlapCallback {
+ public:
+  CapsuleQuery(const Tables& w, const Vec3& a, const Vec3& b, double radius, ContactSink& sink)
+      : m_w(w), m_a(a), m_ab(b - a), m_inv_ab2(1.0 / (b - a).squaredNorm()), m_r(radius), m_sink(sink) {}
+
+  void processNode(int /*sub_part*/, int triangle_index) override {
+    const auto t = static_cast<std::uint32_t>(triangle_index);
+    const TriangleData& d = m_w.data[t];
+    if ((d.flags & kDegenerate) != 0) return;
+    const double reach = m_r + d.bound_radius;
+    const double tau_c = std::clamp((d.bound_centre - m_a).dot(m_ab) * m_inv_ab2, 0.0, 1.0);
+    if ((m_a + tau_c * m_ab - d.bound_centre).squaredNorm() >= reach * reach) return;
+    const Triangle& tri = m_w.triangles[t];
+    const std::array<const Vec3*, 3> v = {&m_w.vertices[tri[0]], &m_w.vertices[tri[1]], &m_w.vertices[tri[2]]};
+    // Signed plane distances of the ends (free side positive) are linear along the segment.
+    const double sa = d.normal.dot(m_a - *v[0]);
+    const double sb = sa + d.normal.dot(m_ab);
+    if (std::min(sa, sb) >= m_r || std::max(sa, sb) <= -m_r) return;
+    const std::array<Vec3, 3> e = {*v[1] - *v[0], *v[2] - *v[1], *v[0] - *v[2]};
+    // Face: clip the segment to the prism over t (edge functions g_k(τ) = g_k(0) + τ·slope_k ≥ −tol), then take
+    // the lowest point of the clipped part along the free normal.
+    const Vec3 outward = m_w.side * d.normal;
+    const double behind = std::max(0.0, -std::min(sa, sb));  // conservative: the deeper end's widening
+    double lo = 0.0;
+    double hi = 1.0;
+    for (std::size_t k = 0; k < 3 && lo <= hi; ++k) {
+      const Vec3 w = outward.cross(e[k]);  // in-plane, pointing into t
+      const double g0 = w.dot(m_a - *v[k]) + d.face_tol + behind * d.valley_margin[k];
+      const double slope = w.dot(m_ab);
+      if (slope > 0.0) {
+        lo = std::max(lo, -g0 / slope);
+      } else if (slope < 0.0) {
+        hi = std::min(hi, -g0 / slope);
+      } else if (g0 < 0.0) {
+        hi = -1.0;
+      }
+    }
+    if (lo <= hi) {
+      const double s_lo = sa + lo * (sb - sa);
+      const double s_hi = sa + hi * (sb - sa);
+      const double s_min = std::min(s_lo, s_hi);
+      if (s_min < m_r && std::max(s_lo, s_hi) > -m_r) {
+        const double tau = s_lo <= s_hi ? lo : hi;
+        m_sink.add(m_a + tau * m_ab - s_min * d.normal, d.normal, m_r - s_min, t);
+      }
+    }
+    if ((d.flags & kEdgeMask) == 0) return;
+    for (int k = 0; k < 3; ++k) {
+      if ((d.flags & (1u << k)) == 0) continue;
+      const auto ku = static_cast<std::size_t>(k);
+      const auto [s, u] = closest_segment_parameters(m_a, m_ab, *v[ku], e[ku]);
+      edge_contact(m_w, d, k, e[ku], m_a + s * m_ab, *v[ku] + u * e[ku], m_r, t, m_sink);
+    }
+  }
+
+ private:
+  const Tables& m_w;
+  Vec3 m_a;
+  Vec3 m_ab;
+  double m_inv_ab2;
+  double m_r;
+  ContactSink& m_sink;
+};
+
+/// Ray o + s·dir against triangle t (Möller–Trumbore): distance s and barycentrics (b0, b1, b2) of the plane
+/// crossing, and the cosine between the ray and the outward normal. False only when the ray is parallel.
+struct RayCrossing {
+  double distance = 0.0;
+  double b_min = 0.0;  ///< smallest barycentric coordinate: < 0 outside, ≈ 0 on an edge or vertex
+  double cosine = 0.0;
+};
+
+bool cross_triangle(const Tables& w, std::uint32_t t, const Vec3& o, const Vec3& dir, RayCrossing& out) {
+  const Triangle& tri = w.triangles[t];
+  const Vec3& v0 = w.vertices[tri[0]];
+  const Vec3 e1 = w.vertices[tri[1]] - v0;
+  const Vec3 e2 = w.vertices[tri[2]] - v0;
+  const Vec3 p = dir.cross(e2);
+  const double det = e1.dot(p);
+  if (det == 0.0) return false;
+  const double inv = 1.0 / det;
+  const Vec3 sv = o - v0;
+  const double b1 = sv.dot(p) * inv;
+  const Vec3 qv = sv.cross(e1);
+  const double b2 = dir.dot(qv) * inv;
+  out.distance = e2.dot(qv) * inv;
+  out.b_min = std::min({1.0 - b1 - b2, b1, b2});
+  out.cosine = w.side * w.data[t].normal.dot(dir);
+  return true;
+}
+
+/// Nearest hit along a ray (inclusive of edges and vertices).
+class RayQuery final : public btNodeOverlapCallback {
+ public:
+  RayQuery(const Tables& w, const Vec3& origin, const Vec3& dir, double max_distance)
+      : m_w(w), m_o(origin), m_dir(dir), m_best(max_distance) {}
+
+  void processNode(int /*sub_part*/, int triangle_index) override {
+    const auto t = static_cast<std::uint32_t>(triangle_index);
+    if ((m_w.data[t].flags & kDegenerate) != 0) return;
+    RayCrossing x;
+    if (!cross_triangle(m_w, t, m_o, m_dir, x)) return;
+    if (x.b_min < -kFaceInclusionTol || x.distance < 0.0 || x.distance > m_best) return;
+    if (m_found && x.distance == m_best && t > m_hit) return;  // exact ties: the lower index, for determinism
+    m_best = x.distance;
+    m_hit = t;
+    m_cosine = x.cosine;
+    m_found = true;
+  }
+
+  std::optional<RayHit> result() const {
+    if (!m_found) return std::nullopt;
+    const Vec3 outward = m_w.side * m_w.data[m_hit].normal;
+    const bool front = m_cosine < 0.0;
+    return RayHit{m_best, m_o + m_best * m_dir, front ? outward : Vec3(-outward), m_hit, front};
+  }
+
+ private:
+  const Tables& m_w;
+  Vec3 m_o;
+  Vec3 m_dir;
+  double m_best;
+  std::uint32_t m_hit = 0;
+  double m_cosine = 0.0;
+  bool m_found = false;
+};
+
+/// Counts the crossings of a ray with the surface for the parity test, flagging rays that pass too close to an
+/// edge or vertex, graze a face or start on the surface.
+class ParityQuery final : public btNodeOverlapCallback {
+ public:
+  ParityQuery(const Tables& w, const Vec3& origin, const Vec3& dir, double length)
+      : m_w(w), m_o(origin), m_dir(dir), m_length(length) {}
+
+  void processNode(int /*sub_part*/, int triangle_index) override {
+    if (m_ambiguous) return;
+    const auto t = static_cast<std::uint32_t>(triangle_index);
+    const TriangleData& d = m_w.data[t];
+    if ((d.flags & kDegenerate) != 0) return;
+    RayCrossing x;
+    const bool crosses = cross_triangle(m_w, t, m_o, m_dir, x);
+    if (!crosses || std::abs(x.cosine) < kParityGrazeTol) {
+      // (Nearly) in the triangle's plane: ambiguous if the ray passes through the bounding sphere.
+      const Vec3 oc = d.bound_centre - m_o;
+      const double along = oc.dot(m_dir);
+      if (along >= -d.bound_radius && along <= m_length + d.bound_radius &&
+          (oc - along * m_dir).squaredNorm() <= d.bound_radius * d.bound_radius) {
+        m_ambiguous = true;
+      }
+      return;
+    }
+    if (x.b_min < -kParityEdgeTol || x.distance > m_length) return;
+    const double surface_tol = kParityEdgeTol * d.bound_radius;
+    if (x.distance < -surface_tol) return;
+    if (x.b_min <= kParityEdgeTol || x.distance <= surface_tol) {
+      m_ambiguous = true;
+      return;
+    }
+    ++m_crossings;
+  }
+
+  bool ambiguous() const { return m_ambiguous; }
+  bool odd() const { return (m_crossings & 1) != 0; }
+
+ private:
+  const Tables& m_w;
+  Vec3 m_o;
+  Vec3 m_dir;
+  double m_length;
+  int m_crossings = 0;
+  bool m_ambiguous = false;
+};
+
+void validate(const TriangleMesh& mesh, const CollisionWorldOptions& options) {
+  const std::string where = "CollisionWorld";
+  if (mesh.triangles.empty()) throw InputError(where + ": mesh has no triangles");
+  if (mesh.triangles.size() > kMaxTriangles) {
+    throw InputError(where + ": mesh has " + std::to_string(mesh.triangles.size()) + " triangles, more than the " +
+                     std::to_string(kMaxTriangles) + " one Bullet BVH part holds");
+  }
+  for (std::size_t i = 0; i < mesh.vertices.size(); ++i) {
+    if (!mesh.vertices[i].allFinite()) throw InputError(where + ": vertex " + std::to_string(i) + " is not finite");
+  }
+  for (std::size_t t = 0; t < mesh.triangles.size(); ++t) {
+    for (const std::uint32_t index : mesh.triangles[t]) {
+      if (index >= mesh.vertices.size()) {
+        throw InputError(where + ": triangle " + std::to_string(t) + " refers to vertex " + std::to_string(index) +
+                         " of " + std::to_string(mesh.vertices.size()));
+      }
+    }
+  }
+  if (!(options.merge_angle >= 0.0 && options.merge_angle < kPi / 2)) {
+    throw InputError(where + ": merge_angle must be in [0, pi/2) rad (got " + std::to_string(options.merge_angle) +
+                     ")");
+  }
+}
+
+/// Per-triangle normals and bounding spheres; degenerate triangles (no direction survives rounding) are flagged.
+void fill_geometry(Tables& w) {
+  w.data.resize(w.triangles.size());
+  for (std::size_t t = 0; t < w.triangles.size(); ++t) {
+    const Triangle& tri = w.triangles[t];
+    const Vec3& a = w.vertices[tri[0]];
+    const Vec3& b = w.vertices[tri[1]];
+    const Vec3& c = w.vertices[tri[2]];
+    TriangleData& d = w.data[t];
+    d.bound_centre = (a + b + c) / 3.0;
+    d.bound_radius = std::sqrt(std::max({(a - d.bound_centre).squaredNorm(), (b - d.bound_centre).squaredNorm(),
+                                         (c - d.bound_centre).squaredNorm()}));
+    d.face_tol = kFaceInclusionTol * d.bound_radius * d.bound_radius;
+    const Vec3 area = (b - a).cross(c - a);
+    const double longest2 = std::max({(b - a).squaredNorm(), (c - b).squaredNorm(), (a - c).squaredNorm()});
+    // |area| = |e1||e2| sin θ: below 1e-12 of the longest edge squared the normal is rounding noise.
+    if (!(area.norm() > 1e-12 * longest2)) {
+      d.flags = kDegenerate;
+      continue;
+    }
+    d.normal = w.side * area.normalized();
+  }
+}
+
+/// Edge classes from Bullet's triangle info map. The map stores per edge the bend angle β = π − (angle between the
+/// two triangles) with a convex flag as seen from the outward normals; untouched edges (2π) have no neighbour.
+/// From the free side, a ridge is an edge convex toward the free side: concave seen from outside when the free
+/// side is inside. Planar edges (|β| below the map's planar epsilon) and valleys emit nothing.
+void fill_edges(Tables& w, const btTriangleInfoMap& map, FreeSide free_side, CollisionWorldStats& stats) {
+  constexpr std::array<int, 3> kConvexFlag = {TRI_INFO_V0V1_CONVEX, TRI_INFO_V1V2_CONVEX, TRI_INFO_V2V0_CONVEX};
+  for (std::size_t t = 0; t < w.triangles.size(); ++t) {
+    TriangleData& d = w.data[t];
+    if ((d.flags & kDegenerate) != 0) {
+      ++stats.degenerate_triangles;
+      continue;
+    }
+    const btTriangleInfo* info = map.find(btHashInt(static_cast<int>(t)));
+    for (std::size_t k = 0; k < 3; ++k) {
+      const double angle = info == nullptr ? SIMD_2_PI
+                           : k == 0        ? info->m_edgeV0V1Angle
+                           : k == 1        ? info->m_edgeV1V2Angle
+                                           : info->m_edgeV2V0Angle;
+      double bend = 0.0;
+      if (angle == SIMD_2_PI) {
+        bend = kPi / 2;
+        ++stats.boundary_edges;
+      } else if (angle != 0.0) {
+        const bool convex_outside = info != nullptr && (info->m_flags & kConvexFlag[k]) != 0;
+        if (convex_outside == (free_side == FreeSide::kOutside)) {
+          bend = std::abs(angle);
+          ++stats.ridge_edges;
+        } else {
+          const Triangle& tri = w.triangles[t];
+          const double length = (w.vertices[tri[(k + 1) % 3]] - w.vertices[tri[k]]).norm();
+          d.valley_margin[k] = std::min(std::tan(std::abs(angle)), kMaxValleyTan) * length;
+        }
+      }
+      if (bend > 0.0) {
+        d.flags = static_cast<std::uint8_t>(d.flags | (1u << k));
+        if (angle == SIMD_2_PI) d.flags = static_cast<std::uint8_t>(d.flags | (1u << (kBoundaryShift + k)));
+        d.arc_cos[k] = std::cos(bend);
+        d.arc_sin[k] = std::sin(bend);
+      }
+    }
+  }
+}
+
+}  // namespace
+
+struct CollisionWorld::Impl {
+  Impl(const TriangleMesh& source, const CollisionWorldOptions& opts);
+
+  TriangleMesh mesh;
+  CollisionWorldOptions options;
+  CollisionWorldStats stats;
+  Tables tables;
+  // Bullet objects, declared in construction order (destroyed in reverse): the shape references the info map and
+  // the mesh interface, which references `mesh`. The Impl lives on the heap and never moves, so those stay valid.
+  std::unique_ptr<btTriangleIndexVertexArray> mesh_interface;
+  std::unique_ptr<btTriangleInfoMap> info_map;
+  std::unique_ptr<btBvhTriangleMeshShape> shape;
+  const btOptimizedBvh* bvh = nullptr;
+};
+
+CollisionWorld::Impl::Impl(const TriangleMesh& source, const CollisionWorldOptions& opts)
+    : mesh((validate(source, opts), source)), options(opts) {
+  const auto start = std::chrono::steady_clock::now();
+  Tables& w = tables;
+  w.vertices = mesh.vertices;
+  w.triangles = mesh.triangles;
+  w.side = options.free_side == FreeSide::kInside ? -1.0 : 1.0;
+  w.merge_cos = std::cos(options.merge_angle);
+  const Aabb box = bounding_box(mesh);
+  w.box_min = box.min;
+  w.box_max = box.max;
+  fill_geometry(w);
+
+  // Zero-copy view of the mesh copy: packed doubles and 32-bit indices.
+  btIndexedMesh part;
+  part.m_numTriangles = static_cast<int>(mesh.triangles.size());
+  part.m_triangleIndexBase = reinterpret_cast<const unsigned char*>(mesh.triangles.data());
+  part.m_triangleIndexStride = static_cast<int>(sizeof(Triangle));
+  part.m_numVertices = static_cast<int>(mesh.vertices.size());
+  part.m_vertexBase = reinterpret_cast<const unsigned char*>(mesh.vertices.data());
+  part.m_vertexStride = static_cast<int>(sizeof(Vec3));
+  part.m_vertexType = PHY_DOUBLE;
+  mesh_interface = std::make_unique<btTriangleIndexVertexArray>();
+  mesh_interface->addIndexedMesh(part, PHY_INTEGER);
+  shape = std::make_unique<btBvhTriangleMeshShape>(mesh_interface.get(), /*useQuantizedAabbCompression=*/true,
+                                                   /*buildBvh=*/true);
+  bvh = shape->getOptimizedBvh();
+
+  // Triangle info map. Bullet's defaults are in game units (vertices within 1e-4 are "shared", triangles whose
+  // cross product has squared length below 1e-8 are skipped as degenerate), which in metres would merge or drop
+  // every sub-millimetre airway triangle. The mesh is indexed, so shared vertices are bit-identical: the
+  // thresholds only need to be positive. Planar: sin² of the bend below 1e-20, i.e. bends under 1e-10 rad count as
+  // flat (coplanar up to rounding).
+  info_map = std::make_unique<btTriangleInfoMap>();
+  const double diagonal = (box.max - box.min).norm();
+  info_map->m_equalVertexThreshold = std::pow(1e-12 * diagonal, 2) + std::numeric_limits<double>::min();
+  info_map->m_zeroAreaThreshold = info_map->m_equalVertexThreshold;
+  info_map->m_planarEpsilon = 1e-20;
+  btGenerateInternalEdgeInfo(shape.get(), info_map.get());
+  fill_edges(w, *info_map, options.free_side, stats);
+
+  stats.triangles = mesh.triangles.size();
+  stats.build_seconds = std::chrono::duration<double>(std::chrono::steady_clock::now() - start).count();
+}
+
+CollisionWorld::CollisionWorld(const TriangleMesh& mesh, const CollisionWorldOptions& options)
+    : m_impl(std::make_unique<const Impl>(mesh, options)) {}
+CollisionWorld::~CollisionWorld() = default;
+CollisionWorld::CollisionWorld(CollisionWorld&&) noexcept = default;
+CollisionWorld& CollisionWorld::operator=(CollisionWorld&&) noexcept = default;
+
+std::size_t CollisionWorld::sphere_contacts(const Vec3& centre, double radius, std::span<Contact> out) const {
+  MAGVINE_ASSERT(radius > 0.0 && centre.allFinite());
+  const Tables& w = m_impl->tables;
+  ContactSink sink(out, w.merge_cos);
+  SphereQuery query(w, centre, radius, sink);
+  const Vec3 pad = Vec3::Constant(radius);
+  m_impl->bvh->reportAabbOverlappingNodex(&query, to_bt(centre - pad), to_bt(centre + pad));
+  return sink.finish();
+}
+
+std::size_t CollisionWorld::capsule_contacts(const Vec3& a, const Vec3& b, double radius,
+                                             std::span<Contact> out) const {
+  MAGVINE_ASSERT(radius > 0.0 && a.allFinite() && b.allFinite());
+  // A segment too short to define a direction is a sphere (its length is far below any triangle size).
+  if ((b - a).squaredNorm() <= 1e-24 * radius * radius) return sphere_contacts(0.5 * (a + b), radius, out);
+  const Tables& w = m_impl->tables;
+  ContactSink sink(out, w.merge_cos);
+  CapsuleQuery query(w, a, b, radius, sink);
+  const Vec3 pad = Vec3::Constant(radius);
+  m_impl->bvh->reportAabbOverlappingNodex(&query, to_bt(a.cwiseMin(b) - pad), to_bt(a.cwiseMax(b) + pad));
+  return sink.finish();
+}
+
+std::optional<RayHit> CollisionWorld::ray_cast(const Vec3& origin, const Vec3& direction,
+                                               double max_distance) const {
+  MAGVINE_ASSERT(origin.allFinite() && std::abs(direction.norm() - 1.0) < 1e-9 && max_distance >= 0.0);
+  RayQuery query(m_impl->tables, origin, direction, max_distance);
+  m_impl->bvh->reportRayOverlappingNodex(&query, to_bt(origin), to_bt(origin + max_distance * direction));
+  return query.result();
+}
+
+bool CollisionWorld::contains(const Vec3& point) const {
+  MAGVINE_ASSERT(point.allFinite());
+  const Tables& w = m_impl->tables;
+  // Each ray runs past the far side of the bounding box.
+  const Vec3 far = (w.box_max - point).cwiseAbs().cwiseMax((w.box_min - point).cwiseAbs());
+  const double length = 1.01 * far.norm() + 1e-9;
+  int inside = 0;
+  int outside = 0;
+  int first_vote = 0;  // +1 inside, −1 outside: breaks a 1–1 tie
+  for (const Vec3& dir : parity_directions()) {
+    ParityQuery query(w, point, dir, length);
+    m_impl->bvh->reportRayOverlappingNodex(&query, to_bt(point), to_bt(point + length * dir));
+    if (query.ambiguous()) continue;
+    (query.odd() ? inside : outside) += 1;
+    if (first_vote == 0) first_vote = query.odd() ? 1 : -1;
+    if (inside + outside == kParityVotes) break;
+  }
+  if (inside != outside) return inside > outside;
+  return first_vote > 0;  // no unambiguous ray at all (first_vote = 0) reads as outside
+}
+
+std::span<const Vec3> CollisionWorld::parity_directions() {
+  // Irregular directions spread over the sphere, none near an axis or a coordinate plane, so axis-aligned or
+  // ring-structured meshes (tubes, grids) do not line their edges up with the rays.
+  static const std::array<Vec3, 7> kDirections = [] {
+    std::array<Vec3, 7> d = {Vec3(0.2674, 0.5131, 0.8153),   Vec3(-0.7412, 0.3381, -0.5799),
+                             Vec3(0.4538, -0.8264, 0.3332),  Vec3(-0.2191, -0.4433, -0.8693),
+                             Vec3(0.9017, 0.2329, -0.3642),  Vec3(-0.5563, 0.7797, 0.2874),
+                             Vec3(0.1379, -0.2611, 0.9554)};
+    for (Vec3& v : d) v.normalize();
+    return d;
+  }();
+  return kDirections;
+}
+
+const TriangleMesh& CollisionWorld::mesh() const { return m_impl->mesh; }
+const CollisionWorldOptions& CollisionWorld::options() const { return m_impl->options; }
+const CollisionWorldStats& CollisionWorld::stats() const { return m_impl->stats; }
+
+}  // namespace magvine::anatomy
