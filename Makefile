@@ -1,7 +1,8 @@
 # magvine: the two commands of the README quick start, and a few more.
 #   make demo   installs dependencies, builds, writes the field map of the default EPM and prints where it is
 #   make test   installs dependencies, builds (warnings are errors), runs the whole ctest suite
-# Other targets: build, minimal (core-only configuration + its tests), bench, figures, format, lint (naming), clean.
+# Other targets: build, minimal (core-only configuration + its tests), bench, figures, phantoms (the standard
+# generated phantoms' meshes into phantoms/), format, lint (naming), clean.
 
 BUILD    ?= build
 MINIMAL  ?= build-minimal
@@ -10,7 +11,7 @@ PYTHON   ?= /usr/bin/python3
 DEMO_OUT ?= $(BUILD)/demo
 CMAKE_FLAGS ?=
 
-.PHONY: deps build demo test minimal bench figures format lint clean
+.PHONY: deps build demo test minimal bench figures phantoms format lint clean
 
 deps:
 	@tools/install-deps.sh
@@ -28,6 +29,9 @@ minimal: deps
 	      -DMAGVINE_WITH_RENDER=OFF -DMAGVINE_WITH_MPM=OFF $(CMAKE_FLAGS)
 	cmake --build $(MINIMAL) -j $(JOBS)
 	cd $(MINIMAL) && ctest --output-on-failure -j $(JOBS)
+
+phantoms: build
+	phantoms/generate.sh $(BUILD)/src/cli/magvine phantoms
 
 demo: build
 	$(BUILD)/src/cli/magvine field-map --magnets assets/magnets/epm_n52.yaml --plane xz \

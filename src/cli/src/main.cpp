@@ -5,6 +5,7 @@
 #include <iostream>
 
 #include "commands.hpp"
+#include "phantom_command.hpp"
 #include "magvine/config.hpp"
 #include "magvine/core/error.hpp"
 
@@ -59,6 +60,9 @@ int main(int argc, char** argv) {
   mesh_check_cmd->add_flag("--json", mesh_check.json, "print the JSON report instead of the summary");
   mesh_check_cmd->add_option("--out", mesh_check.out, "also write the JSON report to this file");
 
+  magvine::cli::PhantomCommand phantom;
+  phantom.attach(app);
+
   try {
     app.parse(argc, argv);
   } catch (const CLI::CallForHelp& e) {
@@ -77,6 +81,7 @@ int main(int argc, char** argv) {
     if (map_cmd->parsed()) return magvine::cli::run_field_map(map);
     if (study_fields->parsed()) return magvine::cli::run_study_field_models(study);
     if (mesh_check_cmd->parsed()) return magvine::cli::run_mesh_check(mesh_check);
+    if (phantom.parsed()) return phantom.run();
   } catch (const magvine::InputError& e) {
     std::cerr << "magvine: " << e.what() << '\n';
     return static_cast<int>(ExitCode::kBadInput);
