@@ -36,7 +36,7 @@ constexpr double kFaceInclusionTol = 1e-9;
 constexpr double kParityEdgeTol = 1e-9;
 constexpr double kParityGrazeTol = 1e-9;
 /// Valley bends are clamped to this for the widening above: behind a right-angled corner the gap is unbounded.
-constexpr double kMaxValleyTan = 1.7320508075688772;  // tan 60°
+constexpr double kMaxValleyBend = kPi / 3.0;
 /// contains() stops after this many unambiguous rays and returns their majority.
 constexpr int kParityVotes = 3;
 
@@ -66,6 +66,9 @@ struct Tables {
   std::span<const Vec3> vertices;
   std::span<const Triangle> triangles;
   std::vector<TriangleData> data;
+  /// Vertex adjacency (CSR): the neighbours of vertex v are neighbours[neighbour_offsets[v] .. [v + 1]).
+  std::vector<std::uint32_t> neighbour_offsets;
+  std::vector<std::uint32_t> neighbours;
   double side = -1.0;       ///< free-side normal = side · outward normal
   double merge_cos = 1.0;   ///< cos(merge_angle)
   Vec3 box_min = Vec3::Zero();
@@ -74,15 +77,33 @@ struct Tables {
 
 btVector3 to_bt(const Vec3& v) { return {v.x(), v.y(), v.z()}; }
 
-/// Collects contacts into the caller's span: merges equal normals (keeps the deepest) and, once full, replaces the
+/// Collects contacts into the caller's span: merges close normals (keeps the deepest) and, once full, replaces the
 /// shallowest contact with a deeper one.
+///
+/// Front and back contacts. A face contact whose axis point lies behind the face's plane (s < 0) is a *back*
+/// contact: either the body has crossed that wall (keep it: it pushes the body back) or the body sits in another
+/// lumen and only reaches this wall from behind through thin tissue, a septum between two branches (drop it: it
+/// would push the body through the septum). The nearest feature decides which (the angle-weighted pseudo-normal
+/// argument of Bærentzen & Aanæs 2005: the side of the nearest surface point is the side of the point): every
+/// face whose foot strictly contains the axis point and every ridge edge inside its cone is a candidate at its
+/// distance; when the nearest candidate is in front, the axis point is in the lumen and back contacts are dropped.
+/// Back contacts carry kBackBit in `triangle` until finish() (Bullet's limit keeps indices below 2^21).
 class ContactSink {
  public:
+  static constexpr std::uint32_t kBackBit = 0x80000000u;
+
   ContactSink(std::span<Contact> out, double merge_cos) : m_out(out), m_merge_cos(merge_cos) {}
 
-  void add(const Vec3& point, const Vec3& normal, double depth, std::uint32_t triangle) {
+  /// A feature at `distance` from the axis point, on its free side (front) or behind it.
+  void candidate(double distance, bool front) {
+    double& best = front ? m_nearest_front : m_nearest_back;
+    best = std::min(best, distance);
+  }
+
+  void add(const Vec3& point, const Vec3& normal, double depth, std::uint32_t triangle, bool back = false) {
+    if (back) triangle |= kBackBit;
     for (std::size_t i = 0; i < m_count; ++i) {
-      if (m_out[i].normal.dot(normal) >= m_merge_cos) {
+      if (((m_out[i].triangle ^ triangle) & kBackBit) == 0 && m_out[i].normal.dot(normal) >= m_merge_cos) {
         if (depth > m_out[i].depth) m_out[i] = Contact{point, normal, depth, triangle};
         return;
       }
@@ -99,8 +120,17 @@ class ContactSink {
     if (depth > m_out[shallowest].depth) m_out[shallowest] = Contact{point, normal, depth, triangle};
   }
 
-  /// Sorts deepest first (ties by triangle index, so the order is deterministic) and returns the count.
+  /// Drops back contacts when the nearest feature is in front, clears the flags, sorts deepest first (ties by
+  /// triangle index, so the order is deterministic) and returns the count.
   std::size_t finish() {
+    const bool in_lumen = m_nearest_front <= m_nearest_back;
+    std::size_t kept = 0;
+    for (std::size_t i = 0; i < m_count; ++i) {
+      if ((m_out[i].triangle & kBackBit) != 0 && in_lumen) continue;
+      m_out[kept] = m_out[i];
+      m_out[kept++].triangle &= ~kBackBit;
+    }
+    m_count = kept;
     std::sort(m_out.begin(), m_out.begin() + static_cast<std::ptrdiff_t>(m_count),
               [](const Contact& a, const Contact& b) {
                 return a.depth != b.depth ? a.depth > b.depth : a.triangle < b.triangle;
@@ -112,6 +142,8 @@ class ContactSink {
   std::span<Contact> m_out;
   std::size_t m_count = 0;
   double m_merge_cos;
+  double m_nearest_front = std::numeric_limits<double>::infinity();
+  double m_nearest_back = std::numeric_limits<double>::infinity();
 };
 
 /// Contact of body axis point x with edge k of triangle t (a ridge or boundary edge), q its closest point on the
@@ -124,8 +156,21 @@ class ContactSink {
 /// two faces, so a ridge edge reports nothing there (a clamped normal would double the neighbour's face contact).
 /// A boundary edge has no neighbour: beyond its far end (x behind the rim's plane) the normal is the in-plane
 /// direction m, a knife edge.
+/// Whether `f` (from vertex v toward the body) lies in v's normal cone: no edge at v heads toward the body
+/// (f·(w − v) ≤ 0 for every neighbour w, the polar of the edge directions). Otherwise a point of that edge is nearer
+/// than v, so v is not the nearest feature (e.g. a vertex in the middle of a straight crease or rim).
+bool in_vertex_cone(const Tables& w, std::uint32_t v, const Vec3& f) {
+  const Vec3& p = w.vertices[v];
+  const double fn = f.norm();
+  for (std::uint32_t i = w.neighbour_offsets[v]; i < w.neighbour_offsets[v + 1]; ++i) {
+    const Vec3 e = w.vertices[w.neighbours[i]] - p;
+    if (f.dot(e) > kFaceInclusionTol * fn * e.norm()) return false;
+  }
+  return true;
+}
+
 void edge_contact(const Tables& w, const TriangleData& d, int k, const Vec3& edge, const Vec3& x, const Vec3& q,
-                  double r, std::uint32_t t, ContactSink& sink) {
+                  int corner, double r, std::uint32_t t, ContactSink& sink) {
   const Vec3 f = x - q;
   if (f.squaredNorm() >= r * r) return;
   const Vec3 outward = w.side * d.normal;
@@ -136,19 +181,27 @@ void edge_contact(const Tables& w, const TriangleData& d, int k, const Vec3& edg
   const double s = d.arc_sin[static_cast<std::size_t>(k)];
   const double perp2 = fx * fx + fy * fy;
   const bool boundary = (d.flags & (1u << (kBoundaryShift + static_cast<unsigned>(k)))) != 0;
+  // At an end of the edge (corner 0: start, 1: end; −1: q inside the edge) the vertex is the feature: it reports
+  // only when the body lies in the vertex's normal cone, with normal f/|f| and depth r − |f|.
+  if (corner >= 0) {
+    const Triangle& tri = w.triangles[t];
+    if (!in_vertex_cone(w, tri[(static_cast<std::size_t>(k) + static_cast<std::size_t>(corner)) % 3], f)) return;
+  }
+  const double along = corner < 0 ? 0.0 : f.dot(edge) / edge.norm();
   Vec3 normal;
+  double depth = 0.0;
   if (perp2 > 0.0 && fy >= 0.0 && fx * s - fy * c >= 0.0) {
-    normal = (fx * d.normal + fy * m) / std::sqrt(perp2);  // inside the arc: the true feature normal
+    const double distance = f.norm();
+    // Inside the arc: the true feature normal.
+    normal = corner < 0 ? Vec3((fx * d.normal + fy * m) / std::sqrt(perp2)) : Vec3(f / distance);
+    depth = r - distance;
+    sink.candidate(distance, true);
   } else if (boundary && perp2 > 0.0 && fx * c + fy * s > fx) {
     normal = m;  // beyond a rim: the knife edge pushes outward in the sheet's plane
+    depth = r - fy - (std::hypot(fy, along) - std::abs(fy));
   } else {
     return;
   }
-  // At an end of the edge (q clamped to a corner) f also runs along the edge; that offset lowers the depth so
-  // the neighbouring edge, whose interior point is nearer, wins the merge and a lone spike tip gets its distance.
-  const double along = f.dot(edge) / edge.norm();
-  const double nf = normal.dot(f);
-  const double depth = r - nf - (std::hypot(nf, along) - std::abs(nf));
   if (depth > 0.0) sink.add(q, normal, depth, t);
 }
 
@@ -197,16 +250,25 @@ class SphereQuery final : public btNodeOverlapCallback {
     const Vec3 outward = m_w.side * d.normal;
     const double behind = std::max(0.0, -s);
     bool inside = true;
+    double outside = 0.0;  // how far the foot lies outside t's edges [m]: 0 unless reached by the widening
     for (std::size_t k = 0; k < 3 && inside; ++k) {
-      inside = outward.dot(e[k].cross(m_c - *v[k])) >= -d.face_tol - behind * d.valley_margin[k];
+      const double g = outward.dot(e[k].cross(m_c - *v[k]));  // |e_k| × signed foot distance from edge k
+      if (g < -d.face_tol) outside = std::max(outside, -g / e[k].norm());
+      inside = g >= -d.face_tol - behind * d.valley_margin[k];
     }
-    if (inside) m_sink.add(m_c - s * d.normal, d.normal, m_r - s, t);
+    if (inside) {
+      // Widened (in the gap behind a valley): behind, at a lower bound of its distance to t.
+      m_sink.candidate(std::hypot(s, outside), s >= 0.0);
+      m_sink.add(m_c - s * d.normal, d.normal, m_r - s, t, s < 0.0);
+    }
     if ((d.flags & kEdgeMask) == 0) return;
     for (int k = 0; k < 3; ++k) {
       if ((d.flags & (1u << k)) == 0) continue;
       const auto ku = static_cast<std::size_t>(k);
-      const double tau = std::clamp((m_c - *v[ku]).dot(e[ku]) / e[ku].squaredNorm(), 0.0, 1.0);
-      edge_contact(m_w, d, k, e[ku], m_c, *v[ku] + tau * e[ku], m_r, t, m_sink);
+      const double raw = (m_c - *v[ku]).dot(e[ku]) / e[ku].squaredNorm();
+      const double tau = std::clamp(raw, 0.0, 1.0);
+      const int corner = raw <= 0.0 ? 0 : raw >= 1.0 ? 1 : -1;
+      edge_contact(m_w, d, k, e[ku], m_c, *v[ku] + tau * e[ku], corner, m_r, t, m_sink);
     }
   }
 
@@ -259,9 +321,17 @@ class CapsuleQuery final : public btNodeOverlapCallback {
       const double s_lo = sa + lo * (sb - sa);
       const double s_hi = sa + hi * (sb - sa);
       const double s_min = std::min(s_lo, s_hi);
-      if (s_min < m_r && std::max(s_lo, s_hi) > -m_r) {
+      const double s_max = std::max(s_lo, s_hi);
+      if (s_min < m_r && s_max > -m_r) {
         const double tau = s_lo <= s_hi ? lo : hi;
-        m_sink.add(m_a + tau * m_ab - s_min * d.normal, d.normal, m_r - s_min, t);
+        // In front: a candidate at s_min. Axis crossing the wall over t: penetration, kept, and a candidate at 0
+        // behind (so other back contacts stay too). Wholly behind: a back contact, a candidate at |s_max|.
+        if (s_min >= 0.0) {
+          m_sink.candidate(s_min, true);
+        } else {
+          m_sink.candidate(std::max(0.0, -s_max), false);
+        }
+        m_sink.add(m_a + tau * m_ab - s_min * d.normal, d.normal, m_r - s_min, t, s_max < 0.0);
       }
     }
     if ((d.flags & kEdgeMask) == 0) return;
@@ -269,7 +339,8 @@ class CapsuleQuery final : public btNodeOverlapCallback {
       if ((d.flags & (1u << k)) == 0) continue;
       const auto ku = static_cast<std::size_t>(k);
       const auto [s, u] = closest_segment_parameters(m_a, m_ab, *v[ku], e[ku]);
-      edge_contact(m_w, d, k, e[ku], m_a + s * m_ab, *v[ku] + u * e[ku], m_r, t, m_sink);
+      const int corner = u <= 0.0 ? 0 : u >= 1.0 ? 1 : -1;
+      edge_contact(m_w, d, k, e[ku], m_a + s * m_ab, *v[ku] + u * e[ku], corner, m_r, t, m_sink);
     }
   }
 
@@ -439,6 +510,34 @@ void fill_geometry(Tables& w) {
   }
 }
 
+/// Vertex adjacency from the triangles' edges, each neighbour once.
+void fill_neighbours(Tables& w) {
+  const std::size_t n = w.vertices.size();
+  std::vector<std::uint32_t> count(n + 1, 0);
+  for (const Triangle& tri : w.triangles) {
+    for (std::size_t k = 0; k < 3; ++k) count[tri[k] + 1] += 2;
+  }
+  for (std::size_t v = 0; v < n; ++v) count[v + 1] += count[v];
+  std::vector<std::uint32_t> all(count[n]);
+  std::vector<std::uint32_t> fill(count.begin(), count.end() - 1);
+  for (const Triangle& tri : w.triangles) {
+    for (std::size_t k = 0; k < 3; ++k) {
+      all[fill[tri[k]]++] = tri[(k + 1) % 3];
+      all[fill[tri[k]]++] = tri[(k + 2) % 3];
+    }
+  }
+  w.neighbour_offsets.assign(n + 1, 0);
+  w.neighbours.clear();
+  w.neighbours.reserve(all.size() / 2);
+  for (std::size_t v = 0; v < n; ++v) {
+    const auto first = all.begin() + count[v];
+    const auto last = all.begin() + count[v + 1];
+    std::sort(first, last);
+    w.neighbours.insert(w.neighbours.end(), first, std::unique(first, last));
+    w.neighbour_offsets[v + 1] = static_cast<std::uint32_t>(w.neighbours.size());
+  }
+}
+
 /// Edge classes from Bullet's triangle info map. The map stores per edge the bend angle β = π − (angle between the
 /// two triangles) with a convex flag as seen from the outward normals; untouched edges (2π) have no neighbour.
 /// From the free side, a ridge is an edge convex toward the free side: concave seen from outside when the free
@@ -469,7 +568,7 @@ void fill_edges(Tables& w, const btTriangleInfoMap& map, FreeSide free_side, Col
         } else {
           const Triangle& tri = w.triangles[t];
           const double length = (w.vertices[tri[(k + 1) % 3]] - w.vertices[tri[k]]).norm();
-          d.valley_margin[k] = std::min(std::tan(std::abs(angle)), kMaxValleyTan) * length;
+          d.valley_margin[k] = std::tan(std::min(std::abs(angle), kMaxValleyBend)) * length;
         }
       }
       if (bend > 0.0) {
@@ -511,6 +610,7 @@ CollisionWorld::Impl::Impl(const TriangleMesh& source, const CollisionWorldOptio
   w.box_min = box.min;
   w.box_max = box.max;
   fill_geometry(w);
+  fill_neighbours(w);
 
   // Zero-copy view of the mesh copy: packed doubles and 32-bit indices.
   btIndexedMesh part;

@@ -28,7 +28,13 @@
 /// face (its foot is inside some triangle), so those faces report it with their own normal. This is what removes
 /// the snagging edge/vertex normals of a finely tessellated smooth wall. Feet exactly on a shared edge or vertex
 /// count for every triangle that shares it (inclusive test, relative tolerance 1e-9 of the triangle size).
-/// Vertex contacts (the end of a ridge edge) use that edge's cone, so a spike tip gets the nearest edge's normal.
+/// Vertex contacts: at an end of a ridge edge the vertex is the feature when the body lies in its normal cone (no
+/// edge at the vertex heads toward it): normal (x − v)/|x − v|, depth r − |x − v|.
+/// Front and back: a face contact whose axis point lies behind the face's plane either means the body crossed
+/// that wall (keep: push it back) or that it sits in a neighbouring lumen and reaches this wall from behind
+/// through tissue thinner than r (drop: it would push the body through the septum). The nearest feature decides,
+/// as in the pseudo-normal inside test: when the nearest face or ridge edge has the axis point in front, back
+/// contacts are dropped.
 /// Merging: contacts whose normals differ by less than `merge_angle` are one contact, the deepest; when more distinct
 /// contacts exist than the caller's span holds, the deepest are kept. Results are sorted deepest first.
 ///
