@@ -119,6 +119,44 @@ TEST_P(RealAirway, DeepestSphereContactIsTheWallDistance) {
   EXPECT_GT(touching, 500);
 }
 
+TEST_P(RealAirway, DeepestCapsuleContactIsTheAxisDistance) {
+  // Capsules 2 mm long, random directions, axis wholly in the lumen (both ends inside, axis distance s > 0, so it
+  // crosses no wall): deepest depth r − s and normal (on_segment − on_mesh)/s, no contact when s ≥ r.
+  const CollisionWorld world(mesh);
+  const DistanceQuery distance(mesh);
+  DistanceWorkspace ws = distance.make_workspace();
+  const double r = 1.5 * kMmToM;
+  const double half = 1.0 * kMmToM;
+  constexpr double kDepthTol = 1e-12;  // round-off on millimetre coordinates, as for spheres
+  constexpr double kNormalTol = 1e-9;
+  std::mt19937 rng(21);
+  std::normal_distribution<double> gauss;
+  std::array<Contact, 32> out;
+  int touching = 0;
+  int checked = 0;
+  for (const Vec3& c : points_near_wall(mesh, 3000, 17)) {
+    const Vec3 axis = Vec3(gauss(rng), gauss(rng), gauss(rng)).normalized();
+    const Vec3 a = c - half * axis;
+    const Vec3 b = c + half * axis;
+    if (!world.contains(a) || !world.contains(b)) continue;
+    const CapsuleDistance d = distance.capsule_distance(a, b, r, ws);
+    if (d.axis_distance < 1e-6) continue;  // touches or crosses a wall
+    ++checked;
+    const std::size_t n = world.capsule_contacts(a, b, r, out);
+    if (d.axis_distance >= r) {
+      EXPECT_EQ(n, 0u) << "a = " << a.transpose() << " b = " << b.transpose();
+      continue;
+    }
+    ++touching;
+    ASSERT_GE(n, 1u) << "a = " << a.transpose() << " b = " << b.transpose();
+    EXPECT_NEAR(out[0].depth, r - d.axis_distance, kDepthTol) << "a = " << a.transpose() << " b = " << b.transpose();
+    const Vec3 expected = (d.on_segment - d.on_mesh) / d.axis_distance;
+    EXPECT_LT((out[0].normal - expected).norm(), kNormalTol) << "a = " << a.transpose() << " b = " << b.transpose();
+  }
+  EXPECT_GT(checked, 500);
+  EXPECT_GT(touching, 300);
+}
+
 TEST_P(RealAirway, SphereWhoseCentreCrossedTheWallIsPushedBack) {
   // Centres up to r/2 into the tissue (contains() false, wall distance d < r/2) must never go unnoticed: at
   // least one contact, the deepest deeper than the radius (the centre is behind that face). Which way to push

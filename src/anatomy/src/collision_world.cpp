@@ -10,6 +10,7 @@
 #include <cmath>
 #include <limits>
 #include <string>
+#include <tuple>
 #include <utility>
 #include <vector>
 
@@ -228,6 +229,18 @@ std::pair<double, double> closest_segment_parameters(const Vec3& p0, const Vec3&
   return {s, t};
 }
 
+/// Distance from the segment p0 + s·u, s ∈ [0, 1] (u = 0: a point) to the edges of triangle v[0..2] with edge
+/// vectors e: the exact segment–triangle distance when no point of the segment lies over the triangle.
+double distance_to_edges(const Vec3& p0, const Vec3& u, const std::array<const Vec3*, 3>& v,
+                         const std::array<Vec3, 3>& e) {
+  double best = std::numeric_limits<double>::infinity();
+  for (std::size_t k = 0; k < 3; ++k) {
+    const auto [s, t] = closest_segment_parameters(p0, u, *v[k], e[k]);
+    best = std::min(best, (p0 + s * u - (*v[k] + t * e[k])).norm());
+  }
+  return best;
+}
+
 /// Sphere against the triangles the BVH reports.
 class SphereQuery final : public btNodeOverlapCallback {
  public:
@@ -250,15 +263,15 @@ class SphereQuery final : public btNodeOverlapCallback {
     const Vec3 outward = m_w.side * d.normal;
     const double behind = std::max(0.0, -s);
     bool inside = true;
-    double outside = 0.0;  // how far the foot lies outside t's edges [m]: 0 unless reached by the widening
+    bool strict = true;  // inside without the widening: the foot is on t
     for (std::size_t k = 0; k < 3 && inside; ++k) {
-      const double g = outward.dot(e[k].cross(m_c - *v[k]));  // |e_k| × signed foot distance from edge k
-      if (g < -d.face_tol) outside = std::max(outside, -g / e[k].norm());
+      const double g = outward.dot(e[k].cross(m_c - *v[k]));
+      strict = strict && g >= -d.face_tol;
       inside = g >= -d.face_tol - behind * d.valley_margin[k];
     }
     if (inside) {
-      // Widened (in the gap behind a valley): behind, at a lower bound of its distance to t.
-      m_sink.candidate(std::hypot(s, outside), s >= 0.0);
+      // Reached only through the widening (in the gap behind a valley): behind, at its distance to t's edges.
+      m_sink.candidate(strict ? std::abs(s) : distance_to_edges(m_c, Vec3::Zero(), v, e), s >= 0.0 && strict);
       m_sink.add(m_c - s * d.normal, d.normal, m_r - s, t, s < 0.0);
     }
     if ((d.flags & kEdgeMask) == 0) return;
@@ -299,39 +312,57 @@ class CapsuleQuery final : public btNodeOverlapCallback {
     const double sb = sa + d.normal.dot(m_ab);
     if (std::min(sa, sb) >= m_r || std::max(sa, sb) <= -m_r) return;
     const std::array<Vec3, 3> e = {*v[1] - *v[0], *v[2] - *v[1], *v[0] - *v[2]};
-    // Face: clip the segment to the prism over t (edge functions g_k(τ) = g_k(0) + τ·slope_k ≥ −tol), then take
-    // the lowest point of the clipped part along the free normal.
+    // Face: clip the segment to the prism over t (edge functions g_k(τ) = g_k(0) + τ·slope_k ≥ −tol, the prism
+    // optionally widened across valley edges), then take the lowest point of the clipped part along the normal.
     const Vec3 outward = m_w.side * d.normal;
-    const double behind = std::max(0.0, -std::min(sa, sb));  // conservative: the deeper end's widening
-    double lo = 0.0;
-    double hi = 1.0;
-    for (std::size_t k = 0; k < 3 && lo <= hi; ++k) {
-      const Vec3 w = outward.cross(e[k]);  // in-plane, pointing into t
-      const double g0 = w.dot(m_a - *v[k]) + d.face_tol + behind * d.valley_margin[k];
-      const double slope = w.dot(m_ab);
-      if (slope > 0.0) {
-        lo = std::max(lo, -g0 / slope);
-      } else if (slope < 0.0) {
-        hi = std::min(hi, -g0 / slope);
-      } else if (g0 < 0.0) {
-        hi = -1.0;
+    const std::array<Vec3, 3> inward = {outward.cross(e[0]), outward.cross(e[1]), outward.cross(e[2])};
+    const auto clip = [&](double behind) {
+      double lo = 0.0;
+      double hi = 1.0;
+      for (std::size_t k = 0; k < 3 && lo <= hi; ++k) {
+        const double g0 = inward[k].dot(m_a - *v[k]) + d.face_tol + behind * d.valley_margin[k];
+        const double slope = inward[k].dot(m_ab);
+        if (slope > 0.0) {
+          lo = std::max(lo, -g0 / slope);
+        } else if (slope < 0.0) {
+          hi = std::min(hi, -g0 / slope);
+        } else if (g0 < 0.0) {
+          hi = -1.0;
+        }
       }
+      return std::pair<double, double>{lo, hi};
+    };
+    // The strict prism first: in front, a candidate at the lowest s; the axis crossing the wall over t is a
+    // penetration, always kept, with a candidate at 0 behind (so other back contacts stay); wholly behind, a back
+    // contact and a candidate at |s_max|. Only when no part of the segment lies over t, the prism widened by the
+    // deeper end's depth behind the plane (conservative, as for spheres) may catch a part behind the plane in the
+    // gap behind a valley: a back contact, with a candidate at the segment's distance to t's edges.
+    auto [lo, hi] = clip(0.0);
+    bool widened = false;
+    const double behind = std::max(0.0, -std::min(sa, sb));
+    if (lo > hi && behind > 0.0) {
+      std::tie(lo, hi) = clip(behind);
+      widened = true;
     }
     if (lo <= hi) {
       const double s_lo = sa + lo * (sb - sa);
       const double s_hi = sa + hi * (sb - sa);
       const double s_min = std::min(s_lo, s_hi);
       const double s_max = std::max(s_lo, s_hi);
-      if (s_min < m_r && s_max > -m_r) {
-        const double tau = s_lo <= s_hi ? lo : hi;
-        // In front: a candidate at s_min. Axis crossing the wall over t: penetration, kept, and a candidate at 0
-        // behind (so other back contacts stay too). Wholly behind: a back contact, a candidate at |s_max|.
-        if (s_min >= 0.0) {
+      if (s_min < m_r && s_max > -m_r && (!widened || s_min < 0.0)) {
+        const Vec3 x = m_a + (s_lo <= s_hi ? lo : hi) * m_ab;
+        bool keep = false;
+        if (widened) {
+          m_sink.candidate(distance_to_edges(m_a, m_ab, v, e), false);
+        } else if (s_min >= 0.0) {
           m_sink.candidate(s_min, true);
+        } else if (s_max > 0.0) {
+          m_sink.candidate(0.0, false);
+          keep = true;
         } else {
-          m_sink.candidate(std::max(0.0, -s_max), false);
+          m_sink.candidate(-s_max, false);
         }
-        m_sink.add(m_a + tau * m_ab - s_min * d.normal, d.normal, m_r - s_min, t, s_max < 0.0);
+        m_sink.add(x - s_min * d.normal, d.normal, m_r - s_min, t, s_min < 0.0 && !keep);
       }
     }
     if ((d.flags & kEdgeMask) == 0) return;
