@@ -1,13 +1,6 @@
 # End-to-end test of `magvine field`: the contract columns, exit code 2 with one line for bad input, and no
 # output file left behind on failure. Run by CTest with -DMAGVINE=... -DWORK=... -DSRC=...
-file(REMOVE_RECURSE ${WORK})
-file(MAKE_DIRECTORY ${WORK})
-
-function(expect_rc rc expected what)
-  if(NOT rc EQUAL expected)
-    message(FATAL_ERROR "${what}: exit code ${rc}, expected ${expected}")
-  endif()
-endfunction()
+include(${CMAKE_CURRENT_LIST_DIR}/cli_common.cmake)
 
 # 1. Good run.
 execute_process(COMMAND ${MAGVINE} field --magnets ${SRC}/assets/magnets/epm_n52.yaml

@@ -1,14 +1,7 @@
 # End-to-end test of `magvine mesh check`: the JSON contract keys and values for a closed and an open mesh, exit 0
 # with warnings for a usable mesh, exit 2 with one line for unusable files, and no report file left on failure.
 # Run by CTest with -DMAGVINE=... -DWORK=... -DPYTHON=...
-file(REMOVE_RECURSE ${WORK})
-file(MAKE_DIRECTORY ${WORK})
-
-function(expect_rc rc expected what)
-  if(NOT rc EQUAL expected)
-    message(FATAL_ERROR "${what}: exit code ${rc}, expected ${expected}")
-  endif()
-endfunction()
+include(${CMAKE_CURRENT_LIST_DIR}/cli_common.cmake)
 
 # A 10 mm cube (closed) and the same cube without its top (one square opening, normal +z).
 set(cube_vertices "v 0 0 0\nv 10 0 0\nv 10 10 0\nv 0 10 0\nv 0 0 10\nv 10 0 10\nv 10 10 10\nv 0 10 10\n")

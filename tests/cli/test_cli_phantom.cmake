@@ -3,14 +3,7 @@
 # generator is deterministic, so the committed ground truth must be what the code writes); bad parameters and a bad
 # --out exit 2 with one line and leave no files.
 # Run by CTest with -DMAGVINE=... -DWORK=... -DSRC=... -DPYTHON=...
-file(REMOVE_RECURSE ${WORK})
-file(MAKE_DIRECTORY ${WORK})
-
-function(expect_rc rc expected what)
-  if(NOT rc EQUAL expected)
-    message(FATAL_ERROR "${what}: exit code ${rc}, expected ${expected}")
-  endif()
-endfunction()
+include(${CMAKE_CURRENT_LIST_DIR}/cli_common.cmake)
 
 execute_process(COMMAND bash ${SRC}/phantoms/generate.sh ${MAGVINE} ${WORK}/gen
                 RESULT_VARIABLE rc OUTPUT_VARIABLE out ERROR_VARIABLE err)

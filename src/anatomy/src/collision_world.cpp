@@ -14,6 +14,7 @@
 #include <utility>
 #include <vector>
 
+#include "magvine/anatomy/segment_geometry.hpp"
 #include "magvine/core/check.hpp"
 #include "magvine/core/error.hpp"
 #include "magvine/core/units.hpp"
@@ -204,29 +205,6 @@ void edge_contact(const Tables& w, const TriangleData& d, int k, const Vec3& edg
     return;
   }
   if (depth > 0.0) sink.add(q, normal, depth, t);
-}
-
-/// Closest points of segments p0 + s·u and q0 + t·v, s, t ∈ [0, 1] (v non-zero): the textbook clamped solution of
-/// the 2×2 normal equations, parallel segments handled by fixing s = 0 first.
-std::pair<double, double> closest_segment_parameters(const Vec3& p0, const Vec3& u, const Vec3& q0, const Vec3& v) {
-  const Vec3 r = p0 - q0;
-  const double a = u.squaredNorm();
-  const double e = v.squaredNorm();
-  const double f = v.dot(r);
-  if (a <= std::numeric_limits<double>::min()) return {0.0, std::clamp(f / e, 0.0, 1.0)};
-  const double c = u.dot(r);
-  const double b = u.dot(v);
-  const double denom = a * e - b * b;
-  double s = denom > 1e-14 * a * e ? std::clamp((b * f - c * e) / denom, 0.0, 1.0) : 0.0;
-  double t = (b * s + f) / e;
-  if (t < 0.0) {
-    t = 0.0;
-    s = std::clamp(-c / a, 0.0, 1.0);
-  } else if (t > 1.0) {
-    t = 1.0;
-    s = std::clamp((b - c) / a, 0.0, 1.0);
-  }
-  return {s, t};
 }
 
 /// Distance from the segment p0 + s·u, s ∈ [0, 1] (u = 0: a point) to the edges of triangle v[0..2] with edge

@@ -16,6 +16,7 @@
 #include <fcl/math/bv/RSS.h>
 #include <fcl/narrowphase/distance.h>
 
+#include "magvine/anatomy/segment_geometry.hpp"
 #include "magvine/core/check.hpp"
 #include "magvine/core/error.hpp"
 
@@ -67,35 +68,11 @@ Vec3 closest_on_triangle(const Vec3& p, const Vec3& a, const Vec3& b, const Vec3
   return a + ab * (vb / sum) + ac * (vc / sum);  // face, barycentric (u, v, w) = (va, vb, vc)/sum
 }
 
-/// Closest points c1 on p1–q1 and c2 on p2–q2: Ericson (2005) §5.1.9 (minimise |s·d1 − t·d2 + r|² over [0,1]²,
-/// clamping s, then t, then s again). Degenerate (point) and parallel segments included.
+/// Closest points c1 on p1–q1 and c2 on p2–q2 (segment_geometry.hpp).
 void closest_segment_segment(const Vec3& p1, const Vec3& q1, const Vec3& p2, const Vec3& q2, Vec3& c1, Vec3& c2) {
-  const Vec3 d1 = q1 - p1, d2 = q2 - p2, r = p1 - p2;
-  const double a = d1.squaredNorm(), e = d2.squaredNorm(), f = d2.dot(r);
-  double s = 0.0, t = 0.0;
-  if (a <= 0.0 && e <= 0.0) {
-    // both points
-  } else if (a <= 0.0) {
-    t = std::clamp(f / e, 0.0, 1.0);
-  } else {
-    const double c = d1.dot(r);
-    if (e <= 0.0) {
-      s = std::clamp(-c / a, 0.0, 1.0);
-    } else {
-      const double b = d1.dot(d2), denom = a * e - b * b;  // ≥ 0; 0 for parallel segments (any s is optimal)
-      s = denom > 0.0 ? std::clamp((b * f - c * e) / denom, 0.0, 1.0) : 0.0;
-      t = (b * s + f) / e;
-      if (t < 0.0) {
-        t = 0.0;
-        s = std::clamp(-c / a, 0.0, 1.0);
-      } else if (t > 1.0) {
-        t = 1.0;
-        s = std::clamp((b - c) / a, 0.0, 1.0);
-      }
-    }
-  }
-  c1 = p1 + d1 * s;
-  c2 = p2 + d2 * t;
+  const SegmentParameters c = closest_segment_parameters(p1, q1 - p1, p2, q2 - p2);
+  c1 = p1 + (q1 - p1) * c.s;
+  c2 = p2 + (q2 - p2) * c.t;
 }
 
 /// Squared distance between the segment a–b and triangle p0 p1 p2, with the closest points. If the segment

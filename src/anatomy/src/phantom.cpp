@@ -12,6 +12,7 @@
 
 #include "magvine/anatomy/implicit_surface.hpp"
 #include "magvine/anatomy/mesh_io.hpp"
+#include "magvine/anatomy/segment_geometry.hpp"
 #include "magvine/anatomy/primitives.hpp"
 #include "magvine/core/atomic_file.hpp"
 #include "magvine/core/error.hpp"
@@ -95,40 +96,6 @@ class Jitter {
   std::uint64_t m_state;
 };
 
-// Distance between segments p1–q1 and p2–q2 (Ericson, Real-Time Collision Detection, §5.1.9).
-double segment_distance(const Vec3& p1, const Vec3& q1, const Vec3& p2, const Vec3& q2) {
-  const Vec3 d1 = q1 - p1;
-  const Vec3 d2 = q2 - p2;
-  const Vec3 r = p1 - p2;
-  const double a = d1.squaredNorm();
-  const double e = d2.squaredNorm();
-  const double f = d2.dot(r);
-  constexpr double kTiny = 1e-30;
-  double s = 0.0;
-  double t = 0.0;
-  if (a <= kTiny && e <= kTiny) return r.norm();
-  if (a <= kTiny) {
-    t = std::clamp(f / e, 0.0, 1.0);
-  } else {
-    const double c = d1.dot(r);
-    if (e <= kTiny) {
-      s = std::clamp(-c / a, 0.0, 1.0);
-    } else {
-      const double b = d1.dot(d2);
-      const double denom = a * e - b * b;
-      s = denom > kTiny ? std::clamp((b * f - c * e) / denom, 0.0, 1.0) : 0.0;
-      t = (b * s + f) / e;
-      if (t < 0.0) {
-        t = 0.0;
-        s = std::clamp(-c / a, 0.0, 1.0);
-      } else if (t > 1.0) {
-        t = 1.0;
-        s = std::clamp((b - c) / a, 0.0, 1.0);
-      }
-    }
-  }
-  return ((p1 + s * d1) - (p2 + t * d2)).norm();
-}
 
 // Distance from point p to segment a–b.
 double point_segment_distance(const Vec3& p, const Vec3& a, const Vec3& b) {
