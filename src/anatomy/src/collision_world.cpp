@@ -1,7 +1,5 @@
 #include "magvine/anatomy/collision_world.hpp"
 
-#include <BulletCollision/CollisionDispatch/btInternalEdgeUtility.h>
-#include <BulletCollision/CollisionShapes/btTriangleInfoMap.h>
 #include <btBulletCollisionCommon.h>
 
 #include <algorithm>
@@ -14,6 +12,7 @@
 #include <utility>
 #include <vector>
 
+#include "magvine/anatomy/edge_bends.hpp"
 #include "magvine/anatomy/segment_geometry.hpp"
 #include "magvine/core/check.hpp"
 #include "magvine/core/error.hpp"
@@ -77,7 +76,9 @@ struct Tables {
   Vec3 box_max = Vec3::Zero();
 };
 
-btVector3 to_bt(const Vec3& v) { return {v.x(), v.y(), v.z()}; }
+/// The BVH lives in millimetres (see the constructor): world [m] → BVH coordinates.
+constexpr double kBvhScale = 1e3;
+btVector3 to_bvh(const Vec3& v) { return {kBvhScale * v.x(), kBvhScale * v.y(), kBvhScale * v.z()}; }
 
 /// Collects contacts into the caller's span: merges close normals (keeps the deepest) and, once full, replaces the
 /// shallowest contact with a deeper one.
@@ -547,42 +548,36 @@ void fill_neighbours(Tables& w) {
   }
 }
 
-/// Edge classes from Bullet's triangle info map. The map stores per edge the bend angle β = π − (angle between the
-/// two triangles) with a convex flag as seen from the outward normals; untouched edges (2π) have no neighbour.
-/// From the free side, a ridge is an edge convex toward the free side: concave seen from outside when the free
-/// side is inside. Planar edges (|β| below the map's planar epsilon) and valleys emit nothing.
-void fill_edges(Tables& w, const btTriangleInfoMap& map, FreeSide free_side, CollisionWorldStats& stats) {
-  constexpr std::array<int, 3> kConvexFlag = {TRI_INFO_V0V1_CONVEX, TRI_INFO_V1V2_CONVEX, TRI_INFO_V2V0_CONVEX};
+/// Edge classes from the edge bends (edge_bends.hpp). From the free side, a ridge is an edge convex toward the
+/// free side: concave seen from outside when the free side is inside. Flat edges and valleys emit nothing;
+/// valleys widen the face regions behind the wall.
+void fill_edges(Tables& w, const std::vector<std::array<EdgeBend, 3>>& bends, FreeSide free_side,
+                CollisionWorldStats& stats) {
   for (std::size_t t = 0; t < w.triangles.size(); ++t) {
     TriangleData& d = w.data[t];
     if ((d.flags & kDegenerate) != 0) {
       ++stats.degenerate_triangles;
       continue;
     }
-    const btTriangleInfo* info = map.find(btHashInt(static_cast<int>(t)));
     for (std::size_t k = 0; k < 3; ++k) {
-      const double angle = info == nullptr ? SIMD_2_PI
-                           : k == 0        ? info->m_edgeV0V1Angle
-                           : k == 1        ? info->m_edgeV1V2Angle
-                                           : info->m_edgeV2V0Angle;
+      const EdgeBend& edge = bends[t][k];
       double bend = 0.0;
-      if (angle == SIMD_2_PI) {
+      if (edge.boundary) {
         bend = kPi / 2;
         ++stats.boundary_edges;
-      } else if (angle != 0.0) {
-        const bool convex_outside = info != nullptr && (info->m_flags & kConvexFlag[k]) != 0;
-        if (convex_outside == (free_side == FreeSide::kOutside)) {
-          bend = std::abs(angle);
+      } else if (edge.angle != 0.0) {
+        if (edge.convex == (free_side == FreeSide::kOutside)) {
+          bend = edge.angle;
           ++stats.ridge_edges;
         } else {
           const Triangle& tri = w.triangles[t];
           const double length = (w.vertices[tri[(k + 1) % 3]] - w.vertices[tri[k]]).norm();
-          d.valley_margin[k] = std::tan(std::min(std::abs(angle), kMaxValleyBend)) * length;
+          d.valley_margin[k] = std::tan(std::min(edge.angle, kMaxValleyBend)) * length;
         }
       }
       if (bend > 0.0) {
         d.flags = static_cast<std::uint8_t>(d.flags | (1u << k));
-        if (angle == SIMD_2_PI) d.flags = static_cast<std::uint8_t>(d.flags | (1u << (kBoundaryShift + k)));
+        if (edge.boundary) d.flags = static_cast<std::uint8_t>(d.flags | (1u << (kBoundaryShift + k)));
         d.arc_cos[k] = std::cos(bend);
         d.arc_sin[k] = std::sin(bend);
       }
@@ -599,10 +594,9 @@ struct CollisionWorld::Impl {
   CollisionWorldOptions options;
   CollisionWorldStats stats;
   Tables tables;
-  // Bullet objects, declared in construction order (destroyed in reverse): the shape references the info map and
-  // the mesh interface, which references `mesh`. The Impl lives on the heap and never moves, so those stay valid.
+  // Bullet objects, declared in construction order (destroyed in reverse): the shape references the mesh
+  // interface, which references `mesh`. The Impl lives on the heap and never moves, so those stay valid.
   std::unique_ptr<btTriangleIndexVertexArray> mesh_interface;
-  std::unique_ptr<btTriangleInfoMap> info_map;
   std::unique_ptr<btBvhTriangleMeshShape> shape;
   const btOptimizedBvh* bvh = nullptr;
 };
@@ -632,22 +626,15 @@ CollisionWorld::Impl::Impl(const TriangleMesh& source, const CollisionWorldOptio
   part.m_vertexType = PHY_DOUBLE;
   mesh_interface = std::make_unique<btTriangleIndexVertexArray>();
   mesh_interface->addIndexedMesh(part, PHY_INTEGER);
+  // Bullet's BVH builder pads every triangle box thinner than 0.002 units by ±0.001 (game units): in metres that
+  // would grow each sub-millimetre airway triangle by ±1 mm and triple the triangles a query visits. The BVH is
+  // therefore built in millimetres (kBvhScale); query boxes and rays are scaled to match, the tables stay in m.
+  mesh_interface->setScaling(btVector3(kBvhScale, kBvhScale, kBvhScale));
   shape = std::make_unique<btBvhTriangleMeshShape>(mesh_interface.get(), /*useQuantizedAabbCompression=*/true,
                                                    /*buildBvh=*/true);
   bvh = shape->getOptimizedBvh();
 
-  // Triangle info map. Bullet's defaults are in game units (vertices within 1e-4 are "shared", triangles whose
-  // cross product has squared length below 1e-8 are skipped as degenerate), which in metres would merge or drop
-  // every sub-millimetre airway triangle. The mesh is indexed, so shared vertices are bit-identical: the
-  // thresholds only need to be positive. Planar: sin² of the bend below 1e-20, i.e. bends under 1e-10 rad count as
-  // flat (coplanar up to rounding).
-  info_map = std::make_unique<btTriangleInfoMap>();
-  const double diagonal = (box.max - box.min).norm();
-  info_map->m_equalVertexThreshold = std::pow(1e-12 * diagonal, 2) + std::numeric_limits<double>::min();
-  info_map->m_zeroAreaThreshold = info_map->m_equalVertexThreshold;
-  info_map->m_planarEpsilon = 1e-20;
-  btGenerateInternalEdgeInfo(shape.get(), info_map.get());
-  fill_edges(w, *info_map, options.free_side, stats);
+  fill_edges(w, edge_bends(mesh), options.free_side, stats);
 
   stats.triangles = mesh.triangles.size();
   stats.build_seconds = std::chrono::duration<double>(std::chrono::steady_clock::now() - start).count();
@@ -665,7 +652,7 @@ std::size_t CollisionWorld::sphere_contacts(const Vec3& centre, double radius, s
   ContactSink sink(out, w.merge_cos);
   SphereQuery query(w, centre, radius, sink);
   const Vec3 pad = Vec3::Constant(radius);
-  m_impl->bvh->reportAabbOverlappingNodex(&query, to_bt(centre - pad), to_bt(centre + pad));
+  m_impl->bvh->reportAabbOverlappingNodex(&query, to_bvh(centre - pad), to_bvh(centre + pad));
   return sink.finish();
 }
 
@@ -678,7 +665,7 @@ std::size_t CollisionWorld::capsule_contacts(const Vec3& a, const Vec3& b, doubl
   ContactSink sink(out, w.merge_cos);
   CapsuleQuery query(w, a, b, radius, sink);
   const Vec3 pad = Vec3::Constant(radius);
-  m_impl->bvh->reportAabbOverlappingNodex(&query, to_bt(a.cwiseMin(b) - pad), to_bt(a.cwiseMax(b) + pad));
+  m_impl->bvh->reportAabbOverlappingNodex(&query, to_bvh(a.cwiseMin(b) - pad), to_bvh(a.cwiseMax(b) + pad));
   return sink.finish();
 }
 
@@ -686,7 +673,7 @@ std::optional<RayHit> CollisionWorld::ray_cast(const Vec3& origin, const Vec3& d
                                                double max_distance) const {
   MAGVINE_ASSERT(origin.allFinite() && std::abs(direction.norm() - 1.0) < 1e-9 && max_distance >= 0.0);
   RayQuery query(m_impl->tables, origin, direction, max_distance);
-  m_impl->bvh->reportRayOverlappingNodex(&query, to_bt(origin), to_bt(origin + max_distance * direction));
+  m_impl->bvh->reportRayOverlappingNodex(&query, to_bvh(origin), to_bvh(origin + max_distance * direction));
   return query.result();
 }
 
@@ -701,7 +688,7 @@ bool CollisionWorld::contains(const Vec3& point) const {
   int first_vote = 0;  // +1 inside, −1 outside: breaks a 1–1 tie
   for (const Vec3& dir : parity_directions()) {
     ParityQuery query(w, point, dir, length);
-    m_impl->bvh->reportRayOverlappingNodex(&query, to_bt(point), to_bt(point + length * dir));
+    m_impl->bvh->reportRayOverlappingNodex(&query, to_bvh(point), to_bvh(point + length * dir));
     if (query.ambiguous()) continue;
     (query.odd() ? inside : outside) += 1;
     if (first_vote == 0) first_vote = query.odd() ? 1 : -1;

@@ -1,6 +1,7 @@
 #pragma once
 /// Contact, ray and inside/outside queries against a static triangle mesh (the airway wall), backed by Bullet's
-/// quantized BVH and its triangle info map (edge angles) in double precision. Bullet stays inside the .cpp.
+/// quantized BVH in double precision (built in millimetres, see the .cpp) and the edge bends of edge_bends.hpp (the
+/// quantities of Bullet's btTriangleInfoMap). Bullet stays inside the .cpp.
 ///
 /// Contact model (one-sided wall). The mesh is oriented with outward normals (into tissue for an airway lumen).
 /// Bodies live on one side of it, the *free side*: by default inside the lumen, against the normals. Every query
@@ -19,7 +20,7 @@
 ///    contact: use `contains` to detect a body that has left the lumen.
 ///  * Ridge edge: an edge where the wall bends away from the free side (it juts into the free space; a carina seen
 ///    from the lumen). The closest point q on the edge to the axis, when the direction q → x lies in the edge's
-///    normal cone (the arc from n_t to the neighbour's normal, angle taken from Bullet's btTriangleInfoMap):
+///    normal cone (the arc from n_t to the neighbour's normal, angle from edge_bends()):
 ///    normal = that direction, depth = r − |x − q|. Outside the cone a face is the nearest feature and reports it.
 ///  * Boundary edge (an open mesh's rim): like a ridge whose arc runs from n_t to the in-plane direction m leaving t;
 ///    behind the rim's plane the normal is m (a knife edge).
