@@ -47,11 +47,15 @@ constexpr std::uint8_t kDegenerate = 0x8;
 /// Bit 4 + k: edge k is a boundary edge (no neighbour), so nothing beyond it reports contacts of its own.
 constexpr unsigned kBoundaryShift = 4;
 
-/// What the contact queries read per triangle.
-struct TriangleData {
-  Vec3 normal = Vec3::Zero();        ///< unit normal pointing to the free side (zero when degenerate)
+/// What the contact queries read per triangle. The first cache line holds everything the rejection tests read
+/// (bounding sphere, plane), so the many triangles a query box visits but does not touch cost one line each.
+struct alignas(64) TriangleData {
   Vec3 bound_centre = Vec3::Zero();  ///< centroid: centre of a bounding sphere [m]
   double bound_radius = 0.0;         ///< largest centroid–corner distance [m]
+  Vec3 normal = Vec3::Zero();        ///< unit normal pointing to the free side (zero when degenerate)
+  /// normal·corner 0 [m], so the signed plane distance of x is normal·x − offset; +∞ for a degenerate triangle,
+  /// whose plane distance is then −∞ and rejects every sphere and capsule without reading the flags.
+  double offset = 0.0;
   double face_tol = 0.0;             ///< inclusion margin of the edge functions [m²]
   std::array<double, 3> arc_cos{};   ///< per emitting edge: end of its normal arc, cos and sin of the bend angle
   std::array<double, 3> arc_sin{};
@@ -229,14 +233,13 @@ class SphereQuery final : public btNodeOverlapCallback {
   void processNode(int /*sub_part*/, int triangle_index) override {
     const auto t = static_cast<std::uint32_t>(triangle_index);
     const TriangleData& d = m_w.data[t];
-    if ((d.flags & kDegenerate) != 0) return;
     const double reach = m_r + d.bound_radius;
     if ((m_c - d.bound_centre).squaredNorm() >= reach * reach) return;
+    // Signed distance to the plane, free side positive; the sphere must straddle the plane to touch anything of t.
+    const double s = d.normal.dot(m_c) - d.offset;
+    if (s >= m_r || s <= -m_r) return;
     const Triangle& tri = m_w.triangles[t];
     const std::array<const Vec3*, 3> v = {&m_w.vertices[tri[0]], &m_w.vertices[tri[1]], &m_w.vertices[tri[2]]};
-    // Signed distance to the plane, free side positive; the sphere must straddle the plane to touch anything of t.
-    const double s = d.normal.dot(m_c - *v[0]);
-    if (s >= m_r || s <= -m_r) return;
     const std::array<Vec3, 3> e = {*v[1] - *v[0], *v[2] - *v[1], *v[0] - *v[2]};
     // Face: the foot of the centre is inside t iff all three edge functions n·(e_k × (c − v_k)) are ≥ 0.
     const Vec3 outward = m_w.side * d.normal;
@@ -280,16 +283,15 @@ class CapsuleQuery final : public btNodeOverlapCallback {
   void processNode(int /*sub_part*/, int triangle_index) override {
     const auto t = static_cast<std::uint32_t>(triangle_index);
     const TriangleData& d = m_w.data[t];
-    if ((d.flags & kDegenerate) != 0) return;
     const double reach = m_r + d.bound_radius;
     const double tau_c = std::clamp((d.bound_centre - m_a).dot(m_ab) * m_inv_ab2, 0.0, 1.0);
     if ((m_a + tau_c * m_ab - d.bound_centre).squaredNorm() >= reach * reach) return;
+    // Signed plane distances of the ends (free side positive) are linear along the segment.
+    const double sa = d.normal.dot(m_a) - d.offset;
+    const double sb = sa + d.normal.dot(m_ab);
+    if (!(std::min(sa, sb) < m_r && std::max(sa, sb) > -m_r)) return;  // also rejects degenerate (NaN/∞)
     const Triangle& tri = m_w.triangles[t];
     const std::array<const Vec3*, 3> v = {&m_w.vertices[tri[0]], &m_w.vertices[tri[1]], &m_w.vertices[tri[2]]};
-    // Signed plane distances of the ends (free side positive) are linear along the segment.
-    const double sa = d.normal.dot(m_a - *v[0]);
-    const double sb = sa + d.normal.dot(m_ab);
-    if (std::min(sa, sb) >= m_r || std::max(sa, sb) <= -m_r) return;
     const std::array<Vec3, 3> e = {*v[1] - *v[0], *v[2] - *v[1], *v[0] - *v[2]};
     // Face: clip the segment to the prism over t (edge functions g_k(τ) = g_k(0) + τ·slope_k ≥ −tol, the prism
     // optionally widened across valley edges), then take the lowest point of the clipped part along the normal.
@@ -514,9 +516,11 @@ void fill_geometry(Tables& w) {
     // |area| = |e1||e2| sin θ: below 1e-12 of the longest edge squared the normal is rounding noise.
     if (!(area.norm() > 1e-12 * longest2)) {
       d.flags = kDegenerate;
+      d.offset = std::numeric_limits<double>::infinity();
       continue;
     }
     d.normal = w.side * area.normalized();
+    d.offset = d.normal.dot(a);
   }
 }
 
