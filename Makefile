@@ -45,8 +45,11 @@ demo: build
 
 bench: deps
 	cmake -S . -B $(BUILD) -DCMAKE_BUILD_TYPE=Release -DMAGVINE_BUILD_BENCHMARKS=ON $(CMAKE_FLAGS)
-	cmake --build $(BUILD) -j $(JOBS) --target bench_fields
+	cmake --build $(BUILD) -j $(JOBS) --target bench_fields bench_mesh_import bench_contacts bench_distance
 	$(BUILD)/tests/bench/bench_fields --benchmark_min_time=0.5
+	$(BUILD)/tests/bench/bench_mesh_import
+	$(BUILD)/tests/bench/bench_contacts --benchmark_min_time=0.5
+	$(BUILD)/tests/bench/bench_distance --benchmark_filter='point/aabb/mean|capsule/aabb/mean|build/aabb/mean'
 
 # Regenerates the README figures in docs/figures (field-model error against runtime, about 10 s).
 figures: build
