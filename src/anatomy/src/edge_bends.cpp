@@ -27,52 +27,58 @@ std::vector<std::array<EdgeBend, 3>> edge_bends(const TriangleMesh& mesh) {
   std::vector<Vec3> normals(n);
   for (std::size_t t = 0; t < n; ++t) normals[t] = unit_normal(mesh, mesh.triangles[t]);
 
-  // Every directed edge of a triangle with a normal, keyed by its undirected vertex pair; sorting groups the
-  // triangles that share an edge.
-  struct HalfEdge {
-    std::uint64_t key;
-    std::uint32_t triangle;
-    std::uint32_t k;
-  };
-  std::vector<HalfEdge> edges;
-  edges.reserve(3 * n);
+  // Vertex → incident triangles with a normal (CSR). The triangles sharing edge (a, b) are found among a's,
+  // a handful each, so the whole pass is linear in the mesh size.
+  const std::size_t nv = mesh.vertices.size();
+  std::vector<std::uint32_t> first(nv + 1, 0);
+  for (std::size_t t = 0; t < n; ++t) {
+    if (normals[t].isZero()) continue;
+    for (const std::uint32_t v : mesh.triangles[t]) ++first[v + 1];
+  }
+  for (std::size_t v = 0; v < nv; ++v) first[v + 1] += first[v];
+  std::vector<std::uint32_t> incident(first[nv]);
+  {
+    std::vector<std::uint32_t> fill(first.begin(), first.end() - 1);
+    for (std::size_t t = 0; t < n; ++t) {
+      if (normals[t].isZero()) continue;
+      for (const std::uint32_t v : mesh.triangles[t]) incident[fill[v]++] = static_cast<std::uint32_t>(t);
+    }
+  }
+
+  std::vector<std::array<EdgeBend, 3>> bends(n);
   for (std::size_t t = 0; t < n; ++t) {
     if (normals[t].isZero()) continue;
     const Triangle& tri = mesh.triangles[t];
-    for (std::uint32_t k = 0; k < 3; ++k) {
-      const std::uint64_t a = tri[k];
-      const std::uint64_t b = tri[(k + 1) % 3];
-      edges.push_back({std::min(a, b) << 32 | std::max(a, b), static_cast<std::uint32_t>(t), k});
+    for (std::size_t k = 0; k < 3; ++k) {
+      const std::uint32_t a = tri[k];
+      const std::uint32_t b = tri[(k + 1) % 3];
+      // The other triangles at a that also contain b: exactly one for a manifold edge; otherwise a boundary.
+      std::size_t found = 0;
+      std::uint32_t u = 0;
+      std::size_t ku = 0;  // u's corner at a
+      for (std::uint32_t i = first[a]; i < first[a + 1]; ++i) {
+        const std::uint32_t other = incident[i];
+        if (other == t) continue;
+        const Triangle& o = mesh.triangles[other];
+        if (o[0] != b && o[1] != b && o[2] != b) continue;
+        ++found;
+        u = other;
+        ku = o[0] == a ? 0 : o[1] == a ? 1 : 2;
+      }
+      if (found != 1) continue;
+      const Triangle& o = mesh.triangles[u];
+      const Vec3& nt = normals[t];
+      // The neighbour's normal as if it were oriented like t: a consistently oriented neighbour runs the shared
+      // edge b → a, i.e. its corner after a is not b.
+      const bool reversed = o[(ku + 1) % 3] != b;
+      const Vec3 nu = reversed ? normals[u] : Vec3(-normals[u]);
+      const double angle = std::atan2(nt.cross(nu).norm(), nt.dot(nu));
+      const std::uint32_t c = o[0] != a && o[0] != b ? o[0] : o[1] != a && o[1] != b ? o[1] : o[2];
+      EdgeBend& bend = bends[t][k];
+      bend.boundary = false;
+      bend.angle = angle < kFlatAngle ? 0.0 : angle;
+      bend.convex = nt.dot(mesh.vertices[c] - mesh.vertices[a]) < 0.0;  // c: the neighbour's corner off the edge
     }
-  }
-  std::sort(edges.begin(), edges.end(), [](const HalfEdge& x, const HalfEdge& y) {
-    return x.key != y.key ? x.key < y.key : x.triangle < y.triangle;
-  });
-
-  std::vector<std::array<EdgeBend, 3>> bends(n);
-  const auto bend_from = [&](const HalfEdge& self, const HalfEdge& other) {
-    const Triangle& t = mesh.triangles[self.triangle];
-    const Triangle& u = mesh.triangles[other.triangle];
-    const Vec3& nt = normals[self.triangle];
-    // The neighbour's normal as if it were oriented like t: a consistently oriented neighbour runs the shared
-    // edge the other way.
-    const bool reversed = u[other.k] == t[(self.k + 1) % 3];
-    const Vec3 nu = reversed ? normals[other.triangle] : Vec3(-normals[other.triangle]);
-    const double angle = std::atan2(nt.cross(nu).norm(), nt.dot(nu));
-    const Vec3& w = mesh.vertices[u[(other.k + 2) % 3]];  // the neighbour's corner off the edge
-    EdgeBend& bend = bends[self.triangle][self.k];
-    bend.boundary = false;
-    bend.angle = angle < kFlatAngle ? 0.0 : angle;
-    bend.convex = nt.dot(w - mesh.vertices[t[self.k]]) < 0.0;
-  };
-  for (std::size_t i = 0; i < edges.size();) {
-    std::size_t j = i + 1;
-    while (j < edges.size() && edges[j].key == edges[i].key) ++j;
-    if (j - i == 2) {  // manifold: exactly two triangles; otherwise every side stays a boundary
-      bend_from(edges[i], edges[i + 1]);
-      bend_from(edges[i + 1], edges[i]);
-    }
-    i = j;
   }
   return bends;
 }

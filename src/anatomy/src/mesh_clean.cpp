@@ -11,34 +11,44 @@ namespace {
 
 constexpr std::uint32_t kEmpty = std::numeric_limits<std::uint32_t>::max();
 
-// Open-addressing hash of quantised positions → new vertex index. Faster than std::unordered_map by a wide
-// margin on millions of STL corners, and the table is sized once.
+using CellKey = std::array<std::int64_t, 3>;
+
+// Open-addressing hash of quantised positions → welded vertex index. Faster than std::unordered_map by a wide
+// margin on millions of STL corners. It stores only the index (4 bytes a slot, sized once): the key of a slot is
+// recomputed from the welded vertex it names, so a 3 M-corner STL needs a 32 MB table, not 230 MB of keys.
 class CellTable {
  public:
-  explicit CellTable(std::size_t expected) {
+  CellTable(std::size_t expected, const std::vector<Vec3>& welded, const Vec3& origin, double inv)
+      : m_welded(welded), m_origin(origin), m_inv(inv) {
     std::size_t size = 16;
     while (size < 2 * expected) size *= 2;
-    m_keys.resize(size);
     m_values.assign(size, kEmpty);
     m_mask = size - 1;
   }
-  // Returns the stored value for `key`, or stores `value` and returns it.
-  std::uint32_t find_or_insert(const std::array<std::int64_t, 3>& key, std::uint32_t value) {
+
+  CellKey key(const Vec3& p) const {
+    return {std::llround((p.x() - m_origin.x()) * m_inv), std::llround((p.y() - m_origin.y()) * m_inv),
+            std::llround((p.z() - m_origin.z()) * m_inv)};
+  }
+
+  // Returns the index stored for `key`, or stores `value` and returns it.
+  std::uint32_t find_or_insert(const CellKey& key, std::uint32_t value) {
     std::uint64_t h = static_cast<std::uint64_t>(key[0]) * 0x9E3779B97F4A7C15ull;
     h ^= static_cast<std::uint64_t>(key[1]) * 0xC2B2AE3D27D4EB4Full + (h << 6) + (h >> 2);
     h ^= static_cast<std::uint64_t>(key[2]) * 0x165667B19E3779F9ull + (h << 6) + (h >> 2);
     for (std::size_t i = h & m_mask;; i = (i + 1) & m_mask) {
       if (m_values[i] == kEmpty) {
-        m_keys[i] = key;
         m_values[i] = value;
         return value;
       }
-      if (m_keys[i] == key) return m_values[i];
+      if (this->key(m_welded[m_values[i]]) == key) return m_values[i];
     }
   }
 
  private:
-  std::vector<std::array<std::int64_t, 3>> m_keys;
+  const std::vector<Vec3>& m_welded;
+  Vec3 m_origin;
+  double m_inv;
   std::vector<std::uint32_t> m_values;
   std::size_t m_mask = 0;
 };
@@ -57,20 +67,18 @@ CleanStats weld_and_clean(TriangleMesh& mesh, double tolerance) {
   const double inv = 1.0 / tolerance;
 
   // Weld: visit corners in triangle order, so new vertex ids follow first use and unused vertices vanish.
-  CellTable table(mesh.vertices.size());
   std::vector<std::uint32_t> remap(mesh.vertices.size(), kEmpty);
   std::vector<Vec3> welded;
-  welded.reserve(mesh.vertices.size());
+  welded.reserve(mesh.vertices.size());  // never reallocates: the table reads it while it grows
+  CellTable table(mesh.vertices.size(), welded, box.min, inv);
   for (Triangle& tri : mesh.triangles) {
     for (std::uint32_t& v : tri) {
       if (remap[v] == kEmpty) {
         const Vec3& p = mesh.vertices[v];
-        const std::array<std::int64_t, 3> key{std::llround((p.x() - box.min.x()) * inv),
-                                              std::llround((p.y() - box.min.y()) * inv),
-                                              std::llround((p.z() - box.min.z()) * inv)};
         const auto next = static_cast<std::uint32_t>(welded.size());
-        remap[v] = table.find_or_insert(key, next);
-        if (remap[v] == next) welded.push_back(p);
+        welded.push_back(p);  // provisional: the table compares against it
+        remap[v] = table.find_or_insert(table.key(p), next);
+        if (remap[v] != next) welded.pop_back();
       }
       v = remap[v];
     }

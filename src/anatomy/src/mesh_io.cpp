@@ -139,6 +139,14 @@ ImportedMesh import_mesh(const std::filesystem::path& path, const MeshImportOpti
   const Eigen::Affine3d to_world =
       Eigen::Affine3d(options.pose) * Eigen::Scaling(metres_per(options.units) * options.scale);
   std::size_t skipped = 0;
+  std::size_t vertex_count = 0;
+  std::size_t face_count = 0;
+  for (unsigned m = 0; m < scene->mNumMeshes; ++m) {
+    vertex_count += scene->mMeshes[m]->mNumVertices;
+    face_count += scene->mMeshes[m]->mNumFaces;
+  }
+  result.mesh.vertices.reserve(vertex_count);  // exact unless a mesh is instanced by several nodes
+  result.mesh.triangles.reserve(face_count);
   collect(*scene, *scene->mRootNode, to_world, result.mesh, result.stats.meshes_merged, skipped);
   result.stats.raw_vertices = result.mesh.vertices.size();
   result.stats.raw_triangles = result.mesh.triangles.size();
