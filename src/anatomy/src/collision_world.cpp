@@ -47,9 +47,9 @@ constexpr std::uint8_t kDegenerate = 0x8;
 /// Bit 4 + k: edge k is a boundary edge (no neighbour), so nothing beyond it reports contacts of its own.
 constexpr unsigned kBoundaryShift = 4;
 
-/// What the contact queries read per triangle. The first cache line holds everything the rejection tests read
-/// (bounding sphere, plane), so the many triangles a query box visits but does not touch cost one line each.
-struct alignas(64) TriangleData {
+/// What the contact queries read per triangle. The first 64 bytes hold everything the rejection tests read
+/// (bounding sphere, plane), so the many triangles a query box visits but does not touch cost little.
+struct TriangleData {
   Vec3 bound_centre = Vec3::Zero();  ///< centroid: centre of a bounding sphere [m]
   double bound_radius = 0.0;         ///< largest centroid–corner distance [m]
   Vec3 normal = Vec3::Zero();        ///< unit normal pointing to the free side (zero when degenerate)
