@@ -57,12 +57,14 @@ struct TriangleData {
   /// whose plane distance is then −∞ and rejects every sphere and capsule without reading the flags.
   double offset = 0.0;
   double face_tol = 0.0;             ///< inclusion margin of the edge functions [m²]
-  std::array<double, 3> arc_cos{};   ///< per emitting edge: end of its normal arc, cos and sin of the bend angle
-  std::array<double, 3> arc_sin{};
+  /// Per emitting edge: end of its normal arc, cos and sin of the bend angle. Float: a bend to 1e-7 moves a cone
+  /// boundary by 1e-7 rad, far below any tessellation angle, and the record shrinks by a quarter.
+  std::array<float, 3> arc_cos{};
+  std::array<float, 3> arc_sin{};
   /// Per valley edge: tan(bend)·|edge| [m]. A centre that has crossed the wall behind a valley by depth h lies in
   /// neither face's prism (the gap between them is h·tan(bend) wide), so each face's prism widens by h·tan(bend)
   /// across its valley edges; the two contacts it then gets are merged when their normals are close.
-  std::array<double, 3> valley_margin{};
+  std::array<float, 3> valley_margin{};
   std::uint8_t flags = 0;
 };
 
@@ -71,9 +73,8 @@ struct Tables {
   std::span<const Vec3> vertices;
   std::span<const Triangle> triangles;
   std::vector<TriangleData> data;
-  /// Vertex adjacency (CSR): the neighbours of vertex v are neighbours[neighbour_offsets[v] .. [v + 1]).
-  std::vector<std::uint32_t> neighbour_offsets;
-  std::vector<std::uint32_t> neighbours;
+  /// Vertex → incident triangles, for the vertex normal cones (and the edge bends).
+  VertexTriangles incidence;
   double side = -1.0;       ///< free-side normal = side · outward normal
   double merge_cos = 1.0;   ///< cos(merge_angle)
   Vec3 box_min = Vec3::Zero();
@@ -169,9 +170,11 @@ class ContactSink {
 bool in_vertex_cone(const Tables& w, std::uint32_t v, const Vec3& f) {
   const Vec3& p = w.vertices[v];
   const double fn = f.norm();
-  for (std::uint32_t i = w.neighbour_offsets[v]; i < w.neighbour_offsets[v + 1]; ++i) {
-    const Vec3 e = w.vertices[w.neighbours[i]] - p;
-    if (f.dot(e) > kFaceInclusionTol * fn * e.norm()) return false;
+  for (std::uint32_t i = w.incidence.first[v]; i < w.incidence.first[v + 1]; ++i) {
+    for (const std::uint32_t u : w.triangles[w.incidence.triangles[i]]) {  // every edge at v, each seen twice
+      const Vec3 e = w.vertices[u] - p;
+      if (f.dot(e) > kFaceInclusionTol * fn * e.norm()) return false;
+    }
   }
   return true;
 }
@@ -225,12 +228,12 @@ double distance_to_edges(const Vec3& p0, const Vec3& u, const std::array<const V
 }
 
 /// Sphere against the triangles the BVH reports.
-class SphereQuery final : public btNodeOverlapCallback {
+class SphereQuery {
  public:
   SphereQuery(const Tables& w, const Vec3& centre, double radius, ContactSink& sink)
       : m_w(w), m_c(centre), m_r(radius), m_sink(sink) {}
 
-  void processNode(int /*sub_part*/, int triangle_index) override {
+  void processNode(int triangle_index) {
     const auto t = static_cast<std::uint32_t>(triangle_index);
     const TriangleData& d = m_w.data[t];
     const double reach = m_r + d.bound_radius;
@@ -275,12 +278,12 @@ class SphereQuery final : public btNodeOverlapCallback {
 };
 
 /// Capsule (segment a + τ·ab, τ ∈ [0, 1]) against the triangles the BVH reports.
-class CapsuleQuery final : public btNodeOverlapCallback {
+class CapsuleQuery {
  public:
   CapsuleQuery(const Tables& w, const Vec3& a, const Vec3& b, double radius, ContactSink& sink)
       : m_w(w), m_a(a), m_ab(b - a), m_inv_ab2(1.0 / (b - a).squaredNorm()), m_r(radius), m_sink(sink) {}
 
-  void processNode(int /*sub_part*/, int triangle_index) override {
+  void processNode(int triangle_index) {
     const auto t = static_cast<std::uint32_t>(triangle_index);
     const TriangleData& d = m_w.data[t];
     const double reach = m_r + d.bound_radius;
@@ -524,34 +527,6 @@ void fill_geometry(Tables& w) {
   }
 }
 
-/// Vertex adjacency from the triangles' edges, each neighbour once.
-void fill_neighbours(Tables& w) {
-  const std::size_t n = w.vertices.size();
-  std::vector<std::uint32_t> count(n + 1, 0);
-  for (const Triangle& tri : w.triangles) {
-    for (std::size_t k = 0; k < 3; ++k) count[tri[k] + 1] += 2;
-  }
-  for (std::size_t v = 0; v < n; ++v) count[v + 1] += count[v];
-  std::vector<std::uint32_t> all(count[n]);
-  std::vector<std::uint32_t> fill(count.begin(), count.end() - 1);
-  for (const Triangle& tri : w.triangles) {
-    for (std::size_t k = 0; k < 3; ++k) {
-      all[fill[tri[k]]++] = tri[(k + 1) % 3];
-      all[fill[tri[k]]++] = tri[(k + 2) % 3];
-    }
-  }
-  w.neighbour_offsets.assign(n + 1, 0);
-  w.neighbours.clear();
-  w.neighbours.reserve(all.size() / 2);
-  for (std::size_t v = 0; v < n; ++v) {
-    const auto first = all.begin() + count[v];
-    const auto last = all.begin() + count[v + 1];
-    std::sort(first, last);
-    w.neighbours.insert(w.neighbours.end(), first, std::unique(first, last));
-    w.neighbour_offsets[v + 1] = static_cast<std::uint32_t>(w.neighbours.size());
-  }
-}
-
 /// Edge classes from the edge bends (edge_bends.hpp). From the free side, a ridge is an edge convex toward the
 /// free side: concave seen from outside when the free side is inside. Flat edges and valleys emit nothing;
 /// valleys widen the face regions behind the wall.
@@ -576,18 +551,64 @@ void fill_edges(Tables& w, const std::vector<std::array<EdgeBend, 3>>& bends, Fr
         } else {
           const Triangle& tri = w.triangles[t];
           const double length = (w.vertices[tri[(k + 1) % 3]] - w.vertices[tri[k]]).norm();
-          d.valley_margin[k] = std::tan(std::min(edge.angle, kMaxValleyBend)) * length;
+          d.valley_margin[k] = static_cast<float>(std::tan(std::min(edge.angle, kMaxValleyBend)) * length);
         }
       }
       if (bend > 0.0) {
         d.flags = static_cast<std::uint8_t>(d.flags | (1u << k));
         if (edge.boundary) d.flags = static_cast<std::uint8_t>(d.flags | (1u << (kBoundaryShift + k)));
-        d.arc_cos[k] = std::cos(bend);
-        d.arc_sin[k] = std::sin(bend);
+        d.arc_cos[k] = static_cast<float>(std::cos(bend));
+        d.arc_sin[k] = static_cast<float>(std::sin(bend));
       }
     }
   }
 }
+
+/// Bullet's stackless walk of its quantized BVH (btQuantizedBvh::walkStacklessQuantizedTree), here so that the
+/// per-triangle work inlines instead of going through a virtual callback, and so that a sphere query can prune
+/// nodes and leaves by the sphere–box distance instead of box overlap (the corners of the query cube hold a
+/// third of its triangles). `near(lo, hi)` [BVH coordinates] decides; `visit(triangle)` gets the leaves.
+class BvhWalker {
+ public:
+  explicit BvhWalker(btOptimizedBvh& bvh) : m_bvh(bvh), m_nodes(bvh.getQuantizedNodeArray()) {
+    const unsigned short zero[3] = {0, 0, 0};
+    const unsigned short one[3] = {1, 1, 1};
+    const btVector3 o = bvh.unQuantize(zero);
+    const btVector3 step = bvh.unQuantize(one) - o;
+    m_origin = Vec3(o.x(), o.y(), o.z());
+    m_step = Vec3(step.x(), step.y(), step.z());
+  }
+
+  template <class Near, class Visit>
+  void walk(const Vec3& lo, const Vec3& hi, Near&& near, Visit&& visit) const {
+    unsigned short qlo[3];
+    unsigned short qhi[3];
+    m_bvh.quantizeWithClamp(qlo, btVector3(lo.x(), lo.y(), lo.z()), 0);
+    m_bvh.quantizeWithClamp(qhi, btVector3(hi.x(), hi.y(), hi.z()), 1);
+    const int count = m_nodes.size();
+    int i = 0;
+    while (i < count) {
+      const btQuantizedBvhNode& node = m_nodes[i];
+      bool overlap = qlo[0] <= node.m_quantizedAabbMax[0] && qhi[0] >= node.m_quantizedAabbMin[0] &&
+                     qlo[1] <= node.m_quantizedAabbMax[1] && qhi[1] >= node.m_quantizedAabbMin[1] &&
+                     qlo[2] <= node.m_quantizedAabbMax[2] && qhi[2] >= node.m_quantizedAabbMin[2];
+      if (overlap) overlap = near(box(node.m_quantizedAabbMin), box(node.m_quantizedAabbMax));
+      const bool leaf = node.isLeafNode();
+      if (leaf && overlap) visit(node.getTriangleIndex());
+      i += (overlap || leaf) ? 1 : node.getEscapeIndex();
+    }
+  }
+
+ private:
+  Vec3 box(const unsigned short* q) const {
+    return m_origin + Vec3(q[0] * m_step.x(), q[1] * m_step.y(), q[2] * m_step.z());
+  }
+
+  btOptimizedBvh& m_bvh;
+  const QuantizedNodeArray& m_nodes;
+  Vec3 m_origin;
+  Vec3 m_step;
+};
 
 }  // namespace
 
@@ -602,7 +623,8 @@ struct CollisionWorld::Impl {
   // interface, which references `mesh`. The Impl lives on the heap and never moves, so those stay valid.
   std::unique_ptr<btTriangleIndexVertexArray> mesh_interface;
   std::unique_ptr<btBvhTriangleMeshShape> shape;
-  const btOptimizedBvh* bvh = nullptr;
+  btOptimizedBvh* bvh = nullptr;
+  std::unique_ptr<BvhWalker> walker;
 };
 
 CollisionWorld::Impl::Impl(const TriangleMesh& source, const CollisionWorldOptions& opts)
@@ -617,7 +639,7 @@ CollisionWorld::Impl::Impl(const TriangleMesh& source, const CollisionWorldOptio
   w.box_min = box.min;
   w.box_max = box.max;
   fill_geometry(w);
-  fill_neighbours(w);
+  w.incidence = vertex_triangles(mesh);
 
   // Zero-copy view of the mesh copy: packed doubles and 32-bit indices.
   btIndexedMesh part;
@@ -637,8 +659,9 @@ CollisionWorld::Impl::Impl(const TriangleMesh& source, const CollisionWorldOptio
   shape = std::make_unique<btBvhTriangleMeshShape>(mesh_interface.get(), /*useQuantizedAabbCompression=*/true,
                                                    /*buildBvh=*/true);
   bvh = shape->getOptimizedBvh();
+  walker = std::make_unique<BvhWalker>(*bvh);
 
-  fill_edges(w, edge_bends(mesh), options.free_side, stats);
+  fill_edges(w, edge_bends(mesh, w.incidence), options.free_side, stats);
 
   stats.triangles = mesh.triangles.size();
   stats.build_seconds = std::chrono::duration<double>(std::chrono::steady_clock::now() - start).count();
@@ -655,8 +678,13 @@ std::size_t CollisionWorld::sphere_contacts(const Vec3& centre, double radius, s
   const Tables& w = m_impl->tables;
   ContactSink sink(out, w.merge_cos);
   SphereQuery query(w, centre, radius, sink);
-  const Vec3 pad = Vec3::Constant(radius);
-  m_impl->bvh->reportAabbOverlappingNodex(&query, to_bvh(centre - pad), to_bvh(centre + pad));
+  const Vec3 c = kBvhScale * centre;
+  const double r = kBvhScale * radius;
+  const Vec3 pad = Vec3::Constant(r);
+  m_impl->walker->walk(
+      c - pad, c + pad,
+      [&](const Vec3& lo, const Vec3& hi) { return (c.cwiseMax(lo).cwiseMin(hi) - c).squaredNorm() <= r * r; },
+      [&](int t) { query.processNode(t); });
   return sink.finish();
 }
 
@@ -668,8 +696,10 @@ std::size_t CollisionWorld::capsule_contacts(const Vec3& a, const Vec3& b, doubl
   const Tables& w = m_impl->tables;
   ContactSink sink(out, w.merge_cos);
   CapsuleQuery query(w, a, b, radius, sink);
-  const Vec3 pad = Vec3::Constant(radius);
-  m_impl->bvh->reportAabbOverlappingNodex(&query, to_bvh(a.cwiseMin(b) - pad), to_bvh(a.cwiseMax(b) + pad));
+  const Vec3 pad = Vec3::Constant(kBvhScale * radius);
+  m_impl->walker->walk(
+      kBvhScale * a.cwiseMin(b) - pad, kBvhScale * a.cwiseMax(b) + pad,
+      [](const Vec3&, const Vec3&) { return true; }, [&](int t) { query.processNode(t); });
   return sink.finish();
 }
 

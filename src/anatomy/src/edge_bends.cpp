@@ -22,28 +22,37 @@ Vec3 unit_normal(const TriangleMesh& mesh, const Triangle& t) {
 
 }  // namespace
 
+VertexTriangles vertex_triangles(const TriangleMesh& mesh) {
+  const std::size_t n = mesh.triangles.size();
+  const std::size_t nv = mesh.vertices.size();
+  std::vector<char> has_normal(n);
+  for (std::size_t t = 0; t < n; ++t) has_normal[t] = unit_normal(mesh, mesh.triangles[t]).isZero() ? 0 : 1;
+  VertexTriangles out;
+  out.first.assign(nv + 1, 0);
+  for (std::size_t t = 0; t < n; ++t) {
+    if (has_normal[t] == 0) continue;
+    for (const std::uint32_t v : mesh.triangles[t]) ++out.first[v + 1];
+  }
+  for (std::size_t v = 0; v < nv; ++v) out.first[v + 1] += out.first[v];
+  out.triangles.resize(out.first[nv]);
+  std::vector<std::uint32_t> fill(out.first.begin(), out.first.end() - 1);
+  for (std::size_t t = 0; t < n; ++t) {
+    if (has_normal[t] == 0) continue;
+    for (const std::uint32_t v : mesh.triangles[t]) out.triangles[fill[v]++] = static_cast<std::uint32_t>(t);
+  }
+  return out;
+}
+
 std::vector<std::array<EdgeBend, 3>> edge_bends(const TriangleMesh& mesh) {
+  return edge_bends(mesh, vertex_triangles(mesh));
+}
+
+std::vector<std::array<EdgeBend, 3>> edge_bends(const TriangleMesh& mesh, const VertexTriangles& incidence) {
   const std::size_t n = mesh.triangles.size();
   std::vector<Vec3> normals(n);
   for (std::size_t t = 0; t < n; ++t) normals[t] = unit_normal(mesh, mesh.triangles[t]);
-
-  // Vertex → incident triangles with a normal (CSR). The triangles sharing edge (a, b) are found among a's,
-  // a handful each, so the whole pass is linear in the mesh size.
-  const std::size_t nv = mesh.vertices.size();
-  std::vector<std::uint32_t> first(nv + 1, 0);
-  for (std::size_t t = 0; t < n; ++t) {
-    if (normals[t].isZero()) continue;
-    for (const std::uint32_t v : mesh.triangles[t]) ++first[v + 1];
-  }
-  for (std::size_t v = 0; v < nv; ++v) first[v + 1] += first[v];
-  std::vector<std::uint32_t> incident(first[nv]);
-  {
-    std::vector<std::uint32_t> fill(first.begin(), first.end() - 1);
-    for (std::size_t t = 0; t < n; ++t) {
-      if (normals[t].isZero()) continue;
-      for (const std::uint32_t v : mesh.triangles[t]) incident[fill[v]++] = static_cast<std::uint32_t>(t);
-    }
-  }
+  const std::vector<std::uint32_t>& first = incidence.first;
+  const std::vector<std::uint32_t>& incident = incidence.triangles;
 
   std::vector<std::array<EdgeBend, 3>> bends(n);
   for (std::size_t t = 0; t < n; ++t) {

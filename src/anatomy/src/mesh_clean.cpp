@@ -14,14 +14,15 @@ constexpr std::uint32_t kEmpty = std::numeric_limits<std::uint32_t>::max();
 using CellKey = std::array<std::int64_t, 3>;
 
 // Open-addressing hash of quantised positions → welded vertex index. Faster than std::unordered_map by a wide
-// margin on millions of STL corners. It stores only the index (4 bytes a slot, sized once): the key of a slot is
-// recomputed from the welded vertex it names, so a 3 M-corner STL needs a 32 MB table, not 230 MB of keys.
+// margin on millions of STL corners. It stores only the index (4 bytes a slot): the key of a slot is recomputed
+// from the welded vertex it names. It starts at a sixth of the corners (STL repeats each vertex about six times)
+// and doubles at half load, so the table stays small enough to live in cache.
 class CellTable {
  public:
-  CellTable(std::size_t expected, const std::vector<Vec3>& welded, const Vec3& origin, double inv)
+  CellTable(std::size_t corners, const std::vector<Vec3>& welded, const Vec3& origin, double inv)
       : m_welded(welded), m_origin(origin), m_inv(inv) {
-    std::size_t size = 16;
-    while (size < 2 * expected) size *= 2;
+    std::size_t size = 1024;
+    while (size < corners / 3) size *= 2;
     m_values.assign(size, kEmpty);
     m_mask = size - 1;
   }
@@ -33,12 +34,10 @@ class CellTable {
 
   // Returns the index stored for `key`, or stores `value` and returns it.
   std::uint32_t find_or_insert(const CellKey& key, std::uint32_t value) {
-    std::uint64_t h = static_cast<std::uint64_t>(key[0]) * 0x9E3779B97F4A7C15ull;
-    h ^= static_cast<std::uint64_t>(key[1]) * 0xC2B2AE3D27D4EB4Full + (h << 6) + (h >> 2);
-    h ^= static_cast<std::uint64_t>(key[2]) * 0x165667B19E3779F9ull + (h << 6) + (h >> 2);
-    for (std::size_t i = h & m_mask;; i = (i + 1) & m_mask) {
+    for (std::size_t i = hash(key) & m_mask;; i = (i + 1) & m_mask) {
       if (m_values[i] == kEmpty) {
         m_values[i] = value;
+        if (2 * ++m_count > m_values.size()) grow();
         return value;
       }
       if (this->key(m_welded[m_values[i]]) == key) return m_values[i];
@@ -46,11 +45,32 @@ class CellTable {
   }
 
  private:
+  static std::uint64_t hash(const CellKey& key) {
+    std::uint64_t h = static_cast<std::uint64_t>(key[0]) * 0x9E3779B97F4A7C15ull;
+    h ^= static_cast<std::uint64_t>(key[1]) * 0xC2B2AE3D27D4EB4Full + (h << 6) + (h >> 2);
+    h ^= static_cast<std::uint64_t>(key[2]) * 0x165667B19E3779F9ull + (h << 6) + (h >> 2);
+    return h;
+  }
+
+  void grow() {
+    std::vector<std::uint32_t> old = std::move(m_values);
+    m_values.assign(2 * old.size(), kEmpty);
+    m_mask = m_values.size() - 1;
+    for (const std::uint32_t v : old) {
+      if (v == kEmpty) continue;
+      std::size_t i = hash(key(m_welded[v])) & m_mask;
+      while (m_values[i] != kEmpty) i = (i + 1) & m_mask;
+      m_values[i] = v;
+    }
+  }
+
+
   const std::vector<Vec3>& m_welded;
   Vec3 m_origin;
   double m_inv;
   std::vector<std::uint32_t> m_values;
   std::size_t m_mask = 0;
+  std::size_t m_count = 0;
 };
 
 }  // namespace

@@ -5,6 +5,7 @@
 /// per triangle, which took 10 s on a 1 M-triangle mesh).
 
 #include <array>
+#include <cstdint>
 #include <vector>
 
 #include "magvine/anatomy/triangle_mesh.hpp"
@@ -18,8 +19,18 @@ struct EdgeBend {
   bool boundary = true;  ///< no neighbour to bend to: an open rim, a non-manifold edge or a zero-area neighbour
 };
 
+/// Vertex → incident triangles (compressed rows): the triangles at vertex v are
+/// triangles[first[v]] … triangles[first[v + 1] − 1], in increasing order. Zero-area triangles are left out.
+struct VertexTriangles {
+  std::vector<std::uint32_t> first;      ///< vertices + 1 offsets
+  std::vector<std::uint32_t> triangles;  ///< triangle indices
+};
+VertexTriangles vertex_triangles(const TriangleMesh& mesh);
+
 /// Bends of edge k (corner k → corner k + 1) of every triangle. Bends below 1e-10 rad are 0 (coplanar up to
 /// rounding). Zero-area triangles have no normal: their own entries are boundary and they are nobody's neighbour.
 std::vector<std::array<EdgeBend, 3>> edge_bends(const TriangleMesh& mesh);
+/// The same with the mesh's vertex_triangles() already at hand.
+std::vector<std::array<EdgeBend, 3>> edge_bends(const TriangleMesh& mesh, const VertexTriangles& incidence);
 
 }  // namespace magvine::anatomy
