@@ -51,10 +51,12 @@ bench: deps
 	$(BUILD)/tests/bench/bench_contacts --benchmark_min_time=0.5
 	$(BUILD)/tests/bench/bench_distance --benchmark_filter='point/aabb/mean|capsule/aabb/mean|build/aabb/mean'
 
-# Regenerates the README figures in docs/figures (field-model error against runtime, about 10 s).
+# Regenerates the README figures in docs/figures (field-model and phantom-meshing error against runtime, ~30 s).
 figures: build
 	$(BUILD)/src/cli/magvine study field-models --magnets assets/magnets/epm_n52.yaml --out docs/figures
 	$(PYTHON) tools/plot_field_models.py docs/figures --out docs/figures/field_models.png
+	$(BUILD)/src/cli/magvine study phantom-meshing --out docs/figures
+	$(PYTHON) tools/plot_meshing_study.py docs/figures --out docs/figures/meshing_study.png
 
 format:
 	find src tests -name '*.?pp' | xargs clang-format -i

@@ -14,6 +14,7 @@
 #include "magvine/scene/field_map.hpp"
 #include "magvine/scene/field_study.hpp"
 #include "magvine/scene/magnets_file.hpp"
+#include "magvine/scene/meshing_study.hpp"
 #include "magvine/scene/points_csv.hpp"
 
 namespace magvine::cli {
@@ -85,6 +86,13 @@ int run_study_field_models(const StudyArgs& args) {
   scene::run_field_model_study(*magnet, scene::FieldStudySpec{}, args.out_dir);
   std::cerr << "magvine study field-models: " << args.out_dir << "/field_models.csv, " << args.out_dir
             << "/field_model_distance.csv\n";
+  return 0;
+}
+
+int run_study_phantom_meshing(const std::string& out_dir) {
+  create_output_directory(out_dir);
+  scene::run_meshing_study(out_dir);
+  std::cerr << "magvine study phantom-meshing: " << out_dir << "/meshing_study.csv\n";
   return 0;
 }
 

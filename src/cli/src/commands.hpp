@@ -35,6 +35,7 @@ struct StudyArgs {
   std::string out_dir;
 };
 int run_study_field_models(const StudyArgs& args);
+int run_study_phantom_meshing(const std::string& out_dir);
 
 struct MeshCheckArgs {
   std::string file;

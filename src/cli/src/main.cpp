@@ -48,6 +48,10 @@ int main(int argc, char** argv) {
       "field-models", "exact cylinder vs dipole vs surface quadrature, against a fine quadrature (CSV)");
   study_fields->add_option("--magnets", study.magnets, "magnets file; its first cylinder is studied")->required();
   study_fields->add_option("--out", study.out_dir, "output folder")->required();
+  std::string meshing_out;
+  auto* study_meshing = study_cmd->add_subcommand(
+      "phantom-meshing", "phantom meshing spacing: capsule vs closed form, bronchial tree vs finest (CSV)");
+  study_meshing->add_option("--out", meshing_out, "output folder")->required();
 
   magvine::cli::MeshCheckArgs mesh_check;
   auto* mesh_cmd = app.add_subcommand("mesh", "anatomy mesh tools");
@@ -80,6 +84,7 @@ int main(int argc, char** argv) {
     if (field_cmd->parsed()) return magvine::cli::run_field(field);
     if (map_cmd->parsed()) return magvine::cli::run_field_map(map);
     if (study_fields->parsed()) return magvine::cli::run_study_field_models(study);
+    if (study_meshing->parsed()) return magvine::cli::run_study_phantom_meshing(meshing_out);
     if (mesh_check_cmd->parsed()) return magvine::cli::run_mesh_check(mesh_check);
     if (phantom.parsed()) return phantom.run();
   } catch (const magvine::InputError& e) {
