@@ -58,8 +58,8 @@ int expect_same_as_bullet(const TriangleMesh& mesh) {
       const EdgeBend& ours = bends[t][static_cast<std::size_t>(k)];
       EXPECT_EQ(ours.boundary, angle == SIMD_2_PI) << "triangle " << t << " edge " << k;
       if (ours.boundary || angle == SIMD_2_PI) continue;
-      EXPECT_NEAR(ours.angle, std::abs(angle), kAngleTol) << "triangle " << t << " edge " << k;
-      if (ours.angle > 1e-6) {
+      EXPECT_NEAR(ours.angle(), std::abs(angle), kAngleTol) << "triangle " << t << " edge " << k;
+      if (ours.angle() > 1e-6) {
         ++bent;
         EXPECT_EQ(ours.convex, (info->m_flags & kConvex[k]) != 0) << "triangle " << t << " edge " << k;
       }
@@ -75,7 +75,7 @@ TEST(EdgeBends, TubeMatchesBullet) {
   for (const auto& edges : edge_bends(tube)) {
     for (const EdgeBend& e : edges) {
       EXPECT_FALSE(e.boundary);
-      if (e.angle > 0.0) {
+      if (e.angle() > 0.0) {
         EXPECT_TRUE(e.convex);
       }
     }

@@ -540,25 +540,31 @@ void fill_edges(Tables& w, const std::vector<std::array<EdgeBend, 3>>& bends, Fr
     }
     for (std::size_t k = 0; k < 3; ++k) {
       const EdgeBend& edge = bends[t][k];
-      double bend = 0.0;
+      bool emits = false;
+      double c = 0.0;  // boundary: the arc runs a quarter turn, to the in-plane direction
+      double sn = 1.0;
       if (edge.boundary) {
-        bend = kPi / 2;
+        emits = true;
         ++stats.boundary_edges;
-      } else if (edge.angle != 0.0) {
+      } else if (edge.sin != 0.0 || edge.cos < 0.0) {
         if (edge.convex == (free_side == FreeSide::kOutside)) {
-          bend = edge.angle;
+          emits = true;
+          c = edge.cos;
+          sn = edge.sin;
           ++stats.ridge_edges;
         } else {
           const Triangle& tri = w.triangles[t];
           const double length = (w.vertices[tri[(k + 1) % 3]] - w.vertices[tri[k]]).norm();
-          d.valley_margin[k] = static_cast<float>(std::tan(std::min(edge.angle, kMaxValleyBend)) * length);
+          // tan(min(bend, kMaxValleyBend)); cos(kMaxValleyBend) = 1/2.
+          const double tan = edge.cos > 0.5 ? edge.sin / edge.cos : std::tan(kMaxValleyBend);
+          d.valley_margin[k] = static_cast<float>(tan * length);
         }
       }
-      if (bend > 0.0) {
+      if (emits) {
         d.flags = static_cast<std::uint8_t>(d.flags | (1u << k));
         if (edge.boundary) d.flags = static_cast<std::uint8_t>(d.flags | (1u << (kBoundaryShift + k)));
-        d.arc_cos[k] = static_cast<float>(std::cos(bend));
-        d.arc_sin[k] = static_cast<float>(std::sin(bend));
+        d.arc_cos[k] = static_cast<float>(c);
+        d.arc_sin[k] = static_cast<float>(sn);
       }
     }
   }

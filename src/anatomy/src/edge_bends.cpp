@@ -7,8 +7,8 @@
 namespace magvine::anatomy {
 namespace {
 
-/// Bends below this are coplanar up to rounding (unit normals from cross products agree to ~1e-16).
-constexpr double kFlatAngle = 1e-10;
+/// Bends whose sine is below this are coplanar up to rounding (unit normals from cross products agree to ~1e-16).
+constexpr double kFlatSine = 1e-10;
 
 /// Unit normal of t, or zero when its area is below 1e-12 of its longest edge squared (no direction).
 Vec3 unit_normal(const TriangleMesh& mesh, const Triangle& t) {
@@ -22,12 +22,18 @@ Vec3 unit_normal(const TriangleMesh& mesh, const Triangle& t) {
 
 }  // namespace
 
+double EdgeBend::angle() const { return std::atan2(sin, cos); }
+
 VertexTriangles vertex_triangles(const TriangleMesh& mesh) {
   const std::size_t n = mesh.triangles.size();
   const std::size_t nv = mesh.vertices.size();
-  std::vector<char> has_normal(n);
-  for (std::size_t t = 0; t < n; ++t) has_normal[t] = unit_normal(mesh, mesh.triangles[t]).isZero() ? 0 : 1;
   VertexTriangles out;
+  out.normals.resize(n);
+  std::vector<char> has_normal(n);
+  for (std::size_t t = 0; t < n; ++t) {
+    out.normals[t] = unit_normal(mesh, mesh.triangles[t]);
+    has_normal[t] = out.normals[t].isZero() ? 0 : 1;
+  }
   out.first.assign(nv + 1, 0);
   for (std::size_t t = 0; t < n; ++t) {
     if (has_normal[t] == 0) continue;
@@ -49,8 +55,7 @@ std::vector<std::array<EdgeBend, 3>> edge_bends(const TriangleMesh& mesh) {
 
 std::vector<std::array<EdgeBend, 3>> edge_bends(const TriangleMesh& mesh, const VertexTriangles& incidence) {
   const std::size_t n = mesh.triangles.size();
-  std::vector<Vec3> normals(n);
-  for (std::size_t t = 0; t < n; ++t) normals[t] = unit_normal(mesh, mesh.triangles[t]);
+  const std::vector<Vec3>& normals = incidence.normals;
   const std::vector<std::uint32_t>& first = incidence.first;
   const std::vector<std::uint32_t>& incident = incidence.triangles;
 
@@ -81,11 +86,14 @@ std::vector<std::array<EdgeBend, 3>> edge_bends(const TriangleMesh& mesh, const 
       // edge b → a, i.e. its corner after a is not b.
       const bool reversed = o[(ku + 1) % 3] != b;
       const Vec3 nu = reversed ? normals[u] : Vec3(-normals[u]);
-      const double angle = std::atan2(nt.cross(nu).norm(), nt.dot(nu));
+      const double sine = nt.cross(nu).norm();
       const std::uint32_t c = o[0] != a && o[0] != b ? o[0] : o[1] != a && o[1] != b ? o[1] : o[2];
       EdgeBend& bend = bends[t][k];
       bend.boundary = false;
-      bend.angle = angle < kFlatAngle ? 0.0 : angle;
+      if (sine >= kFlatSine || nt.dot(nu) < 0.0) {
+        bend.cos = nt.dot(nu);
+        bend.sin = sine;
+      }
       bend.convex = nt.dot(mesh.vertices[c] - mesh.vertices[a]) < 0.0;  // c: the neighbour's corner off the edge
     }
   }

@@ -14,9 +14,15 @@ namespace magvine::anatomy {
 
 /// The bend across one edge of a triangle t, seen from t.
 struct EdgeBend {
-  double angle = 0.0;    ///< angle between t's normal and its neighbour's [rad], in [0, π]; 0 when coplanar
+  /// Cosine and sine of the angle between t's normal and its neighbour's, in [0, π] (sin ≥ 0); exactly (1, 0) when
+  /// coplanar. Kept as the pair the contact code uses, so no angle is computed per edge.
+  double cos = 1.0;
+  double sin = 0.0;
   bool convex = false;   ///< the neighbour falls away behind t's plane (convex seen from the outward normals)
   bool boundary = true;  ///< no neighbour to bend to: an open rim, a non-manifold edge or a zero-area neighbour
+
+  /// The bend angle [rad], in [0, π].
+  double angle() const;
 };
 
 /// Vertex → incident triangles (compressed rows): the triangles at vertex v are
@@ -24,10 +30,11 @@ struct EdgeBend {
 struct VertexTriangles {
   std::vector<std::uint32_t> first;      ///< vertices + 1 offsets
   std::vector<std::uint32_t> triangles;  ///< triangle indices
+  std::vector<Vec3> normals;             ///< unit normal of every triangle (outward), zero for zero-area ones
 };
 VertexTriangles vertex_triangles(const TriangleMesh& mesh);
 
-/// Bends of edge k (corner k → corner k + 1) of every triangle. Bends below 1e-10 rad are 0 (coplanar up to
+/// Bends of edge k (corner k → corner k + 1) of every triangle. Bends with sin below 1e-10 are coplanar (up to
 /// rounding). Zero-area triangles have no normal: their own entries are boundary and they are nobody's neighbour.
 std::vector<std::array<EdgeBend, 3>> edge_bends(const TriangleMesh& mesh);
 /// The same with the mesh's vertex_triangles() already at hand.
