@@ -247,12 +247,13 @@ class SphereQuery {
     // Face: the foot of the centre is inside t iff all three edge functions n·(e_k × (c − v_k)) are ≥ 0.
     const Vec3 outward = m_w.side * d.normal;
     const double behind = std::max(0.0, -s);
+    std::array<double, 3> g{};  // |e_k| × the foot's signed distance from edge k's line, > 0 on t's side
     bool inside = true;
     bool strict = true;  // inside without the widening: the foot is on t
-    for (std::size_t k = 0; k < 3 && inside; ++k) {
-      const double g = outward.dot(e[k].cross(m_c - *v[k]));
-      strict = strict && g >= -d.face_tol;
-      inside = g >= -d.face_tol - behind * d.valley_margin[k];
+    for (std::size_t k = 0; k < 3; ++k) {
+      g[k] = outward.dot(e[k].cross(m_c - *v[k]));
+      strict = strict && g[k] >= -d.face_tol;
+      inside = inside && g[k] >= -d.face_tol - behind * d.valley_margin[k];
     }
     if (inside) {
       // Reached only through the widening (in the gap behind a valley): behind, at its distance to t's edges.
@@ -261,8 +262,10 @@ class SphereQuery {
     }
     if ((d.flags & kEdgeMask) == 0) return;
     for (int k = 0; k < 3; ++k) {
-      if ((d.flags & (1u << k)) == 0) continue;
       const auto ku = static_cast<std::size_t>(k);
+      // An edge's own region lies beyond its line (f·m ≥ 0 in edge_contact): a foot on t's side of the line
+      // cannot produce an edge contact, which spares most edge tests on a finely tessellated wall.
+      if ((d.flags & (1u << k)) == 0 || g[ku] > d.face_tol) continue;
       const double raw = (m_c - *v[ku]).dot(e[ku]) / e[ku].squaredNorm();
       const double tau = std::clamp(raw, 0.0, 1.0);
       const int corner = raw <= 0.0 ? 0 : raw >= 1.0 ? 1 : -1;
