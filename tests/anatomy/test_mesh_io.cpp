@@ -94,8 +94,8 @@ TEST_F(MeshIo, UnitsScaleAndPoseAreApplied) {
   EXPECT_NEAR(moved.max.z() - moved.min.z(), 2.0 * (truth.max.x() - truth.min.x()), 1e-6);
 }
 
-TEST_F(MeshIo, AsciiStlObjPlyAndOffReadTheSameTetrahedron) {
-  // One tetrahedron (outward winding) in four text formats; OBJ uses a quad-free polygon list, PLY/OFF a triangle
+TEST_F(MeshIo, AsciiStlObjPlyOffAndGltfReadTheSameTetrahedron) {
+  // One tetrahedron (outward winding) in five text formats; OBJ uses a quad-free polygon list, PLY/OFF a triangle
   // list. Each must give 4 triangles, 4 vertices after welding, volume 1/6 (mm³ → m³).
   const std::string stl =
       "solid t\n"
@@ -110,7 +110,17 @@ TEST_F(MeshIo, AsciiStlObjPlyAndOffReadTheSameTetrahedron) {
       "element face 4\nproperty list uchar int vertex_indices\nend_header\n"
       "0 0 0\n1 0 0\n0 1 0\n0 0 1\n3 0 2 1\n3 0 1 3\n3 0 3 2\n3 1 2 3\n";
   const std::string off = "OFF\n4 4 0\n0 0 0\n1 0 0\n0 1 0\n0 0 1\n3 0 2 1\n3 0 1 3\n3 0 3 2\n3 1 2 3\n";
-  for (const auto& [name, text] : {std::pair{"t.stl", stl}, {"t.obj", obj}, {"t.ply", ply}, {"t.off", off}}) {
+  // glTF 2.0 with the buffer inline (base64 of 12 little-endian float32 positions, then 12 uint16 indices in the
+  // PLY order above; 72 bytes).
+  const std::string gltf = R"({"asset": {"version": "2.0"}, "scene": 0, "scenes": [{"nodes": [0]}],
+    "nodes": [{"mesh": 0}],
+    "meshes": [{"primitives": [{"attributes": {"POSITION": 0}, "indices": 1, "mode": 4}]}],
+    "buffers": [{"byteLength": 72, "uri": "data:application/octet-stream;base64,AAAAAAAAAAAAAAAAAACAPwAAAAAAAAAAAAAAAAAAgD8AAAAAAAAAAAAAAAAAAIA/AAACAAEAAAABAAMAAAADAAIAAQACAAMA"}],
+    "bufferViews": [{"buffer": 0, "byteOffset": 0, "byteLength": 48}, {"buffer": 0, "byteOffset": 48, "byteLength": 24}],
+    "accessors": [{"bufferView": 0, "componentType": 5126, "count": 4, "type": "VEC3", "min": [0, 0, 0], "max": [1, 1, 1]},
+                  {"bufferView": 1, "componentType": 5123, "count": 12, "type": "SCALAR"}]})";
+  for (const auto& [name, text] :
+       {std::pair{"t.stl", stl}, {"t.obj", obj}, {"t.ply", ply}, {"t.off", off}, {"t.gltf", gltf}}) {
     SCOPED_TRACE(name);
     const ImportedMesh in = import_mesh(write(name, text), {.units = LengthUnit::kMm});
     EXPECT_EQ(in.mesh.triangles.size(), 4u);
