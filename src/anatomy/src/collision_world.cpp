@@ -110,11 +110,24 @@ class ContactSink {
 
   void add(const Vec3& point, const Vec3& normal, double depth, std::uint32_t triangle, bool back = false) {
     if (back) triangle |= kBackBit;
-    for (std::size_t i = 0; i < m_count; ++i) {
-      if (((m_out[i].triangle ^ triangle) & kBackBit) == 0 && m_out[i].normal.dot(normal) >= m_merge_cos) {
-        if (depth > m_out[i].depth) m_out[i] = Contact{point, normal, depth, triangle};
-        return;
+    // Merge with every kept contact within the merge angle, not just the first: a contact between two kept ones
+    // (a crease between its two faces) then absorbs both, whatever order the triangles came in.
+    std::size_t into = m_count;
+    for (std::size_t i = 0; i < m_count;) {
+      if (((m_out[i].triangle ^ triangle) & kBackBit) != 0 || m_out[i].normal.dot(normal) < m_merge_cos) {
+        ++i;
+        continue;
       }
+      if (into == m_count) {
+        into = i++;
+        continue;
+      }
+      if (m_out[i].depth > m_out[into].depth) m_out[into] = m_out[i];
+      m_out[i] = m_out[--m_count];  // absorbed: keep scanning the slot that moved here
+    }
+    if (into < m_count) {
+      if (depth > m_out[into].depth) m_out[into] = Contact{point, normal, depth, triangle};
+      return;
     }
     if (m_count < m_out.size()) {
       m_out[m_count++] = Contact{point, normal, depth, triangle};
@@ -154,16 +167,6 @@ class ContactSink {
   double m_nearest_back = std::numeric_limits<double>::infinity();
 };
 
-/// Contact of body axis point x with edge k of triangle t (a ridge or boundary edge), q its closest point on the
-/// edge. The normal is the direction q → x clamped into the edge's arc of normals
-///   n(φ) = n_t cos φ + m sin φ,  φ ∈ [0, β],
-/// with n_t the free-side normal, m the in-plane unit vector leaving t across the edge and β the bend angle from
-/// the triangle info map (π/2 for a boundary edge). depth = r − n·(x − q), less the along-edge offset when q is a
-/// corner (see below). Outside the arc the edge is not the nearest feature of a ridge: on t's side face t reports
-/// it, beyond the far end the neighbour face does, and inside the solid under the ridge x projects into one of the
-/// two faces, so a ridge edge reports nothing there (a clamped normal would double the neighbour's face contact).
-/// A boundary edge has no neighbour: beyond its far end (x behind the rim's plane) the normal is the in-plane
-/// direction m, a knife edge.
 /// Whether `f` (from vertex v toward the body) lies in v's normal cone: no edge at v heads toward the body
 /// (f·(w − v) ≤ 0 for every neighbour w, the polar of the edge directions). Otherwise a point of that edge is nearer
 /// than v, so v is not the nearest feature (e.g. a vertex in the middle of a straight crease or rim).
@@ -179,38 +182,45 @@ bool in_vertex_cone(const Tables& w, std::uint32_t v, const Vec3& f) {
   return true;
 }
 
+/// Contact of body axis point x with edge k of triangle t (a ridge or boundary edge), q its closest point on the
+/// edge (`corner` 0 or 1 when q is the edge's start or end vertex, −1 inside). The edge's own region is the arc of
+/// normals
+///   n(φ) = n_t cos φ + m sin φ,  φ ∈ [0, β],
+/// with n_t the free-side normal, m the in-plane unit vector leaving t across the edge and β the bend angle
+/// (edge_bends(); π/2 for a boundary edge): when q → x lies in it, normal = that direction, depth = r − |x − q|.
+/// Outside the arc the edge is not the nearest feature of a ridge: on t's side (f·m < 0) face t reports, beyond
+/// the far end the neighbour face does, and inside the solid under the ridge x projects into one of the two faces.
+/// A boundary edge has no neighbour: beyond its far end (x behind the sheet's plane but past the rim) the normal
+/// is m, a knife edge, with depth r − (x − q)·m (the along-edge offset included at a corner). At a corner the
+/// vertex is the feature: it reports only when x lies in its normal cone, with normal (x − q)/|x − q|.
 void edge_contact(const Tables& w, const TriangleData& d, int k, const Vec3& edge, const Vec3& x, const Vec3& q,
                   int corner, double r, std::uint32_t t, ContactSink& sink) {
   const Vec3 f = x - q;
   if (f.squaredNorm() >= r * r) return;
-  const Vec3 outward = w.side * d.normal;
-  const Vec3 m = edge.cross(outward) / edge.norm();
+  const double length = edge.norm();
+  const Vec3 m = edge.cross(w.side * d.normal) / length;
   const double fx = f.dot(d.normal);
   const double fy = f.dot(m);
+  if (!(fy >= 0.0) || fx * fx + fy * fy == 0.0) return;
   const double c = d.arc_cos[static_cast<std::size_t>(k)];
   const double s = d.arc_sin[static_cast<std::size_t>(k)];
-  const double perp2 = fx * fx + fy * fy;
+  const bool in_arc = fx * s - fy * c >= 0.0;
   const bool boundary = (d.flags & (1u << (kBoundaryShift + static_cast<unsigned>(k)))) != 0;
-  // At an end of the edge (corner 0: start, 1: end; −1: q inside the edge) the vertex is the feature: it reports
-  // only when the body lies in the vertex's normal cone, with normal f/|f| and depth r − |f|.
+  if (!in_arc && !(boundary && fx * c + fy * s > fx)) return;
   if (corner >= 0) {
     const Triangle& tri = w.triangles[t];
     if (!in_vertex_cone(w, tri[(static_cast<std::size_t>(k) + static_cast<std::size_t>(corner)) % 3], f)) return;
   }
-  const double along = corner < 0 ? 0.0 : f.dot(edge) / edge.norm();
   Vec3 normal;
   double depth = 0.0;
-  if (perp2 > 0.0 && fy >= 0.0 && fx * s - fy * c >= 0.0) {
+  if (in_arc) {
     const double distance = f.norm();
-    // Inside the arc: the true feature normal.
-    normal = corner < 0 ? Vec3((fx * d.normal + fy * m) / std::sqrt(perp2)) : Vec3(f / distance);
+    normal = corner < 0 ? Vec3((fx * d.normal + fy * m) / std::hypot(fx, fy)) : Vec3(f / distance);
     depth = r - distance;
     sink.candidate(distance, true);
-  } else if (boundary && perp2 > 0.0 && fx * c + fy * s > fx) {
-    normal = m;  // beyond a rim: the knife edge pushes outward in the sheet's plane
-    depth = r - fy - (std::hypot(fy, along) - std::abs(fy));
   } else {
-    return;
+    normal = m;  // beyond a rim: the knife edge pushes outward in the sheet's plane
+    depth = r - std::hypot(fy, corner < 0 ? 0.0 : f.dot(edge) / length);
   }
   if (depth > 0.0) sink.add(q, normal, depth, t);
 }
@@ -354,8 +364,12 @@ class CapsuleQuery {
     }
     if ((d.flags & kEdgeMask) == 0) return;
     for (int k = 0; k < 3; ++k) {
-      if ((d.flags & (1u << k)) == 0) continue;
       const auto ku = static_cast<std::size_t>(k);
+      // As for spheres: a segment whose ends both lie on t's side of the edge's line cannot reach its region.
+      if ((d.flags & (1u << k)) == 0 ||
+          (inward[ku].dot(m_a - *v[ku]) > d.face_tol && inward[ku].dot(m_a + m_ab - *v[ku]) > d.face_tol)) {
+        continue;
+      }
       const auto [s, u] = closest_segment_parameters(m_a, m_ab, *v[ku], e[ku]);
       const int corner = u <= 0.0 ? 0 : u >= 1.0 ? 1 : -1;
       edge_contact(m_w, d, k, e[ku], m_a + s * m_ab, *v[ku] + u * e[ku], corner, m_r, t, m_sink);
@@ -504,7 +518,7 @@ void validate(const TriangleMesh& mesh, const CollisionWorldOptions& options) {
   }
 }
 
-/// Per-triangle normals and bounding spheres; degenerate triangles (no direction survives rounding) are flagged.
+/// Per-triangle normals (from the incidence, computed once) and bounding spheres; degenerate triangles are flagged.
 void fill_geometry(Tables& w) {
   w.data.resize(w.triangles.size());
   for (std::size_t t = 0; t < w.triangles.size(); ++t) {
@@ -517,15 +531,13 @@ void fill_geometry(Tables& w) {
     d.bound_radius = std::sqrt(std::max({(a - d.bound_centre).squaredNorm(), (b - d.bound_centre).squaredNorm(),
                                          (c - d.bound_centre).squaredNorm()}));
     d.face_tol = kFaceInclusionTol * d.bound_radius * d.bound_radius;
-    const Vec3 area = (b - a).cross(c - a);
-    const double longest2 = std::max({(b - a).squaredNorm(), (c - b).squaredNorm(), (a - c).squaredNorm()});
-    // |area| = |e1||e2| sin θ: below 1e-12 of the longest edge squared the normal is rounding noise.
-    if (!(area.norm() > 1e-12 * longest2)) {
+    const Vec3& outward = w.incidence.normals[t];  // zero when no direction survives rounding
+    if (outward.isZero()) {
       d.flags = kDegenerate;
       d.offset = std::numeric_limits<double>::infinity();
       continue;
     }
-    d.normal = w.side * area.normalized();
+    d.normal = w.side * outward;
     d.offset = d.normal.dot(a);
   }
 }
@@ -551,7 +563,9 @@ void fill_edges(Tables& w, const std::vector<std::array<EdgeBend, 3>>& bends, Fr
         ++stats.boundary_edges;
       } else if (edge.sin != 0.0 || edge.cos < 0.0) {
         if (edge.convex == (free_side == FreeSide::kOutside)) {
-          emits = true;
+          // Both triangles at a ridge see the same arc of normals and would report the same contact: the one
+          // with the lower index owns it (both are always visited when a body reaches the edge).
+          emits = t < edge.neighbour;
           c = edge.cos;
           sn = edge.sin;
           ++stats.ridge_edges;
@@ -647,8 +661,8 @@ CollisionWorld::Impl::Impl(const TriangleMesh& source, const CollisionWorldOptio
   const Aabb box = bounding_box(mesh);
   w.box_min = box.min;
   w.box_max = box.max;
-  fill_geometry(w);
   w.incidence = vertex_triangles(mesh);
+  fill_geometry(w);
 
   // Zero-copy view of the mesh copy: packed doubles and 32-bit indices.
   btIndexedMesh part;
@@ -671,6 +685,7 @@ CollisionWorld::Impl::Impl(const TriangleMesh& source, const CollisionWorldOptio
   walker = std::make_unique<BvhWalker>(*bvh);
 
   fill_edges(w, edge_bends(mesh, w.incidence), options.free_side, stats);
+  std::vector<Vec3>().swap(w.incidence.normals);  // the queries read only the incidence lists
 
   stats.triangles = mesh.triangles.size();
   stats.build_seconds = std::chrono::duration<double>(std::chrono::steady_clock::now() - start).count();

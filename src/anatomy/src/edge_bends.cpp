@@ -29,21 +29,17 @@ VertexTriangles vertex_triangles(const TriangleMesh& mesh) {
   const std::size_t nv = mesh.vertices.size();
   VertexTriangles out;
   out.normals.resize(n);
-  std::vector<char> has_normal(n);
-  for (std::size_t t = 0; t < n; ++t) {
-    out.normals[t] = unit_normal(mesh, mesh.triangles[t]);
-    has_normal[t] = out.normals[t].isZero() ? 0 : 1;
-  }
+  for (std::size_t t = 0; t < n; ++t) out.normals[t] = unit_normal(mesh, mesh.triangles[t]);
   out.first.assign(nv + 1, 0);
   for (std::size_t t = 0; t < n; ++t) {
-    if (has_normal[t] == 0) continue;
+    if (out.normals[t].isZero()) continue;
     for (const std::uint32_t v : mesh.triangles[t]) ++out.first[v + 1];
   }
   for (std::size_t v = 0; v < nv; ++v) out.first[v + 1] += out.first[v];
   out.triangles.resize(out.first[nv]);
   std::vector<std::uint32_t> fill(out.first.begin(), out.first.end() - 1);
   for (std::size_t t = 0; t < n; ++t) {
-    if (has_normal[t] == 0) continue;
+    if (out.normals[t].isZero()) continue;
     for (const std::uint32_t v : mesh.triangles[t]) out.triangles[fill[v]++] = static_cast<std::uint32_t>(t);
   }
   return out;
@@ -90,6 +86,7 @@ std::vector<std::array<EdgeBend, 3>> edge_bends(const TriangleMesh& mesh, const 
       const std::uint32_t c = o[0] != a && o[0] != b ? o[0] : o[1] != a && o[1] != b ? o[1] : o[2];
       EdgeBend& bend = bends[t][k];
       bend.boundary = false;
+      bend.neighbour = u;
       if (sine >= kFlatSine || nt.dot(nu) < 0.0) {
         bend.cos = nt.dot(nu);
         bend.sin = sine;

@@ -64,7 +64,6 @@ class CellTable {
     }
   }
 
-
   const std::vector<Vec3>& m_welded;
   Vec3 m_origin;
   double m_inv;
@@ -89,7 +88,7 @@ CleanStats weld_and_clean(TriangleMesh& mesh, double tolerance) {
   // Weld: visit corners in triangle order, so new vertex ids follow first use and unused vertices vanish.
   std::vector<std::uint32_t> remap(mesh.vertices.size(), kEmpty);
   std::vector<Vec3> welded;
-  welded.reserve(mesh.vertices.size());  // never reallocates: the table reads it while it grows
+  welded.reserve(mesh.vertices.size());  // no reallocation while welding (speed only)
   CellTable table(mesh.vertices.size(), welded, box.min, inv);
   for (Triangle& tri : mesh.triangles) {
     for (std::uint32_t& v : tri) {

@@ -11,6 +11,7 @@
 
 #include "magvine/anatomy/mesh_report.hpp"
 #include "magvine/anatomy/phantom.hpp"
+#include "magvine/core/atomic_file.hpp"
 #include "magvine/core/check.hpp"
 #include "magvine/core/error.hpp"
 #include "magvine/core/units.hpp"
@@ -166,7 +167,7 @@ int PhantomCommand::run() {
   const auto start = std::chrono::steady_clock::now();
   const anatomy::Phantom phantom = anatomy::make_phantom(params);
   const double seconds = std::chrono::duration<double>(std::chrono::steady_clock::now() - start).count();
-  if (!out.parent_path().empty()) std::filesystem::create_directories(out.parent_path());
+  if (!out.parent_path().empty()) create_output_directory(out.parent_path());
   anatomy::write_phantom(phantom, out);
 
   const anatomy::MeshReport report = anatomy::analyse_mesh(phantom.mesh);

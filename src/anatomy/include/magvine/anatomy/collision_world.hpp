@@ -36,7 +36,8 @@
 /// through tissue thinner than r (drop: it would push the body through the septum). The nearest feature decides,
 /// as in the pseudo-normal inside test: when the nearest face or ridge edge has the axis point in front, back
 /// contacts are dropped.
-/// Merging: contacts whose normals differ by less than `merge_angle` are one contact, the deepest; when more distinct
+/// Merging: contacts whose normals differ by less than `merge_angle` are one contact, the deepest (a contact close
+/// to several kept ones absorbs them all, so the result does not depend on the triangle order); when more distinct
 /// contacts exist than the caller's span holds, the deepest are kept. Results are sorted deepest first.
 ///
 /// Model: immutable after construction, queries are const, allocation-free and safe to call from several threads at
@@ -92,7 +93,7 @@ struct CollisionWorldStats {
   std::size_t degenerate_triangles = 0;  ///< zero-area triangles (no normal): ignored by every query
   std::size_t ridge_edges = 0;           ///< triangle edges that bend away from the free side (counted per side)
   std::size_t boundary_edges = 0;        ///< triangle edges without a neighbour (open mesh rims)
-  double build_seconds = 0.0;            ///< wall time of BVH + triangle info map + tables [s]
+  double build_seconds = 0.0;            ///< wall time of BVH + edge bends + tables [s]
 };
 
 /// Static collision geometry of one mesh [m]. Keeps its own copy of the mesh. Movable, not copyable.

@@ -20,6 +20,7 @@ struct EdgeBend {
   double sin = 0.0;
   bool convex = false;   ///< the neighbour falls away behind t's plane (convex seen from the outward normals)
   bool boundary = true;  ///< no neighbour to bend to: an open rim, a non-manifold edge or a zero-area neighbour
+  std::uint32_t neighbour = 0;  ///< the triangle across the edge (when not a boundary)
 
   /// The bend angle [rad], in [0, π].
   double angle() const;

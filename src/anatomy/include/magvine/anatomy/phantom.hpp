@@ -68,9 +68,11 @@ enum class AirwayTable {
 /// Clearance: branches that share no node (all but parent/child and siblings) must keep a wall gap ≥ clearance
 /// (segment–segment distance − both radii); for a branch and its grandparent or its parent's sibling, which touch
 /// its parent too, only axis points outside the parent's capsule count (inside it the lumen is shared anyway,
-/// as with Weibel A's short generation 3, L/d = 1.4). A sibling pair that violates it is
-/// turned about its parent's axis (±15° steps up to ±90°), then shortened (to 90 … 60 %), first success wins;
-/// otherwise generation fails with InputError naming the branch. Adjustments are listed in the metadata notes.
+/// as with Weibel A's short generation 3, L/d = 1.4). For a sibling pair that violates it the generator tries, in
+/// a fixed order (first success wins): the parent as planned or lengthened (×1.15, 1.3, 1.5); for each, the pair's
+/// plane turned about the parent axis (±15° steps up to ±90°); for each, every child on its own in 13 poses (its
+/// branching angle ×0.7–1.3, capped at 80°, and its length ×1.0–0.6). Otherwise generation fails with InputError
+/// naming the two branches. Adjustments are listed in the metadata notes.
 struct BronchialTreeParams {
   AirwayTable table = AirwayTable::kWeibelA;
   int max_generation = 6;         ///< deepest generation (trachea = 0): 1…10 for Weibel A, 1…6 for Horsfield
