@@ -496,21 +496,10 @@ class ParityQuery final : public btNodeOverlapCallback {
 
 void validate(const TriangleMesh& mesh, const CollisionWorldOptions& options) {
   const std::string where = "CollisionWorld";
-  if (mesh.triangles.empty()) throw InputError(where + ": mesh has no triangles");
+  validate_mesh(mesh, where);
   if (mesh.triangles.size() > kMaxTriangles) {
     throw InputError(where + ": mesh has " + std::to_string(mesh.triangles.size()) + " triangles, more than the " +
                      std::to_string(kMaxTriangles) + " one Bullet BVH part holds");
-  }
-  for (std::size_t i = 0; i < mesh.vertices.size(); ++i) {
-    if (!mesh.vertices[i].allFinite()) throw InputError(where + ": vertex " + std::to_string(i) + " is not finite");
-  }
-  for (std::size_t t = 0; t < mesh.triangles.size(); ++t) {
-    for (const std::uint32_t index : mesh.triangles[t]) {
-      if (index >= mesh.vertices.size()) {
-        throw InputError(where + ": triangle " + std::to_string(t) + " refers to vertex " + std::to_string(index) +
-                         " of " + std::to_string(mesh.vertices.size()));
-      }
-    }
   }
   if (!(options.merge_angle >= 0.0 && options.merge_angle < kPi / 2)) {
     throw InputError(where + ": merge_angle must be in [0, pi/2) rad (got " + std::to_string(options.merge_angle) +

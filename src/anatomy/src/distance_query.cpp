@@ -428,24 +428,6 @@ class BvhTree final : public Tree {
   int m_depth = 0;
 };
 
-void validate(const TriangleMesh& mesh) {
-  if (mesh.triangles.empty()) throw InputError("distance query: the mesh has no triangles");
-  for (std::size_t i = 0; i < mesh.vertices.size(); ++i) {
-    if (!mesh.vertices[i].allFinite()) {
-      throw InputError("distance query: vertex " + std::to_string(i) + " is not finite");
-    }
-  }
-  const std::size_t n = mesh.vertices.size();
-  for (std::size_t t = 0; t < mesh.triangles.size(); ++t) {
-    for (const std::uint32_t v : mesh.triangles[t]) {
-      if (v >= n) {
-        throw InputError("distance query: triangle " + std::to_string(t) + " uses vertex " + std::to_string(v) +
-                         ", allowed range [0, " + std::to_string(n) + ")");
-      }
-    }
-  }
-}
-
 }  // namespace
 
 struct DistanceQuery::Impl {
@@ -458,7 +440,7 @@ DistanceQuery::DistanceQuery(const TriangleMesh& mesh, const DistanceQueryOption
   if (options.traversal == DistanceTraversal::kFcl && options.bv == DistanceBv::kAabb) {
     throw std::invalid_argument("DistanceQuery: DistanceTraversal::kFcl needs DistanceBv::kRss or kObbRss");
   }
-  validate(mesh);
+  validate_mesh(mesh, "distance query");
   m_impl->options = options;
   switch (options.bv) {
     case DistanceBv::kAabb: m_impl->tree = std::make_unique<BvhTree<fcl::AABBd>>(mesh, options); break;

@@ -4,6 +4,8 @@
 #include <limits>
 #include <utility>
 
+#include "magvine/core/error.hpp"
+
 namespace magvine::anatomy {
 
 double surface_area(const TriangleMesh& mesh) {
@@ -40,6 +42,22 @@ Aabb bounding_box(const TriangleMesh& mesh) {
 
 void flip_orientation(TriangleMesh& mesh) {
   for (Triangle& tri : mesh.triangles) std::swap(tri[1], tri[2]);
+}
+
+void validate_mesh(const TriangleMesh& mesh, const std::string& who) {
+  if (mesh.triangles.empty()) throw InputError(who + ": the mesh has no triangles");
+  for (std::size_t i = 0; i < mesh.vertices.size(); ++i) {
+    if (!mesh.vertices[i].allFinite()) throw InputError(who + ": vertex " + std::to_string(i) + " is not finite");
+  }
+  const std::size_t n = mesh.vertices.size();
+  for (std::size_t t = 0; t < mesh.triangles.size(); ++t) {
+    for (const std::uint32_t v : mesh.triangles[t]) {
+      if (v >= n) {
+        throw InputError(who + ": triangle " + std::to_string(t) + " uses vertex " + std::to_string(v) +
+                         ", allowed range [0, " + std::to_string(n) + ")");
+      }
+    }
+  }
 }
 
 }  // namespace magvine::anatomy

@@ -4,6 +4,7 @@
 
 #include <array>
 #include <cstdint>
+#include <string>
 #include <vector>
 
 #include "magvine/core/eigen_types.hpp"
@@ -49,5 +50,9 @@ Aabb bounding_box(const TriangleMesh& mesh);
 
 /// Reverses every triangle's winding (flips all normals).
 void flip_orientation(TriangleMesh& mesh);
+
+/// Throws InputError("<who>: ...") for a mesh no query structure can be built on: no triangles, a non-finite
+/// vertex, or a triangle index out of range.
+void validate_mesh(const TriangleMesh& mesh, const std::string& who);
 
 }  // namespace magvine::anatomy
