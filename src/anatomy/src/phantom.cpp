@@ -204,7 +204,6 @@ double kitaoka_angle(double r, double n) {
   return std::acos(std::clamp(c, -1.0, 1.0));
 }
 
-std::string_view table_name(AirwayTable table) { return table == AirwayTable::kWeibelA ? "weibel_a" : "horsfield"; }
 
 }  // namespace
 
@@ -262,6 +261,15 @@ GenerationGeometry airway_table(AirwayTable table, int generation) {
   return {kHorsfieldDiameter[g] * kMmToM, kHorsfieldLength[g] * kMmToM, angle * kDegToRad};
 }
 
+std::string_view to_string(AirwayTable table) { return table == AirwayTable::kWeibelA ? "weibel_a" : "horsfield"; }
+
+std::optional<AirwayTable> parse_airway_table(std::string_view name) {
+  for (const AirwayTable table : {AirwayTable::kWeibelA, AirwayTable::kHorsfield}) {
+    if (name == to_string(table)) return table;
+  }
+  return std::nullopt;
+}
+
 int airway_table_depth(AirwayTable table) { return table == AirwayTable::kWeibelA ? 10 : 6; }
 
 // ---------------------------------------------------------------------------------------------------------------
@@ -272,7 +280,7 @@ Phantom make_bronchial_tree(const BronchialTreeParams& p) {
   const int depth = airway_table_depth(p.table);
   if (p.max_generation < 1 || p.max_generation > depth) {
     throw InputError(source_of(kind), 0, "max_generation",
-                     "must be in [1, " + std::to_string(depth) + "] for the " + std::string(table_name(p.table)) +
+                     "must be in [1, " + std::to_string(depth) + "] for the " + std::string(to_string(p.table)) +
                          " table (got " + std::to_string(p.max_generation) + ")");
   }
   require_range(kind, "flow_ratio", p.flow_ratio, 0.2, 0.5, 1.0, "");
@@ -480,7 +488,7 @@ Phantom make_bronchial_tree(const BronchialTreeParams& p) {
   phantom.meta.kind = kind;
   phantom.meta.seed = p.seed;
   phantom.meta.parameters = {
-      {"table", std::string(table_name(p.table))},
+      {"table", std::string(to_string(p.table))},
       {"max_generation", std::int64_t{p.max_generation}},
       {"flow_ratio", p.flow_ratio},
       {"diameter_exponent", p.diameter_exponent},

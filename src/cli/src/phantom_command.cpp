@@ -150,13 +150,9 @@ int PhantomCommand::run() {
   anatomy::PhantomParams params = m_params[index].second;
   const std::string where = "phantom " + std::string(anatomy::to_string(kind));
   if (auto* tree = std::get_if<anatomy::BronchialTreeParams>(&params)) {
-    if (m_table == "weibel_a") {
-      tree->table = anatomy::AirwayTable::kWeibelA;
-    } else if (m_table == "horsfield") {
-      tree->table = anatomy::AirwayTable::kHorsfield;
-    } else {
-      throw InputError("--table", 0, "", "must be weibel_a or horsfield (got '" + m_table + "')");
-    }
+    const auto table = anatomy::parse_airway_table(m_table);
+    if (!table) throw InputError("--table", 0, "", "must be weibel_a or horsfield (got '" + m_table + "')");
+    tree->table = *table;
   }
   if (auto* tube = std::get_if<anatomy::TubeParams>(&params)) tube->capped = !m_open;
   const std::filesystem::path out(m_out);
@@ -171,8 +167,7 @@ int PhantomCommand::run() {
   anatomy::write_phantom(phantom, out);
 
   const anatomy::MeshReport report = anatomy::analyse_mesh(phantom.mesh);
-  const anatomy::Aabb box = anatomy::bounding_box(phantom.mesh);
-  const Vec3 size_mm = (box.max - box.min) / kMmToM;
+  const Vec3 size_mm = (report.bbox.max - report.bbox.min) / kMmToM;
   std::cout << where << ": " << phantom.mesh.triangles.size() << " triangles, " << phantom.graph.branches.size()
             << " branches, " << size_mm.x() << " x " << size_mm.y() << " x " << size_mm.z() << " mm, "
             << (report.watertight ? "watertight" : "open") << ", genus " << report.genus << ", volume "

@@ -25,7 +25,7 @@ class PhantomCommand {
   std::vector<CLI::App*> m_kinds;
   std::vector<std::pair<anatomy::PhantomKind, anatomy::PhantomParams>> m_params;  // SI, one per kind
   std::string m_out;
-  std::string m_table = "weibel_a";
+  std::string m_table{anatomy::to_string(anatomy::BronchialTreeParams{}.table)};
   bool m_open = false;
 };
 

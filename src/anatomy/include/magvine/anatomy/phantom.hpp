@@ -55,6 +55,11 @@ enum class AirwayTable {
   kHorsfield,  ///< Horsfield 1994 diameters, lengths and branching angles (gens 0–6; 16.5 mm trachea)
 };
 
+/// File-facing names of the tables: "weibel_a", "horsfield".
+std::string_view to_string(AirwayTable table);
+/// The table called `name`, or nullopt.
+std::optional<AirwayTable> parse_airway_table(std::string_view name);
+
 /// Bronchial tree. Symmetric (flow_ratio = 0.5): every branch of generation g has the table's diameter d(g), length
 /// L(g) and branching angle θ(g) (each daughter's angle to its parent's axis; Horsfield's values for g = 1–6 also
 /// with Weibel A, which has no angles; 35° beyond). Asymmetric (flow_ratio < 0.5): the trachea keeps the table
