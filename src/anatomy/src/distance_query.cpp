@@ -30,14 +30,6 @@ constexpr double kInf = std::numeric_limits<double>::infinity();
 // Exact closest-point primitives.
 // ---------------------------------------------------------------------------------------------------------------
 
-/// Closest point to p on the segment a–b (a = b allowed).
-Vec3 closest_on_segment(const Vec3& p, const Vec3& a, const Vec3& b) {
-  const Vec3 d = b - a;
-  const double dd = d.squaredNorm();
-  if (dd <= 0.0) return a;
-  return a + d * std::clamp((p - a).dot(d) / dd, 0.0, 1.0);
-}
-
 /// Closest point to p on triangle abc: Ericson, Real-Time Collision Detection (2005), §5.1.5, by Voronoi regions of
 /// the vertices, then the edges, then the face. A zero-area triangle (collinear corners) never reaches the face
 /// region with a positive denominator; it falls back to the closest of its three edges.
@@ -59,8 +51,8 @@ Vec3 closest_on_triangle(const Vec3& p, const Vec3& a, const Vec3& b, const Vec3
   if (va <= 0.0 && d4 - d3 >= 0.0 && d5 - d6 >= 0.0) return b + (c - b) * ((d4 - d3) / ((d4 - d3) + (d5 - d6)));  // bc
   const double sum = va + vb + vc;  // = |ab × ac|², zero only for a degenerate triangle
   if (!(sum > 0.0)) {
-    Vec3 best = closest_on_segment(p, a, b);
-    for (const Vec3& q : {closest_on_segment(p, b, c), closest_on_segment(p, c, a)}) {
+    Vec3 best = closest_point_on_segment(p, a, b);
+    for (const Vec3& q : {closest_point_on_segment(p, b, c), closest_point_on_segment(p, c, a)}) {
       if ((q - p).squaredNorm() < (best - p).squaredNorm()) best = q;
     }
     return best;
@@ -413,7 +405,7 @@ class BvhTree final : public Tree {
     if (result.min_distance > 0.0) {
       out.distance_sq = result.min_distance * result.min_distance;
       out.on_mesh = result.nearest_points[0];
-      out.on_segment = closest_on_segment(out.on_mesh, a, b);
+      out.on_segment = closest_point_on_segment(out.on_mesh, a, b);
     } else {
       out.distance_sq = 0.0;
       out.on_mesh = out.on_segment = Vec3::Constant(std::numeric_limits<double>::quiet_NaN());

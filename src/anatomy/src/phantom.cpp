@@ -96,15 +96,6 @@ class Jitter {
   std::uint64_t m_state;
 };
 
-
-// Distance from point p to segment a–b.
-double point_segment_distance(const Vec3& p, const Vec3& a, const Vec3& b) {
-  const Vec3 ab = b - a;
-  const double l2 = ab.squaredNorm();
-  const double t = l2 > 0.0 ? std::clamp((p - a).dot(ab) / l2, 0.0, 1.0) : 0.0;
-  return (p - (a + t * ab)).norm();
-}
-
 // Wall gap between capsules A and B (axis distance − both radii) counted only between axis points outside the
 // capsule M that joins them (A and B are second-degree relatives: grandparent/grandchild or uncle/nephew, both
 // touching M). Where both axes are inside M the space between them is M's lumen, so they may approach or overlap
@@ -118,7 +109,7 @@ double gap_outside(const Vec3& a0, const Vec3& a1, double ra, const Vec3& b0, co
     const int n = std::max(2, static_cast<int>(std::ceil((p1 - p0).norm() / kStep)) + 1);
     for (int i = 0; i < n; ++i) {
       const Vec3 q = p0 + (p1 - p0) * (static_cast<double>(i) / (n - 1));
-      if (point_segment_distance(q, m0, m1) >= rm) out.push_back(q);
+      if ((q - closest_point_on_segment(q, m0, m1)).norm() >= rm) out.push_back(q);
     }
     return out;
   };

@@ -41,6 +41,14 @@ inline SegmentParameters closest_segment_parameters(const Vec3& p0, const Vec3& 
   return {s, t};
 }
 
+/// Closest point to p on the segment a–b (a = b allowed).
+inline Vec3 closest_point_on_segment(const Vec3& p, const Vec3& a, const Vec3& b) {
+  const Vec3 d = b - a;
+  const double dd = d.squaredNorm();
+  if (dd <= 0.0) return a;
+  return a + d * std::clamp((p - a).dot(d) / dd, 0.0, 1.0);
+}
+
 /// Distance between the segments p1–q1 and p2–q2 [m].
 inline double segment_distance(const Vec3& p1, const Vec3& q1, const Vec3& p2, const Vec3& q2) {
   const SegmentParameters c = closest_segment_parameters(p1, q1 - p1, p2, q2 - p2);
