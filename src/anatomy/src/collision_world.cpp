@@ -578,8 +578,8 @@ void fill_edges(Tables& w, const std::vector<std::array<EdgeBend, 3>>& bends, Fr
 
 /// Bullet's stackless walk of its quantized BVH (btQuantizedBvh::walkStacklessQuantizedTree), here so that the
 /// per-triangle work inlines instead of going through a virtual callback, and so that a sphere query can prune
-/// nodes and leaves by the sphere–box distance instead of box overlap (the corners of the query cube hold a
-/// third of its triangles). `near(lo, hi)` [BVH coordinates] decides; `visit(triangle)` gets the leaves.
+/// leaves by the sphere–box distance instead of box overlap (the corners of the query cube hold a third of its
+/// triangles). `near(lo, hi)` [BVH coordinates] decides; `visit(triangle)` gets the leaves.
 class BvhWalker {
  public:
   explicit BvhWalker(btOptimizedBvh& bvh) : m_bvh(bvh), m_nodes(bvh.getQuantizedNodeArray()) {
@@ -604,8 +604,9 @@ class BvhWalker {
       bool overlap = qlo[0] <= node.m_quantizedAabbMax[0] && qhi[0] >= node.m_quantizedAabbMin[0] &&
                      qlo[1] <= node.m_quantizedAabbMax[1] && qhi[1] >= node.m_quantizedAabbMin[1] &&
                      qlo[2] <= node.m_quantizedAabbMax[2] && qhi[2] >= node.m_quantizedAabbMin[2];
-      if (overlap) overlap = near(box(node.m_quantizedAabbMin), box(node.m_quantizedAabbMax));
       const bool leaf = node.isLeafNode();
+      // The exact test only at leaves: for inner nodes the integer overlap is nearly as selective and far cheaper.
+      if (overlap && leaf) overlap = near(box(node.m_quantizedAabbMin), box(node.m_quantizedAabbMax));
       if (leaf && overlap) visit(node.getTriangleIndex());
       i += (overlap || leaf) ? 1 : node.getEscapeIndex();
     }
