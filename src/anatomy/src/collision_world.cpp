@@ -36,7 +36,8 @@ constexpr double kFaceInclusionTol = 1e-9;
 /// this cosine of perpendicular to the ray, makes the ray ambiguous (counted 0, 1 or 2 times by rounding).
 constexpr double kParityEdgeTol = 1e-9;
 constexpr double kParityGrazeTol = 1e-9;
-/// Valley bends are clamped to this for the widening above: behind a right-angled corner the gap is unbounded.
+/// Valley bends are clamped to this for the widening behind valleys (TriangleData::valley_margin): behind a
+/// right-angled corner the gap would be unbounded.
 constexpr double kMaxValleyBend = kPi / 3.0;
 /// contains() stops after this many unambiguous rays and returns their majority.
 constexpr int kParityVotes = 3;
