@@ -10,9 +10,10 @@
 // ±15° (a vine segment lying along the wall). kBodies bodies are drawn once with a fixed seed and the timed loop
 // cycles through them: /random in random order (every query lands elsewhere in the tree; caches cold, since the
 // per-triangle tables far exceed L2), /sorted along a Morton curve (coherent sweeps), /hot over 16 of them only
-// (the working set stays in cache, so this is the compute cost). Counters: `hit` = fraction of queries with ≥ 1
-// contact, `contacts` = contacts per query, `full` = fraction that filled the 8-contact span (deepest kept),
-// `triangles` = mesh size.
+// (the working set stays in cache, so this is the compute cost); spheres also /body: 64-node chains walking along
+// the wall 1.5 mm apart, each chain queried 8 times in a row like a robot body over a solver step's iterations.
+// Counters: `hit` = fraction of queries with ≥ 1 contact, `contacts` = contacts per query, `full` = fraction that
+// filled the 8-contact span (deepest kept), `triangles` = mesh size.
 //
 // Rays start at lumen points (kept only where `contains` agrees) in uniform random directions, max 50 mm.
 // `contains` is timed on an equal mix of points 0.5–3 mm inside and outside the wall (only those whose nearest wall
@@ -136,6 +137,40 @@ Vec3 near_wall(WallSampler& rng, const WallPoint& w) {
   return w.point - rng.uniform(-0.5 * kRadius, 1.2 * kRadius) * w.normal;
 }
 
+/// Robot-like bodies: kChains chains of kChainNodes sphere centres 1.5 mm apart, each walking along the wall in a
+/// fixed direction (every step re-projected onto the wall with DistanceQuery), each centre near the wall as above.
+/// The /body order visits every chain kIterations times in a row, as a solver's Newton iterations query the nodes of
+/// one robot body.
+constexpr std::size_t kChains = 64;
+constexpr std::size_t kChainNodes = 64;
+constexpr std::size_t kIterations = 8;
+constexpr double kNodeSpacing = 1.5e-3;  // [m]
+
+const std::vector<Vec3>& body_centres() {
+  static const std::vector<Vec3> c = [] {
+    WallSampler rng(16);
+    const DistanceQuery distance(scene().mesh);
+    DistanceWorkspace ws = distance.make_workspace();
+    std::vector<Vec3> out;
+    out.reserve(kChains * kChainNodes);
+    for (std::size_t chain = 0; chain < kChains; ++chain) {
+      WallPoint w = rng.sample();
+      Vec3 heading = rng.direction();
+      for (std::size_t node = 0; node < kChainNodes; ++node) {
+        out.push_back(near_wall(rng, w));
+        Vec3 tangent = heading - heading.dot(w.normal) * w.normal;
+        if (!(tangent.norm() > 1e-9)) tangent = w.normal.unitOrthogonal();
+        const PointDistance next = distance.nearest_point(w.point + kNodeSpacing * tangent.normalized(), ws);
+        const Vec3 n = area_vector(scene().mesh, static_cast<std::size_t>(next.triangle));
+        heading = next.nearest - w.point;
+        w = {next.nearest, n.norm() > 0.0 ? Vec3(n.normalized()) : w.normal};
+      }
+    }
+    return out;
+  }();
+  return c;
+}
+
 const std::vector<Vec3>& sphere_centres() {
   static const std::vector<Vec3> c = [] {
     WallSampler rng(11);
@@ -229,6 +264,7 @@ enum class Order {
   kRandom,  ///< a fixed random permutation: every query lands elsewhere in the tree (cold caches)
   kSorted,  ///< along a Morton curve: consecutive queries are neighbours (spatially coherent sweeps)
   kHot,     ///< kHotBodies of them cycled: the working set stays in cache, so this is the compute cost
+  kBody,    ///< body_centres(): each chain kIterations times in a row, then the next chain
 };
 
 constexpr std::uint32_t kHotBodies = 16;  // ~6k triangles touched, ~1 MB: about L2
@@ -248,6 +284,17 @@ std::uint32_t morton(const Vec3& p, const Aabb& box) {
 
 /// Visiting order of bodies whose positions are `keys`.
 std::vector<std::uint32_t> visit_order(const std::vector<Vec3>& keys, Order order) {
+  if (order == Order::kBody) {
+    std::vector<std::uint32_t> out;
+    for (std::size_t chain = 0; chain < keys.size() / kChainNodes; ++chain) {
+      for (std::size_t pass = 0; pass < kIterations; ++pass) {
+        for (std::size_t node = 0; node < kChainNodes; ++node) {
+          out.push_back(static_cast<std::uint32_t>(chain * kChainNodes + node));
+        }
+      }
+    }
+    return out;
+  }
   std::vector<std::uint32_t> out(keys.size());
   for (std::uint32_t k = 0; k < out.size(); ++k) out[k] = k;
   std::shuffle(out.begin(), out.end(), std::mt19937_64(15));
@@ -273,7 +320,7 @@ double per_iteration(const benchmark::State& state, double total) {
 
 void BM_SphereContacts(benchmark::State& state, Order order) {
   const CollisionWorld& w = world();
-  const std::vector<Vec3>& c = sphere_centres();
+  const std::vector<Vec3>& c = order == Order::kBody ? body_centres() : sphere_centres();
   const std::vector<std::uint32_t> o = visit_order(c, order);
   std::array<Contact, kMaxContacts> out{};
   std::size_t i = 0, hits = 0, contacts = 0, full = 0;
@@ -366,6 +413,7 @@ void BM_BuildWorld(benchmark::State& state) {
 BENCHMARK_CAPTURE(BM_SphereContacts, random, Order::kRandom)->Unit(benchmark::kNanosecond);
 BENCHMARK_CAPTURE(BM_SphereContacts, sorted, Order::kSorted)->Unit(benchmark::kNanosecond);
 BENCHMARK_CAPTURE(BM_SphereContacts, hot, Order::kHot)->Unit(benchmark::kNanosecond);
+BENCHMARK_CAPTURE(BM_SphereContacts, body, Order::kBody)->Unit(benchmark::kNanosecond);
 BENCHMARK_CAPTURE(BM_CapsuleContacts, random, Order::kRandom)->Unit(benchmark::kNanosecond);
 BENCHMARK_CAPTURE(BM_CapsuleContacts, sorted, Order::kSorted)->Unit(benchmark::kNanosecond);
 BENCHMARK_CAPTURE(BM_CapsuleContacts, hot, Order::kHot)->Unit(benchmark::kNanosecond);
