@@ -139,6 +139,9 @@ struct PlannedBranch {
   double blend = 0.0;                 // smooth-union blend radius [m]
 };
 
+/// Equal steps of at most `step` covering `length` (at least one; a length that is an exact multiple gets no extra).
+int subdivisions(double length, double step) { return std::max(1, static_cast<int>(std::ceil(length / step - 1e-9))); }
+
 // Graph with straight branches subdivided every ≤ kGraphNodeSpacing; a bifurcation node keeps the parent's
 // radius (it is the centre of the parent's end sphere).
 AirwayGraph graph_of(const std::vector<PlannedBranch>& plan) {
@@ -149,7 +152,7 @@ AirwayGraph graph_of(const std::vector<PlannedBranch>& plan) {
     std::vector<std::uint32_t> nodes;
     nodes.push_back(b.parent < 0 ? add_node(graph, b.start, b.radius) : end_node[static_cast<std::size_t>(b.parent)]);
     const double length = (b.end - b.start).norm();
-    const int segments = std::max(1, static_cast<int>(std::ceil(length / kGraphNodeSpacing - 1e-9)));
+    const int segments = subdivisions(length, kGraphNodeSpacing);
     for (int k = 1; k <= segments; ++k) {
       nodes.push_back(add_node(graph, b.start + (b.end - b.start) * (static_cast<double>(k) / segments), b.radius));
     }
@@ -181,11 +184,6 @@ CompositeSdf field_of(const std::vector<PlannedBranch>& plan, const Vec3& entry)
   return field;
 }
 
-ImplicitMeshOptions mesh_options(double spacing) {
-  ImplicitMeshOptions options;
-  options.spacing = spacing;
-  return options;
-}
 
 double deg(double rad) { return rad / kDegToRad; }
 
@@ -474,7 +472,7 @@ Phantom make_bronchial_tree(const BronchialTreeParams& p) {
 
   Phantom phantom;
   const Vec3 entry = Vec3::Zero();
-  phantom.mesh = mesh_implicit(field_of(plan, entry), mesh_options(p.spacing));
+  phantom.mesh = mesh_implicit(field_of(plan, entry), {.spacing = p.spacing});
   phantom.graph = graph_of(plan);
   phantom.meta.kind = kind;
   phantom.meta.seed = p.seed;
@@ -517,7 +515,7 @@ Phantom make_tube_phantom(const TubeParams& p) {
   const std::uint32_t first = add_node(phantom.graph, Vec3(r, 0, 0), r);
   std::vector<std::uint32_t> nodes{first};
   const double span = p.length - 2.0 * r;
-  const int segments = std::max(1, static_cast<int>(std::ceil(span / kGraphNodeSpacing - 1e-9)));
+  const int segments = subdivisions(span, kGraphNodeSpacing);
   for (int k = 1; k <= segments; ++k) {
     nodes.push_back(add_node(phantom.graph, Vec3(r + span * k / segments, 0, 0), r));
   }
@@ -562,7 +560,7 @@ Phantom make_y_bifurcation(const YBifurcationParams& p) {
     plan[k].end = plan[0].end + p.daughter_length * Vec3(std::cos(p.branch_angle), side * std::sin(p.branch_angle), 0);
   }
   Phantom phantom;
-  phantom.mesh = mesh_implicit(field_of(plan, Vec3::Zero()), mesh_options(p.spacing));
+  phantom.mesh = mesh_implicit(field_of(plan, Vec3::Zero()), {.spacing = p.spacing});
   phantom.graph = graph_of(plan);
   phantom.meta.kind = kind;
   phantom.meta.parameters = {{"parent_diameter_mm", p.parent_diameter / kMmToM},
@@ -629,7 +627,7 @@ Phantom make_s_bend(const SBendParams& p) {
   for (std::size_t s = 0; s + 1 < waypoints.size(); ++s) {
     const Vec3& a = waypoints[s];
     const Vec3& b = waypoints[s + 1];
-    const int steps = std::max(1, static_cast<int>(std::ceil((b.x() - a.x()) / kBenchNodeSpacing - 1e-9)));
+    const int steps = subdivisions(b.x() - a.x(), kBenchNodeSpacing);
     for (int i = s == 0 ? 0 : 1; i <= steps; ++i) {
       const double t = static_cast<double>(i) / steps;
       const Vec3 q(a.x() + t * (b.x() - a.x()), a.y() + (b.y() - a.y()) * 0.5 * (1.0 - std::cos(kPi * t)), 0.0);
@@ -642,7 +640,7 @@ Phantom make_s_bend(const SBendParams& p) {
     }
   }
   add_branch(phantom.graph, -1, std::move(nodes));
-  phantom.mesh = mesh_implicit(field, mesh_options(p.spacing));
+  phantom.mesh = mesh_implicit(field, {.spacing = p.spacing});
   phantom.meta.kind = kind;
   phantom.meta.parameters = {{"length_mm", p.length / kMmToM},
                              {"width_mm", p.width / kMmToM},
@@ -696,7 +694,7 @@ Phantom make_constriction(const ConstrictionParams& p) {
   std::vector<double> xs;
   const double x0 = r;
   const double x1 = p.length - r;
-  const int steps = std::max(1, static_cast<int>(std::ceil((x1 - x0) / kBenchNodeSpacing - 1e-9)));
+  const int steps = subdivisions(x1 - x0, kBenchNodeSpacing);
   for (int i = 0; i <= steps; ++i) xs.push_back(x0 + (x1 - x0) * i / steps);
   xs.push_back(p.constriction_x);
   std::sort(xs.begin(), xs.end());
@@ -715,7 +713,7 @@ Phantom make_constriction(const ConstrictionParams& p) {
     nodes.push_back(add_node(phantom.graph, q, -field.value_at(q)));
   }
   add_branch(phantom.graph, -1, std::move(nodes));
-  phantom.mesh = mesh_implicit(field, mesh_options(p.spacing));
+  phantom.mesh = mesh_implicit(field, {.spacing = p.spacing});
   phantom.meta.kind = kind;
   phantom.meta.parameters = {{"diameter_mm", p.diameter / kMmToM},
                              {"length_mm", p.length / kMmToM},
