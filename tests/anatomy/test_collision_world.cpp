@@ -18,7 +18,7 @@
 #include "magvine/core/units.hpp"
 #include "support/compare.hpp"
 
-// ---- Allocation counter: every global operator new in this executable, and Bullet's own allocator. ----
+// ---- Allocation counter: every global operator new in this executable. ----
 namespace {
 std::atomic<long> g_allocations{0};
 void* counted_malloc(std::size_t n) {
@@ -27,7 +27,6 @@ void* counted_malloc(std::size_t n) {
 }
 // Not inlined, so GCC does not pair the replaced operator delete's free() with operator new (-Wmismatched-new-delete).
 [[gnu::noinline]] void plain_free(void* p) { std::free(p); }
-void* plain_malloc(std::size_t n) { return std::malloc(n); }
 void* counted_aligned(std::size_t n, std::size_t alignment) {
   g_allocations.fetch_add(1, std::memory_order_relaxed);
   const std::size_t size = (n + alignment - 1) / alignment * alignment;
@@ -55,12 +54,6 @@ void operator delete(void* p, std::align_val_t) noexcept { plain_free(p); }
 void operator delete[](void* p, std::align_val_t) noexcept { plain_free(p); }
 void operator delete(void* p, std::size_t, std::align_val_t) noexcept { plain_free(p); }
 void operator delete[](void* p, std::size_t, std::align_val_t) noexcept { plain_free(p); }
-
-// Bullet allocates through btAlignedAlloc, not operator new. This test target links Bullet only through
-// magvine::anatomy (no Bullet headers), so the one hook we need is declared here exactly as LinearMath declares it.
-typedef void*(btAllocFunc)(std::size_t size);
-typedef void(btFreeFunc)(void* memblock);
-void btAlignedAllocSetCustom(btAllocFunc* allocFunc, btFreeFunc* freeFunc);
 
 namespace magvine::anatomy {
 namespace {
@@ -564,7 +557,6 @@ TEST(CollisionWorldInput, DegenerateTrianglesAreIgnored) {
 }
 
 TEST(CollisionWorldAllocation, QueriesDoNotAllocate) {
-  btAlignedAllocSetCustom(&counted_malloc, &plain_free);
   const CollisionWorld world(make_tube({.radius = 5.0 * kMm, .length = 50.0 * kMm, .segments = 64}));
   std::array<Contact, 16> out;
   std::mt19937 rng(1);
@@ -585,7 +577,6 @@ TEST(CollisionWorldAllocation, QueriesDoNotAllocate) {
   const long before = g_allocations.load();
   run();
   const long after = g_allocations.load();
-  btAlignedAllocSetCustom(&plain_malloc, &plain_free);
   EXPECT_EQ(after - before, 0) << "allocations during queries";
   EXPECT_GT(contacts, 100u);  // the loop did real work
   EXPECT_GT(inside, 100);

@@ -1,7 +1,5 @@
 #include "magvine/anatomy/collision_world.hpp"
 
-#include <btBulletCollisionCommon.h>
-
 #include <algorithm>
 #include <array>
 #include <chrono>
@@ -17,16 +15,10 @@
 #include "magvine/core/check.hpp"
 #include "magvine/core/error.hpp"
 #include "magvine/core/units.hpp"
+#include "triangle_bvh.hpp"
 
 namespace magvine::anatomy {
 namespace {
-
-static_assert(sizeof(Vec3) == 3 * sizeof(double), "Bullet reads the vertex array in place as packed doubles");
-static_assert(sizeof(Triangle) == 3 * sizeof(std::uint32_t), "Bullet reads the index array in place");
-static_assert(sizeof(btScalar) == sizeof(double), "magvine links Bullet's double-precision build only");
-
-/// Bullet packs (part, triangle) into one int with 10 bits for the part: 2^21 triangles per part.
-constexpr std::size_t kMaxTriangles = std::size_t{1} << (31 - MAX_NUM_PARTS_IN_BITS);
 
 /// Inclusive face test: a foot counts as inside a triangle down to this fraction of the triangle's size outside
 /// it, so a foot exactly on a shared edge or vertex belongs to every triangle sharing it despite rounding (which is
@@ -48,43 +40,57 @@ constexpr std::uint8_t kDegenerate = 0x8;
 /// Bit 4 + k: edge k is a boundary edge (no neighbour), so nothing beyond it reports contacts of its own.
 constexpr unsigned kBoundaryShift = 4;
 
-/// What the contact queries read per triangle. The first 64 bytes hold everything the rejection tests read
-/// (bounding sphere, plane), so the many triangles a query box visits but does not touch cost little.
-struct TriangleData {
-  Vec3 bound_centre = Vec3::Zero();  ///< centroid: centre of a bounding sphere [m]
-  double bound_radius = 0.0;         ///< largest centroid–corner distance [m]
-  Vec3 normal = Vec3::Zero();        ///< unit normal pointing to the free side (zero when degenerate)
+/// What every query reads per triangle: one cache line, stored in the BVH's leaf order (slots) with the corners
+/// renumbered in order of first use, so that a query (~90 triangles on a 200 k-triangle airway) reads its leaves'
+/// records and their shared corners in short sequential runs.
+struct alignas(64) TriangleData {
+  Vec3 normal = Vec3::Zero();  ///< unit normal pointing to the free side (zero when degenerate)
   /// normal·corner 0 [m], so the signed plane distance of x is normal·x − offset; +∞ for a degenerate triangle,
   /// whose plane distance is then −∞ and rejects every sphere and capsule without reading the flags.
   double offset = 0.0;
-  double face_tol = 0.0;             ///< inclusion margin of the edge functions [m²]
+  double bound_radius = 0.0;              ///< largest centroid–corner distance: the centroid's bounding sphere [m]
+  std::array<std::uint32_t, 3> corner{};  ///< indices into Tables::points
+  std::uint32_t triangle = 0;             ///< index into the mesh's triangles
+  std::uint8_t flags = 0;
+
+  /// Inclusion margin of the edge functions [m²].
+  double face_tol() const { return kFaceInclusionTol * bound_radius * bound_radius; }
+};
+static_assert(sizeof(TriangleData) == 64, "one cache line per triangle record");
+
+/// What only edge tests and the widening behind valleys read, per slot beside TriangleData.
+struct EdgeArcs {
   /// Per emitting edge: end of its normal arc, cos and sin of the bend angle. Float: a bend to 1e-7 moves a cone
-  /// boundary by 1e-7 rad, far below any tessellation angle, and the record shrinks by a quarter.
+  /// boundary by 1e-7 rad, far below any tessellation angle.
   std::array<float, 3> arc_cos{};
   std::array<float, 3> arc_sin{};
   /// Per valley edge: tan(bend)·|edge| [m]. A centre that has crossed the wall behind a valley by depth h lies in
   /// neither face's prism (the gap between them is h·tan(bend) wide), so each face's prism widens by h·tan(bend)
   /// across its valley edges; the two contacts it then gets are merged when their normals are close.
   std::array<float, 3> valley_margin{};
-  std::uint8_t flags = 0;
 };
 
 /// Geometry tables shared by the queries; spans point into the owning Impl's mesh copy.
 struct Tables {
   std::span<const Vec3> vertices;
   std::span<const Triangle> triangles;
-  std::vector<TriangleData> data;
+  std::vector<TriangleData> data;  ///< per slot of the BVH (leaf order)
+  std::vector<EdgeArcs> arcs;      ///< per slot
+  std::vector<Vec3> points;        ///< the corners in order of first use by the slots [m]
+
+  std::array<const Vec3*, 3> corners(const TriangleData& d) const {
+    return {&points[d.corner[0]], &points[d.corner[1]], &points[d.corner[2]]};
+  }
+  Vec3 centroid(const TriangleData& d) const {
+    return (points[d.corner[0]] + points[d.corner[1]] + points[d.corner[2]]) / 3.0;
+  }
   /// Vertex → incident triangles, for the vertex normal cones (and the edge bends).
   VertexTriangles incidence;
-  double side = -1.0;       ///< free-side normal = side · outward normal
-  double merge_cos = 1.0;   ///< cos(merge_angle)
+  double side = -1.0;      ///< free-side normal = side · outward normal
+  double merge_cos = 1.0;  ///< cos(merge_angle)
   Vec3 box_min = Vec3::Zero();
   Vec3 box_max = Vec3::Zero();
 };
-
-/// The BVH lives in millimetres (see the constructor): world [m] → BVH coordinates.
-constexpr double kBvhScale = 1e3;
-btVector3 to_bvh(const Vec3& v) { return {kBvhScale * v.x(), kBvhScale * v.y(), kBvhScale * v.z()}; }
 
 /// Collects contacts into the caller's span: merges close normals (keeps the deepest) and, once full, replaces the
 /// shallowest contact with a deeper one.
@@ -96,7 +102,7 @@ btVector3 to_bvh(const Vec3& v) { return {kBvhScale * v.x(), kBvhScale * v.y(), 
 /// argument of Bærentzen & Aanæs 2005: the side of the nearest surface point is the side of the point): every
 /// face whose foot strictly contains the axis point and every ridge edge inside its cone is a candidate at its
 /// distance; when the nearest candidate is in front, the axis point is in the lumen and back contacts are dropped.
-/// Back contacts carry kBackBit in `triangle` until finish() (Bullet's limit keeps indices below 2^21).
+/// Back contacts carry kBackBit in `triangle` until finish() (the BVH keeps triangle indices below 2^27).
 class ContactSink {
  public:
   static constexpr std::uint32_t kBackBit = 0x80000000u;
@@ -194,8 +200,8 @@ bool in_vertex_cone(const Tables& w, std::uint32_t v, const Vec3& f) {
 /// A boundary edge has no neighbour: beyond its far end (x behind the sheet's plane but past the rim) the normal
 /// is m, a knife edge, with depth r − (x − q)·m (the along-edge offset included at a corner). At a corner the
 /// vertex is the feature: it reports only when x lies in its normal cone, with normal (x − q)/|x − q|.
-void edge_contact(const Tables& w, const TriangleData& d, int k, const Vec3& edge, const Vec3& x, const Vec3& q,
-                  int corner, double r, std::uint32_t t, ContactSink& sink) {
+void edge_contact(const Tables& w, const TriangleData& d, const EdgeArcs& arcs, int k, const Vec3& edge, const Vec3& x,
+                  const Vec3& q, int corner, double r, std::uint32_t t, ContactSink& sink) {
   const Vec3 f = x - q;
   if (f.squaredNorm() >= r * r) return;
   const double length = edge.norm();
@@ -203,8 +209,8 @@ void edge_contact(const Tables& w, const TriangleData& d, int k, const Vec3& edg
   const double fx = f.dot(d.normal);
   const double fy = f.dot(m);
   if (!(fy >= 0.0) || fx * fx + fy * fy == 0.0) return;
-  const double c = d.arc_cos[static_cast<std::size_t>(k)];
-  const double s = d.arc_sin[static_cast<std::size_t>(k)];
+  const double c = arcs.arc_cos[static_cast<std::size_t>(k)];
+  const double s = arcs.arc_sin[static_cast<std::size_t>(k)];
   const bool in_arc = fx * s - fy * c >= 0.0;
   const bool boundary = (d.flags & (1u << (kBoundaryShift + static_cast<unsigned>(k)))) != 0;
   if (!in_arc && !(boundary && fx * c + fy * s > fx)) return;
@@ -244,16 +250,15 @@ class SphereQuery {
   SphereQuery(const Tables& w, const Vec3& centre, double radius, ContactSink& sink)
       : m_w(w), m_c(centre), m_r(radius), m_sink(sink) {}
 
-  void processNode(int triangle_index) {
-    const auto t = static_cast<std::uint32_t>(triangle_index);
-    const TriangleData& d = m_w.data[t];
+  void process(std::uint32_t slot) {
+    const TriangleData& d = m_w.data[slot];
     const double reach = m_r + d.bound_radius;
-    if ((m_c - d.bound_centre).squaredNorm() >= reach * reach) return;
+    if ((m_c - m_w.centroid(d)).squaredNorm() >= reach * reach) return;
     // Signed distance to the plane, free side positive; the sphere must straddle the plane to touch anything of t.
     const double s = d.normal.dot(m_c) - d.offset;
     if (s >= m_r || s <= -m_r) return;
-    const Triangle& tri = m_w.triangles[t];
-    const std::array<const Vec3*, 3> v = {&m_w.vertices[tri[0]], &m_w.vertices[tri[1]], &m_w.vertices[tri[2]]};
+    const std::uint32_t t = d.triangle;
+    const std::array<const Vec3*, 3> v = m_w.corners(d);
     const std::array<Vec3, 3> e = {*v[1] - *v[0], *v[2] - *v[1], *v[0] - *v[2]};
     // Face: the foot of the centre is inside t iff all three edge functions n·(e_k × (c − v_k)) are ≥ 0.
     const Vec3 outward = m_w.side * d.normal;
@@ -261,10 +266,13 @@ class SphereQuery {
     std::array<double, 3> g{};  // |e_k| × the foot's signed distance from edge k's line, > 0 on t's side
     bool inside = true;
     bool strict = true;  // inside without the widening: the foot is on t
+    const bool emits = (d.flags & kEdgeMask) != 0;
+    const double tol = d.face_tol();
     for (std::size_t k = 0; k < 3; ++k) {
       g[k] = outward.dot(e[k].cross(m_c - *v[k]));
-      strict = strict && g[k] >= -d.face_tol;
-      inside = inside && g[k] >= -d.face_tol - behind * d.valley_margin[k];
+      strict = strict && g[k] >= -tol;
+      inside = inside && g[k] >= -tol - (behind > 0.0 ? behind * m_w.arcs[slot].valley_margin[k] : 0.0);
+      if (!inside && !emits) return;  // most visited triangles: the foot is off t and no edge of t emits
     }
     if (inside) {
       // Reached only through the widening (in the gap behind a valley): behind, at its distance to t's edges.
@@ -276,11 +284,11 @@ class SphereQuery {
       const auto ku = static_cast<std::size_t>(k);
       // An edge's own region lies beyond its line (f·m ≥ 0 in edge_contact): a foot on t's side of the line
       // cannot produce an edge contact, which spares most edge tests on a finely tessellated wall.
-      if ((d.flags & (1u << k)) == 0 || g[ku] > d.face_tol) continue;
+      if ((d.flags & (1u << k)) == 0 || g[ku] > tol) continue;
       const double raw = (m_c - *v[ku]).dot(e[ku]) / e[ku].squaredNorm();
       const double tau = std::clamp(raw, 0.0, 1.0);
       const int corner = raw <= 0.0 ? 0 : raw >= 1.0 ? 1 : -1;
-      edge_contact(m_w, d, k, e[ku], m_c, *v[ku] + tau * e[ku], corner, m_r, t, m_sink);
+      edge_contact(m_w, d, m_w.arcs[slot], k, e[ku], m_c, *v[ku] + tau * e[ku], corner, m_r, t, m_sink);
     }
   }
 
@@ -297,28 +305,30 @@ class CapsuleQuery {
   CapsuleQuery(const Tables& w, const Vec3& a, const Vec3& b, double radius, ContactSink& sink)
       : m_w(w), m_a(a), m_ab(b - a), m_inv_ab2(1.0 / (b - a).squaredNorm()), m_r(radius), m_sink(sink) {}
 
-  void processNode(int triangle_index) {
-    const auto t = static_cast<std::uint32_t>(triangle_index);
-    const TriangleData& d = m_w.data[t];
+  void process(std::uint32_t slot) {
+    const TriangleData& d = m_w.data[slot];
     const double reach = m_r + d.bound_radius;
-    const double tau_c = std::clamp((d.bound_centre - m_a).dot(m_ab) * m_inv_ab2, 0.0, 1.0);
-    if ((m_a + tau_c * m_ab - d.bound_centre).squaredNorm() >= reach * reach) return;
+    const Vec3 centroid = m_w.centroid(d);
+    const double tau_c = std::clamp((centroid - m_a).dot(m_ab) * m_inv_ab2, 0.0, 1.0);
+    if ((m_a + tau_c * m_ab - centroid).squaredNorm() >= reach * reach) return;
     // Signed plane distances of the ends (free side positive) are linear along the segment.
     const double sa = d.normal.dot(m_a) - d.offset;
     const double sb = sa + d.normal.dot(m_ab);
     if (!(std::min(sa, sb) < m_r && std::max(sa, sb) > -m_r)) return;  // also rejects degenerate (NaN/∞)
-    const Triangle& tri = m_w.triangles[t];
-    const std::array<const Vec3*, 3> v = {&m_w.vertices[tri[0]], &m_w.vertices[tri[1]], &m_w.vertices[tri[2]]};
+    const std::uint32_t t = d.triangle;
+    const std::array<const Vec3*, 3> v = m_w.corners(d);
     const std::array<Vec3, 3> e = {*v[1] - *v[0], *v[2] - *v[1], *v[0] - *v[2]};
     // Face: clip the segment to the prism over t (edge functions g_k(τ) = g_k(0) + τ·slope_k ≥ −tol, the prism
     // optionally widened across valley edges), then take the lowest point of the clipped part along the normal.
     const Vec3 outward = m_w.side * d.normal;
     const std::array<Vec3, 3> inward = {outward.cross(e[0]), outward.cross(e[1]), outward.cross(e[2])};
+    const double tol = d.face_tol();
+    const EdgeArcs& arcs = m_w.arcs[slot];
     const auto clip = [&](double behind) {
       double lo = 0.0;
       double hi = 1.0;
       for (std::size_t k = 0; k < 3 && lo <= hi; ++k) {
-        const double g0 = inward[k].dot(m_a - *v[k]) + d.face_tol + behind * d.valley_margin[k];
+        const double g0 = inward[k].dot(m_a - *v[k]) + tol + (behind > 0.0 ? behind * arcs.valley_margin[k] : 0.0);
         const double slope = inward[k].dot(m_ab);
         if (slope > 0.0) {
           lo = std::max(lo, -g0 / slope);
@@ -368,12 +378,12 @@ class CapsuleQuery {
       const auto ku = static_cast<std::size_t>(k);
       // As for spheres: a segment whose ends both lie on t's side of the edge's line cannot reach its region.
       if ((d.flags & (1u << k)) == 0 ||
-          (inward[ku].dot(m_a - *v[ku]) > d.face_tol && inward[ku].dot(m_a + m_ab - *v[ku]) > d.face_tol)) {
+          (inward[ku].dot(m_a - *v[ku]) > tol && inward[ku].dot(m_a + m_ab - *v[ku]) > tol)) {
         continue;
       }
       const auto [s, u] = closest_segment_parameters(m_a, m_ab, *v[ku], e[ku]);
       const int corner = u <= 0.0 ? 0 : u >= 1.0 ? 1 : -1;
-      edge_contact(m_w, d, k, e[ku], m_a + s * m_ab, *v[ku] + u * e[ku], corner, m_r, t, m_sink);
+      edge_contact(m_w, d, arcs, k, e[ku], m_a + s * m_ab, *v[ku] + u * e[ku], corner, m_r, t, m_sink);
     }
   }
 
@@ -394,11 +404,11 @@ struct RayCrossing {
   double cosine = 0.0;
 };
 
-bool cross_triangle(const Tables& w, std::uint32_t t, const Vec3& o, const Vec3& dir, RayCrossing& out) {
-  const Triangle& tri = w.triangles[t];
-  const Vec3& v0 = w.vertices[tri[0]];
-  const Vec3 e1 = w.vertices[tri[1]] - v0;
-  const Vec3 e2 = w.vertices[tri[2]] - v0;
+bool cross_triangle(const Tables& w, const TriangleData& d, const Vec3& o, const Vec3& dir, RayCrossing& out) {
+  const std::array<const Vec3*, 3> v = w.corners(d);
+  const Vec3& v0 = *v[0];
+  const Vec3 e1 = *v[1] - v0;
+  const Vec3 e2 = *v[2] - v0;
   const Vec3 p = dir.cross(e2);
   const double det = e1.dot(p);
   if (det == 0.0) return false;
@@ -409,32 +419,36 @@ bool cross_triangle(const Tables& w, std::uint32_t t, const Vec3& o, const Vec3&
   const double b2 = dir.dot(qv) * inv;
   out.distance = e2.dot(qv) * inv;
   out.b_min = std::min({1.0 - b1 - b2, b1, b2});
-  out.cosine = w.side * w.data[t].normal.dot(dir);
+  out.cosine = w.side * d.normal.dot(dir);
   return true;
 }
 
 /// Nearest hit along a ray (inclusive of edges and vertices).
-class RayQuery final : public btNodeOverlapCallback {
+class RayQuery {
  public:
   RayQuery(const Tables& w, const Vec3& origin, const Vec3& dir, double max_distance)
       : m_w(w), m_o(origin), m_dir(dir), m_best(max_distance) {}
 
-  void processNode(int /*sub_part*/, int triangle_index) override {
-    const auto t = static_cast<std::uint32_t>(triangle_index);
-    if ((m_w.data[t].flags & kDegenerate) != 0) return;
+  /// Current search length: hits beyond it cannot improve the result.
+  double reach() const { return m_best; }
+
+  void process(const TriangleData& d) {
+    if ((d.flags & kDegenerate) != 0) return;
+    const std::uint32_t t = d.triangle;
     RayCrossing x;
-    if (!cross_triangle(m_w, t, m_o, m_dir, x)) return;
+    if (!cross_triangle(m_w, d, m_o, m_dir, x)) return;
     if (x.b_min < -kFaceInclusionTol || x.distance < 0.0 || x.distance > m_best) return;
     if (m_found && x.distance == m_best && t > m_hit) return;  // exact ties: the lower index, for determinism
     m_best = x.distance;
     m_hit = t;
+    m_normal = d.normal;
     m_cosine = x.cosine;
     m_found = true;
   }
 
   std::optional<RayHit> result() const {
     if (!m_found) return std::nullopt;
-    const Vec3 outward = m_w.side * m_w.data[m_hit].normal;
+    const Vec3 outward = m_w.side * m_normal;
     const bool front = m_cosine < 0.0;
     return RayHit{m_best, m_o + m_best * m_dir, front ? outward : Vec3(-outward), m_hit, front};
   }
@@ -445,27 +459,26 @@ class RayQuery final : public btNodeOverlapCallback {
   Vec3 m_dir;
   double m_best;
   std::uint32_t m_hit = 0;
+  Vec3 m_normal = Vec3::Zero();
   double m_cosine = 0.0;
   bool m_found = false;
 };
 
 /// Counts the crossings of a ray with the surface for the parity test, flagging rays that pass too close to an
 /// edge or vertex, graze a face or start on the surface.
-class ParityQuery final : public btNodeOverlapCallback {
+class ParityQuery {
  public:
   ParityQuery(const Tables& w, const Vec3& origin, const Vec3& dir, double length)
       : m_w(w), m_o(origin), m_dir(dir), m_length(length) {}
 
-  void processNode(int /*sub_part*/, int triangle_index) override {
+  void process(const TriangleData& d) {
     if (m_ambiguous) return;
-    const auto t = static_cast<std::uint32_t>(triangle_index);
-    const TriangleData& d = m_w.data[t];
     if ((d.flags & kDegenerate) != 0) return;
     RayCrossing x;
-    const bool crosses = cross_triangle(m_w, t, m_o, m_dir, x);
+    const bool crosses = cross_triangle(m_w, d, m_o, m_dir, x);
     if (!crosses || std::abs(x.cosine) < kParityGrazeTol) {
       // (Nearly) in the triangle's plane: ambiguous if the ray passes through the bounding sphere.
-      const Vec3 oc = d.bound_centre - m_o;
+      const Vec3 oc = m_w.centroid(d) - m_o;
       const double along = oc.dot(m_dir);
       if (along >= -d.bound_radius && along <= m_length + d.bound_radius &&
           (oc - along * m_dir).squaredNorm() <= d.bound_radius * d.bound_radius) {
@@ -498,10 +511,6 @@ class ParityQuery final : public btNodeOverlapCallback {
 void validate(const TriangleMesh& mesh, const CollisionWorldOptions& options) {
   const std::string where = "CollisionWorld";
   validate_mesh(mesh, where);
-  if (mesh.triangles.size() > kMaxTriangles) {
-    throw InputError(where + ": mesh has " + std::to_string(mesh.triangles.size()) + " triangles, more than the " +
-                     std::to_string(kMaxTriangles) + " one Bullet BVH part holds");
-  }
   if (!(options.merge_angle >= 0.0 && options.merge_angle < kPi / 2)) {
     throw InputError(where + ": merge_angle must be in [0, pi/2) rad (got " + std::to_string(options.merge_angle) +
                      ")");
@@ -509,18 +518,30 @@ void validate(const TriangleMesh& mesh, const CollisionWorldOptions& options) {
 }
 
 /// Per-triangle normals (from the incidence, computed once) and bounding spheres; degenerate triangles are flagged.
-void fill_geometry(Tables& w) {
+void fill_geometry(Tables& w, std::span<const std::uint32_t> order) {
+  constexpr std::uint32_t kUnused = std::numeric_limits<std::uint32_t>::max();
+  std::vector<std::uint32_t> renumber(w.vertices.size(), kUnused);
   w.data.resize(w.triangles.size());
-  for (std::size_t t = 0; t < w.triangles.size(); ++t) {
+  w.points.reserve(w.vertices.size());
+  for (std::size_t slot = 0; slot < order.size(); ++slot) {
+    const std::uint32_t t = order[slot];
     const Triangle& tri = w.triangles[t];
+    TriangleData& d = w.data[slot];
+    for (std::size_t k = 0; k < 3; ++k) {
+      std::uint32_t& to = renumber[tri[k]];
+      if (to == kUnused) {
+        to = static_cast<std::uint32_t>(w.points.size());
+        w.points.push_back(w.vertices[tri[k]]);
+      }
+      d.corner[k] = to;
+    }
+    d.triangle = t;
     const Vec3& a = w.vertices[tri[0]];
     const Vec3& b = w.vertices[tri[1]];
     const Vec3& c = w.vertices[tri[2]];
-    TriangleData& d = w.data[t];
-    d.bound_centre = (a + b + c) / 3.0;
-    d.bound_radius = std::sqrt(std::max({(a - d.bound_centre).squaredNorm(), (b - d.bound_centre).squaredNorm(),
-                                         (c - d.bound_centre).squaredNorm()}));
-    d.face_tol = kFaceInclusionTol * d.bound_radius * d.bound_radius;
+    const Vec3 centroid = w.centroid(d);
+    d.bound_radius =
+        std::sqrt(std::max({(a - centroid).squaredNorm(), (b - centroid).squaredNorm(), (c - centroid).squaredNorm()}));
     const Vec3& outward = w.incidence.normals[t];  // zero when no direction survives rounding
     if (outward.isZero()) {
       d.flags = kDegenerate;
@@ -537,8 +558,11 @@ void fill_geometry(Tables& w) {
 /// valleys widen the face regions behind the wall.
 void fill_edges(Tables& w, const std::vector<std::array<EdgeBend, 3>>& bends, FreeSide free_side,
                 CollisionWorldStats& stats) {
-  for (std::size_t t = 0; t < w.triangles.size(); ++t) {
-    TriangleData& d = w.data[t];
+  w.arcs.resize(w.data.size());
+  for (std::size_t slot = 0; slot < w.data.size(); ++slot) {
+    TriangleData& d = w.data[slot];
+    EdgeArcs& arcs = w.arcs[slot];
+    const std::uint32_t t = d.triangle;
     if ((d.flags & kDegenerate) != 0) {
       ++stats.degenerate_triangles;
       continue;
@@ -564,65 +588,18 @@ void fill_edges(Tables& w, const std::vector<std::array<EdgeBend, 3>>& bends, Fr
           const double length = (w.vertices[tri[(k + 1) % 3]] - w.vertices[tri[k]]).norm();
           // tan(min(bend, kMaxValleyBend)); cos(kMaxValleyBend) = 1/2.
           const double tan = edge.cos > 0.5 ? edge.sin / edge.cos : std::tan(kMaxValleyBend);
-          d.valley_margin[k] = static_cast<float>(tan * length);
+          arcs.valley_margin[k] = static_cast<float>(tan * length);
         }
       }
       if (emits) {
         d.flags = static_cast<std::uint8_t>(d.flags | (1u << k));
         if (edge.boundary) d.flags = static_cast<std::uint8_t>(d.flags | (1u << (kBoundaryShift + k)));
-        d.arc_cos[k] = static_cast<float>(c);
-        d.arc_sin[k] = static_cast<float>(sn);
+        arcs.arc_cos[k] = static_cast<float>(c);
+        arcs.arc_sin[k] = static_cast<float>(sn);
       }
     }
   }
 }
-
-/// Bullet's stackless walk of its quantized BVH (btQuantizedBvh::walkStacklessQuantizedTree), here so that the
-/// per-triangle work inlines instead of going through a virtual callback, and so that a sphere query can prune
-/// leaves by the sphere–box distance instead of box overlap (the corners of the query cube hold a third of its
-/// triangles). `near(lo, hi)` [BVH coordinates] decides; `visit(triangle)` gets the leaves.
-class BvhWalker {
- public:
-  explicit BvhWalker(btOptimizedBvh& bvh) : m_bvh(bvh), m_nodes(bvh.getQuantizedNodeArray()) {
-    const unsigned short zero[3] = {0, 0, 0};
-    const unsigned short one[3] = {1, 1, 1};
-    const btVector3 o = bvh.unQuantize(zero);
-    const btVector3 step = bvh.unQuantize(one) - o;
-    m_origin = Vec3(o.x(), o.y(), o.z());
-    m_step = Vec3(step.x(), step.y(), step.z());
-  }
-
-  template <class Near, class Visit>
-  void walk(const Vec3& lo, const Vec3& hi, Near&& near, Visit&& visit) const {
-    unsigned short qlo[3];
-    unsigned short qhi[3];
-    m_bvh.quantizeWithClamp(qlo, btVector3(lo.x(), lo.y(), lo.z()), 0);
-    m_bvh.quantizeWithClamp(qhi, btVector3(hi.x(), hi.y(), hi.z()), 1);
-    const int count = m_nodes.size();
-    int i = 0;
-    while (i < count) {
-      const btQuantizedBvhNode& node = m_nodes[i];
-      bool overlap = qlo[0] <= node.m_quantizedAabbMax[0] && qhi[0] >= node.m_quantizedAabbMin[0] &&
-                     qlo[1] <= node.m_quantizedAabbMax[1] && qhi[1] >= node.m_quantizedAabbMin[1] &&
-                     qlo[2] <= node.m_quantizedAabbMax[2] && qhi[2] >= node.m_quantizedAabbMin[2];
-      const bool leaf = node.isLeafNode();
-      // The exact test only at leaves: for inner nodes the integer overlap is nearly as selective and far cheaper.
-      if (overlap && leaf) overlap = near(box(node.m_quantizedAabbMin), box(node.m_quantizedAabbMax));
-      if (leaf && overlap) visit(node.getTriangleIndex());
-      i += (overlap || leaf) ? 1 : node.getEscapeIndex();
-    }
-  }
-
- private:
-  Vec3 box(const unsigned short* q) const {
-    return m_origin + Vec3(q[0] * m_step.x(), q[1] * m_step.y(), q[2] * m_step.z());
-  }
-
-  btOptimizedBvh& m_bvh;
-  const QuantizedNodeArray& m_nodes;
-  Vec3 m_origin;
-  Vec3 m_step;
-};
 
 }  // namespace
 
@@ -633,12 +610,7 @@ struct CollisionWorld::Impl {
   CollisionWorldOptions options;
   CollisionWorldStats stats;
   Tables tables;
-  // Bullet objects, declared in construction order (destroyed in reverse): the shape references the mesh
-  // interface, which references `mesh`. The Impl lives on the heap and never moves, so those stay valid.
-  std::unique_ptr<btTriangleIndexVertexArray> mesh_interface;
-  std::unique_ptr<btBvhTriangleMeshShape> shape;
-  btOptimizedBvh* bvh = nullptr;
-  std::unique_ptr<BvhWalker> walker;
+  std::optional<detail::TriangleBvh> bvh;
 };
 
 CollisionWorld::Impl::Impl(const TriangleMesh& source, const CollisionWorldOptions& opts)
@@ -653,28 +625,8 @@ CollisionWorld::Impl::Impl(const TriangleMesh& source, const CollisionWorldOptio
   w.box_min = box.min;
   w.box_max = box.max;
   w.incidence = vertex_triangles(mesh);
-  fill_geometry(w);
-
-  // Zero-copy view of the mesh copy: packed doubles and 32-bit indices.
-  btIndexedMesh part;
-  part.m_numTriangles = static_cast<int>(mesh.triangles.size());
-  part.m_triangleIndexBase = reinterpret_cast<const unsigned char*>(mesh.triangles.data());
-  part.m_triangleIndexStride = static_cast<int>(sizeof(Triangle));
-  part.m_numVertices = static_cast<int>(mesh.vertices.size());
-  part.m_vertexBase = reinterpret_cast<const unsigned char*>(mesh.vertices.data());
-  part.m_vertexStride = static_cast<int>(sizeof(Vec3));
-  part.m_vertexType = PHY_DOUBLE;
-  mesh_interface = std::make_unique<btTriangleIndexVertexArray>();
-  mesh_interface->addIndexedMesh(part, PHY_INTEGER);
-  // Bullet's BVH builder pads every triangle box thinner than 0.002 units by ±0.001 (game units): in metres that
-  // would grow each sub-millimetre airway triangle by ±1 mm and triple the triangles a query visits. The BVH is
-  // therefore built in millimetres (kBvhScale); query boxes and rays are scaled to match, the tables stay in m.
-  mesh_interface->setScaling(btVector3(kBvhScale, kBvhScale, kBvhScale));
-  shape = std::make_unique<btBvhTriangleMeshShape>(mesh_interface.get(), /*useQuantizedAabbCompression=*/true,
-                                                   /*buildBvh=*/true);
-  bvh = shape->getOptimizedBvh();
-  walker = std::make_unique<BvhWalker>(*bvh);
-
+  bvh.emplace(mesh.vertices, mesh.triangles);
+  fill_geometry(w, bvh->order());  // records in the BVH's leaf order
   fill_edges(w, edge_bends(mesh, w.incidence), options.free_side, stats);
   std::vector<Vec3>().swap(w.incidence.normals);  // the queries read only the incidence lists
 
@@ -693,13 +645,11 @@ std::size_t CollisionWorld::sphere_contacts(const Vec3& centre, double radius, s
   const Tables& w = m_impl->tables;
   ContactSink sink(out, w.merge_cos);
   SphereQuery query(w, centre, radius, sink);
-  const Vec3 c = kBvhScale * centre;
-  const double r = kBvhScale * radius;
-  const Vec3 pad = Vec3::Constant(r);
-  m_impl->walker->walk(
-      c - pad, c + pad,
-      [&](const Vec3& lo, const Vec3& hi) { return (c.cwiseMax(lo).cwiseMin(hi) - c).squaredNorm() <= r * r; },
-      [&](int t) { query.processNode(t); });
+  const double r2 = radius * radius;
+  m_impl->bvh->walk([&](const detail::TriangleBvh::Node& node) { return detail::sphere_mask(node, centre, r2); },
+                    [&](std::uint32_t first, std::uint32_t count) {
+                      for (std::uint32_t i = first; i < first + count; ++i) query.process(i);
+                    });
   return sink.finish();
 }
 
@@ -711,18 +661,36 @@ std::size_t CollisionWorld::capsule_contacts(const Vec3& a, const Vec3& b, doubl
   const Tables& w = m_impl->tables;
   ContactSink sink(out, w.merge_cos);
   CapsuleQuery query(w, a, b, radius, sink);
-  const Vec3 pad = Vec3::Constant(kBvhScale * radius);
-  m_impl->walker->walk(
-      kBvhScale * a.cwiseMin(b) - pad, kBvhScale * a.cwiseMax(b) + pad,
-      [](const Vec3&, const Vec3&) { return true; }, [&](int t) { query.processNode(t); });
+  const Vec3 pad = Vec3::Constant(radius);
+  const Vec3 lo = a.cwiseMin(b) - pad;
+  const Vec3 hi = a.cwiseMax(b) + pad;
+  m_impl->bvh->walk([&](const detail::TriangleBvh::Node& node) { return detail::box_mask(node, lo, hi); },
+                    [&](std::uint32_t first, std::uint32_t count) {
+                      for (std::uint32_t i = first; i < first + count; ++i) query.process(i);
+                    });
   return sink.finish();
 }
 
-std::optional<RayHit> CollisionWorld::ray_cast(const Vec3& origin, const Vec3& direction,
-                                               double max_distance) const {
+namespace {
+
+/// Walks the leaves a ray segment origin + s·dir, s ∈ [0, length()], passes through; `length` is re-read at every
+/// node, so a nearest-hit query prunes by its best hit so far.
+template <class Query, class Length>
+void walk_ray(const detail::TriangleBvh& bvh, const Tables& w, const Vec3& origin, const Vec3& dir, Query& query,
+              Length&& length) {
+  const Vec3 inv(1.0 / dir.x(), 1.0 / dir.y(), 1.0 / dir.z());  // ±∞ for a zero component
+  bvh.walk([&](const detail::TriangleBvh::Node& node) { return detail::ray_mask(node, origin, inv, length()); },
+           [&](std::uint32_t first, std::uint32_t count) {
+             for (std::uint32_t i = first; i < first + count; ++i) query.process(w.data[i]);
+           });
+}
+
+}  // namespace
+
+std::optional<RayHit> CollisionWorld::ray_cast(const Vec3& origin, const Vec3& direction, double max_distance) const {
   MAGVINE_ASSERT(origin.allFinite() && std::abs(direction.norm() - 1.0) < 1e-9 && max_distance >= 0.0);
   RayQuery query(m_impl->tables, origin, direction, max_distance);
-  m_impl->bvh->reportRayOverlappingNodex(&query, to_bvh(origin), to_bvh(origin + max_distance * direction));
+  walk_ray(*m_impl->bvh, m_impl->tables, origin, direction, query, [&] { return query.reach(); });
   return query.result();
 }
 
@@ -737,7 +705,7 @@ bool CollisionWorld::contains(const Vec3& point) const {
   int first_vote = 0;  // +1 inside, −1 outside: breaks a 1–1 tie
   for (const Vec3& dir : parity_directions()) {
     ParityQuery query(w, point, dir, length);
-    m_impl->bvh->reportRayOverlappingNodex(&query, to_bvh(point), to_bvh(point + length * dir));
+    walk_ray(*m_impl->bvh, w, point, dir, query, [length] { return length; });
     if (query.ambiguous()) continue;
     (query.odd() ? inside : outside) += 1;
     if (first_vote == 0) first_vote = query.odd() ? 1 : -1;
@@ -751,9 +719,9 @@ std::span<const Vec3> CollisionWorld::parity_directions() {
   // Irregular directions spread over the sphere, none near an axis or a coordinate plane, so axis-aligned or
   // ring-structured meshes (tubes, grids) do not line their edges up with the rays.
   static const std::array<Vec3, 7> kDirections = [] {
-    std::array<Vec3, 7> d = {Vec3(0.2674, 0.5131, 0.8153),   Vec3(-0.7412, 0.3381, -0.5799),
-                             Vec3(0.4538, -0.8264, 0.3332),  Vec3(-0.2191, -0.4433, -0.8693),
-                             Vec3(0.9017, 0.2329, -0.3642),  Vec3(-0.5563, 0.7797, 0.2874),
+    std::array<Vec3, 7> d = {Vec3(0.2674, 0.5131, 0.8153),  Vec3(-0.7412, 0.3381, -0.5799),
+                             Vec3(0.4538, -0.8264, 0.3332), Vec3(-0.2191, -0.4433, -0.8693),
+                             Vec3(0.9017, 0.2329, -0.3642), Vec3(-0.5563, 0.7797, 0.2874),
                              Vec3(0.1379, -0.2611, 0.9554)};
     for (Vec3& v : d) v.normalize();
     return d;
@@ -761,8 +729,14 @@ std::span<const Vec3> CollisionWorld::parity_directions() {
   return kDirections;
 }
 
-const TriangleMesh& CollisionWorld::mesh() const { return m_impl->mesh; }
-const CollisionWorldOptions& CollisionWorld::options() const { return m_impl->options; }
-const CollisionWorldStats& CollisionWorld::stats() const { return m_impl->stats; }
+const TriangleMesh& CollisionWorld::mesh() const {
+  return m_impl->mesh;
+}
+const CollisionWorldOptions& CollisionWorld::options() const {
+  return m_impl->options;
+}
+const CollisionWorldStats& CollisionWorld::stats() const {
+  return m_impl->stats;
+}
 
 }  // namespace magvine::anatomy

@@ -1,7 +1,7 @@
 #pragma once
-/// Contact, ray and inside/outside queries against a static triangle mesh (the airway wall), backed by Bullet's
-/// quantized BVH in double precision (built in millimetres, see the .cpp) and the edge bends of edge_bends.hpp (the
-/// quantities of Bullet's btTriangleInfoMap). Bullet stays inside the .cpp.
+/// Contact, ray and inside/outside queries against a static triangle mesh (the airway wall), backed by a 4-wide BVH
+/// that Embree's builder makes (binned SAH, one thread; flattened into our own arrays, see triangle_bvh.hpp) and the
+/// edge bends of edge_bends.hpp (the quantities of Bullet's btTriangleInfoMap). Embree stays inside the .cpp.
 ///
 /// Contact model (one-sided wall). The mesh is oriented with outward normals (into tissue for an airway lumen).
 /// Bodies live on one side of it, the *free side*: by default inside the lumen, against the normals. Every query
@@ -100,7 +100,7 @@ struct CollisionWorldStats {
 class CollisionWorld {
  public:
   /// Builds the quantized BVH and the edge tables. Throws InputError for an empty mesh, non-finite vertices,
-  /// out-of-range indices, more than 2^21 triangles (Bullet's per-part limit) or a bad `merge_angle`.
+  /// out-of-range indices, more than 2^27 triangles or a bad `merge_angle`.
   explicit CollisionWorld(const TriangleMesh& mesh, const CollisionWorldOptions& options = {});
   ~CollisionWorld();
   CollisionWorld(CollisionWorld&&) noexcept;

@@ -1,7 +1,7 @@
 #pragma once
 /// "How far is the wall": exact Euclidean distances from points and capsules to an anatomy mesh (lumen radius, tissue
 /// proximity). Built once from a TriangleMesh into an FCL bounding-volume hierarchy; queries are const and use a
-/// caller-owned DistanceWorkspace. Robot contact forces do not go through here (they use the Bullet collision world).
+/// caller-owned DistanceWorkspace. Robot contact forces do not go through here (they use the collision world).
 ///
 /// Distances are unsigned: this class does not know which side of the wall is lumen, so a point in tissue at 1 mm
 /// from the wall also reports 1 mm.

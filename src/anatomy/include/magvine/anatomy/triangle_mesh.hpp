@@ -1,6 +1,6 @@
 #pragma once
 /// The indexed triangle mesh every anatomy component shares: vertices in metres (world frame), triangles as
-/// vertex-index triples. The layout is plain and contiguous so Bullet and FCL can read it without copies.
+/// vertex-index triples. The layout is plain and contiguous so FCL and Embree's builder can read it without copies.
 
 #include <array>
 #include <cstdint>

@@ -1,0 +1,222 @@
+#include "triangle_bvh.hpp"
+
+#include <embree3/rtcore.h>
+
+#include <algorithm>
+#include <cmath>
+#include <limits>
+#include <memory>
+#include <string>
+
+#include "magvine/core/error.hpp"
+
+namespace magvine::anatomy::detail {
+namespace {
+
+/// Largest triangle count a leaf's 27-bit slot field addresses.
+constexpr std::size_t kMaxTriangles = std::size_t{1} << 27;
+/// Boxes grow by this fraction of the mesh's bounding-box diagonal beyond the float rounding, so that double
+/// tests against them (whose own rounding is relative to the coordinates, not the box) stay conservative for
+/// triangles lying in a box face, at no measurable cost in visited triangles.
+constexpr double kBoxPad = 1e-7;
+
+/// Nodes and leaves as Embree's builder makes them, in its thread-local memory; flattened afterwards.
+struct BuildItem {
+  bool leaf = false;
+};
+struct BuildNode : BuildItem {
+  unsigned count = 0;
+  std::array<BuildItem*, 4> children{};
+  std::array<RTCBounds, 4> bounds{};
+};
+struct BuildLeaf : BuildItem {
+  unsigned count = 0;
+  std::array<std::uint32_t, TriangleBvh::kMaxLeafSize> triangles{};
+};
+
+void* create_node(RTCThreadLocalAllocator alloc, unsigned count, void* /*user*/) {
+  void* memory = rtcThreadLocalAlloc(alloc, sizeof(BuildNode), alignof(BuildNode));
+  auto* node = new (memory) BuildNode;
+  node->count = count;
+  return node;
+}
+
+void set_children(void* node, void** children, unsigned count, void* /*user*/) {
+  for (unsigned k = 0; k < count; ++k)
+    static_cast<BuildNode*>(node)->children[k] = static_cast<BuildItem*>(children[k]);
+}
+
+void set_bounds(void* node, const RTCBounds** bounds, unsigned count, void* /*user*/) {
+  for (unsigned k = 0; k < count; ++k) static_cast<BuildNode*>(node)->bounds[k] = *bounds[k];
+}
+
+void* create_leaf(RTCThreadLocalAllocator alloc, const RTCBuildPrimitive* primitives, std::size_t count,
+                  void* /*user*/) {
+  void* memory = rtcThreadLocalAlloc(alloc, sizeof(BuildLeaf), alignof(BuildLeaf));
+  auto* leaf = new (memory) BuildLeaf;
+  leaf->leaf = true;
+  leaf->count = static_cast<unsigned>(count);
+  for (std::size_t i = 0; i < count; ++i) leaf->triangles[i] = primitives[i].primID;
+  return leaf;
+}
+
+struct DeviceDeleter {
+  void operator()(RTCDevice d) const { rtcReleaseDevice(d); }
+};
+struct BvhDeleter {
+  void operator()(RTCBVH b) const { rtcReleaseBVH(b); }
+};
+
+[[noreturn]] void fail(RTCDevice device, const std::string& what) {
+  const RTCError code = device != nullptr ? rtcGetDeviceError(device) : RTC_ERROR_UNKNOWN;
+  throw InputError("collision world BVH: " + what + " (Embree error " + std::to_string(static_cast<int>(code)) + ")");
+}
+
+/// Depth-first flattening: inner nodes get consecutive indices, leaves consecutive slot runs.
+class Flattener {
+ public:
+  Flattener(std::vector<TriangleBvh::Node>& nodes, std::vector<std::uint32_t>& order)
+      : m_nodes(nodes), m_order(order) {}
+
+  std::uint32_t leaf(const BuildLeaf& l) {
+    const auto first = static_cast<std::uint32_t>(m_order.size());
+    m_order.insert(m_order.end(), l.triangles.begin(), l.triangles.begin() + l.count);
+    return TriangleBvh::kLeafBit | (first << 4) | l.count;
+  }
+
+  /// Appends `n` (and its subtree) and returns its index.
+  std::uint32_t node(const BuildNode& n) {
+    const auto index = static_cast<std::uint32_t>(m_nodes.size());
+    m_nodes.push_back(empty());
+    for (unsigned k = 0; k < n.count; ++k) {
+      const BuildItem* item = n.children[k];
+      const std::uint32_t child =
+          item->leaf ? leaf(*static_cast<const BuildLeaf*>(item)) : node(*static_cast<const BuildNode*>(item));
+      TriangleBvh::Node& out = m_nodes[index];  // re-fetched: the recursion may have grown the vector
+      out.child[k] = child;
+      const RTCBounds& b = n.bounds[k];
+      out.lo_x[k] = b.lower_x;
+      out.lo_y[k] = b.lower_y;
+      out.lo_z[k] = b.lower_z;
+      out.hi_x[k] = b.upper_x;
+      out.hi_y[k] = b.upper_y;
+      out.hi_z[k] = b.upper_z;
+    }
+    return index;
+  }
+
+  /// A root holding a single leaf (a mesh of at most kMaxLeafSize triangles) with its box.
+  void root_leaf(const BuildLeaf& l, const RTCBounds& b) {
+    m_nodes.push_back(empty());
+    TriangleBvh::Node& out = m_nodes.back();
+    out.child[0] = leaf(l);
+    out.lo_x[0] = b.lower_x;
+    out.lo_y[0] = b.lower_y;
+    out.lo_z[0] = b.lower_z;
+    out.hi_x[0] = b.upper_x;
+    out.hi_y[0] = b.upper_y;
+    out.hi_z[0] = b.upper_z;
+  }
+
+ private:
+  static TriangleBvh::Node empty() {
+    constexpr float kInf = std::numeric_limits<float>::infinity();
+    TriangleBvh::Node n{};
+    n.lo_x.fill(kInf);
+    n.lo_y.fill(kInf);
+    n.lo_z.fill(kInf);
+    n.hi_x.fill(-kInf);
+    n.hi_y.fill(-kInf);
+    n.hi_z.fill(-kInf);
+    n.child.fill(TriangleBvh::kLeafBit);  // an empty leaf: harmless even if a test accepted the empty box
+    return n;
+  }
+
+  std::vector<TriangleBvh::Node>& m_nodes;
+  std::vector<std::uint32_t>& m_order;
+};
+
+float down(double x) {
+  const auto f = static_cast<float>(x);
+  return static_cast<double>(f) <= x ? f : std::nextafter(f, -std::numeric_limits<float>::infinity());
+}
+float up(double x) {
+  const auto f = static_cast<float>(x);
+  return static_cast<double>(f) >= x ? f : std::nextafter(f, std::numeric_limits<float>::infinity());
+}
+
+}  // namespace
+
+TriangleBvh::TriangleBvh(std::span<const Vec3> vertices, std::span<const Triangle> triangles) {
+  if (triangles.empty()) throw InputError("collision world BVH: the mesh has no triangles");
+  if (triangles.size() > kMaxTriangles) {
+    throw InputError("collision world BVH: " + std::to_string(triangles.size()) + " triangles, more than the " +
+                     std::to_string(kMaxTriangles) + " supported");
+  }
+  Vec3 lo = vertices[triangles[0][0]];
+  Vec3 hi = lo;
+  for (const Triangle& t : triangles) {
+    for (const std::uint32_t v : t) {
+      lo = lo.cwiseMin(vertices[v]);
+      hi = hi.cwiseMax(vertices[v]);
+    }
+  }
+  const double pad = kBoxPad * (hi - lo).norm();
+
+  std::vector<RTCBuildPrimitive> primitives(triangles.size());
+  for (std::size_t i = 0; i < triangles.size(); ++i) {
+    const Triangle& t = triangles[i];
+    const Vec3 a = vertices[t[0]].cwiseMin(vertices[t[1]]).cwiseMin(vertices[t[2]]).array() - pad;
+    const Vec3 b = vertices[t[0]].cwiseMax(vertices[t[1]]).cwiseMax(vertices[t[2]]).array() + pad;
+    RTCBuildPrimitive& p = primitives[i];
+    p.lower_x = down(a.x());
+    p.lower_y = down(a.y());
+    p.lower_z = down(a.z());
+    p.upper_x = up(b.x());
+    p.upper_y = up(b.y());
+    p.upper_z = up(b.z());
+    p.geomID = 0;
+    p.primID = static_cast<unsigned>(i);
+  }
+
+  // One build thread: the build is deterministic and the benchmarks measure one core.
+  const std::unique_ptr<RTCDeviceTy, DeviceDeleter> device(rtcNewDevice("threads=1"));
+  if (!device) fail(nullptr, "cannot create an Embree device");
+  const std::unique_ptr<RTCBVHTy, BvhDeleter> bvh(rtcNewBVH(device.get()));
+  if (!bvh) fail(device.get(), "cannot create an Embree BVH");
+
+  RTCBuildArguments args = rtcDefaultBuildArguments();
+  args.buildQuality = RTC_BUILD_QUALITY_MEDIUM;
+  args.maxBranchingFactor = 4;
+  args.maxLeafSize = kMaxLeafSize;
+  args.bvh = bvh.get();
+  args.primitives = primitives.data();
+  args.primitiveCount = primitives.size();
+  args.primitiveArrayCapacity = primitives.size();
+  args.createNode = create_node;
+  args.setNodeChildren = set_children;
+  args.setNodeBounds = set_bounds;
+  args.createLeaf = create_leaf;
+  void* root = rtcBuildBVH(&args);
+  if (root == nullptr) fail(device.get(), "Embree's BVH build failed");
+
+  m_nodes.reserve(triangles.size() / 2);
+  m_order.reserve(triangles.size());
+  Flattener flatten(m_nodes, m_order);
+  if (static_cast<const BuildItem*>(root)->leaf) {
+    RTCBounds all{};
+    all.lower_x = down(lo.x() - pad);
+    all.lower_y = down(lo.y() - pad);
+    all.lower_z = down(lo.z() - pad);
+    all.upper_x = up(hi.x() + pad);
+    all.upper_y = up(hi.y() + pad);
+    all.upper_z = up(hi.z() + pad);
+    flatten.root_leaf(*static_cast<const BuildLeaf*>(root), all);
+  } else {
+    flatten.node(*static_cast<const BuildNode*>(root));
+  }
+  m_nodes.shrink_to_fit();
+  if (m_order.size() != triangles.size()) fail(device.get(), "the BVH lost triangles");
+}
+
+}  // namespace magvine::anatomy::detail

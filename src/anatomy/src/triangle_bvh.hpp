@@ -1,0 +1,126 @@
+#pragma once
+/// A 4-wide bounding volume hierarchy over the triangles of a mesh, for the collision world's queries.
+///
+/// Built with Embree's generic BVH builder (binned SAH, one thread, deterministic) and flattened into two arrays:
+/// nodes of four child boxes and a permutation of the triangles in which every leaf is a contiguous run of up to
+/// kMaxLeafSize *slots*. Data stored per slot (the collision world's triangle records) is then read in long
+/// sequential runs by a query instead of one scattered record per triangle, which is what bounds queries on a
+/// 200 k-triangle airway once the records no longer fit in cache.
+///
+/// Boxes are float, rounded outward from the double vertices, so every test against them is conservative. Walks are
+/// templates that inline the caller's box test and leaf visit. Immutable after construction; walks are const,
+/// allocation-free (a fixed stack) and thread-safe.
+
+#include <algorithm>
+#include <array>
+#include <cmath>
+#include <cstdint>
+#include <span>
+#include <utility>
+#include <vector>
+
+#include "magvine/anatomy/triangle_mesh.hpp"
+
+namespace magvine::anatomy::detail {
+
+class TriangleBvh {
+ public:
+  /// Triangles per leaf, at most.
+  static constexpr unsigned kMaxLeafSize = 8;
+  /// Depth bound of the walk stack (Embree's builder stops at depth 32; each level pushes at most 3 siblings).
+  static constexpr int kStackSize = 128;
+
+  /// Four child boxes [mesh units] in SoA form, and what each child is: bit 31 set is a leaf of `count` slots from
+  /// `first` (bits 0..3 count, bits 4..30 first), clear is an inner node index. Unused children have empty boxes
+  /// (lo = +∞, hi = −∞) that every test rejects, and are empty leaves.
+  struct Node {
+    std::array<float, 4> lo_x, lo_y, lo_z, hi_x, hi_y, hi_z;
+    std::array<std::uint32_t, 4> child;
+  };
+  static constexpr std::uint32_t kLeafBit = 0x80000000u;
+
+  /// Builds over `triangles` (indices into `vertices`). Throws InputError when Embree fails, or when the mesh has
+  /// more than 2^27 triangles (the slot field of a leaf).
+  TriangleBvh(std::span<const Vec3> vertices, std::span<const Triangle> triangles);
+
+  /// slot → triangle index: leaves are contiguous runs of slots.
+  std::span<const std::uint32_t> order() const { return m_order; }
+  std::span<const Node> nodes() const { return m_nodes; }
+
+  /// Visits every leaf whose box passes `test(node, mask_out)`: `test` gets a node and returns a 4-bit mask of the
+  /// children to enter (bit k: child k). `visit(first, count)` gets each leaf's slot range.
+  template <class Test, class Visit>
+  void walk(Test&& test, Visit&& visit) const {
+    std::array<std::uint32_t, kStackSize> stack;
+    int top = 0;
+    stack[top++] = 0;
+    while (top > 0) {
+      const Node& node = m_nodes[stack[--top]];
+      unsigned mask = test(node);
+      while (mask != 0) {
+        const int k = __builtin_ctz(mask);
+        mask &= mask - 1;
+        const std::uint32_t c = node.child[static_cast<std::size_t>(k)];
+        if ((c & kLeafBit) != 0) {
+          visit((c & ~kLeafBit) >> 4, c & 0xFu);
+        } else {
+          stack[top++] = c;
+        }
+      }
+    }
+  }
+
+ private:
+  std::vector<Node> m_nodes;  ///< node 0 is the root
+  std::vector<std::uint32_t> m_order;
+};
+
+/// Children of `node` whose box lies within distance r of point c (squared distance ≤ r²), as a walk mask.
+inline unsigned sphere_mask(const TriangleBvh::Node& node, const Vec3& c, double r2) {
+  unsigned mask = 0;
+  for (std::size_t k = 0; k < 4; ++k) {
+    const double dx = std::max({0.0, node.lo_x[k] - c.x(), c.x() - node.hi_x[k]});
+    const double dy = std::max({0.0, node.lo_y[k] - c.y(), c.y() - node.hi_y[k]});
+    const double dz = std::max({0.0, node.lo_z[k] - c.z(), c.z() - node.hi_z[k]});
+    mask |= static_cast<unsigned>(dx * dx + dy * dy + dz * dz <= r2) << k;
+  }
+  return mask;
+}
+
+/// Children of `node` whose box overlaps the box lo–hi, as a walk mask.
+inline unsigned box_mask(const TriangleBvh::Node& node, const Vec3& lo, const Vec3& hi) {
+  unsigned mask = 0;
+  for (std::size_t k = 0; k < 4; ++k) {
+    const bool overlap = node.lo_x[k] <= hi.x() && node.hi_x[k] >= lo.x() && node.lo_y[k] <= hi.y() &&
+                         node.hi_y[k] >= lo.y() && node.lo_z[k] <= hi.z() && node.hi_z[k] >= lo.z();
+    mask |= static_cast<unsigned>(overlap) << k;
+  }
+  return mask;
+}
+
+/// Children of `node` whose box the segment o + s·d, s ∈ [0, length], touches, as a walk mask (slab test; `inv`
+/// = 1/d per axis, ±∞ for a zero component). The near plane of each slab is chosen by the sign of `inv`, so an
+/// empty box (lo = +∞, hi = −∞) gives an entry at +∞ and is rejected.
+inline unsigned ray_mask(const TriangleBvh::Node& node, const Vec3& o, const Vec3& inv, double length) {
+  unsigned mask = 0;
+  for (std::size_t k = 0; k < 4; ++k) {
+    const std::array<std::pair<float, float>, 3> slab = {std::pair<float, float>{node.lo_x[k], node.hi_x[k]},
+                                                         {node.lo_y[k], node.hi_y[k]},
+                                                         {node.lo_z[k], node.hi_z[k]}};
+    double t0 = 0.0;
+    double t1 = length;
+    for (Eigen::Index a = 0; a < 3; ++a) {
+      const auto& [lo, hi] = slab[static_cast<std::size_t>(a)];
+      const bool forward = !std::signbit(inv[a]);
+      const double near = ((forward ? lo : hi) - o[a]) * inv[a];
+      const double far = ((forward ? hi : lo) - o[a]) * inv[a];
+      // A ray in a slab's plane (0·∞ = NaN) must not reject: fmax/fmin ignore NaN.
+      t0 = std::fmax(t0, near);
+      t1 = std::fmin(t1, far);
+    }
+    mask |= static_cast<unsigned>(t0 <= t1) << k;
+  }
+  return mask;
+}
+
+}  // namespace magvine::anatomy::detail

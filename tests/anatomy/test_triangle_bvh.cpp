@@ -1,0 +1,139 @@
+// The collision world's BVH (private header src/anatomy/src/triangle_bvh.hpp): its leaves hold every triangle
+// exactly once, and its sphere, box and ray walks visit every triangle a brute-force loop over the exact (double)
+// triangle boxes says they must. Missing one would silently lose contacts, so the reference is exhaustive.
+
+#include <gtest/gtest.h>
+
+#include <algorithm>
+#include <random>
+#include <vector>
+
+#include "magvine/anatomy/mesh_io.hpp"
+#include "magvine/anatomy/primitives.hpp"
+#include "support/airways.hpp"
+#include "triangle_bvh.hpp"
+
+namespace magvine::anatomy::detail {
+namespace {
+
+struct Box {
+  Vec3 lo;
+  Vec3 hi;
+};
+
+Box triangle_box(const TriangleMesh& mesh, std::size_t t) {
+  const Triangle& tri = mesh.triangles[t];
+  const Vec3& a = mesh.vertices[tri[0]];
+  const Vec3& b = mesh.vertices[tri[1]];
+  const Vec3& c = mesh.vertices[tri[2]];
+  return {a.cwiseMin(b).cwiseMin(c), a.cwiseMax(b).cwiseMax(c)};
+}
+
+/// Triangles visited by a walk, as a flag per triangle; fails the test if one is visited twice.
+template <class Test>
+std::vector<char> visited(const TriangleBvh& bvh, std::size_t triangles, Test&& test) {
+  std::vector<char> seen(triangles, 0);
+  bvh.walk(test, [&](std::uint32_t first, std::uint32_t count) {
+    for (std::uint32_t s = first; s < first + count; ++s) {
+      const std::uint32_t t = bvh.order()[s];
+      EXPECT_EQ(seen[t], 0) << "triangle " << t << " visited twice";
+      seen[t] = 1;
+    }
+  });
+  return seen;
+}
+
+/// Checks the BVH of `mesh` against brute force for random spheres, boxes and rays around the mesh.
+void check_walks(const TriangleMesh& mesh, double radius, int queries) {
+  const TriangleBvh bvh(mesh.vertices, mesh.triangles);
+  const std::size_t n = mesh.triangles.size();
+
+  // The leaves are a permutation of the triangles.
+  std::vector<std::uint32_t> sorted(bvh.order().begin(), bvh.order().end());
+  std::sort(sorted.begin(), sorted.end());
+  ASSERT_EQ(sorted.size(), n);
+  for (std::size_t i = 0; i < n; ++i) ASSERT_EQ(sorted[i], i);
+
+  const Aabb all = bounding_box(mesh);
+  std::mt19937_64 rng(7);
+  std::uniform_real_distribution<double> u(0.0, 1.0);
+  const auto point = [&] {
+    const Vec3 f(u(rng), u(rng), u(rng));
+    return Vec3(all.min + f.cwiseProduct(all.max - all.min));
+  };
+  std::size_t sphere_hits = 0;
+  std::size_t sphere_visits = 0;
+  for (int q = 0; q < queries; ++q) {
+    // Centres on the surface (a random triangle's centroid, shifted) so that most queries touch something.
+    const Triangle& tri = mesh.triangles[rng() % n];
+    const Vec3 c = (mesh.vertices[tri[0]] + mesh.vertices[tri[1]] + mesh.vertices[tri[2]]) / 3.0 +
+                   radius * Vec3(u(rng) - 0.5, u(rng) - 0.5, u(rng) - 0.5);
+    const auto spheres =
+        visited(bvh, n, [&](const TriangleBvh::Node& node) { return sphere_mask(node, c, radius * radius); });
+    const Vec3 lo = c - Vec3::Constant(radius);
+    const Vec3 hi = c + Vec3(0.5 * radius, 2.0 * radius, radius);
+    const auto boxes = visited(bvh, n, [&](const TriangleBvh::Node& node) { return box_mask(node, lo, hi); });
+    const Vec3 origin = point();
+    const Vec3 dir = (c - origin).normalized();
+    const double length = (c - origin).norm();
+    const Vec3 inv(1.0 / dir.x(), 1.0 / dir.y(), 1.0 / dir.z());
+    const auto rays =
+        visited(bvh, n, [&](const TriangleBvh::Node& node) { return ray_mask(node, origin, inv, length); });
+    for (std::size_t t = 0; t < n; ++t) {
+      const Box b = triangle_box(mesh, t);
+      // Sphere: squared distance from c to the exact box.
+      const double d2 = (c.cwiseMax(b.lo).cwiseMin(b.hi) - c).squaredNorm();
+      if (d2 <= radius * radius) {
+        ++sphere_hits;
+        EXPECT_TRUE(spheres[t]) << "sphere walk missed triangle " << t;
+      }
+      sphere_visits += static_cast<std::size_t>(spheres[t]);
+      const bool overlap = (b.lo.array() <= hi.array()).all() && (b.hi.array() >= lo.array()).all();
+      if (overlap) {
+        EXPECT_TRUE(boxes[t]) << "box walk missed triangle " << t;
+      }
+      // Ray: exact slab test of the segment against the box.
+      double t0 = 0.0;
+      double t1 = length;
+      for (int a = 0; a < 3; ++a) {
+        const double near = ((dir[a] >= 0.0 ? b.lo[a] : b.hi[a]) - origin[a]) * inv[a];
+        const double far = ((dir[a] >= 0.0 ? b.hi[a] : b.lo[a]) - origin[a]) * inv[a];
+        t0 = std::max(t0, near);
+        t1 = std::min(t1, far);
+      }
+      if (t0 <= t1) {
+        EXPECT_TRUE(rays[t]) << "ray walk missed triangle " << t;
+      }
+    }
+  }
+  EXPECT_GT(sphere_hits, static_cast<std::size_t>(queries));  // the queries did touch the surface
+  // Selectivity, loosely: the walk reads leaves, so it visits more than the exact set, but not the whole mesh.
+  EXPECT_LT(sphere_visits, 4 * sphere_hits + 8 * static_cast<std::size_t>(queries));
+}
+
+TEST(TriangleBvh, WalksVisitEveryTriangleTheBruteForceBoxesReach) {
+  check_walks(make_tube({.radius = 5e-3, .length = 40e-3, .segments = 48, .rings = 60, .capped = true}), 1.5e-3, 60);
+}
+
+TEST(TriangleBvh, SingleTriangleMeshHasARootLeaf) {
+  TriangleMesh mesh;
+  mesh.vertices = {Vec3(0, 0, 0), Vec3(1e-3, 0, 0), Vec3(0, 1e-3, 0)};
+  mesh.triangles = {{0, 1, 2}};
+  const TriangleBvh bvh(mesh.vertices, mesh.triangles);
+  ASSERT_EQ(bvh.order().size(), 1u);
+  const auto near =
+      visited(bvh, 1, [](const TriangleBvh::Node& n) { return sphere_mask(n, Vec3(0, 0, 1e-4), 2e-4 * 2e-4); });
+  EXPECT_TRUE(near[0]);
+  const auto far =
+      visited(bvh, 1, [](const TriangleBvh::Node& n) { return sphere_mask(n, Vec3(0, 0, 1e-3), 2e-4 * 2e-4); });
+  EXPECT_FALSE(far[0]);
+}
+
+TEST(TriangleBvh, RealAirwayWalksAreComplete) {
+  const auto path = test::airway_file("siliconmodel3_airway.stl");
+  if (!path) GTEST_SKIP() << "../shared/airways absent";
+  check_walks(import_mesh(*path).mesh, 1.5e-3, 20);
+}
+
+}  // namespace
+}  // namespace magvine::anatomy::detail
