@@ -55,8 +55,10 @@ void* create_leaf(RTCThreadLocalAllocator alloc, const RTCBuildPrimitive* primit
   void* memory = rtcThreadLocalAlloc(alloc, sizeof(BuildLeaf), alignof(BuildLeaf));
   auto* leaf = new (memory) BuildLeaf;
   leaf->leaf = true;
-  leaf->count = static_cast<unsigned>(count);
-  for (std::size_t i = 0; i < count; ++i) leaf->triangles[i] = primitives[i].primID;
+  // The builder keeps leaves within maxLeafSize; should it ever not, the excess is dropped here (never written past
+  // the array, and no exception crosses Embree's C frames) and the constructor's count check reports it.
+  leaf->count = static_cast<unsigned>(std::min<std::size_t>(count, TriangleBvh::kMaxLeafSize));
+  for (std::size_t i = 0; i < leaf->count; ++i) leaf->triangles[i] = primitives[i].primID;
   return leaf;
 }
 
