@@ -33,12 +33,10 @@ Box triangle_box(const TriangleMesh& mesh, std::size_t t) {
 template <class Test>
 std::vector<char> visited(const TriangleBvh& bvh, std::size_t triangles, Test&& test) {
   std::vector<char> seen(triangles, 0);
-  bvh.walk(test, [&](std::uint32_t first, std::uint32_t count) {
-    for (std::uint32_t s = first; s < first + count; ++s) {
-      const std::uint32_t t = bvh.order()[s];
-      EXPECT_EQ(seen[t], 0) << "triangle " << t << " visited twice";
-      seen[t] = 1;
-    }
+  bvh.visit_slots(test, [&](std::uint32_t slot) {
+    const std::uint32_t t = bvh.order()[slot];
+    EXPECT_EQ(seen[t], 0) << "triangle " << t << " visited twice";
+    seen[t] = 1;
   });
   return seen;
 }

@@ -646,10 +646,8 @@ std::size_t CollisionWorld::sphere_contacts(const Vec3& centre, double radius, s
   ContactSink sink(out, w.merge_cos);
   SphereQuery query(w, centre, radius, sink);
   const double r2 = radius * radius;
-  m_impl->bvh->walk([&](const detail::TriangleBvh::Node& node) { return detail::sphere_mask(node, centre, r2); },
-                    [&](std::uint32_t first, std::uint32_t count) {
-                      for (std::uint32_t i = first; i < first + count; ++i) query.process(i);
-                    });
+  m_impl->bvh->visit_slots([&](const detail::TriangleBvh::Node& node) { return detail::sphere_mask(node, centre, r2); },
+                           [&](std::uint32_t slot) { query.process(slot); });
   return sink.finish();
 }
 
@@ -664,10 +662,8 @@ std::size_t CollisionWorld::capsule_contacts(const Vec3& a, const Vec3& b, doubl
   const Vec3 pad = Vec3::Constant(radius);
   const Vec3 lo = a.cwiseMin(b) - pad;
   const Vec3 hi = a.cwiseMax(b) + pad;
-  m_impl->bvh->walk([&](const detail::TriangleBvh::Node& node) { return detail::box_mask(node, lo, hi); },
-                    [&](std::uint32_t first, std::uint32_t count) {
-                      for (std::uint32_t i = first; i < first + count; ++i) query.process(i);
-                    });
+  m_impl->bvh->visit_slots([&](const detail::TriangleBvh::Node& node) { return detail::box_mask(node, lo, hi); },
+                           [&](std::uint32_t slot) { query.process(slot); });
   return sink.finish();
 }
 
@@ -679,10 +675,8 @@ template <class Query, class Length>
 void walk_ray(const detail::TriangleBvh& bvh, const Tables& w, const Vec3& origin, const Vec3& dir, Query& query,
               Length&& length) {
   const Vec3 inv(1.0 / dir.x(), 1.0 / dir.y(), 1.0 / dir.z());  // ±∞ for a zero component
-  bvh.walk([&](const detail::TriangleBvh::Node& node) { return detail::ray_mask(node, origin, inv, length()); },
-           [&](std::uint32_t first, std::uint32_t count) {
-             for (std::uint32_t i = first; i < first + count; ++i) query.process(w.data[i]);
-           });
+  bvh.visit_slots([&](const detail::TriangleBvh::Node& node) { return detail::ray_mask(node, origin, inv, length()); },
+                  [&](std::uint32_t slot) { query.process(w.data[slot]); });
 }
 
 }  // namespace

@@ -94,15 +94,7 @@ class Flattener {
       const BuildItem* item = n.children[k];
       const std::uint32_t child =
           item->leaf ? leaf(*static_cast<const BuildLeaf*>(item)) : node(*static_cast<const BuildNode*>(item));
-      TriangleBvh::Node& out = m_nodes[index];  // re-fetched: the recursion may have grown the vector
-      out.child[k] = child;
-      const RTCBounds& b = n.bounds[k];
-      out.lo_x[k] = b.lower_x;
-      out.lo_y[k] = b.lower_y;
-      out.lo_z[k] = b.lower_z;
-      out.hi_x[k] = b.upper_x;
-      out.hi_y[k] = b.upper_y;
-      out.hi_z[k] = b.upper_z;
+      set_child(m_nodes[index], k, child, n.bounds[k]);  // re-indexed: the recursion may have grown the vector
     }
     return index;
   }
@@ -110,17 +102,20 @@ class Flattener {
   /// A root holding a single leaf (a mesh of at most kMaxLeafSize triangles) with its box.
   void root_leaf(const BuildLeaf& l, const RTCBounds& b) {
     m_nodes.push_back(empty());
-    TriangleBvh::Node& out = m_nodes.back();
-    out.child[0] = leaf(l);
-    out.lo_x[0] = b.lower_x;
-    out.lo_y[0] = b.lower_y;
-    out.lo_z[0] = b.lower_z;
-    out.hi_x[0] = b.upper_x;
-    out.hi_y[0] = b.upper_y;
-    out.hi_z[0] = b.upper_z;
+    set_child(m_nodes.back(), 0, leaf(l), b);
   }
 
  private:
+  static void set_child(TriangleBvh::Node& out, unsigned k, std::uint32_t child, const RTCBounds& b) {
+    out.child[k] = child;
+    out.lo_x[k] = b.lower_x;
+    out.lo_y[k] = b.lower_y;
+    out.lo_z[k] = b.lower_z;
+    out.hi_x[k] = b.upper_x;
+    out.hi_y[k] = b.upper_y;
+    out.hi_z[k] = b.upper_z;
+  }
+
   static TriangleBvh::Node empty() {
     constexpr float kInf = std::numeric_limits<float>::infinity();
     TriangleBvh::Node n{};

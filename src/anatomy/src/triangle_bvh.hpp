@@ -70,6 +70,14 @@ class TriangleBvh {
     }
   }
 
+  /// As walk, with `visit(slot)` for every slot of every leaf reached.
+  template <class Test, class Visit>
+  void visit_slots(Test&& test, Visit&& visit) const {
+    walk(test, [&](std::uint32_t first, std::uint32_t count) {
+      for (std::uint32_t slot = first; slot < first + count; ++slot) visit(slot);
+    });
+  }
+
  private:
   std::vector<Node> m_nodes;  ///< node 0 is the root
   std::vector<std::uint32_t> m_order;
