@@ -45,11 +45,12 @@ demo: build
 
 bench: deps
 	cmake -S . -B $(BUILD) -DCMAKE_BUILD_TYPE=Release -DMAGVINE_BUILD_BENCHMARKS=ON $(CMAKE_FLAGS)
-	cmake --build $(BUILD) -j $(JOBS) --target bench_fields bench_mesh_import bench_contacts bench_distance
+	cmake --build $(BUILD) -j $(JOBS) --target bench_fields bench_mesh_import bench_contacts bench_distance bench_rod
 	$(BUILD)/tests/bench/bench_fields --benchmark_min_time=0.5
 	$(BUILD)/tests/bench/bench_mesh_import
 	$(BUILD)/tests/bench/bench_contacts --benchmark_min_time=0.5
 	$(BUILD)/tests/bench/bench_distance --benchmark_filter='point/aabb/mean|capsule/aabb/mean|build/aabb/mean'
+	$(BUILD)/tests/bench/bench_rod
 
 # Regenerates the README figures in docs/figures (field-model and phantom-meshing error against runtime, ~30 s).
 figures: build

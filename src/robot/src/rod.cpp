@@ -1,0 +1,395 @@
+#include "magvine/robot/rod.hpp"
+
+#include <algorithm>
+#include <array>
+#include <cmath>
+#include <limits>
+#include <string>
+
+#include "magvine/core/error.hpp"
+#include "magvine/core/units.hpp"
+
+namespace magvine::robot {
+namespace {
+
+using Mat6 = Eigen::Matrix<double, 6, 6>;
+constexpr double kMaxTurn = 0.1;  // [rad] largest frame rotation of one Newton step
+using Vec6 = Eigen::Matrix<double, 6, 1>;
+
+Mat3 skew(const Vec3& v) {
+  Mat3 s;
+  s << 0.0, -v.z(), v.y(), v.z(), 0.0, -v.x(), -v.y(), v.x(), 0.0;
+  return s;
+}
+
+/// vee((Q − Qᵀ)/2): the axial vector of Q's skew part (sin(angle)·axis for a rotation).
+Vec3 skew_axis(const Mat3& q) {
+  return 0.5 * Vec3(q(2, 1) - q(1, 2), q(0, 2) - q(2, 0), q(1, 0) - q(0, 1));
+}
+
+/// Where a 3-vector unknown lives: block (edge) and offset (0: the position of node block+1, 3: the rotation of
+/// edge block); block −1 is fixed (x_0, the clamp frame).
+struct Slot {
+  int block;
+  int offset;
+};
+
+/// Gradient and the block-tridiagonal Hessian: diag[i] = H(i, i), sub[i] = H(i, i − 1).
+struct System {
+  VecX gradient;
+  std::vector<Mat6> diag;
+  std::vector<Mat6> sub;
+
+  explicit System(int blocks)
+      : gradient(VecX::Zero(6 * blocks)),
+        diag(static_cast<std::size_t>(blocks), Mat6::Zero()),
+        sub(static_cast<std::size_t>(blocks), Mat6::Zero()) {}
+
+  void add_gradient(const Slot& s, const Vec3& g) {
+    if (s.block >= 0) gradient.segment<3>(6 * s.block + s.offset) += g;
+  }
+};
+
+/// Gradient of one quadratic strain element, energy ½ sᵀ W s (W = ℓ·diag(k)) with ds = Σ P_k dq_k.
+template <std::size_t K>
+void add_element(System* sys, const Vec3& strain, const Vec3& weights, const std::array<Slot, K>& slots,
+                 const std::array<Mat3, K>& pieces) {
+  if (sys == nullptr) return;
+  const Vec3 stress = weights.cwiseProduct(strain);
+  for (std::size_t k = 0; k < K; ++k) sys->add_gradient(slots[k], pieces[k].transpose() * stress);
+}
+
+Slot position_slot(int node) {
+  return {node - 1, 0};
+}  // node 0 is clamped
+Slot rotation_slot(int edge) {
+  return {edge, 3};
+}
+
+/// Energy at load factor λ; adds its gradient to `sys` when given.
+double evaluate(const RodModel& m, const RodField& field, const RodState& s, double load, System* sys) {
+  const int n = m.edges;
+  const double h = m.length / n;
+  double energy = 0.0;
+  // Stretch and shear.
+  const Vec3 ks = h * Vec3(m.axial_stiffness, m.shear_stiffness, m.shear_stiffness);
+  for (int j = 0; j < n; ++j) {
+    const Mat3& r = s.frames[static_cast<std::size_t>(j)];
+    const Vec3 e = s.x[static_cast<std::size_t>(j) + 1] - s.x[static_cast<std::size_t>(j)];
+    const Vec3 v = r.transpose() * e / h - Vec3::UnitX();
+    energy += 0.5 * v.dot(ks.cwiseProduct(v));
+    add_element<3>(sys, v, ks, {position_slot(j), position_slot(j + 1), rotation_slot(j)},
+                   {Mat3(-r.transpose() / h), Mat3(r.transpose() / h), Mat3(r.transpose() * skew(e) / h)});
+  }
+  // Bending and twist; the clamp frame to the first edge over h/2.
+  const Vec3 kb(m.torsional_stiffness, m.bending_stiffness_2, m.bending_stiffness_3);
+  for (int j = 0; j < n; ++j) {
+    const Mat3& ra = j == 0 ? m.base_frame : s.frames[static_cast<std::size_t>(j) - 1];
+    const Mat3& rb = s.frames[static_cast<std::size_t>(j)];
+    const double ell = j == 0 ? 0.5 * h : h;
+    const Mat3 q = ra.transpose() * rb;
+    const Vec3 omega = skew_axis(q) / ell;
+    const Vec3 w = ell * kb;
+    energy += 0.5 * omega.dot(w.cwiseProduct(omega));
+    const Mat3 d = (q.trace() * Mat3::Identity() - q) * ra.transpose() / (2.0 * ell);
+    add_element<2>(sys, omega, w, {Slot{j == 0 ? -1 : j - 1, 3}, rotation_slot(j)}, {Mat3(-d), d});
+  }
+  // Magnetic edges: U = −m·B at the midpoint.
+  if (field && !m.moment_per_length.empty()) {
+    for (int j = 0; j < n; ++j) {
+      const auto ju = static_cast<std::size_t>(j);
+      const Vec3 mj = load * h * (s.frames[ju] * m.moment_per_length[ju]);
+      if (mj.isZero()) continue;
+      const magnetics::FieldSample f = field(0.5 * (s.x[ju] + s.x[ju + 1]));
+      energy -= mj.dot(f.b);
+      if (sys == nullptr) continue;
+      const Vec3 force = 0.5 * f.g.transpose() * mj;  // Gᵀm, half on each end node
+      sys->add_gradient(position_slot(j), -force);
+      sys->add_gradient(position_slot(j + 1), -force);
+      sys->add_gradient(rotation_slot(j), -mj.cross(f.b));  // the torque m × B
+    }
+  }
+  // Gravity on lumped node masses, and the tip force.
+  for (int i = 1; i <= n; ++i) {
+    const double mass = m.mass_per_length * (i == n ? 0.5 * h : h);
+    Vec3 f = load * mass * m.gravity;
+    if (i == n) f += load * m.tip_force;
+    energy -= f.dot(s.x[static_cast<std::size_t>(i)]);
+    if (sys != nullptr) sys->add_gradient(position_slot(i), -f);
+  }
+  return energy;
+}
+
+RodState apply(const RodState& s, const VecX& delta, double t);
+
+/// Fills the Hessian blocks of `sys` from central differences of the analytic gradient: an unknown of block j
+/// changes only the gradient of blocks j − 1 .. j + 1, so unknowns three blocks apart are perturbed together (36
+/// gradient evaluations for any N). It carries every second-order term, the axial force's and the bending
+/// moment's geometric stiffness and the field's curvature included; a Gauss–Newton matrix without them made Newton
+/// crawl (hundreds of iterations) at large deflections. Symmetrised: with world-frame rotation increments the
+/// derivative of the gradient differs from the Hessian by an antisymmetric part.
+void exact_hessian(const RodModel& m, const RodField& field, const RodState& s, double load, System& sys) {
+  const int n = m.edges;
+  const double step_x = 1e-6 * m.length;
+  const double step_phi = 1e-6;
+  std::vector<Mat6> diag(static_cast<std::size_t>(n), Mat6::Zero());
+  std::vector<Mat6> lower(static_cast<std::size_t>(n), Mat6::Zero());  // H(j, j − 1)
+  std::vector<Mat6> upper(static_cast<std::size_t>(n), Mat6::Zero());  // H(j − 1, j)
+  for (int colour = 0; colour < 3; ++colour) {
+    for (int k = 0; k < 6; ++k) {
+      const double step = k < 3 ? step_x : step_phi;
+      VecX delta = VecX::Zero(6 * n);
+      for (int j = colour; j < n; j += 3) delta[6 * j + k] = 1.0;
+      System plus(n);
+      System minus(n);
+      evaluate(m, field, apply(s, delta, step), load, &plus);
+      evaluate(m, field, apply(s, delta, -step), load, &minus);
+      const VecX column = (plus.gradient - minus.gradient) / (2.0 * step);
+      for (int j = colour; j < n; j += 3) {
+        const auto ju = static_cast<std::size_t>(j);
+        diag[ju].col(k) = column.segment<6>(6 * j);
+        if (j > 0) upper[ju].col(k) = column.segment<6>(6 * (j - 1));
+        if (j + 1 < n) lower[ju + 1].col(k) = column.segment<6>(6 * (j + 1));
+      }
+    }
+  }
+  for (std::size_t j = 0; j < diag.size(); ++j) {
+    sys.diag[j] = 0.5 * (diag[j] + diag[j].transpose());
+    if (j > 0) sys.sub[j] = 0.5 * (lower[j] + upper[j].transpose());
+  }
+}
+
+/// Solves (H + μI) δ = −g by block LDLᵀ (block Thomas); false when a pivot block is not positive definite.
+bool solve_block_tridiagonal(const System& sys, double mu, VecX& delta) {
+  const auto n = sys.diag.size();
+  std::vector<Eigen::LLT<Mat6>> pivots(n);
+  std::vector<Vec6> y(n);
+  for (std::size_t i = 0; i < n; ++i) {
+    Mat6 s = sys.diag[i] + mu * Mat6::Identity();
+    Vec6 r = -sys.gradient.segment<6>(static_cast<Eigen::Index>(6 * i));
+    if (i > 0) {
+      const Mat6& b = sys.sub[i];
+      s -= b * pivots[i - 1].solve(b.transpose());
+      r -= b * pivots[i - 1].solve(y[i - 1]);
+    }
+    pivots[i].compute(s);
+    if (pivots[i].info() != Eigen::Success) return false;
+    y[i] = r;
+  }
+  delta.resize(static_cast<Eigen::Index>(6 * n));
+  for (std::size_t i = n; i-- > 0;) {
+    Vec6 r = y[i];
+    if (i + 1 < n) r -= sys.sub[i + 1].transpose() * delta.segment<6>(static_cast<Eigen::Index>(6 * (i + 1)));
+    delta.segment<6>(static_cast<Eigen::Index>(6 * i)) = pivots[i].solve(r);
+  }
+  return delta.allFinite();
+}
+
+RodState apply(const RodState& s, const VecX& delta, double t) {
+  RodState out = s;
+  for (std::size_t j = 0; j < s.frames.size(); ++j) {
+    out.x[j + 1] += t * delta.segment<3>(static_cast<Eigen::Index>(6 * j));
+    const Vec3 phi = t * delta.segment<3>(static_cast<Eigen::Index>(6 * j + 3));
+    const double angle = phi.norm();
+    if (angle > 0.0) out.frames[j] = Eigen::AngleAxisd(angle, phi / angle).toRotationMatrix() * s.frames[j];
+  }
+  return out;
+}
+
+/// The step t·δ from `s` with the nodes rebuilt from the clamp along the new frames: each edge gets the body-frame
+/// vector the step predicts to first order, R_jᵀe_j + t(R_jᵀ(δx_{j+1} − δx_j) + R_jᵀ[e_j]δφ_j), instead of the
+/// linearly moved nodes, whose edges a large rotation stretches.
+RodState rebuild_positions(const RodState& trial, const RodState& s, const VecX& delta, double t) {
+  RodState out = trial;
+  const auto dx = [&](std::size_t node) {
+    return node == 0 ? Vec3::Zero().eval() : Vec3(delta.segment<3>(static_cast<Eigen::Index>(6 * (node - 1))));
+  };
+  for (std::size_t j = 0; j < trial.frames.size(); ++j) {
+    const Mat3& r = s.frames[j];
+    const Vec3 e = s.x[j + 1] - s.x[j];
+    const Vec3 dphi = delta.segment<3>(static_cast<Eigen::Index>(6 * j + 3));
+    const Vec3 local = r.transpose() * (e + t * (dx(j + 1) - dx(j) + e.cross(dphi)));
+    out.x[j + 1] = out.x[j] + trial.frames[j] * local;
+  }
+  return out;
+}
+
+/// Gradient norm in units of EI/L² (forces) and EI/L (torques), max over components.
+double scaled_norm(const RodModel& m, const VecX& g) {
+  const double ei = std::max(m.bending_stiffness_2, m.bending_stiffness_3);
+  double worst = 0.0;
+  for (Eigen::Index i = 0; i < g.size(); ++i) {
+    const double scale = (i % 6) < 3 ? ei / (m.length * m.length) : ei / m.length;
+    worst = std::max(worst, std::abs(g[i]) / scale);
+  }
+  return worst;
+}
+
+/// The scaled gradient that round-off alone produces: strains carry ~1e-16 relative error, times the axial and
+/// shear stiffness, in units of EI/L². A slender rod (EA L²/EI = 12 (L/t)²) cannot converge below it.
+double noise_floor(const RodModel& m) {
+  const double ei = std::max(m.bending_stiffness_2, m.bending_stiffness_3);
+  return 1e3 * std::numeric_limits<double>::epsilon() * std::max(m.axial_stiffness, m.shear_stiffness) * m.length *
+         m.length / ei;
+}
+
+void validate(const RodModel& m) {
+  const auto positive = [](const char* field, double v) {
+    if (!(v > 0.0) || !std::isfinite(v)) {
+      throw InputError(std::string("rod: ") + field + " = " + std::to_string(v) + " (must be > 0)");
+    }
+  };
+  positive("length", m.length);
+  positive("bending_stiffness_2", m.bending_stiffness_2);
+  positive("bending_stiffness_3", m.bending_stiffness_3);
+  positive("torsional_stiffness", m.torsional_stiffness);
+  positive("axial_stiffness", m.axial_stiffness);
+  positive("shear_stiffness", m.shear_stiffness);
+  if (m.edges < 1) throw InputError("rod: edges = " + std::to_string(m.edges) + " (must be >= 1)");
+  if (!(m.mass_per_length >= 0.0)) throw InputError("rod: mass_per_length must be >= 0");
+  if (!m.moment_per_length.empty() && m.moment_per_length.size() != static_cast<std::size_t>(m.edges)) {
+    throw InputError("rod: moment_per_length needs one entry per edge");
+  }
+  if (!(m.base_frame.transpose() * m.base_frame).isApprox(Mat3::Identity(), 1e-9)) {
+    throw InputError("rod: base_frame must be orthonormal");
+  }
+}
+
+/// Newton at a fixed load factor. Returns the cause of failure, empty on success.
+std::string newton(const RodModel& m, const RodField& field, RodState& s, double load, const RodSolveOptions& o,
+                   RodSolveReport& report) {
+  for (int it = 0; it < o.max_newton; ++it) {
+    System sys(m.edges);
+    const double energy = evaluate(m, field, s, load, &sys);
+    if (!std::isfinite(energy) || !sys.gradient.allFinite()) return "NaN in the energy or its gradient";
+    report.gradient_norm = scaled_norm(m, sys.gradient);
+    if (report.gradient_norm <= std::max(o.tolerance, noise_floor(m))) return {};
+    ++report.iterations;
+    exact_hessian(m, field, s, load, sys);
+    // Levenberg damping only when the Hessian is not positive definite (near a snap, or a field against the
+    // magnetisation) or the step is not a descent direction.
+    double max_diag = 0.0;
+    for (const Mat6& d : sys.diag) max_diag = std::max(max_diag, d.diagonal().cwiseAbs().maxCoeff());
+    VecX delta;
+    double mu = 0.0;
+    for (;;) {
+      if (solve_block_tridiagonal(sys, mu, delta) && sys.gradient.dot(delta) < 0.0) break;
+      mu = mu == 0.0 ? 1e-10 * max_diag : 10.0 * mu;
+      if (mu > 1e6 * max_diag) return "no descent direction";
+    }
+    const double slope = sys.gradient.dot(delta);
+    // A trust bound on the rotation increments: frames turn exactly but positions move linearly, so a long step
+    // bends without the matching node motion and stretches the edges; 0.1 rad keeps that second-order error small.
+    double largest = 0.0;
+    for (Eigen::Index j = 0; j < m.edges; ++j) largest = std::max(largest, delta.segment<3>(6 * j + 3).norm());
+    double t = largest > kMaxTurn ? kMaxTurn / largest : 1.0;
+    // Below ~1e-13 of the energy's size the energy cannot tell better from worse: take the (bounded) step.
+    const bool resolvable = -slope > 1e-13 * (std::abs(energy) + 1e-300);
+    for (;;) {
+      // Positions move linearly but frames turn exactly, so a bending step also stretches the edges, which stalls
+      // a slender (axially stiff) rod on tiny steps. The trial is also offered with its nodes rebuilt along the new
+      // frames at the strains the step predicts; the lower energy wins (test_rod's 12 large-deflection cases: 9–147
+      // Newton iterations with it; 1092–7196 without, and one case failed).
+      RodState trial = apply(s, delta, t);
+      double e = evaluate(m, field, trial, load, nullptr);
+      RodState rebuilt = rebuild_positions(trial, s, delta, t);
+      const double e_rebuilt = evaluate(m, field, rebuilt, load, nullptr);
+      if (std::isfinite(e_rebuilt) && !(e_rebuilt >= e)) {
+        trial = std::move(rebuilt);
+        e = e_rebuilt;
+      }
+      if (std::isfinite(e) && (!resolvable || e <= energy + 1e-4 * t * slope)) {
+        s = std::move(trial);
+        break;
+      }
+      t *= 0.5;
+      if (t < 1e-10) {
+        // At round-off the energy cannot resolve the last digits; accept a nearly converged state.
+        return report.gradient_norm <= 1e3 * o.tolerance ? std::string{} : "line search failed";
+      }
+    }
+  }
+  return "Newton did not converge in " + std::to_string(o.max_newton) + " iterations";
+}
+
+}  // namespace
+
+RodModel rectangular_rod(double length, double width, double thickness, double shear_modulus, double density,
+                         double remanence, const Vec3& direction, int edges, double stretch_shear_factor) {
+  RodModel m;
+  const double e = 3.0 * shear_modulus;
+  const double area = width * thickness;
+  m.length = length;
+  m.edges = edges;
+  m.bending_stiffness_2 = e * thickness * std::pow(width, 3) / 12.0;  // about d2: bending across the width
+  m.bending_stiffness_3 = e * width * std::pow(thickness, 3) / 12.0;  // about d3: bending along d2 (thickness)
+  // Saint-Venant torsion of a rectangle a ≥ b: J ≈ a b³ (1/3 − 0.21 (b/a)(1 − b⁴/(12 a⁴))).
+  const double a = std::max(width, thickness);
+  const double b = std::min(width, thickness);
+  m.torsional_stiffness =
+      shear_modulus * a * b * b * b * (1.0 / 3.0 - 0.21 * (b / a) * (1.0 - std::pow(b / a, 4) / 12.0));
+  m.axial_stiffness = stretch_shear_factor * e * area;
+  m.shear_stiffness = stretch_shear_factor * 5.0 / 6.0 * shear_modulus * area;  // Timoshenko factor of a rectangle
+  m.mass_per_length = density * area;
+  if (remanence != 0.0)
+    m.moment_per_length.assign(static_cast<std::size_t>(edges), remanence / kMu0 * area * direction.normalized());
+  return m;
+}
+
+RodState straight_rod(const RodModel& model) {
+  RodState s;
+  const double h = model.length / model.edges;
+  const Vec3 t = model.base_frame.col(0);
+  for (int i = 0; i <= model.edges; ++i) s.x.push_back(model.base_position + i * h * t);
+  s.frames.assign(static_cast<std::size_t>(model.edges), model.base_frame);
+  return s;
+}
+
+double rod_energy(const RodModel& model, const RodField& field, const RodState& state, double load) {
+  return evaluate(model, field, state, load, nullptr);
+}
+
+VecX rod_gradient(const RodModel& model, const RodField& field, const RodState& state, double load) {
+  System sys(model.edges);
+  evaluate(model, field, state, load, &sys);
+  return sys.gradient;
+}
+
+RodSolveReport solve_rod_statics(const RodModel& model, const RodField& field, RodState& state,
+                                 const RodSolveOptions& options) {
+  validate(model);
+  if (state.x.size() != static_cast<std::size_t>(model.edges) + 1 ||
+      state.frames.size() != static_cast<std::size_t>(model.edges)) {
+    throw InputError("rod: the state does not match the model's edge count");
+  }
+  RodSolveReport report;
+  double load = 0.0;
+  double step = 1.0 / options.min_load_steps;
+  const double min_step = 1.0 / options.max_load_steps;
+  // The unloaded state first (it may not be at rest if the caller's state is not).
+  if (std::string why = newton(model, field, state, 0.0, options, report); !why.empty()) {
+    report.failure = "unloaded rod: " + why;
+    return report;
+  }
+  while (load < 1.0) {
+    const double next = std::min(1.0, load + step);
+    RodState trial = state;
+    const std::string why = newton(model, field, trial, next, options, report);
+    if (why.empty()) {
+      state = std::move(trial);
+      load = next;
+      ++report.load_steps;
+      step = std::min(2.0 * step, 1.0 / options.min_load_steps);
+      continue;
+    }
+    step *= 0.5;
+    if (step < min_step) {
+      report.failure = "load ramp exhausted at load factor " + std::to_string(load) + (why.empty() ? "" : ": " + why);
+      return report;
+    }
+  }
+  report.converged = true;
+  return report;
+}
+
+}  // namespace magvine::robot

@@ -1,0 +1,57 @@
+// Static equilibrium of the discretised rod (DESIGN.md target: 100 nodes under magnetic + gravity loads ≤ 1 ms).
+// The acceptance beam of issue 4 (60 × 3 × 3 mm, G 120 kPa, Br 0.125 T, ρ 1882 kg/m³), clamped horizontally,
+// gravity on, from the straight state each time:
+//   /uniform  10 mT perpendicular to the beam;
+//   /dipole   the thesis EPM (N52, Ø101.6 × 101.6 mm) as a dipole 200 mm below the midpoint.
+// Counter `iterations` = Newton iterations per solve.
+//
+//   cmake --build build-bench --target bench_rod && build-bench/tests/bench/bench_rod
+
+#include <benchmark/benchmark.h>
+
+#include "magvine/core/units.hpp"
+#include "magvine/magnetics/field_model.hpp"
+#include "magvine/robot/elastica.hpp"
+#include "magvine/robot/rod.hpp"
+
+namespace {
+
+using namespace magvine;
+using namespace magvine::robot;
+
+void bench(benchmark::State& state, const RodField& field) {
+  const int edges = static_cast<int>(state.range(0));
+  RodModel m = rectangular_rod(60e-3, 3e-3, 3e-3, 120e3, 1882.0, 0.125, Vec3::UnitX(), edges);
+  m.gravity = Vec3(0.0, -9.81, 0.0);
+  int iterations = 0;
+  for (auto _ : state) {
+    RodState s = straight_rod(m);
+    const RodSolveReport r = solve_rod_statics(m, field, s);
+    if (!r.converged) state.SkipWithError(r.failure.c_str());
+    iterations = r.iterations;
+    benchmark::DoNotOptimize(s.x.back());
+  }
+  state.counters["iterations"] = iterations;
+}
+
+void BM_RodUniform(benchmark::State& state) {
+  bench(state, [](const Vec3&) {
+    magnetics::FieldSample f;
+    f.b = Vec3(0.0, 10e-3, 0.0);
+    return f;
+  });
+}
+
+void BM_RodDipole(benchmark::State& state) {
+  const double radius = 50.8e-3;
+  magnetics::FieldModel magnets;
+  magnets.add(magnetics::DipoleSource{Vec3(0.0, 0.0, 1.45 * kPi * radius * radius * 2.0 * radius / kMu0)},
+              magnetics::Pose::from_axis(Vec3(30e-3, -0.2, 0.0), Vec3::UnitY()));
+  bench(state, field_function(magnets, magnets.rest_poses));
+}
+
+}  // namespace
+
+BENCHMARK(BM_RodUniform)->Arg(100)->Unit(benchmark::kMillisecond);
+BENCHMARK(BM_RodDipole)->Arg(100)->Unit(benchmark::kMillisecond);
+BENCHMARK_MAIN();
