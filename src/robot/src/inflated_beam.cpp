@@ -20,8 +20,8 @@ struct WrinkleTerms {
   double d;
 };
 
-WrinkleTerms wrinkle_terms(double phi) {
-  const double e = kPi - phi;
+/// The terms at ε = π − φ0 directly (no round-off from forming π − φ0 near the collapse).
+WrinkleTerms terms_at_collapse_distance(double e) {
   if (e < 0.05) {
     const double e2 = e * e;
     const double e3 = e2 * e;
@@ -30,6 +30,8 @@ WrinkleTerms wrinkle_terms(double phi) {
   }
   return {2.0 * e - std::sin(2.0 * e), std::sin(e) - e * std::cos(e)};
 }
+
+WrinkleTerms wrinkle_terms(double phi) { return terms_at_collapse_distance(kPi - phi); }
 
 }  // namespace
 
@@ -74,6 +76,30 @@ double inflated_curvature(double moment, double radius, double pressure, double 
 double crease_moment(double crease_angle, double radius, double pressure) {
   const double t = std::tan(0.5 * crease_angle);
   return collapse_moment(radius, pressure) * (1.0 + t * t);
+}
+
+NormalisedBending normalised_inflated_bending(double curvature) {
+  const double k = std::abs(curvature);
+  if (k <= 0.5) return {k, 0.5 * k * k};
+  // Solve D(ε) = π/(2k) for ε ∈ (0, π); D increases with ε (D' = ε sin ε). Newton inside a shrinking bracket.
+  const double target = 0.5 * kPi / k;
+  double lo = 0.0;
+  double hi = kPi;
+  double e = target < 0.3 ? std::cbrt(3.0 * target) : 0.5 * kPi;  // D ≈ ε³/3 for small ε
+  WrinkleTerms w{};
+  for (int i = 0; i < 100; ++i) {
+    w = terms_at_collapse_distance(e);
+    const double f = w.d - target;
+    (f < 0.0 ? lo : hi) = e;
+    const double slope = e * std::sin(e);
+    double next = slope > 0.0 ? e - f / slope : 0.5 * (lo + hi);
+    if (!(next > lo && next < hi)) next = 0.5 * (lo + hi);
+    const bool done = std::abs(next - e) <= 1e-15 * e;
+    e = next;
+    if (done || hi - lo <= 1e-15 * hi) break;
+  }
+  w = terms_at_collapse_distance(e);
+  return {w.n / (4.0 * w.d), 0.25 + kPi / 16.0 * (w.n / (w.d * w.d) + 4.0 * std::cos(e) / w.d)};
 }
 
 TwoStageResult solve_two_stage(const TwoStageVine& vine, const TwoStageLoads& loads, int intervals) {

@@ -8,6 +8,7 @@
 
 #include "magvine/core/error.hpp"
 #include "magvine/core/units.hpp"
+#include "magvine/robot/inflated_beam.hpp"
 
 namespace magvine::robot {
 namespace {
@@ -50,13 +51,63 @@ struct System {
   }
 };
 
-/// Gradient of one quadratic strain element, energy ½ sᵀ W s (W = ℓ·diag(k)) with ds = Σ P_k dq_k.
+/// Gradient of one strain element: `stress` = dW/ds, and ds = Σ P_k dq_k.
 template <std::size_t K>
-void add_element(System* sys, const Vec3& strain, const Vec3& weights, const std::array<Slot, K>& slots,
-                 const std::array<Mat3, K>& pieces) {
-  if (sys == nullptr) return;
-  const Vec3 stress = weights.cwiseProduct(strain);
+void add_stress(System* sys, const Vec3& stress, const std::array<Slot, K>& slots, const std::array<Mat3, K>& pieces) {
   for (std::size_t k = 0; k < K; ++k) sys->add_gradient(slots[k], pieces[k].transpose() * stress);
+}
+
+/// The stored energy of one joint of length ℓ at curvature-twist ω (body frame of the joint's first edge), and
+/// `stress` = dW/dω: the linear law of a rod, or the inflated-beam law of a vine (InflatedBending).
+double joint_energy(const RodModel& m, double ell, const Vec3& omega, Vec3& stress) {
+  if (!m.inflated) {
+    const Vec3 k = ell * Vec3(m.torsional_stiffness, m.bending_stiffness_2, m.bending_stiffness_3);
+    stress = k.cwiseProduct(omega);
+    return 0.5 * omega.dot(stress);
+  }
+  const InflatedBending& law = *m.inflated;
+  const double ei = m.bending_stiffness_3;
+  const Vec3 bend(0.0, omega.y(), omega.z());
+  const double kappa = bend.norm();
+  double energy = 0.5 * ell * m.torsional_stiffness * omega.x() * omega.x();
+  stress = Vec3(ell * m.torsional_stiffness * omega.x(), 0.0, 0.0);
+  // dW/dκ / κ for each term, so the linear range needs no division by κ.
+  double per_kappa = ell * law.flat_bending_stiffness;
+  energy += 0.5 * ell * law.flat_bending_stiffness * kappa * kappa;
+  const double collapse = collapse_moment(law.radius, law.pressure);
+  if (collapse > 0.0) {
+    const double k = kappa * ei / collapse;
+    const NormalisedBending w = normalised_inflated_bending(k);
+    energy += ell * collapse * collapse / ei * w.energy;
+    per_kappa += k <= 0.5 ? ell * ei : ell * collapse * w.moment / kappa;
+    const double t = 0.5 * ell * kappa;  // tan(ψ/2)
+    energy += 2.0 * collapse * (t - std::atan(t));
+    per_kappa += collapse * ell * (0.25 * ell * ell * kappa) / (1.0 + t * t);
+  }
+  stress += per_kappa * bend;
+  return energy;
+}
+
+/// ln cosh z for z ≥ 0 without overflow.
+double log_cosh(double z) { return z + std::log1p(std::exp(-2.0 * z)) - std::log(2.0); }
+
+/// Energy density e(b) [J/m³] of a soft-magnetic fill at body-frame field b, and de/db (InducedMagnetisation).
+double fill_energy_density(const InducedMagnetisation& f, const Vec3& b, Vec3& derivative) {
+  const Vec3 xb(f.axial_susceptibility * b.x(), f.transverse_susceptibility * b.y(),
+                f.transverse_susceptibility * b.z());
+  const double quadratic = b.dot(xb) / kMu0;  // μ0 HᵀXH
+  if (!std::isfinite(f.saturation)) {
+    derivative = -xb / kMu0;
+    return -0.5 * quadratic;
+  }
+  const double y = std::sqrt(f.reference_susceptibility * quadratic / kMu0);  // √(χ_ref HᵀXH) [A/m]
+  const double z = y / f.saturation;
+  if (z < 1e-8) {
+    derivative = -xb / kMu0;
+    return -0.5 * quadratic;
+  }
+  derivative = -(f.saturation * std::tanh(z) / (kMu0 * y)) * xb;
+  return -kMu0 * f.saturation * f.saturation / f.reference_susceptibility * log_cosh(z);
 }
 
 Slot position_slot(int node) {
@@ -78,21 +129,28 @@ double evaluate(const RodModel& m, const RodField& field, const RodState& s, dou
     const Vec3 e = s.x[static_cast<std::size_t>(j) + 1] - s.x[static_cast<std::size_t>(j)];
     const Vec3 v = r.transpose() * e / h - Vec3::UnitX();
     energy += 0.5 * v.dot(ks.cwiseProduct(v));
-    add_element<3>(sys, v, ks, {position_slot(j), position_slot(j + 1), rotation_slot(j)},
-                   {Mat3(-r.transpose() / h), Mat3(r.transpose() / h), Mat3(r.transpose() * skew(e) / h)});
+    if (sys == nullptr) continue;
+    add_stress<3>(sys, ks.cwiseProduct(v), {position_slot(j), position_slot(j + 1), rotation_slot(j)},
+                  {Mat3(-r.transpose() / h), Mat3(r.transpose() / h), Mat3(r.transpose() * skew(e) / h)});
   }
   // Bending and twist; the clamp frame to the first edge over h/2.
-  const Vec3 kb(m.torsional_stiffness, m.bending_stiffness_2, m.bending_stiffness_3);
   for (int j = 0; j < n; ++j) {
     const Mat3& ra = j == 0 ? m.base_frame : s.frames[static_cast<std::size_t>(j) - 1];
     const Mat3& rb = s.frames[static_cast<std::size_t>(j)];
     const double ell = j == 0 ? 0.5 * h : h;
     const Mat3 q = ra.transpose() * rb;
-    const Vec3 omega = skew_axis(q) / ell;
-    const Vec3 w = ell * kb;
-    energy += 0.5 * omega.dot(w.cwiseProduct(omega));
-    const Mat3 d = (q.trace() * Mat3::Identity() - q) * ra.transpose() / (2.0 * ell);
-    add_element<2>(sys, omega, w, {Slot{j == 0 ? -1 : j - 1, 3}, rotation_slot(j)}, {Mat3(-d), d});
+    const double c = 1.0 + q.trace();  // 2(1 + cos ψ)
+    if (!(c > 1e-12)) return std::numeric_limits<double>::infinity();  // a joint folded back on itself
+    const Vec3 half_sine = skew_axis(q);                               // sin ψ · axis
+    const Vec3 omega = 4.0 * half_sine / (c * ell);                    // 2 tan(ψ/2) axis / ℓ
+    Vec3 stress;
+    energy += joint_energy(m, ell, omega, stress);
+    if (sys == nullptr) continue;
+    // dω/dδφ_b = (2/ℓ)[(tr Q·I − Q)/c + 4 s sᵀ/c²] R_aᵀ, and the opposite for δφ_a.
+    const Mat3 d = (2.0 / ell) *
+                   ((q.trace() * Mat3::Identity() - q) / c + 4.0 * half_sine * half_sine.transpose() / (c * c)) *
+                   ra.transpose();
+    add_stress<2>(sys, stress, {Slot{j == 0 ? -1 : j - 1, 3}, rotation_slot(j)}, {Mat3(-d), d});
   }
   // Magnetic edges: U = −m·B at the midpoint.
   if (field && !m.moment_per_length.empty()) {
@@ -107,6 +165,24 @@ double evaluate(const RodModel& m, const RodField& field, const RodState& s, dou
       sys->add_gradient(position_slot(j), -force);
       sys->add_gradient(position_slot(j + 1), -force);
       sys->add_gradient(rotation_slot(j), -mj.cross(f.b));  // the torque m × B
+    }
+  }
+  // A soft-magnetic fill: U = V e(R_jᵀB) at the midpoint; force −V Gᵀ(R de/db), half on each end node, and the
+  // rotation gradient −V B × (R de/db) (the torque m × B of the induced moment m = −V R de/db).
+  if (field && m.induced) {
+    const double volume = load * m.induced->volume_per_length * h;
+    for (int j = 0; j < n && volume > 0.0; ++j) {
+      const auto ju = static_cast<std::size_t>(j);
+      const Mat3& r = s.frames[ju];
+      const magnetics::FieldSample f = field(0.5 * (s.x[ju] + s.x[ju + 1]));
+      Vec3 de_db;
+      energy += volume * fill_energy_density(*m.induced, r.transpose() * f.b, de_db);
+      if (sys == nullptr) continue;
+      const Vec3 de_dbw = volume * (r * de_db);
+      const Vec3 half_gradient = 0.5 * f.g.transpose() * de_dbw;
+      sys->add_gradient(position_slot(j), half_gradient);
+      sys->add_gradient(position_slot(j + 1), half_gradient);
+      sys->add_gradient(rotation_slot(j), -f.b.cross(de_dbw));
     }
   }
   // Gravity on lumped node masses, and the tip force.
@@ -214,9 +290,17 @@ RodState rebuild_positions(const RodState& trial, const RodState& s, const VecX&
   return out;
 }
 
+/// The bending stiffness that sets the scale of forces (EI/L²) and torques (EI/L): EI for a rod; for a vine the
+/// smaller of its wall EI and M_c·L (the moment it can carry), but not below its flat film's EI.
+double bending_scale(const RodModel& m) {
+  if (!m.inflated) return std::max(m.bending_stiffness_2, m.bending_stiffness_3);
+  const double carried = collapse_moment(m.inflated->radius, m.inflated->pressure) * m.length;
+  return std::max(std::min(m.bending_stiffness_3, carried), m.inflated->flat_bending_stiffness);
+}
+
 /// Gradient norm in units of EI/L² (forces) and EI/L (torques), max over components.
 double scaled_norm(const RodModel& m, const VecX& g) {
-  const double ei = std::max(m.bending_stiffness_2, m.bending_stiffness_3);
+  const double ei = bending_scale(m);
   double worst = 0.0;
   for (Eigen::Index i = 0; i < g.size(); ++i) {
     const double scale = (i % 6) < 3 ? ei / (m.length * m.length) : ei / m.length;
@@ -228,7 +312,7 @@ double scaled_norm(const RodModel& m, const VecX& g) {
 /// The scaled gradient that round-off alone produces: strains carry ~1e-16 relative error, times the axial and
 /// shear stiffness, in units of EI/L². A slender rod (EA L²/EI = 12 (L/t)²) cannot converge below it.
 double noise_floor(const RodModel& m) {
-  const double ei = std::max(m.bending_stiffness_2, m.bending_stiffness_3);
+  const double ei = bending_scale(m);
   return 1e3 * std::numeric_limits<double>::epsilon() * std::max(m.axial_stiffness, m.shear_stiffness) * m.length *
          m.length / ei;
 }
@@ -252,6 +336,22 @@ void validate(const RodModel& m) {
   }
   if (!(m.base_frame.transpose() * m.base_frame).isApprox(Mat3::Identity(), 1e-9)) {
     throw InputError("rod: base_frame must be orthonormal");
+  }
+  if (m.inflated) {
+    const InflatedBending& v = *m.inflated;
+    positive("radius", v.radius);
+    if (!(v.pressure >= 0.0) || !std::isfinite(v.pressure)) throw InputError("vine: pressure must be >= 0");
+    if (!(v.flat_bending_stiffness >= 0.0)) throw InputError("vine: flat_bending_stiffness must be >= 0");
+    if (v.pressure == 0.0 && v.flat_bending_stiffness == 0.0) {
+      throw InputError("vine: at zero pressure the flat film's bending stiffness must be > 0 (nothing else resists)");
+    }
+  }
+  if (m.induced) {
+    const InducedMagnetisation& f = *m.induced;
+    if (!(f.volume_per_length >= 0.0) || !(f.axial_susceptibility >= 0.0) || !(f.transverse_susceptibility >= 0.0) ||
+        !(f.saturation > 0.0) || !(f.reference_susceptibility > 0.0)) {
+      throw InputError("rod: induced magnetisation needs volume, susceptibilities >= 0 and saturation > 0");
+    }
   }
 }
 

@@ -33,6 +33,19 @@ double inflated_curvature(double moment, double radius, double pressure, double 
 /// Resisting moment of a crease of angle θ ∈ [0, π) (eq 4.13) [N·m].
 double crease_moment(double crease_angle, double radius, double pressure);
 
+/// The moment–curvature law of eq 4.6/4.8 in normalised form, k = κ·EI/(πR³P) and m = M/(πR³P), which is the same
+/// for every tube: m = k up to k = ½ (wrinkling), then, with ε = π − φ0, D = sin ε − ε cos ε and N = 2ε − sin 2ε,
+///   k = π/(2D),   m = N/(4D)   (m → 1, the collapse, as k → ∞),
+/// and the stored energy per unit length in units of (πR³P)²/EI, Φ(k) = ∫₀ᵏ m dk', in closed form (integration by
+/// parts with ∫ sin²ε/D² dε = −cos ε/D):
+///   Φ = k²/2 (k ≤ ½),   Φ = ¼ + (π/16)(N/D² + 4 cos ε/D) (k > ½).
+struct NormalisedBending {
+  double moment = 0.0;  ///< m(k)
+  double energy = 0.0;  ///< Φ(k)
+};
+/// The law at normalised curvature k ≥ 0.
+NormalisedBending normalised_inflated_bending(double curvature);
+
 /// Distributed loads of the two-stage model, per unit length along the straight body from the clamp (x ∈ [0, l]).
 struct TwoStageLoads {
   std::function<double(double)> force = {};   ///< q_f, transverse force [N/m] (empty: none)

@@ -4,11 +4,14 @@
 /// Nodes x_0..x_N (x_0 clamped) and one material frame R_j per edge j (x_j → x_{j+1}), columns (d1, d2, d3) =
 /// (tangent, base normal, binormal) at rest. With h = L/N, the stored energy is
 ///   stretch and shear per edge:  ½ h vᵀ diag(EA, GA, GA) v,    v = R_jᵀ(x_{j+1} − x_j)/h − e1,
-///   bending and twist per node:  ½ ℓ ωᵀ diag(GJ, EI_2, EI_3) ω,  ω = vee(Q − Qᵀ)/(2ℓ),  Q = R_{j−1}ᵀ R_j,
-/// ℓ = h between edges and ℓ = h/2 between the clamp frame and the first edge (the clamp sits at x_0). The loads
-/// are potentials: a hard-magnetic edge of moment m_j = R_j m̂_j (m̂_j = M_j A h in the body frame) has
-/// U = −m_j·B(midpoint), so its torque is m × B and its force Gᵀm (PHYSICS.md §2); gravity acts on lumped node
-/// masses; a tip force on x_N. Equilibrium minimises the total potential energy.
+///   bending and twist per node:  ½ ℓ ωᵀ diag(GJ, EI_2, EI_3) ω,  ω = 2 vee(Q − Qᵀ)/((1 + tr Q) ℓ),  Q = R_{j−1}ᵀ R_j,
+/// ℓ = h between edges and ℓ = h/2 between the clamp frame and the first edge (the clamp sits at x_0). ωℓ/2 is the
+/// Gibbs vector tan(ψ/2)·axis of the joint rotation ψ: ω = ψ/ℓ to second order, and the energy grows without bound
+/// as a joint folds back (ψ → π). A vine replaces the bending part (about d2, d3) by the inflated-beam law
+/// (InflatedBending). The loads are potentials: a hard-magnetic edge of moment m_j = R_j m̂_j (m̂_j = M_j A h in the
+/// body frame) has U = −m_j·B(midpoint), so its torque is m × B and its force Gᵀm (PHYSICS.md §2); a soft-magnetic
+/// fill (InducedMagnetisation) has U = −V∫M·dB; gravity acts on lumped node masses; a tip force on x_N.
+/// Equilibrium minimises the total potential energy.
 ///
 /// Solver: Newton steps on the increments (δx_i, δφ_j) (frames updated by R ← exp([δφ]) R). The Hessian is block
 /// tridiagonal in 6 × 6 blocks and factored in O(N); it comes from central differences of the analytic gradient
@@ -18,6 +21,7 @@
 /// an exhausted ramp stop with a named cause.
 
 #include <functional>
+#include <optional>
 #include <string>
 #include <vector>
 
@@ -28,6 +32,31 @@ namespace magvine::robot {
 
 /// Field and gradient at a world point [T, T/m].
 using RodField = std::function<magnetics::FieldSample(const Vec3&)>;
+
+/// Bending of a pressurised thin-walled tube (PHYSICS.md §3, inflated_beam.hpp), per joint of bend angle ψ over ℓ
+/// with curvature κ = |ω_bend|:
+///   W = ℓ (M_c²/EI) Φ(κ EI/M_c) + ½ ℓ EI_flat κ² + 2 M_c (tan(ψ/2) − ψ/2),   M_c = πR³P,
+/// the first term the wrinkling law of eq 4.6/4.8 (linear to M_w = M_c/2, softening to the collapse M_c), the second
+/// the collapsed (flat) film, which is all that is left at P = 0, and the third the crease hinge of eq 4.13: its
+/// moment M_c tan²(ψ/2) added to the wrinkled moment (→ M_c) gives M_c(1 + tan²(ψ/2)) at a crease. For a smooth
+/// bend ψ = κℓ → 0 with the node spacing, so the crease term vanishes under refinement and acts only at kinks.
+struct InflatedBending {
+  double radius = 0.0;                   ///< R [m]
+  double pressure = 0.0;                 ///< P [Pa], ≥ 0
+  double flat_bending_stiffness = 0.0;   ///< EI_flat of the collapsed film [N·m²] (> 0 when P = 0)
+};
+
+/// A soft-magnetic fill (magnetic fluid) that magnetises along the local field (PHYSICS.md §2). With H = B/μ0 in
+/// the body frame and X = diag(χ_axial, χ_transverse, χ_transverse), the energy density is
+///   e = −μ0 (M_s²/χ_ref) ln cosh(√(χ_ref HᵀXH)/M_s),
+/// which is −½μ0 HᵀXH (linear, M = XH) in weak fields and saturates at |M| → M_s; M_s = ∞ gives the linear law.
+struct InducedMagnetisation {
+  double volume_per_length = 0.0;        ///< fill cross-section [m²]
+  double axial_susceptibility = 0.0;     ///< effective χ along d1 (demagnetisation included)
+  double transverse_susceptibility = 0.0;///< effective χ along d2, d3
+  double saturation = 0.0;               ///< M_s [A/m]; ∞: linear
+  double reference_susceptibility = 1.0; ///< χ_ref of the saturation form
+};
 
 /// Parameters of a rod, SI units, immutable.
 struct RodModel {
@@ -45,6 +74,9 @@ struct RodModel {
   Mat3 base_frame = Mat3::Identity();  ///< columns: tangent, normal, binormal at the clamp
   Vec3 gravity = Vec3::Zero();         ///< [m/s²]
   Vec3 tip_force = Vec3::Zero();       ///< [N]
+  /// A vine: the inflated-beam law replaces the linear bending about d2 and d3 (EI_2 = EI_3 = the wall's EI).
+  std::optional<InflatedBending> inflated;
+  std::optional<InducedMagnetisation> induced;  ///< a soft-magnetic fill
 };
 
 /// Stretch and shear stiffness of a rod relative to the physical EA and κGA: the rod is near-inextensible and

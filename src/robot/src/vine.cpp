@@ -1,0 +1,102 @@
+#include "magvine/robot/vine.hpp"
+
+#include <cmath>
+#include <limits>
+#include <string>
+
+#include "magvine/core/error.hpp"
+#include "magvine/core/units.hpp"
+
+namespace magvine::robot {
+namespace {
+
+void require(bool ok, const std::string& what) {
+  if (!ok) throw InputError("vine: " + what);
+}
+
+double fill_density_of(const VineParameters& v) {
+  if (v.fill_density >= 0.0) return v.fill_density;
+  switch (v.fill) {
+    case FillKind::kAir: return 0.0;  // ~1.2 kg/m³ plus P/(R_s T): negligible against the wall
+    case FillKind::kWater: return 1000.0;
+    case FillKind::kMagneticFluid:
+      return (1.0 - v.volume_fraction) * 1000.0 + v.volume_fraction * kIronDensity;  // ≈ 2580 at φ = 0.23
+  }
+  return 0.0;
+}
+
+}  // namespace
+
+double hoop_stress(const VineParameters& v) { return v.pressure * v.radius / v.wall.thickness; }
+
+double pressure_tip_force(const VineParameters& v) { return v.pressure * kPi * v.radius * v.radius; }
+
+RodModel vine_rod(const VineParameters& v, double stretch_shear_factor) {
+  const auto finite_positive = [](double x) { return x > 0.0 && std::isfinite(x); };
+  require(finite_positive(v.length), "length must be > 0");
+  require(finite_positive(v.radius), "radius must be > 0");
+  require(v.pressure >= 0.0 && std::isfinite(v.pressure), "pressure must be >= 0");
+  require(finite_positive(v.wall.thickness), "wall thickness must be > 0");
+  require(finite_positive(v.wall.modulus), "wall modulus must be > 0");
+  require(v.wall.density >= 0.0, "wall density must be >= 0");
+  require(v.skin.thickness >= 0.0 && v.skin.modulus >= 0.0 && v.skin.density >= 0.0,
+          "skin thickness, modulus and density must be >= 0");
+  require(v.wall.thickness + v.skin.thickness < v.radius, "wall and skin must be thinner than the radius");
+  require(finite_positive(v.wall_strength), "wall strength must be > 0");
+  require(v.edges >= 1, "edges must be >= 1");
+  require(v.volume_fraction > 0.0 && v.volume_fraction < 1.0, "fluid volume fraction must be in (0, 1)");
+  if (hoop_stress(v) > v.wall_strength) {
+    throw InputError("vine: pressure " + std::to_string(v.pressure / kKpaToPa) + " kPa is above burst: hoop stress " +
+                     std::to_string(hoop_stress(v) / 1e6) + " MPa exceeds the wall strength " +
+                     std::to_string(v.wall_strength / 1e6) + " MPa (burst at " +
+                     std::to_string(v.wall_strength * v.wall.thickness / v.radius / kKpaToPa) + " kPa)");
+  }
+  const double r = v.radius;
+  const double r3 = r * r * r;
+  const double et = v.wall.modulus * v.wall.thickness + v.skin.modulus * v.skin.thickness;
+  const double et3 = v.wall.modulus * std::pow(v.wall.thickness, 3) + v.skin.modulus * std::pow(v.skin.thickness, 3);
+  RodModel m;
+  m.length = v.length;
+  m.edges = v.edges;
+  m.bending_stiffness_2 = kPi * r3 * et;
+  m.bending_stiffness_3 = m.bending_stiffness_2;
+  m.torsional_stiffness = 2.0 * kPi * r3 * et / 3.0;
+  m.axial_stiffness = stretch_shear_factor * 2.0 * kPi * r * et;
+  m.shear_stiffness = stretch_shear_factor * kPi * r * et / 3.0;  // thin tube: shear area ≈ half the wall
+  const double inner = r - v.wall.thickness - v.skin.thickness;
+  const double inner_area = kPi * inner * inner;
+  m.mass_per_length = 2.0 * kPi * r * (v.wall.density * v.wall.thickness + v.skin.density * v.skin.thickness) +
+                      fill_density_of(v) * inner_area;
+  m.inflated = InflatedBending{.radius = r, .pressure = v.pressure, .flat_bending_stiffness = kPi * r * et3 / 6.0};
+  if (v.skin.thickness > 0.0 && v.skin_remanence != 0.0) {
+    require(v.skin_direction.norm() > 0.0, "skin magnetisation direction must not be zero");
+    const Vec3 d = v.skin_direction.normalized();
+    require(std::abs(d.x()) < 1e-6,
+            "skin magnetisation must be orthogonal to the body axis (axial magnetisation cancels on eversion, "
+            "thesis 4.4.2)");
+    m.moment_per_length.assign(static_cast<std::size_t>(v.edges),
+                               v.skin_remanence / kMu0 * 2.0 * kPi * r * v.skin.thickness * d);
+  }
+  if (v.fill == FillKind::kMagneticFluid) {
+    InducedMagnetisation f;
+    f.volume_per_length = inner_area;
+    if (v.law == FluidLaw::kThesis) {
+      const double chi = v.volume_fraction * kThesisIronSusceptibility;
+      f.axial_susceptibility = chi;
+      f.transverse_susceptibility = chi;
+      f.saturation = std::numeric_limits<double>::infinity();
+      f.reference_susceptibility = chi;
+    } else {
+      const double phi = v.volume_fraction;
+      const double chi = 3.0 * phi / (1.0 - phi);  // μ_s = (1 + 2φ)/(1 − φ)
+      f.axial_susceptibility = chi;
+      f.transverse_susceptibility = chi / (1.0 + 0.5 * chi);
+      f.saturation = phi * kIronSaturation;
+      f.reference_susceptibility = chi;
+    }
+    m.induced = f;
+  }
+  return m;
+}
+
+}  // namespace magvine::robot

@@ -1,0 +1,186 @@
+// The vine body (robot/vine.hpp, the inflated-beam joint law in robot/rod.hpp): the normalised law against the
+// thesis's eq 4.6/4.8 and its own energy, the derivatives against finite differences, the discretised vine against
+// the two-stage reference in its wrinkled range, the fill laws, and the refusals.
+
+#include <gtest/gtest.h>
+
+#include <cmath>
+#include <cstdio>
+#include <random>
+
+#include "magvine/core/error.hpp"
+#include "magvine/core/units.hpp"
+#include "magvine/magnetics/field_model.hpp"
+#include "magvine/robot/elastica.hpp"
+#include "magvine/robot/inflated_beam.hpp"
+#include "magvine/robot/vine.hpp"
+
+namespace magvine::robot {
+namespace {
+
+// The thesis's skin MVR (thesis 4.6): Ø8 mm, LDPE 20 µm (E ≈ 0.2 GPa, ρ 920), NdFeB–Ecoflex skin 0.2 mm
+// (E = 3 × 33 kPa, ρ 1840, Br 0.101 T), 80 mm, 12 kPa.
+VineParameters skin_mvr(int edges = 80) {
+  VineParameters v;
+  v.length = 80e-3;
+  v.radius = 4e-3;
+  v.pressure = 12e3;
+  v.wall = {.thickness = 20e-6, .modulus = 0.2e9, .density = 920.0};
+  v.wall_strength = 10e6;  // LDPE
+  v.skin = {.thickness = 0.2e-3, .modulus = 99e3, .density = 1840.0};
+  v.skin_remanence = 0.101;
+  v.skin_direction = Vec3::UnitY();
+  v.edges = edges;
+  return v;
+}
+
+TEST(InflatedLaw, NormalisedLawIsTheThesisLawAndItsEnergyIntegratesTheMoment) {
+  // Independent reference: eq 4.8 gives M(φ0) and eq 4.6 κ(M); their normalised pair must lie on the law.
+  const double r = 4e-3;
+  const double p = 12e3;
+  const double ei = 1e-3;
+  const double mc = collapse_moment(r, p);
+  for (const double phi : {0.01, 0.5, 1.0, 2.0, 2.8, 3.1, 3.14}) {
+    const double m = wrinkled_moment(phi, r, p);
+    const double k = inflated_curvature(m, r, p, ei) * ei / mc;
+    EXPECT_NEAR(normalised_inflated_bending(k).moment, m / mc, 1e-9) << "phi0 " << phi;
+  }
+  // dΦ/dk = m by central differences, across the linear range, the wrinkling point and far into the collapse.
+  for (const double k : {0.2, 0.49, 0.51, 0.7, 1.0, 3.0, 30.0, 1e3, 1e5}) {
+    const double step = 1e-5 * k;
+    const double fd = (normalised_inflated_bending(k + step).energy - normalised_inflated_bending(k - step).energy) /
+                      (2.0 * step);
+    EXPECT_NEAR(fd, normalised_inflated_bending(k).moment, 1e-6) << "k " << k;
+  }
+  // Φ is continuous at the wrinkling point and the moment saturates at the collapse.
+  EXPECT_NEAR(normalised_inflated_bending(0.5 + 1e-12).energy, 0.125, 1e-9);
+  // (m = 1 − ε²/10 + O(ε⁴) with ε = (3π/2k)^⅓ ≈ 3.6e-3 at k = 1e8.)
+  EXPECT_NEAR(normalised_inflated_bending(1e8).moment, 1.0 - std::pow(1.5 * kPi / 1e8, 2.0 / 3.0) / 10.0, 1e-9);
+  // A trapezoid quadrature of m from 0 to 20 matches Φ(20) (second, independent route to the closed form).
+  double integral = 0.0;
+  const int n = 200000;
+  for (int i = 0; i < n; ++i) {
+    const double a = 20.0 * i / n;
+    const double b = 20.0 * (i + 1) / n;
+    integral += 0.5 * (b - a) * (normalised_inflated_bending(a).moment + normalised_inflated_bending(b).moment);
+  }
+  EXPECT_NEAR(integral, normalised_inflated_bending(20.0).energy, 1e-7);
+}
+
+TEST(Vine, GradientMatchesFiniteDifferencesOfTheEnergy) {
+  // Skin moment, magnetic-fluid fill (bounded law, near saturation close to the dipole), inflated law with joints in
+  // the linear, wrinkled and creased ranges, gravity.
+  for (const FillKind fill : {FillKind::kMagneticFluid, FillKind::kAir}) {
+    VineParameters v = skin_mvr(8);
+    v.fill = fill;
+    RodModel m = vine_rod(v);
+    m.gravity = Vec3(0.5, -9.81, 1.0);
+    magnetics::FieldModel magnets;
+    magnets.add(magnetics::DipoleSource{Vec3(0.0, 0.0, 300.0)},
+                magnetics::Pose::from_axis(Vec3(0.04, -0.03, 0.01), Vec3(0.2, 1.0, 0.1)));
+    const RodField field = field_function(magnets, magnets.rest_poses);
+    RodState s = straight_rod(m);
+    std::mt19937 rng(5);
+    std::uniform_real_distribution<double> u(-1.0, 1.0);
+    for (std::size_t i = 1; i < s.x.size(); ++i) s.x[i] += 1e-3 * Vec3(u(rng), u(rng), u(rng));
+    for (std::size_t j = 0; j < s.frames.size(); ++j) {
+      const double angle = j % 3 == 0 ? 1e-4 : (j % 3 == 1 ? 0.05 : 0.8);  // linear, wrinkled, creased joints
+      s.frames[j] = Eigen::AngleAxisd(angle * (1.0 + 0.2 * u(rng)), Vec3(u(rng), u(rng), u(rng)).normalized())
+                        .toRotationMatrix() *
+                    (j > 0 ? s.frames[j - 1] : s.frames[j]);
+    }
+    const VecX g = rod_gradient(m, field, s);
+    for (Eigen::Index k = 0; k < g.size(); ++k) {
+      const auto block = static_cast<std::size_t>(k / 6);
+      const int axis = static_cast<int>(k % 3);
+      const bool rotation = (k % 6) >= 3;
+      const double step = rotation ? 1e-6 : 1e-9;
+      const auto shifted = [&](double d) {
+        RodState t = s;
+        if (rotation) {
+          t.frames[block] = Eigen::AngleAxisd(d, Vec3::Unit(axis)).toRotationMatrix() * t.frames[block];
+        } else {
+          t.x[block + 1][axis] += d;
+        }
+        return rod_energy(m, field, t);
+      };
+      const double fd = (shifted(step) - shifted(-step)) / (2.0 * step);
+      EXPECT_NEAR(g[k], fd, 1e-6 * (std::abs(fd) + g.cwiseAbs().maxCoeff() * 1e-3))
+          << "unknown " << k << (fill == FillKind::kAir ? " (air)" : " (fluid)");
+    }
+  }
+}
+
+TEST(Vine, WrinkledCantileverMatchesTheTwoStageModel) {
+  // Horizontal skin MVR under its own weight plus a uniform transverse load q chosen so the base moment is 0.8 M_c:
+  // the base third wrinkles. Reference: stage 1 of the two-stage model (loads on the straight body, y'' = κ(M)).
+  // Tolerance 2 % of the tip deflection: both are small-deflection here (θ ≈ 2°, geometric terms ~ θ²), and the
+  // discretisation error at 200 edges is ~1e-4.
+  VineParameters v = skin_mvr(200);
+  RodModel m = vine_rod(v);
+  const double mc = collapse_moment(v.radius, v.pressure);
+  const double q = 2.0 * 0.8 * mc / (v.length * v.length);
+  m.gravity = Vec3(0.0, -q / m.mass_per_length, 0.0);
+  RodState s = straight_rod(m);
+  const RodSolveReport report = solve_rod_statics(m, {}, s);
+  ASSERT_TRUE(report.converged) << report.failure;
+  TwoStageLoads loads;
+  loads.force = [q](double) { return q; };
+  const TwoStageResult ref =
+      solve_two_stage({.radius = v.radius, .pressure = v.pressure, .bending_stiffness = m.bending_stiffness_3,
+                       .length = v.length},
+                      loads, 20000);
+  ASSERT_EQ(ref.stage, 1);
+  EXPECT_GT(ref.wrinkled_length, 0.2 * v.length);
+  std::printf("  tip deflection %.4f mm, two-stage %.4f mm (wrinkled over %.1f mm)\n", -1e3 * s.tip().y(),
+              1e3 * ref.tip_deflection, 1e3 * ref.wrinkled_length);
+  EXPECT_NEAR(-s.tip().y(), ref.tip_deflection, 0.02 * ref.tip_deflection);
+}
+
+TEST(Vine, BoundedFluidLawIsLinearInWeakFieldsAndSaturates) {
+  // A straight magnetic-fluid vine along x in a uniform field: the fill energy is −½ V χ B²/μ0 with χ = 3φ/(1 − φ)
+  // along the axis and χ/(1 + χ/2) across (weak field), and −V μ0 M_s |H|-like beyond saturation.
+  VineParameters v = skin_mvr(10);
+  v.skin_remanence = 0.0;
+  v.fill = FillKind::kMagneticFluid;
+  const RodModel m = vine_rod(v);
+  const RodState s = straight_rod(m);
+  const double volume = m.induced->volume_per_length * v.length;
+  const double chi = 3.0 * 0.23 / 0.77;
+  const auto energy = [&](const Vec3& b) {
+    return rod_energy(m, [b](const Vec3&) { magnetics::FieldSample f; f.b = b; return f; }, s);
+  };
+  const double b = 1e-3;
+  EXPECT_NEAR(energy(Vec3(b, 0, 0)), -0.5 * volume * chi * b * b / kMu0, 1e-6 * volume * chi * b * b / kMu0);
+  const double chi_t = chi / (1.0 + 0.5 * chi);
+  EXPECT_NEAR(energy(Vec3(0, b, 0)), -0.5 * volume * chi_t * b * b / kMu0, 1e-6 * volume * chi_t * b * b / kMu0);
+  // Deep saturation: dU/d|B| → −V M_s (the moment saturates at φ·M_s(iron)·V).
+  const double big = 50.0;
+  const double slope = (energy(Vec3(big + 1e-3, 0, 0)) - energy(Vec3(big - 1e-3, 0, 0))) / 2e-3;
+  EXPECT_NEAR(-slope, volume * 0.23 * kIronSaturation, 1e-3 * volume * 0.23 * kIronSaturation);
+}
+
+TEST(Vine, BadParametersAreRefusedWithTheirName) {
+  VineParameters v = skin_mvr();
+  v.pressure = 30e3;  // hoop stress 30 kPa × 4 mm / 20 µm = 6 MPa, strength 10 MPa: fine
+  EXPECT_NO_THROW(vine_rod(v));
+  v.pressure = 60e3;  // 12 MPa > 10 MPa
+  try {
+    vine_rod(v);
+    ADD_FAILURE() << "no burst error";
+  } catch (const InputError& e) {
+    EXPECT_NE(std::string(e.what()).find("burst"), std::string::npos) << e.what();
+  }
+  v = skin_mvr();
+  v.length = 0.0;
+  EXPECT_THROW(vine_rod(v), InputError);
+  v = skin_mvr();
+  v.wall.modulus = -1.0;
+  EXPECT_THROW(vine_rod(v), InputError);
+  v = skin_mvr();
+  v.skin_direction = Vec3::UnitX();  // axial skin magnetisation cancels on eversion
+  EXPECT_THROW(vine_rod(v), InputError);
+}
+
+}  // namespace
+}  // namespace magvine::robot
