@@ -13,6 +13,7 @@
 #include "magvine/magnetics/field_model.hpp"
 #include "magvine/scene/field_map.hpp"
 #include "magvine/scene/field_study.hpp"
+#include "magvine/scene/free_space.hpp"
 #include "magvine/scene/magnets_file.hpp"
 #include "magvine/scene/meshing_study.hpp"
 #include "magvine/scene/points_csv.hpp"
@@ -109,6 +110,25 @@ int run_mesh_check(const MeshCheckArgs& args) {
   const std::string json = anatomy::report_json(args.file, imported, report, units);
   if (!args.out.empty()) write_file_atomically(args.out, json);
   std::cout << (args.json ? json : anatomy::report_summary(args.file, imported, report));
+  return 0;
+}
+
+int run_scene(const RunArgs& args) {
+  const scene::FreeSpaceScene sc = scene::load_free_space_scene(args.scene);
+  const std::filesystem::path out =
+      args.out.empty() ? std::filesystem::path("runs") / std::filesystem::path(args.scene).stem() : std::filesystem::path(args.out);
+  const scene::FreeSpaceResult result = scene::solve_free_space(sc);
+  scene::write_free_space_outputs(sc, result, out);
+  const Vec3 tip = result.state.tip() / kMmToM;
+  std::cerr << "magvine run: " << sc.kind << ", " << sc.model.edges + 1 << " nodes, "
+            << (result.report.converged ? "converged" : "NOT converged") << " in " << result.report.iterations
+            << " Newton iterations (" << result.runtime_s * 1e3 << " ms); tip at (" << tip.x() << ", " << tip.y()
+            << ", " << tip.z() << ") mm -> " << (out / "metrics.json").string() << ", "
+            << (out / "shape.csv").string() << '\n';
+  if (!result.report.converged) {
+    std::cerr << "magvine: numerical failure: static equilibrium: " << result.report.failure << '\n';
+    return static_cast<int>(ExitCode::kNumericalFailure);
+  }
   return 0;
 }
 

@@ -45,4 +45,11 @@ struct MeshCheckArgs {
 };
 int run_mesh_check(const MeshCheckArgs& args);
 
+struct RunArgs {
+  std::string scene;
+  std::string out;  // empty: runs/<scene stem>
+};
+/// One free-space equilibrium (issue 4's scene): 0 converged, 3 not (outputs written with converged: false).
+int run_scene(const RunArgs& args);
+
 }  // namespace magvine::cli

@@ -64,6 +64,12 @@ int main(int argc, char** argv) {
   mesh_check_cmd->add_flag("--json", mesh_check.json, "print the JSON report instead of the summary");
   mesh_check_cmd->add_option("--out", mesh_check.out, "also write the JSON report to this file");
 
+  magvine::cli::RunArgs run;
+  auto* run_cmd = app.add_subcommand("run", "one experiment: static equilibrium of a rod or vine in free space "
+                                            "(metrics.json, shape.csv); exit 3 when it does not converge");
+  run_cmd->add_option("scene", run.scene, "scene file (YAML)")->required();
+  run_cmd->add_option("--out", run.out, "output folder (default: runs/<scene name>)");
+
   magvine::cli::PhantomCommand phantom;
   phantom.attach(app);
 
@@ -87,6 +93,7 @@ int main(int argc, char** argv) {
     if (study_meshing->parsed()) return magvine::cli::run_study_phantom_meshing(meshing_out);
     if (mesh_check_cmd->parsed()) return magvine::cli::run_mesh_check(mesh_check);
     if (phantom.parsed()) return phantom.run();
+    if (run_cmd->parsed()) return magvine::cli::run_scene(run);
   } catch (const magvine::InputError& e) {
     std::cerr << "magvine: " << e.what() << '\n';
     return static_cast<int>(ExitCode::kBadInput);

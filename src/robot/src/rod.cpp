@@ -57,6 +57,9 @@ void add_stress(System* sys, const Vec3& stress, const std::array<Slot, K>& slot
   for (std::size_t k = 0; k < K; ++k) sys->add_gradient(slots[k], pieces[k].transpose() * stress);
 }
 
+/// ω = 2 tan(ψ/2)·axis/ℓ of the joint rotation Q (the Gibbs vector over ℓ/2).
+Vec3 joint_strain(const Mat3& q, double ell) { return 4.0 * skew_axis(q) / ((1.0 + q.trace()) * ell); }
+
 /// The stored energy of one joint of length ℓ at curvature-twist ω (body frame of the joint's first edge), and
 /// `stress` = dW/dω: the linear law of a rod, or the inflated-beam law of a vine (InflatedBending).
 double joint_energy(const RodModel& m, double ell, const Vec3& omega, Vec3& stress) {
@@ -142,7 +145,7 @@ double evaluate(const RodModel& m, const RodField& field, const RodState& s, dou
     const double c = 1.0 + q.trace();  // 2(1 + cos ψ)
     if (!(c > 1e-12)) return std::numeric_limits<double>::infinity();  // a joint folded back on itself
     const Vec3 half_sine = skew_axis(q);                               // sin ψ · axis
-    const Vec3 omega = 4.0 * half_sine / (c * ell);                    // 2 tan(ψ/2) axis / ℓ
+    const Vec3 omega = joint_strain(q, ell);
     Vec3 stress;
     energy += joint_energy(m, ell, omega, stress);
     if (sys == nullptr) continue;
@@ -235,30 +238,60 @@ void exact_hessian(const RodModel& m, const RodField& field, const RodState& s, 
   }
 }
 
-/// Solves (H + μI) δ = −g by block LDLᵀ (block Thomas); false when a pivot block is not positive definite.
-bool solve_block_tridiagonal(const System& sys, double mu, VecX& delta) {
-  const auto n = sys.diag.size();
-  std::vector<Eigen::LLT<Mat6>> pivots(n);
-  std::vector<Vec6> y(n);
-  for (std::size_t i = 0; i < n; ++i) {
-    Mat6 s = sys.diag[i] + mu * Mat6::Identity();
-    Vec6 r = -sys.gradient.segment<6>(static_cast<Eigen::Index>(6 * i));
-    if (i > 0) {
-      const Mat6& b = sys.sub[i];
-      s -= b * pivots[i - 1].solve(b.transpose());
-      r -= b * pivots[i - 1].solve(y[i - 1]);
+/// Block LDLᵀ (block Thomas) factorisation of H + μ|diag H| for the block-tridiagonal H of a System.
+class BlockFactor {
+ public:
+  /// False when a pivot block is not positive definite (H + μ|diag H| is not).
+  bool factor(const System& sys, double mu) {
+    m_sys = &sys;
+    const auto n = sys.diag.size();
+    m_pivots.resize(n);
+    for (std::size_t i = 0; i < n; ++i) {
+      // Marquardt: damping in proportion to each unknown's own stiffness, so stiff stretch and soft bending are
+      // damped alike (a multiple of I either stalls the bending or does nothing to the stretch).
+      Mat6 s = sys.diag[i];
+      if (mu > 0.0) s.diagonal() += mu * sys.diag[i].diagonal().cwiseAbs().cwiseMax(1e-300);
+      if (i > 0) s -= sys.sub[i] * m_pivots[i - 1].solve(sys.sub[i].transpose());
+      m_pivots[i].compute(s);
+      if (m_pivots[i].info() != Eigen::Success) return false;
     }
-    pivots[i].compute(s);
-    if (pivots[i].info() != Eigen::Success) return false;
-    y[i] = r;
+    return true;
   }
-  delta.resize(static_cast<Eigen::Index>(6 * n));
-  for (std::size_t i = n; i-- > 0;) {
-    Vec6 r = y[i];
-    if (i + 1 < n) r -= sys.sub[i + 1].transpose() * delta.segment<6>(static_cast<Eigen::Index>(6 * (i + 1)));
-    delta.segment<6>(static_cast<Eigen::Index>(6 * i)) = pivots[i].solve(r);
+
+  /// (H + μ|diag H|)⁻¹ rhs; false if not finite.
+  bool solve(const VecX& rhs, VecX& out) const {
+    const auto n = m_pivots.size();
+    std::vector<Vec6> y(n);
+    for (std::size_t i = 0; i < n; ++i) {
+      y[i] = rhs.segment<6>(static_cast<Eigen::Index>(6 * i));
+      if (i > 0) y[i] -= m_sys->sub[i] * m_pivots[i - 1].solve(y[i - 1]);
+    }
+    out.resize(static_cast<Eigen::Index>(6 * n));
+    for (std::size_t i = n; i-- > 0;) {
+      Vec6 r = y[i];
+      if (i + 1 < n) r -= m_sys->sub[i + 1].transpose() * out.segment<6>(static_cast<Eigen::Index>(6 * (i + 1)));
+      out.segment<6>(static_cast<Eigen::Index>(6 * i)) = m_pivots[i].solve(r);
+    }
+    return out.allFinite();
   }
-  return delta.allFinite();
+
+ private:
+  const System* m_sys = nullptr;
+  std::vector<Eigen::LLT<Mat6>> m_pivots;
+};
+
+/// H·v for the block-tridiagonal H.
+VecX multiply(const System& sys, const VecX& v) {
+  VecX out = VecX::Zero(v.size());
+  for (std::size_t i = 0; i < sys.diag.size(); ++i) {
+    const auto at = static_cast<Eigen::Index>(6 * i);
+    out.segment<6>(at) += sys.diag[i] * v.segment<6>(at);
+    if (i > 0) {
+      out.segment<6>(at) += sys.sub[i] * v.segment<6>(at - 6);
+      out.segment<6>(at - 6) += sys.sub[i].transpose() * v.segment<6>(at);
+    }
+  }
+  return out;
 }
 
 RodState apply(const RodState& s, const VecX& delta, double t) {
@@ -357,8 +390,8 @@ void validate(const RodModel& m) {
 
 /// Newton at a fixed load factor. Returns the cause of failure, empty on success.
 std::string newton(const RodModel& m, const RodField& field, RodState& s, double load, const RodSolveOptions& o,
-                   RodSolveReport& report) {
-  for (int it = 0; it < o.max_newton; ++it) {
+                   RodSolveReport& report, int max_iterations) {
+  for (int it = 0; it < max_iterations; ++it) {
     System sys(m.edges);
     const double energy = evaluate(m, field, s, load, &sys);
     if (!std::isfinite(energy) || !sys.gradient.allFinite()) return "NaN in the energy or its gradient";
@@ -368,14 +401,22 @@ std::string newton(const RodModel& m, const RodField& field, RodState& s, double
     exact_hessian(m, field, s, load, sys);
     // Levenberg damping only when the Hessian is not positive definite (near a snap, or a field against the
     // magnetisation) or the step is not a descent direction.
-    double max_diag = 0.0;
-    for (const Mat6& d : sys.diag) max_diag = std::max(max_diag, d.diagonal().cwiseAbs().maxCoeff());
     VecX delta;
     double mu = 0.0;
+    BlockFactor factor;
     for (;;) {
-      if (solve_block_tridiagonal(sys, mu, delta) && sys.gradient.dot(delta) < 0.0) break;
-      mu = mu == 0.0 ? 1e-10 * max_diag : 10.0 * mu;
-      if (mu > 1e6 * max_diag) return "no descent direction";
+      if (factor.factor(sys, mu) && factor.solve(-sys.gradient, delta) && sys.gradient.dot(delta) < 0.0) break;
+      mu = mu == 0.0 ? 1e-9 : 4.0 * mu;
+      if (mu > 1e8) return "no descent direction";
+    }
+    // Past a limit point the state sits near a saddle of the energy, where the gradient along the unstable mode is
+    // tiny and damped Newton steps crawl. A few inverse iterations with the damped factor find the most negative
+    // curvature direction; a trust-sized step along it (downhill) competes with the Newton step below.
+    VecX descent;
+    if (mu > 0.0) {
+      VecX z = delta / delta.norm();
+      for (int k = 0; k < 4 && factor.solve(z, z); ++k) z /= z.norm();
+      if (z.allFinite() && z.dot(multiply(sys, z)) < 0.0) descent = sys.gradient.dot(z) > 0.0 ? VecX(-z) : z;
     }
     const double slope = sys.gradient.dot(delta);
     // A trust bound on the rotation increments: frames turn exactly but positions move linearly, so a long step
@@ -385,31 +426,54 @@ std::string newton(const RodModel& m, const RodField& field, RodState& s, double
     double t = largest > kMaxTurn ? kMaxTurn / largest : 1.0;
     // Below ~1e-13 of the energy's size the energy cannot tell better from worse: take the (bounded) step.
     const bool resolvable = -slope > 1e-13 * (std::abs(energy) + 1e-300);
-    for (;;) {
-      // Positions move linearly but frames turn exactly, so a bending step also stretches the edges, which stalls
-      // a slender (axially stiff) rod on tiny steps. The trial is also offered with its nodes rebuilt along the new
-      // frames at the strains the step predicts; the lower energy wins (test_rod's 12 large-deflection cases: 9–147
-      // Newton iterations with it; 1092–7196 without, and one case failed).
-      RodState trial = apply(s, delta, t);
-      double e = evaluate(m, field, trial, load, nullptr);
-      RodState rebuilt = rebuild_positions(trial, s, delta, t);
+    // Positions move linearly but frames turn exactly, so a bending step also stretches the edges, which stalls a
+    // slender (axially stiff) rod on tiny steps. Each trial is also offered with its nodes rebuilt along the new
+    // frames at the strains the step predicts; the lower energy wins (test_rod's 12 large-deflection cases: 9–147
+    // Newton iterations with it; 1092–7196 without, and one case failed).
+    const auto trial_at = [&](const VecX& step, double scale, double& e) {
+      RodState trial = apply(s, step, scale);
+      e = evaluate(m, field, trial, load, nullptr);
+      RodState rebuilt = rebuild_positions(trial, s, step, scale);
       const double e_rebuilt = evaluate(m, field, rebuilt, load, nullptr);
       if (std::isfinite(e_rebuilt) && !(e_rebuilt >= e)) {
-        trial = std::move(rebuilt);
         e = e_rebuilt;
+        return rebuilt;
       }
+      return trial;
+    };
+    RodState next;
+    double e_next = std::numeric_limits<double>::infinity();
+    for (;;) {
+      double e = 0.0;
+      RodState trial = trial_at(delta, t, e);
       if (std::isfinite(e) && (!resolvable || e <= energy + 1e-4 * t * slope)) {
-        s = std::move(trial);
+        next = std::move(trial);
+        e_next = e;
         break;
       }
       t *= 0.5;
-      if (t < 1e-10) {
-        // At round-off the energy cannot resolve the last digits; accept a nearly converged state.
-        return report.gradient_norm <= 1e3 * o.tolerance ? std::string{} : "line search failed";
+      if (t < 1e-10) break;
+    }
+    if (descent.size() > 0) {
+      double turn = 0.0;
+      for (Eigen::Index j = 0; j < m.edges; ++j) turn = std::max(turn, descent.segment<3>(6 * j + 3).norm());
+      for (double scale = turn > 0.0 ? kMaxTurn / turn : 0.0; scale > 1e-6 * kMaxTurn; scale *= 0.25) {
+        double e = 0.0;
+        RodState trial = trial_at(descent, scale, e);
+        if (std::isfinite(e) && e < std::min(e_next, energy)) {
+          next = std::move(trial);
+          e_next = e;
+          break;
+        }
       }
     }
+    if (!std::isfinite(e_next)) {
+      // At round-off the energy cannot resolve the last digits; accept a nearly converged state.
+      return report.gradient_norm <= 1e3 * o.tolerance ? std::string{} : "line search failed";
+    }
+    s = std::move(next);
   }
-  return "Newton did not converge in " + std::to_string(o.max_newton) + " iterations";
+  return "Newton did not converge in " + std::to_string(max_iterations) + " iterations";
 }
 
 }  // namespace
@@ -434,6 +498,37 @@ RodModel rectangular_rod(double length, double width, double thickness, double s
   if (remanence != 0.0)
     m.moment_per_length.assign(static_cast<std::size_t>(edges), remanence / kMu0 * area * direction.normalized());
   return m;
+}
+
+RodModel circular_rod(double length, double diameter, double shear_modulus, double density, int edges,
+                      double stretch_shear_factor) {
+  RodModel m;
+  const double e = 3.0 * shear_modulus;
+  const double area = 0.25 * kPi * diameter * diameter;
+  const double second_moment = kPi * std::pow(diameter, 4) / 64.0;
+  m.length = length;
+  m.edges = edges;
+  m.bending_stiffness_2 = e * second_moment;
+  m.bending_stiffness_3 = e * second_moment;
+  m.torsional_stiffness = shear_modulus * 2.0 * second_moment;
+  m.axial_stiffness = stretch_shear_factor * e * area;
+  m.shear_stiffness = stretch_shear_factor * 0.9 * shear_modulus * area;  // Timoshenko 6(1+ν)/(7+6ν), ν = ½
+  m.mass_per_length = density * area;
+  return m;
+}
+
+std::vector<double> joint_bending_moments(const RodModel& model, const RodState& state) {
+  const double h = model.length / model.edges;
+  std::vector<double> out;
+  for (int j = 0; j < model.edges; ++j) {
+    const Mat3& ra = j == 0 ? model.base_frame : state.frames[static_cast<std::size_t>(j) - 1];
+    const double ell = j == 0 ? 0.5 * h : h;
+    const Mat3 q = ra.transpose() * state.frames[static_cast<std::size_t>(j)];
+    Vec3 stress;
+    joint_energy(model, ell, joint_strain(q, ell), stress);
+    out.push_back(stress.tail<2>().norm() / ell);
+  }
+  return out;
 }
 
 RodState straight_rod(const RodModel& model) {
@@ -467,14 +562,22 @@ RodSolveReport solve_rod_statics(const RodModel& model, const RodField& field, R
   double step = 1.0 / options.min_load_steps;
   const double min_step = 1.0 / options.max_load_steps;
   // The unloaded state first (it may not be at rest if the caller's state is not).
-  if (std::string why = newton(model, field, state, 0.0, options, report); !why.empty()) {
+  if (std::string why = newton(model, field, state, 0.0, options, report, options.max_newton); !why.empty()) {
     report.failure = "unloaded rod: " + why;
     return report;
   }
   while (load < 1.0) {
     const double next = std::min(1.0, load + step);
     RodState trial = state;
-    const std::string why = newton(model, field, trial, next, options, report);
+    std::string why = newton(model, field, trial, next, options, report, options.max_newton);
+    if (!why.empty() && step <= options.snap_step) {
+      // Past a limit point (a snap: the crease of a vine, the buckling of a rod) there is no equilibrium near the
+      // last one, however small the load step; the energy still decreases along Newton's steps, so follow them to
+      // the next stable branch.
+      trial = state;
+      why = newton(model, field, trial, next, options, report, options.max_snap_newton);
+      if (why.empty()) ++report.snaps;
+    }
     if (why.empty()) {
       state = std::move(trial);
       load = next;

@@ -6,6 +6,7 @@
 
 #include "magvine/core/error.hpp"
 #include "magvine/core/units.hpp"
+#include "magnet_entries.hpp"
 #include "yaml_reader.hpp"
 
 namespace magvine::scene {
@@ -114,13 +115,18 @@ FieldModel parse_magnets(const std::string& text, const std::string& file_label)
   if (!lu) units.fail("length", "must be mm, cm or m (got '" + length_unit + "')");
   const double unit = metres_per(*lu);
 
-  const YAML::Node list = top.node("magnets");
-  if (!list.IsSequence()) top.fail("magnets", "must be a list of sources (- kind: cylinder | dipole | uniform)");
-  if (list.size() == 0) top.fail("magnets", "is empty: give at least one source");
+  return parse_magnet_list(top, unit);
+}
+
+FieldModel parse_magnet_list(const YamlMap& parent, double unit) {
+  const YAML::Node list = parent.node("magnets");
+  if (!list.IsSequence()) parent.fail("magnets", "must be a list of sources (- kind: cylinder | dipole | uniform)");
+  if (list.size() == 0) parent.fail("magnets", "is empty: give at least one source");
+  const std::string& file_label = parent.file();
 
   FieldModel model;
   for (std::size_t i = 0; i < list.size(); ++i) {
-    const YamlMap m(list[i], file_label, "magnets[" + std::to_string(i) + "]");
+    const YamlMap m(list[i], file_label, parent.key_path("magnets[" + std::to_string(i) + "]"));
     const std::string kind = m.text("kind");
     const std::string name = m.has("name") ? m.text("name") : "magnets[" + std::to_string(i) + "] " + kind;
     if (kind == "cylinder") {

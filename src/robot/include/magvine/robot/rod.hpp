@@ -91,6 +91,10 @@ RodModel rectangular_rod(double length, double width, double thickness, double s
                          double remanence, const Vec3& direction, int edges,
                          double stretch_shear_factor = kNearInextensible);
 
+/// A solid rod of circular cross-section (diameter), E = 3G, not magnetic (set moment_per_length).
+RodModel circular_rod(double length, double diameter, double shear_modulus, double density, int edges,
+                      double stretch_shear_factor = kNearInextensible);
+
 /// The configuration: N + 1 node positions and N edge frames.
 struct RodState {
   std::vector<Vec3> x;
@@ -108,12 +112,17 @@ struct RodSolveOptions {
   int max_newton = 15;        ///< per load step (then the load step halves: cheaper than damped crawling)
   int min_load_steps = 1;     ///< the ramp starts with steps of 1/min_load_steps (1: the full load at once)
   int max_load_steps = 1024;  ///< gives up when the ramp would need more
+  /// A load step this small that still fails is taken as a limit point (a snap): Newton then runs up to
+  /// max_snap_newton iterations at that load to reach the next stable branch.
+  double snap_step = 1.0 / 64.0;
+  int max_snap_newton = 1000;
 };
 
 struct RodSolveReport {
   bool converged = false;
   int iterations = 0;  ///< Newton iterations summed over the ramp
   int load_steps = 0;
+  int snaps = 0;  ///< limit points passed (see RodSolveOptions::snap_step)
   double gradient_norm = 0.0;  ///< scaled, at the end
   std::string failure;         ///< empty when converged; otherwise the cause (NaN, no descent, ramp exhausted)
 };
@@ -122,6 +131,10 @@ struct RodSolveReport {
 /// Throws InputError for an invalid model.
 RodSolveReport solve_rod_statics(const RodModel& model, const RodField& field, RodState& state,
                                  const RodSolveOptions& options = {});
+
+/// Bending moment |M| at each joint [N·m]: joint 0 between the clamp and edge 0 (at x_0), joint j between edges
+/// j − 1 and j (at x_j), from the stored energy's derivative (the inflated-beam law for a vine).
+std::vector<double> joint_bending_moments(const RodModel& model, const RodState& state);
 
 /// Total potential energy [J] and its gradient with respect to (δx_1, δφ_0, δx_2, δφ_1, …) (6 per edge, node j+1's
 /// position then edge j's rotation increment, world frame) at load factor `load` — exposed for the derivative
