@@ -14,6 +14,7 @@
 #include "magvine/scene/field_map.hpp"
 #include "magvine/scene/field_study.hpp"
 #include "magvine/scene/free_space.hpp"
+#include "magvine/scene/mechanics_study.hpp"
 #include "magvine/scene/magnets_file.hpp"
 #include "magvine/scene/meshing_study.hpp"
 #include "magvine/scene/points_csv.hpp"
@@ -129,6 +130,19 @@ int run_scene(const RunArgs& args) {
     std::cerr << "magvine: numerical failure: static equilibrium: " << result.report.failure << '\n';
     return static_cast<int>(ExitCode::kNumericalFailure);
   }
+  return 0;
+}
+
+int run_validate(const std::string& out_dir) {
+  create_output_directory(out_dir);
+  std::cerr << "magvine validate: rod against the elastica (error against runtime)\n";
+  scene::run_rod_convergence_study(out_dir);
+  std::cerr << "magvine validate: skin MVR against the two-stage model\n";
+  scene::run_vine_deflection_study(out_dir);
+  std::cerr << "magvine validate: magnetic-fluid vines against EPM distance\n";
+  scene::run_fluid_vine_study(out_dir);
+  std::cerr << "magvine validate: " << out_dir << "/{rod_convergence,vine_deflection,fluid_vine,fluid_vine_summary}.csv"
+            << " (plots: tools/plot_mechanics.py " << out_dir << ")\n";
   return 0;
 }
 

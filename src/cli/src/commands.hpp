@@ -52,4 +52,7 @@ struct RunArgs {
 /// One free-space equilibrium (issue 4's scene): 0 converged, 3 not (outputs written with converged: false).
 int run_scene(const RunArgs& args);
 
+/// `magvine validate --out DIR`: the robot-mechanics studies (scene/mechanics_study.hpp).
+int run_validate(const std::string& out_dir);
+
 }  // namespace magvine::cli

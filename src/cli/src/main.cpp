@@ -70,6 +70,12 @@ int main(int argc, char** argv) {
   run_cmd->add_option("scene", run.scene, "scene file (YAML)")->required();
   run_cmd->add_option("--out", run.out, "output folder (default: runs/<scene name>)");
 
+  std::string validate_out;
+  auto* validate_cmd = app.add_subcommand(
+      "validate", "robot mechanics against the references: rod vs elastica (error against runtime), skin vine vs "
+                  "the two-stage model, magnetic-fluid vines vs EPM distance (CSV)");
+  validate_cmd->add_option("--out", validate_out, "output folder")->required();
+
   magvine::cli::PhantomCommand phantom;
   phantom.attach(app);
 
@@ -94,6 +100,7 @@ int main(int argc, char** argv) {
     if (mesh_check_cmd->parsed()) return magvine::cli::run_mesh_check(mesh_check);
     if (phantom.parsed()) return phantom.run();
     if (run_cmd->parsed()) return magvine::cli::run_scene(run);
+    if (validate_cmd->parsed()) return magvine::cli::run_validate(validate_out);
   } catch (const magvine::InputError& e) {
     std::cerr << "magvine: " << e.what() << '\n';
     return static_cast<int>(ExitCode::kBadInput);

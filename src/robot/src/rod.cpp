@@ -209,7 +209,7 @@ RodState apply(const RodState& s, const VecX& delta, double t);
 /// derivative of the gradient differs from the Hessian by an antisymmetric part.
 void exact_hessian(const RodModel& m, const RodField& field, const RodState& s, double load, System& sys) {
   const int n = m.edges;
-  const double step_x = 1e-6 * m.length;
+  const double step_x = 1e-6 * m.length / n;  // relative to the edge: a strain step of 1e-6
   const double step_phi = 1e-6;
   std::vector<Mat6> diag(static_cast<std::size_t>(n), Mat6::Zero());
   std::vector<Mat6> lower(static_cast<std::size_t>(n), Mat6::Zero());  // H(j, j − 1)
@@ -392,6 +392,9 @@ void validate(const RodModel& m) {
 std::string newton(const RodModel& m, const RodField& field, RodState& s, double load, const RodSolveOptions& o,
                    RodSolveReport& report, int max_iterations) {
   for (int it = 0; it < max_iterations; ++it) {
+    if (report.iterations >= o.max_iterations) {
+      return "iteration budget of " + std::to_string(o.max_iterations) + " Newton iterations exhausted";
+    }
     System sys(m.edges);
     const double energy = evaluate(m, field, s, load, &sys);
     if (!std::isfinite(energy) || !sys.gradient.allFinite()) return "NaN in the energy or its gradient";
@@ -408,6 +411,18 @@ std::string newton(const RodModel& m, const RodField& field, RodState& s, double
       if (factor.factor(sys, mu) && factor.solve(-sys.gradient, delta) && sys.gradient.dot(delta) < 0.0) break;
       mu = mu == 0.0 ? 1e-9 : 4.0 * mu;
       if (mu > 1e8) return "no descent direction";
+    }
+    // Converged when the undamped Newton step itself is below 1e-10 rad and 1e-10 L: the gradient can stall above
+    // its tolerance from round-off alone (the strains of short edges carry ~1e-16·N relative error, times a stiff
+    // EA), while the step the exact model asks for is already negligible.
+    if (mu == 0.0) {
+      double turn = 0.0;
+      double move = 0.0;
+      for (Eigen::Index j = 0; j < m.edges; ++j) {
+        move = std::max(move, delta.segment<3>(6 * j).norm());
+        turn = std::max(turn, delta.segment<3>(6 * j + 3).norm());
+      }
+      if (turn < 1e-10 && move < 1e-10 * m.length) return {};
     }
     // Past a limit point the state sits near a saddle of the energy, where the gradient along the unstable mode is
     // tiny and damped Newton steps crawl. A few inverse iterations with the damped factor find the most negative
@@ -570,6 +585,10 @@ RodSolveReport solve_rod_statics(const RodModel& model, const RodField& field, R
     const double next = std::min(1.0, load + step);
     RodState trial = state;
     std::string why = newton(model, field, trial, next, options, report, options.max_newton);
+    if (!why.empty() && report.iterations >= options.max_iterations) {
+      report.failure = "at load factor " + std::to_string(load) + ": " + why;
+      return report;
+    }
     if (!why.empty() && step <= options.snap_step) {
       // Past a limit point (a snap: the crease of a vine, the buckling of a rod) there is no equilibrium near the
       // last one, however small the load step; the energy still decreases along Newton's steps, so follow them to

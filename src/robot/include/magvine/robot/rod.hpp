@@ -116,6 +116,7 @@ struct RodSolveOptions {
   /// max_snap_newton iterations at that load to reach the next stable branch.
   double snap_step = 1.0 / 64.0;
   int max_snap_newton = 1000;
+  int max_iterations = 3000;  ///< Newton iterations over the whole ramp; then it stops with a cause
 };
 
 struct RodSolveReport {

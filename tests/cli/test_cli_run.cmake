@@ -1,0 +1,78 @@
+# End-to-end test of `magvine run` (issue 4): the exact rod scene of the issue gives the contract outputs and the
+# elastica's tip; bad scenes exit 2 with one line and write nothing; a body pulled into the magnet exits 3.
+# Run by CTest with -DMAGVINE=... -DWORK=... -DSRC=... -DPYTHON=...
+include(${CMAKE_CURRENT_LIST_DIR}/cli_common.cmake)
+
+# 1. The issue's rod scene. Reference: the elastica solver (test_rod) puts the tip at (34.30, 42.94) mm; the
+#    acceptance tolerance is 1 % of L = 0.6 mm.
+execute_process(COMMAND ${MAGVINE} run ${SRC}/assets/scenes/rod_uniform_field.yaml --out ${WORK}/rod
+                RESULT_VARIABLE rc ERROR_VARIABLE err)
+expect_rc(${rc} 0 "rod scene: ${err}")
+execute_process(COMMAND ${PYTHON} -c "
+import csv, json, math, sys
+m = json.load(open('${WORK}/rod/metrics.json'))
+for key in ('tip_position_m', 'tip_tangent', 'bend_angle_deg', 'converged', 'iterations', 'runtime_s'):
+    assert key in m, key
+tip = m['tip_position_m']
+err = math.hypot(tip[0] - 0.03430, tip[1] - 0.04294)
+assert err < 0.6e-3, f'tip {tip} is {err*1e3:.3f} mm from the elastica'
+assert m['converged'] is True
+t = m['tip_tangent']
+angle = math.degrees(math.acos(max(-1.0, min(1.0, t[0]))))
+assert abs(angle - m['bend_angle_deg']) < 1e-9
+rows = list(csv.reader(open('${WORK}/rod/shape.csv')))
+assert rows[0] == ['s_m', 'x', 'y', 'z'], rows[0]
+assert len(rows) == 52, len(rows)
+assert abs(float(rows[-1][0]) - 0.06) < 1e-12
+" RESULT_VARIABLE rc ERROR_VARIABLE err)
+expect_rc(${rc} 0 "rod outputs: ${err}")
+
+# 2. Bad scenes: exit 2, one line naming file and key, no output folder contents.
+file(READ ${SRC}/assets/scenes/rod_uniform_field.yaml rod)
+file(READ ${SRC}/assets/scenes/skin_vine_epm.yaml vine)
+string(REPLACE "shear_modulus: 120000" "shear_modulus: -120000" negative "${rod}")
+string(REPLACE "length: 60\n" "length: 0\n" zero "${rod}")
+string(REPLACE "density: 1882" "densty: 1882" unknown "${rod}")
+string(REPLACE "pressure: 6\n" "pressure: 60\n" burst "${vine}")
+file(WRITE ${WORK}/negative.yaml "${negative}")
+file(WRITE ${WORK}/zero.yaml "${zero}")
+file(WRITE ${WORK}/unknown.yaml "${unknown}")
+file(WRITE ${WORK}/burst.yaml "${burst}")
+foreach(case "negative.yaml|robot.shear_modulus: must be > 0" "zero.yaml|robot.length: must be > 0"
+             "unknown.yaml|robot.densty: unknown key (did you mean 'density'" "burst.yaml|robot.pressure: vine: pressure")
+  string(REPLACE "|" ";" parts "${case}")
+  list(GET parts 0 scene)
+  list(GET parts 1 expect)
+  file(REMOVE_RECURSE ${WORK}/bad)
+  execute_process(COMMAND ${MAGVINE} run ${WORK}/${scene} --out ${WORK}/bad RESULT_VARIABLE rc ERROR_VARIABLE err)
+  expect_rc(${rc} 2 "${scene}: ${err}")
+  string(FIND "${err}" "${scene}" has_file)
+  string(FIND "${err}" "${expect}" has_key)
+  if(has_file EQUAL -1 OR has_key EQUAL -1)
+    message(FATAL_ERROR "${scene}: stderr '${err}' should name the file and contain '${expect}'")
+  endif()
+  string(STRIP "${err}" stripped)
+  string(FIND "${stripped}" "\n" nl)
+  if(NOT nl EQUAL -1)
+    message(FATAL_ERROR "${scene}: stderr is more than one line: '${err}'")
+  endif()
+  if(EXISTS ${WORK}/bad)
+    message(FATAL_ERROR "${scene}: output written for a bad scene")
+  endif()
+endforeach()
+
+# 3. No equilibrium in free space: the vine 90 mm from the magnet's centre is pulled into the magnet body; the
+#    solver gives up with a named cause and exit 3, and the metrics say converged: false.
+string(REPLACE "position: [140, 0, 65]" "position: [90, 0, 65]" inside "${vine}")
+file(WRITE ${WORK}/inside.yaml "${inside}")
+execute_process(COMMAND ${MAGVINE} run ${WORK}/inside.yaml --out ${WORK}/inside RESULT_VARIABLE rc ERROR_VARIABLE err)
+expect_rc(${rc} 3 "vine pulled into the magnet: ${err}")
+string(FIND "${err}" "numerical failure: static equilibrium" pos)
+if(pos EQUAL -1)
+  message(FATAL_ERROR "exit 3 without the cause: '${err}'")
+endif()
+file(READ ${WORK}/inside/metrics.json metrics)
+string(FIND "${metrics}" "\"converged\": false" pos)
+if(pos EQUAL -1)
+  message(FATAL_ERROR "metrics.json of the failed run does not say converged: false")
+endif()
