@@ -120,8 +120,20 @@ Slot rotation_slot(int edge) {
   return {edge, 3};
 }
 
+/// The inertial terms of one backward-Euler step written as an incremental potential: with predictions
+/// x̃_i = x_i + Δt v_i and R̃_j = exp(Δt [w_j]) R_j, the step minimises E + Σ m_i|x_i − x̃_i|²/(2Δt²) +
+/// Σ J_j|θ_j|²/(2Δt²), θ_j = vee((R_j R̃_jᵀ − R̃_j R_jᵀ)/2) (the rotation from the prediction, sin θ·axis).
+struct Inertia {
+  double dt = 0.0;
+  std::vector<Vec3> x;       ///< predicted nodes (x̃_0 unused: clamped)
+  std::vector<Mat3> frames;  ///< predicted frames
+  std::vector<double> mass;  ///< lumped node masses
+  double rotational = 0.0;   ///< J per edge [kg·m²]
+};
+
 /// Energy at load factor λ; adds its gradient to `sys` when given.
-double evaluate(const RodModel& m, const RodField& field, const RodState& s, double load, System* sys) {
+double evaluate(const RodModel& m, const RodField& field, const RodState& s, double load, System* sys,
+                const Inertia* inertia = nullptr) {
   const int n = m.edges;
   const double h = m.length / n;
   double energy = 0.0;
@@ -188,6 +200,25 @@ double evaluate(const RodModel& m, const RodField& field, const RodState& s, dou
       sys->add_gradient(rotation_slot(j), -f.b.cross(de_dbw));
     }
   }
+  if (inertia != nullptr) {
+    const double k = 1.0 / (inertia->dt * inertia->dt);
+    for (int i = 1; i <= n; ++i) {
+      const auto iu = static_cast<std::size_t>(i);
+      const Vec3 d = s.x[iu] - inertia->x[iu];
+      energy += 0.5 * k * inertia->mass[iu] * d.squaredNorm();
+      if (sys != nullptr) sys->add_gradient(position_slot(i), k * inertia->mass[iu] * d);
+    }
+    for (int j = 0; j < n; ++j) {
+      const auto ju = static_cast<std::size_t>(j);
+      const Mat3 p = s.frames[ju] * inertia->frames[ju].transpose();
+      const Vec3 theta = skew_axis(p);
+      energy += 0.5 * k * inertia->rotational * theta.squaredNorm();
+      if (sys != nullptr) {
+        sys->add_gradient(rotation_slot(j),
+                          k * inertia->rotational * (0.5 * (p.trace() * Mat3::Identity() - p)).transpose() * theta);
+      }
+    }
+  }
   // Gravity on lumped node masses, and the tip force.
   for (int i = 1; i <= n; ++i) {
     const double mass = m.mass_per_length * (i == n ? 0.5 * h : h);
@@ -207,7 +238,8 @@ RodState apply(const RodState& s, const VecX& delta, double t);
 /// moment's geometric stiffness and the field's curvature included; a Gauss–Newton matrix without them made Newton
 /// crawl (hundreds of iterations) at large deflections. Symmetrised: with world-frame rotation increments the
 /// derivative of the gradient differs from the Hessian by an antisymmetric part.
-void exact_hessian(const RodModel& m, const RodField& field, const RodState& s, double load, System& sys) {
+void exact_hessian(const RodModel& m, const RodField& field, const RodState& s, double load, System& sys,
+                   const Inertia* inertia) {
   const int n = m.edges;
   const double step_x = 1e-6 * m.length / n;  // relative to the edge: a strain step of 1e-6
   const double step_phi = 1e-6;
@@ -221,8 +253,8 @@ void exact_hessian(const RodModel& m, const RodField& field, const RodState& s, 
       for (int j = colour; j < n; j += 3) delta[6 * j + k] = 1.0;
       System plus(n);
       System minus(n);
-      evaluate(m, field, apply(s, delta, step), load, &plus);
-      evaluate(m, field, apply(s, delta, -step), load, &minus);
+      evaluate(m, field, apply(s, delta, step), load, &plus, inertia);
+      evaluate(m, field, apply(s, delta, -step), load, &minus, inertia);
       const VecX column = (plus.gradient - minus.gradient) / (2.0 * step);
       for (int j = colour; j < n; j += 3) {
         const auto ju = static_cast<std::size_t>(j);
@@ -390,18 +422,18 @@ void validate(const RodModel& m) {
 
 /// Newton at a fixed load factor. Returns the cause of failure, empty on success.
 std::string newton(const RodModel& m, const RodField& field, RodState& s, double load, const RodSolveOptions& o,
-                   RodSolveReport& report, int max_iterations) {
+                   RodSolveReport& report, int max_iterations, const Inertia* inertia = nullptr) {
   for (int it = 0; it < max_iterations; ++it) {
     if (report.iterations >= o.max_iterations) {
       return "iteration budget of " + std::to_string(o.max_iterations) + " Newton iterations exhausted";
     }
     System sys(m.edges);
-    const double energy = evaluate(m, field, s, load, &sys);
+    const double energy = evaluate(m, field, s, load, &sys, inertia);
     if (!std::isfinite(energy) || !sys.gradient.allFinite()) return "NaN in the energy or its gradient";
     report.gradient_norm = scaled_norm(m, sys.gradient);
     if (report.gradient_norm <= std::max(o.tolerance, noise_floor(m))) return {};
     ++report.iterations;
-    exact_hessian(m, field, s, load, sys);
+    exact_hessian(m, field, s, load, sys, inertia);
     // Levenberg damping only when the Hessian is not positive definite (near a snap, or a field against the
     // magnetisation) or the step is not a descent direction.
     VecX delta;
@@ -447,9 +479,9 @@ std::string newton(const RodModel& m, const RodField& field, RodState& s, double
     // Newton iterations with it; 1092–7196 without, and one case failed).
     const auto trial_at = [&](const VecX& step, double scale, double& e) {
       RodState trial = apply(s, step, scale);
-      e = evaluate(m, field, trial, load, nullptr);
+      e = evaluate(m, field, trial, load, nullptr, inertia);
       RodState rebuilt = rebuild_positions(trial, s, step, scale);
-      const double e_rebuilt = evaluate(m, field, rebuilt, load, nullptr);
+      const double e_rebuilt = evaluate(m, field, rebuilt, load, nullptr, inertia);
       if (std::isfinite(e_rebuilt) && !(e_rebuilt >= e)) {
         e = e_rebuilt;
         return rebuilt;
@@ -510,6 +542,7 @@ RodModel rectangular_rod(double length, double width, double thickness, double s
   m.axial_stiffness = stretch_shear_factor * e * area;
   m.shear_stiffness = stretch_shear_factor * 5.0 / 6.0 * shear_modulus * area;  // Timoshenko factor of a rectangle
   m.mass_per_length = density * area;
+  m.rotational_inertia_per_length = density * (width * std::pow(thickness, 3) + thickness * std::pow(width, 3)) / 24.0;
   if (remanence != 0.0)
     m.moment_per_length.assign(static_cast<std::size_t>(edges), remanence / kMu0 * area * direction.normalized());
   return m;
@@ -529,6 +562,7 @@ RodModel circular_rod(double length, double diameter, double shear_modulus, doub
   m.axial_stiffness = stretch_shear_factor * e * area;
   m.shear_stiffness = stretch_shear_factor * 0.9 * shear_modulus * area;  // Timoshenko 6(1+ν)/(7+6ν), ν = ½
   m.mass_per_length = density * area;
+  m.rotational_inertia_per_length = density * second_moment;
   return m;
 }
 
@@ -563,6 +597,100 @@ VecX rod_gradient(const RodModel& model, const RodField& field, const RodState& 
   System sys(model.edges);
   evaluate(model, field, state, load, &sys);
   return sys.gradient;
+}
+
+RodMotion rod_at_rest(const RodModel& model) {
+  RodMotion out;
+  out.velocity.assign(static_cast<std::size_t>(model.edges) + 1, Vec3::Zero());
+  out.angular_velocity.assign(static_cast<std::size_t>(model.edges), Vec3::Zero());
+  return out;
+}
+
+RodSolveReport step_rod_dynamics(const RodModel& model, const RodField& field, RodState& state, RodMotion& motion,
+                                 double dt, const RodSolveOptions& options) {
+  validate(model);
+  if (!(dt > 0.0) || !std::isfinite(dt)) throw InputError("rod dynamics: dt must be > 0");
+  const auto n = static_cast<std::size_t>(model.edges);
+  if (state.x.size() != n + 1 || motion.velocity.size() != n + 1 || motion.angular_velocity.size() != n) {
+    throw InputError("rod dynamics: the state or motion does not match the model's edge count");
+  }
+  const double h = model.length / model.edges;
+  Inertia inertia;
+  inertia.dt = dt;
+  inertia.rotational = model.rotational_inertia_per_length * h;
+  inertia.x.resize(n + 1);
+  inertia.mass.resize(n + 1);
+  inertia.frames.resize(n);
+  for (std::size_t i = 0; i <= n; ++i) {
+    inertia.x[i] = state.x[i] + dt * motion.velocity[i];
+    inertia.mass[i] = model.mass_per_length * (i == n ? 0.5 * h : h);
+  }
+  for (std::size_t j = 0; j < n; ++j) {
+    const Vec3 turn = dt * motion.angular_velocity[j];
+    const double angle = turn.norm();
+    inertia.frames[j] = angle > 0.0 ? Mat3(Eigen::AngleAxisd(angle, turn / angle).toRotationMatrix() * state.frames[j])
+                                    : state.frames[j];
+  }
+  RodSolveReport report;
+  RodState next = state;
+  // Start from the prediction (nodes moved by v·dt, frames turned by w·dt): Newton then only corrects.
+  for (std::size_t i = 1; i <= n; ++i) next.x[i] = inertia.x[i];
+  next.frames = inertia.frames;
+  const std::string why = newton(model, field, next, 1.0, options, report, options.max_newton * 4, &inertia);
+  if (!why.empty()) {
+    report.failure = why;
+    return report;
+  }
+  for (std::size_t i = 1; i <= n; ++i) motion.velocity[i] = (next.x[i] - state.x[i]) / dt;
+  for (std::size_t j = 0; j < n; ++j) {
+    const Eigen::AngleAxisd turn(next.frames[j] * state.frames[j].transpose());
+    motion.angular_velocity[j] = turn.angle() / dt * turn.axis();
+  }
+  state = std::move(next);
+  report.converged = true;
+  report.load_steps = 1;
+  return report;
+}
+
+RodDynamicsReport simulate_rod_dynamics(const RodModel& model, const RodField& field, RodState& state,
+                                        RodMotion& motion, double duration, const RodDynamicsOptions& options,
+                                        const std::function<void(double, const RodState&)>& observer) {
+  RodDynamicsReport out;
+  double dt = options.max_step;
+  while (out.time < duration * (1.0 - 1e-12)) {
+    dt = std::min({dt, options.max_step, duration - out.time});
+    if (dt < options.min_step) {
+      out.failure = "step fell below " + std::to_string(options.min_step) + " s at t = " + std::to_string(out.time) +
+                    " s (stiff or diverging motion)";
+      return out;
+    }
+    RodState whole = state;
+    RodMotion whole_motion = motion;
+    RodState half = state;
+    RodMotion half_motion = motion;
+    const RodSolveReport a = step_rod_dynamics(model, field, whole, whole_motion, dt);
+    const bool ok = a.converged && step_rod_dynamics(model, field, half, half_motion, 0.5 * dt).converged &&
+                    step_rod_dynamics(model, field, half, half_motion, 0.5 * dt).converged;
+    double error = std::numeric_limits<double>::infinity();
+    if (ok) {
+      error = 0.0;
+      for (std::size_t i = 0; i < state.x.size(); ++i) error = std::max(error, (whole.x[i] - half.x[i]).norm());
+      error /= model.length;
+    }
+    if (!(error <= options.tolerance)) {
+      ++out.rejected;
+      dt *= ok ? std::max(0.2, 0.9 * std::sqrt(options.tolerance / error)) : 0.25;
+      continue;
+    }
+    state = std::move(half);
+    motion = std::move(half_motion);
+    out.time += dt;
+    ++out.steps;
+    if (observer) observer(out.time, state);
+    dt *= std::min(2.0, 0.9 * std::sqrt(options.tolerance / std::max(error, 1e-300)));
+  }
+  out.completed = true;
+  return out;
 }
 
 RodSolveReport solve_rod_statics(const RodModel& model, const RodField& field, RodState& state,

@@ -67,6 +67,7 @@ RodModel vine_rod(const VineParameters& v, double stretch_shear_factor) {
   const double inner_area = kPi * inner * inner;
   m.mass_per_length = 2.0 * kPi * r * (v.wall.density * v.wall.thickness + v.skin.density * v.skin.thickness) +
                       fill_density_of(v) * inner_area;
+  m.rotational_inertia_per_length = 0.5 * m.mass_per_length * r * r;  // a thin tube (and its fill) about a diameter
   m.inflated = InflatedBending{.radius = r, .pressure = v.pressure, .flat_bending_stiffness = kPi * r * et3 / 6.0};
   if (v.skin.thickness > 0.0 && v.skin_remanence != 0.0) {
     require(v.skin_direction.norm() > 0.0, "skin magnetisation direction must not be zero");

@@ -68,6 +68,7 @@ struct RodModel {
   double axial_stiffness = 0.0;      ///< EA [N]
   double shear_stiffness = 0.0;      ///< κGA [N]
   double mass_per_length = 0.0;      ///< ρA [kg/m]
+  double rotational_inertia_per_length = 0.0;  ///< ρI about a transverse axis [kg·m] (dynamics only)
   /// Magnetic moment per unit length of each edge in its body frame [A·m] (= M·A); empty: not magnetic.
   std::vector<Vec3> moment_per_length;
   Vec3 base_position = Vec3::Zero();
@@ -136,6 +137,43 @@ RodSolveReport solve_rod_statics(const RodModel& model, const RodField& field, R
 /// Bending moment |M| at each joint [N·m]: joint 0 between the clamp and edge 0 (at x_0), joint j between edges
 /// j − 1 and j (at x_j), from the stored energy's derivative (the inflated-beam law for a vine).
 std::vector<double> joint_bending_moments(const RodModel& model, const RodState& state);
+
+/// Node velocities and edge angular velocities (world frame) for the dynamics.
+struct RodMotion {
+  std::vector<Vec3> velocity;          ///< N + 1 [m/s] (node 0: clamped, zero)
+  std::vector<Vec3> angular_velocity;  ///< N [rad/s]
+};
+
+/// At rest.
+RodMotion rod_at_rest(const RodModel& model);
+
+/// One backward-Euler step of length dt [s] (implicit, unconditionally stable; it damps modes with ω·dt ≳ 1), solved
+/// as the minimisation of the incremental potential (lumped node masses ρA·h, rotational inertia ρI·h per edge) by
+/// the same Newton solver as the statics. Updates state and motion; on failure both are left unchanged and the
+/// report names the cause.
+RodSolveReport step_rod_dynamics(const RodModel& model, const RodField& field, RodState& state, RodMotion& motion,
+                                 double dt, const RodSolveOptions& options = {});
+
+struct RodDynamicsOptions {
+  double max_step = 1e-3;    ///< [s]
+  double min_step = 1e-9;    ///< below this the run stops with a cause
+  double tolerance = 1e-4;   ///< local error of a step (node positions, step doubling) in units of L
+};
+
+struct RodDynamicsReport {
+  bool completed = false;
+  int steps = 0;        ///< accepted steps
+  int rejected = 0;     ///< steps halved for accuracy or failed Newton
+  double time = 0.0;    ///< reached [s]
+  std::string failure;  ///< empty when completed
+};
+
+/// Advances by `duration` with steps chosen for accuracy: each step of dt is compared with two of dt/2, accepted
+/// (the two halves kept) when the largest node difference is below tolerance·L, and the next dt scaled from the
+/// error (backward Euler's local error is O(dt²)). Calls `observer(time, state)` after every accepted step when given.
+RodDynamicsReport simulate_rod_dynamics(const RodModel& model, const RodField& field, RodState& state,
+                                        RodMotion& motion, double duration, const RodDynamicsOptions& options = {},
+                                        const std::function<void(double, const RodState&)>& observer = {});
 
 /// Total potential energy [J] and its gradient with respect to (δx_1, δφ_0, δx_2, δφ_1, …) (6 per edge, node j+1's
 /// position then edge j's rotation increment, world frame) at load factor `load` — exposed for the derivative
