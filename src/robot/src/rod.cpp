@@ -41,10 +41,11 @@ struct System {
   std::vector<Mat6> diag;
   std::vector<Mat6> sub;
 
-  explicit System(int blocks)
+  /// `with_hessian` false: the gradient only (the finite-difference columns need no blocks).
+  explicit System(int blocks, bool with_hessian = true)
       : gradient(VecX::Zero(6 * blocks)),
-        diag(static_cast<std::size_t>(blocks), Mat6::Zero()),
-        sub(static_cast<std::size_t>(blocks), Mat6::Zero()) {}
+        diag(with_hessian ? static_cast<std::size_t>(blocks) : 0, Mat6::Zero()),
+        sub(with_hessian ? static_cast<std::size_t>(blocks) : 0, Mat6::Zero()) {}
 
   void add_gradient(const Slot& s, const Vec3& g) {
     if (s.block >= 0) gradient.segment<3>(6 * s.block + s.offset) += g;
@@ -246,13 +247,16 @@ void exact_hessian(const RodModel& m, const RodField& field, const RodState& s, 
   std::vector<Mat6> diag(static_cast<std::size_t>(n), Mat6::Zero());
   std::vector<Mat6> lower(static_cast<std::size_t>(n), Mat6::Zero());  // H(j, j − 1)
   std::vector<Mat6> upper(static_cast<std::size_t>(n), Mat6::Zero());  // H(j − 1, j)
+  System plus(n, false);
+  System minus(n, false);
+  VecX delta(6 * n);
   for (int colour = 0; colour < 3; ++colour) {
     for (int k = 0; k < 6; ++k) {
       const double step = k < 3 ? step_x : step_phi;
-      VecX delta = VecX::Zero(6 * n);
+      delta.setZero();
       for (int j = colour; j < n; j += 3) delta[6 * j + k] = 1.0;
-      System plus(n);
-      System minus(n);
+      plus.gradient.setZero();
+      minus.gradient.setZero();
       evaluate(m, field, apply(s, delta, step), load, &plus, inertia);
       evaluate(m, field, apply(s, delta, -step), load, &minus, inertia);
       const VecX column = (plus.gradient - minus.gradient) / (2.0 * step);
