@@ -52,12 +52,15 @@ bench: deps
 	$(BUILD)/tests/bench/bench_distance --benchmark_filter='point/aabb/mean|capsule/aabb/mean|build/aabb/mean'
 	$(BUILD)/tests/bench/bench_rod
 
-# Regenerates the README figures in docs/figures (field-model and phantom-meshing error against runtime, ~30 s).
+# Regenerates the README figures in docs/figures (field-model and phantom-meshing error against runtime, the robot
+# mechanics validation; ~3 min).
 figures: build
 	$(BUILD)/src/cli/magvine study field-models --magnets assets/magnets/epm_n52.yaml --out docs/figures
 	$(PYTHON) tools/plot_field_models.py docs/figures --out docs/figures/field_models.png
 	$(BUILD)/src/cli/magvine study phantom-meshing --out docs/figures
 	$(PYTHON) tools/plot_meshing_study.py docs/figures --out docs/figures/meshing_study.png
+	$(BUILD)/src/cli/magvine validate --out docs/figures
+	$(PYTHON) tools/plot_mechanics.py docs/figures
 
 format:
 	find src tests -name '*.?pp' | xargs clang-format -i

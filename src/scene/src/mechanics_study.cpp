@@ -195,7 +195,7 @@ void run_fluid_vine_study(const std::filesystem::path& dir) {
   csv.precision(9);
   summary.precision(6);
   csv << "law,diameter_mm,pressure_kPa,d_mm,angle_deg,iterations,converged\n";
-  summary << "law,diameter_mm,pressure_kPa,critical_d_mm,max_angle_deg,B_mT_at_critical,dB_dd_mT_per_m_at_critical,"
+  summary << "law,diameter_mm,pressure_kPa,critical_d_mm,snap_deg,max_angle_deg,B_mT_at_critical,dB_dd_mT_per_m_at_critical,"
              "thesis_critical_d_mm,thesis_max_angle_deg\n";
   const double thesis_angle[] = {52.0, 59.0, 51.0};
   for (const robot::FluidLaw law : {robot::FluidLaw::kBounded, robot::FluidLaw::kThesis}) {
@@ -231,25 +231,25 @@ void run_fluid_vine_study(const std::filesystem::path& dir) {
           csv << law_name << ',' << diameter * 1e3 << ',' << pressure / kKpaToPa << ',' << d_mm << ',' << angle << ','
               << report.iterations << ',' << (report.converged ? 1 : 0) << '\n';
         }
-        // Critical distance: the middle of the largest angle increase between neighbouring distances.
-        double jump = -1.0;
+        // Critical distance: the farthest distance (approaching from afar) at which the bend reaches 20°, where the
+        // thesis saw it "deflect sharply"; the snap is the largest angle increase between neighbouring distances.
+        double snap = 0.0;
         double critical = NAN;
         double largest = 0.0;
         for (std::size_t i = 0; i < curve.size(); ++i) {
           largest = std::max(largest, curve[i].second);
-          if (i > 0 && curve[i].second - curve[i - 1].second > jump) {
-            jump = curve[i].second - curve[i - 1].second;
-            critical = 0.5 * (curve[i].first + curve[i - 1].first);
-          }
+          if (std::isnan(critical) && curve[i].second >= 20.0) critical = curve[i].first;
+          if (i > 0) snap = std::max(snap, curve[i].second - curve[i - 1].second);
         }
         const magnetics::FieldModel magnet = epm(Vec3(critical * kMmToM, 0.0, kLength), Vec3(-Vec3::UnitX()));
         const magnetics::FieldSample at_tip = magnetics::field_gradient(magnet, magnet.rest_poses, Vec3(0, 0, kLength));
-        summary << law_name << ',' << diameter * 1e3 << ',' << pressure / kKpaToPa << ',' << critical << ','
-                << largest << ',' << at_tip.b.norm() * 1e3 << ','
+        summary << law_name << ',' << diameter * 1e3 << ',' << pressure / kKpaToPa << ',' << critical << ',' << snap
+                << ',' << largest << ',' << at_tip.b.norm() * 1e3 << ','
                 << std::abs(at_tip.b.normalized().dot(at_tip.g * Vec3::UnitX())) * 1e3 << ",160,"
                 << thesis_angle[k] << '\n';
         std::cerr << "  fluid vine " << law_name << " Ø" << diameter * 1e3 << " mm at " << pressure / kKpaToPa
-                  << " kPa: snaps at " << critical << " mm, largest angle " << largest << " deg\n";
+                  << " kPa: 20° reached at " << critical << " mm (largest jump " << snap << "°), largest angle " << largest
+                  << "°\n";
       }
     }
   }

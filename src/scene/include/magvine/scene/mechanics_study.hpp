@@ -7,8 +7,9 @@
 ///    torque and gradient setups at 1, 6 and 12 kPa against the two-stage reference model (thesis 4.5), bending
 ///    angle against EPM distance, with where each creases;
 ///  - fluid_vine.csv: magnetic-fluid vines (Ø4, 5, 7 mm, 50 mm, vertical) at their growing pressure and half of it,
-///    bounded and thesis fluid laws, bending angle against EPM distance; fluid_vine_summary.csv: the distance where
-///    each snaps and its largest angle, next to the thesis's ≈160 mm and 52/59/51°.
+///    bounded and thesis fluid laws, bending angle against EPM distance; fluid_vine_summary.csv: the farthest
+///    distance where each bends 20° or more, its largest jump between neighbouring distances (the snap) and its
+///    largest angle, next to the thesis's ≈160 mm and 52/59/51°.
 
 #include <filesystem>
 
