@@ -14,6 +14,7 @@
 #include "magvine/robot/elastica.hpp"
 #include "magvine/robot/inflated_beam.hpp"
 #include "magvine/robot/vine.hpp"
+#include "support/rod_derivatives.hpp"
 
 namespace magvine::robot {
 namespace {
@@ -89,25 +90,7 @@ TEST(Vine, GradientMatchesFiniteDifferencesOfTheEnergy) {
                         .toRotationMatrix() *
                     (j > 0 ? s.frames[j - 1] : s.frames[j]);
     }
-    const VecX g = rod_gradient(m, field, s);
-    for (Eigen::Index k = 0; k < g.size(); ++k) {
-      const auto block = static_cast<std::size_t>(k / 6);
-      const int axis = static_cast<int>(k % 3);
-      const bool rotation = (k % 6) >= 3;
-      const double step = rotation ? 1e-6 : 1e-9;
-      const auto shifted = [&](double d) {
-        RodState t = s;
-        if (rotation) {
-          t.frames[block] = Eigen::AngleAxisd(d, Vec3::Unit(axis)).toRotationMatrix() * t.frames[block];
-        } else {
-          t.x[block + 1][axis] += d;
-        }
-        return rod_energy(m, field, t);
-      };
-      const double fd = (shifted(step) - shifted(-step)) / (2.0 * step);
-      EXPECT_NEAR(g[k], fd, 1e-6 * (std::abs(fd) + g.cwiseAbs().maxCoeff() * 1e-3))
-          << "unknown " << k << (fill == FillKind::kAir ? " (air)" : " (fluid)");
-    }
+    testing::expect_gradient_matches_energy(m, field, s, fill == FillKind::kAir ? "air" : "fluid");
   }
 }
 

@@ -5,7 +5,6 @@
 #include <algorithm>
 #include <chrono>
 #include <cmath>
-#include <fstream>
 #include <sstream>
 
 #include "magnet_entries.hpp"
@@ -266,11 +265,7 @@ FreeSpaceScene parse_free_space_scene(const std::string& text, const std::string
 }
 
 FreeSpaceScene load_free_space_scene(const std::filesystem::path& file) {
-  std::ifstream in(file, std::ios::binary);
-  if (!in) throw InputError(file.string(), 0, "", "cannot open scene file");
-  std::ostringstream ss;
-  ss << in.rdbuf();
-  return parse_free_space_scene(ss.str(), file.string());
+  return parse_free_space_scene(read_text_file(file.string(), "scene file"), file.string());
 }
 
 FreeSpaceResult solve_free_space(const FreeSpaceScene& scene) {

@@ -1,8 +1,6 @@
 #include "magvine/scene/magnets_file.hpp"
 
 #include <cmath>
-#include <fstream>
-#include <sstream>
 
 #include "magvine/core/error.hpp"
 #include "magvine/core/units.hpp"
@@ -143,11 +141,7 @@ FieldModel parse_magnet_list(const YamlMap& parent, double unit) {
 }
 
 FieldModel load_magnets_file(const std::filesystem::path& file) {
-  std::ifstream in(file, std::ios::binary);
-  if (!in) throw InputError(file.string(), 0, "", "cannot open magnets file");
-  std::ostringstream ss;
-  ss << in.rdbuf();
-  return parse_magnets(ss.str(), file.string());
+  return parse_magnets(read_text_file(file.string(), "magnets file"), file.string());
 }
 
 }  // namespace magvine::scene

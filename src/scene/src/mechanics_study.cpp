@@ -121,65 +121,72 @@ void run_rod_convergence_study(const std::filesystem::path& dir) {
   write_file_atomically(dir / "rod_convergence.csv", csv.str());
 }
 
-void run_vine_deflection_study(const std::filesystem::path& dir) {
+VineDeflectionPoint vine_deflection_point(bool torque, double pressure, double distance, int edges) {
   constexpr double kOffset = 65e-3;  // h: EPM centre above the base (thesis 4.7.1)
-  constexpr int kEdges = 40;
+  const robot::VineParameters v = skin_mvr(pressure, edges);
+  RodModel m = robot::vine_rod(v);
+  m.base_frame.col(0) = Vec3::UnitZ();
+  m.base_frame.col(1) = torque ? Vec3::UnitX() : Vec3::UnitY();  // the skin's m̂ (body y) in or across the plane
+  m.base_frame.col(2) = m.base_frame.col(0).cross(m.base_frame.col(1));
+  m.gravity = Vec3(0.0, 0.0, -9.81);
+  const double moment = m.moment_per_length.front().norm();
+  // Torque: EPM axis vertical, field at the body ≈ −z across the skin's +x; gradient: EPM moment along −y, so the
+  // field at the body is along the skin's +y and pulls it towards the magnet.
+  const magnetics::FieldModel magnet =
+      epm(Vec3(distance, 0.0, kOffset), torque ? Vec3::UnitZ() : Vec3(-Vec3::UnitY()));
+  const RodField field = robot::field_function(magnet, magnet.rest_poses);
+  RodState s = robot::straight_rod(m);
+  const robot::RodSolveReport report = robot::solve_rod_statics(m, field, s);
+  const std::vector<double> moments = robot::joint_bending_moments(m, s);
+  const double m_c = robot::collapse_moment(v.radius, v.pressure);
+  VineDeflectionPoint out;
+  out.converged = report.converged;
+  out.iterations = report.iterations;
+  out.angle_deg = chord_angle(s.tip() - m.base_position);
+  out.creased = std::any_of(moments.begin(), moments.end(), [m_c](double x) { return x >= m_c; });
+  // The two-stage reference: loads of the straight body (the same field), stage 2 with the body turned.
+  const Vec3 m_hat = torque ? Vec3::UnitX() : Vec3::UnitY();
+  robot::TwoStageLoads loads;
+  loads.force = [&](double u) {
+    const magnetics::FieldSample f = field(Vec3(0.0, 0.0, u));
+    return (f.g.transpose() * (moment * m_hat)).x();
+  };
+  loads.torque = [&](double u) { return (moment * m_hat).cross(field(Vec3(0.0, 0.0, u)).b).y(); };
+  loads.creased_base_moment = [&](double theta) {
+    const Vec3 axis(std::sin(theta), 0.0, std::cos(theta));
+    const Vec3 mh = torque ? Vec3(std::cos(theta), 0.0, -std::sin(theta)) : Vec3::UnitY();
+    double total = 0.0;
+    const int n = 200;
+    for (int i = 0; i <= n; ++i) {
+      const double u = v.length * i / n;
+      const Vec3 p = u * axis;
+      const magnetics::FieldSample f = field(p);
+      const Vec3 force = f.g.transpose() * (moment * mh) + m.mass_per_length * m.gravity;
+      const double per_length = p.cross(force).y() + (moment * mh).cross(f.b).y();
+      total += (i == 0 || i == n ? 0.5 : 1.0) * per_length * v.length / n;
+    }
+    return total;
+  };
+  const robot::TwoStageResult ref = robot::solve_two_stage(
+      {.radius = v.radius, .pressure = v.pressure, .bending_stiffness = m.bending_stiffness_3, .length = v.length},
+      loads, 400);
+  out.two_stage_angle_deg = ref.angle / kDegToRad;
+  out.two_stage_stage = ref.stage;
+  return out;
+}
+
+void run_vine_deflection_study(const std::filesystem::path& dir) {
   std::ostringstream csv;
   csv.precision(9);
   csv << "setup,pressure_kPa,d_mm,angle_deg,creased,two_stage_angle_deg,two_stage_stage,iterations,converged\n";
   for (const std::string setup : {"torque", "gradient"}) {
-    const bool torque = setup == "torque";
     for (const double kpa : {1.0, 6.0, 12.0}) {
-      const robot::VineParameters v = skin_mvr(kpa * kKpaToPa, kEdges);
-      RodModel m = robot::vine_rod(v);
-      m.base_frame.col(0) = Vec3::UnitZ();
-      m.base_frame.col(1) = torque ? Vec3::UnitX() : Vec3::UnitY();  // the skin's m̂ (body y) in or across the plane
-      m.base_frame.col(2) = m.base_frame.col(0).cross(m.base_frame.col(1));
-      m.gravity = Vec3(0.0, 0.0, -9.81);
-      const double moment = m.moment_per_length.front().norm();
       // d > L + R_EPM: the body cannot reach the magnet (no contact in free space).
       for (double d_mm = 300.0; d_mm >= 132.0; d_mm -= 4.0) {
-        const double d = d_mm * kMmToM;
-        // Torque: EPM axis vertical, field at the body ≈ −z across the skin's +x; gradient: EPM moment along −y,
-        // so the field at the body is along the skin's +y and pulls it towards the magnet.
-        const magnetics::FieldModel magnet =
-            epm(Vec3(d, 0.0, kOffset), torque ? Vec3::UnitZ() : Vec3(-Vec3::UnitY()));
-        const RodField field = robot::field_function(magnet, magnet.rest_poses);
-        RodState s = robot::straight_rod(m);
-        const robot::RodSolveReport report = robot::solve_rod_statics(m, field, s);
-        const std::vector<double> moments = robot::joint_bending_moments(m, s);
-        const double m_c = robot::collapse_moment(v.radius, v.pressure);
-        const bool creased = std::any_of(moments.begin(), moments.end(), [m_c](double x) { return x >= m_c; });
-        // The two-stage reference: loads of the straight body (the same field), stage 2 with the body turned.
-        const Vec3 m_hat = torque ? Vec3::UnitX() : Vec3::UnitY();
-        robot::TwoStageLoads loads;
-        loads.force = [&](double u) {
-          const magnetics::FieldSample f = field(Vec3(0.0, 0.0, u));
-          return (f.g.transpose() * (moment * m_hat)).x();
-        };
-        loads.torque = [&](double u) { return (moment * m_hat).cross(field(Vec3(0.0, 0.0, u)).b).y(); };
-        loads.creased_base_moment = [&](double theta) {
-          const Vec3 axis(std::sin(theta), 0.0, std::cos(theta));
-          const Vec3 mh = torque ? Vec3(std::cos(theta), 0.0, -std::sin(theta)) : Vec3::UnitY();
-          double total = 0.0;
-          const int n = 200;
-          for (int i = 0; i <= n; ++i) {
-            const double u = v.length * i / n;
-            const Vec3 p = u * axis;
-            const magnetics::FieldSample f = field(p);
-            const Vec3 force = f.g.transpose() * (moment * mh) + m.mass_per_length * m.gravity;
-            const double per_length = p.cross(force).y() + (moment * mh).cross(f.b).y();
-            total += (i == 0 || i == n ? 0.5 : 1.0) * per_length * v.length / n;
-          }
-          return total;
-        };
-        const robot::TwoStageResult ref = robot::solve_two_stage(
-            {.radius = v.radius, .pressure = v.pressure, .bending_stiffness = m.bending_stiffness_3,
-             .length = v.length},
-            loads, 400);
-        csv << setup << ',' << kpa << ',' << d_mm << ',' << chord_angle(s.tip() - m.base_position) << ','
-            << (creased ? 1 : 0) << ',' << ref.angle / kDegToRad << ',' << ref.stage << ',' << report.iterations
-            << ',' << (report.converged ? 1 : 0) << '\n';
+        const VineDeflectionPoint p = vine_deflection_point(setup == "torque", kpa * kKpaToPa, d_mm * kMmToM);
+        csv << setup << ',' << kpa << ',' << d_mm << ',' << p.angle_deg << ',' << (p.creased ? 1 : 0) << ','
+            << p.two_stage_angle_deg << ',' << p.two_stage_stage << ',' << p.iterations << ','
+            << (p.converged ? 1 : 0) << '\n';
       }
       std::cerr << "  vine " << setup << " " << kpa << " kPa done\n";
     }

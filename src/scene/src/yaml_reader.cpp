@@ -1,6 +1,7 @@
 #include "yaml_reader.hpp"
 
 #include <cmath>
+#include <fstream>
 #include <sstream>
 
 #include "magvine/core/error.hpp"
@@ -11,6 +12,14 @@ namespace magvine::scene {
 int line_of(const YAML::Node& node) {
   const YAML::Mark mark = node.Mark();
   return mark.line >= 0 ? mark.line + 1 : 0;
+}
+
+std::string read_text_file(const std::string& file, const std::string& what) {
+  std::ifstream in(file, std::ios::binary);
+  if (!in) throw InputError(file, 0, "", "cannot open " + what);
+  std::ostringstream ss;
+  ss << in.rdbuf();
+  return ss.str();
 }
 
 YAML::Node parse_yaml(const std::string& text, const std::string& file) {

@@ -48,6 +48,9 @@ class YamlMap {
   std::string m_path;
 };
 
+/// The whole file as text; InputError "cannot open <what>" naming the file otherwise.
+std::string read_text_file(const std::string& file, const std::string& what);
+
 /// Parses YAML text; syntax errors become InputError with the file and line.
 YAML::Node parse_yaml(const std::string& text, const std::string& file);
 /// Line (1-based) of a node, 0 when unknown.

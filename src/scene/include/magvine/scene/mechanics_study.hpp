@@ -16,6 +16,17 @@
 namespace magvine::scene {
 
 void run_rod_convergence_study(const std::filesystem::path& dir);
+
+/// One point of the skin-MVR study: the simulator and the two-stage model at EPM distance d [m], pressure [Pa].
+struct VineDeflectionPoint {
+  double angle_deg = 0.0;            ///< chord angle of the tip from the base direction (thesis: asin(y(l)/l))
+  bool creased = false;              ///< some joint carries the collapse moment πR³P
+  bool converged = false;
+  int iterations = 0;
+  double two_stage_angle_deg = 0.0;
+  int two_stage_stage = 1;
+};
+VineDeflectionPoint vine_deflection_point(bool torque_setup, double pressure, double distance, int edges = 40);
 void run_vine_deflection_study(const std::filesystem::path& dir);
 void run_fluid_vine_study(const std::filesystem::path& dir);
 
