@@ -2,7 +2,8 @@
 // The acceptance beam of issue 4 (60 × 3 × 3 mm, G 120 kPa, Br 0.125 T, ρ 1882 kg/m³), clamped horizontally,
 // gravity on, from the straight state each time:
 //   /uniform  10 mT perpendicular to the beam;
-//   /dipole   the thesis EPM (N52, Ø101.6 × 101.6 mm) as a dipole 200 mm below the midpoint.
+//   /dipole   the thesis EPM (N52, Ø101.6 × 101.6 mm) as a dipole 200 mm below the midpoint;
+//   /dipole warm  the same, each solve starting from the previous equilibrium with the EPM moved by 1 mm.
 // Counter `iterations` = Newton iterations per solve.
 //
 //   cmake --build build-bench --target bench_rod && build-bench/tests/bench/bench_rod
@@ -50,8 +51,39 @@ void BM_RodDipole(benchmark::State& state) {
   bench(state, field_function(magnets, magnets.rest_poses));
 }
 
+/// Warm start, as in a simulation loop: the EPM moves 1 mm between solves (alternating between two positions) and
+/// each equilibrium starts from the previous one.
+void BM_RodDipoleWarm(benchmark::State& state) {
+  const int edges = static_cast<int>(state.range(0));
+  RodModel m = rectangular_rod(60e-3, 3e-3, 3e-3, 120e3, 1882.0, 0.125, Vec3::UnitX(), edges);
+  m.gravity = Vec3(0.0, -9.81, 0.0);
+  const double radius = 50.8e-3;
+  RodField fields[2];
+  for (int k = 0; k < 2; ++k) {
+    magnetics::FieldModel magnets;
+    magnets.add(magnetics::DipoleSource{Vec3(0.0, 0.0, 1.45 * kPi * radius * radius * 2.0 * radius / kMu0)},
+                magnetics::Pose::from_axis(Vec3(30e-3 + 1e-3 * k, -0.2, 0.0), Vec3::UnitY()));
+    fields[k] = field_function(magnets, magnets.rest_poses);
+  }
+  RodState s = straight_rod(m);
+  if (!solve_rod_statics(m, fields[0], s).converged) state.SkipWithError("cold solve failed");
+  int k = 1;
+  int iterations = 0;
+  int solves = 0;
+  for (auto _ : state) {
+    const RodSolveReport r = solve_rod_statics(m, fields[k], s);
+    if (!r.converged) state.SkipWithError(r.failure.c_str());
+    iterations += r.iterations;
+    ++solves;
+    k = 1 - k;
+    benchmark::DoNotOptimize(s.x.back());
+  }
+  state.counters["iterations"] = solves > 0 ? static_cast<double>(iterations) / solves : 0.0;
+}
+
 }  // namespace
 
 BENCHMARK(BM_RodUniform)->Arg(100)->Unit(benchmark::kMillisecond);
 BENCHMARK(BM_RodDipole)->Arg(100)->Unit(benchmark::kMillisecond);
+BENCHMARK(BM_RodDipoleWarm)->Arg(100)->Unit(benchmark::kMillisecond);
 BENCHMARK_MAIN();

@@ -705,11 +705,22 @@ RodSolveReport solve_rod_statics(const RodModel& model, const RodField& field, R
     throw InputError("rod: the state does not match the model's edge count");
   }
   RodSolveReport report;
+  // Warm start: the full load from the caller's state (the previous equilibrium of a simulation loop, or the
+  // straight rod). Only when that fails does the ramp start over from the unloaded state.
+  if (options.min_load_steps <= 1) {
+    RodState trial = state;
+    if (newton(model, field, trial, 1.0, options, report, options.max_newton).empty()) {
+      state = std::move(trial);
+      report.load_steps = 1;
+      report.converged = true;
+      return report;
+    }
+  }
   double load = 0.0;
-  double step = 1.0 / options.min_load_steps;
+  double step = 1.0 / std::max(2, options.min_load_steps);
   const double min_step = 1.0 / options.max_load_steps;
   // The unloaded state first (it may not be at rest if the caller's state is not).
-  if (std::string why = newton(model, field, state, 0.0, options, report, options.max_newton); !why.empty()) {
+  if (std::string why = newton(model, field, state, 0.0, options, report, options.max_snap_newton); !why.empty()) {
     report.failure = "unloaded rod: " + why;
     return report;
   }
