@@ -3,7 +3,8 @@
 // gravity on, from the straight state each time:
 //   /uniform  10 mT perpendicular to the beam;
 //   /dipole   the thesis EPM (N52, Ø101.6 × 101.6 mm) as a dipole 200 mm below the midpoint;
-//   /dipole warm  the same, each solve starting from the previous equilibrium with the EPM moved by 1 mm.
+//   /dipole warm  the same, each solve starting from the previous equilibrium with the EPM moved by 1 mm;
+//                 second argument 1: with a RodWorkspace (the previous Hessian reused for chord steps).
 // Counter `iterations` = Newton iterations per solve.
 //
 //   cmake --build build-bench --target bench_rod && build-bench/tests/bench/bench_rod
@@ -66,24 +67,29 @@ void BM_RodDipoleWarm(benchmark::State& state) {
     fields[k] = field_function(magnets, magnets.rest_poses);
   }
   RodState s = straight_rod(m);
-  if (!solve_rod_statics(m, fields[0], s).converged) state.SkipWithError("cold solve failed");
+  RodWorkspace workspace;
+  RodWorkspace* ws = state.range(1) != 0 ? &workspace : nullptr;
+  if (!solve_rod_statics(m, fields[0], s, {}, ws).converged) state.SkipWithError("cold solve failed");
   int k = 1;
   int iterations = 0;
+  int hessians = 0;
   int solves = 0;
   for (auto _ : state) {
-    const RodSolveReport r = solve_rod_statics(m, fields[k], s);
+    const RodSolveReport r = solve_rod_statics(m, fields[k], s, {}, ws);
     if (!r.converged) state.SkipWithError(r.failure.c_str());
     iterations += r.iterations;
+    hessians += r.hessians;
     ++solves;
     k = 1 - k;
     benchmark::DoNotOptimize(s.x.back());
   }
   state.counters["iterations"] = solves > 0 ? static_cast<double>(iterations) / solves : 0.0;
+  state.counters["hessians"] = solves > 0 ? static_cast<double>(hessians) / solves : 0.0;
 }
 
 }  // namespace
 
 BENCHMARK(BM_RodUniform)->Arg(100)->Unit(benchmark::kMillisecond);
 BENCHMARK(BM_RodDipole)->Arg(100)->Unit(benchmark::kMillisecond);
-BENCHMARK(BM_RodDipoleWarm)->Arg(100)->Unit(benchmark::kMillisecond);
+BENCHMARK(BM_RodDipoleWarm)->Args({100, 0})->Args({100, 1})->Unit(benchmark::kMillisecond);
 BENCHMARK_MAIN();

@@ -202,6 +202,37 @@ TEST(Rod, PhysicalStretchAndShearMoveTheTipByAboutOnePercentUnderTheEpm) {
   EXPECT_LT(tip_error(kNearInextensible), 0.004);
 }
 
+TEST(Rod, WorkspaceReusesTheHessianAndReachesTheSameEquilibria) {
+  // A simulation-like sequence: the EPM (dipole, 150 mm below) steps 2 mm at a time along the beam; each solve
+  // starts from the previous equilibrium. With a workspace (chord steps on the previous Hessian) the equilibria
+  // must be those of plain Newton (both stop at the same gradient tolerance: ~1e-9 L apart; asserted 1e-7 L) with
+  // fewer Hessians than iterations.
+  const double radius = 50.8e-3;
+  RodModel m = acceptance_rod();
+  m.gravity = Vec3(0.0, -9.81, 0.0);
+  RodState plain = straight_rod(m);
+  RodState reused = plain;
+  RodWorkspace workspace;
+  int iterations = 0;
+  int hessians = 0;
+  for (int k = 0; k < 8; ++k) {
+    magnetics::FieldModel magnets;
+    magnets.add(magnetics::DipoleSource{Vec3(0.0, 0.0, 1.45 * kPi * radius * radius * 2.0 * radius / kMu0)},
+                magnetics::Pose::from_axis(Vec3(0.02 + 2e-3 * k, -0.15, 0.0), Vec3::UnitY()));
+    const RodField field = field_function(magnets, magnets.rest_poses);
+    ASSERT_TRUE(solve_rod_statics(m, field, plain).converged) << k;
+    const RodSolveReport r = solve_rod_statics(m, field, reused, {}, &workspace);
+    ASSERT_TRUE(r.converged) << k << ": " << r.failure;
+    EXPECT_LT((plain.tip() - reused.tip()).norm(), 1e-7 * kLength) << k;
+    if (k > 0) {
+      iterations += r.iterations;
+      hessians += r.hessians;
+    }
+  }
+  std::printf("  warm solves with a workspace: %d iterations, %d Hessians\n", iterations, hessians);
+  EXPECT_LT(hessians, iterations);
+}
+
 TEST(Rod, BadModelsAreRejected) {
   RodModel m = acceptance_rod();
   m.length = 0.0;

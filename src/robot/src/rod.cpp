@@ -424,9 +424,30 @@ void validate(const RodModel& m) {
   }
 }
 
-/// Newton at a fixed load factor. Returns the cause of failure, empty on success.
+}  // namespace
+
+struct RodWorkspace::Impl {
+  int edges = -1;  ///< the Hessian below belongs to a rod of this many edges (−1: none yet)
+  std::vector<Mat6> diag;
+  std::vector<Mat6> sub;
+};
+
+RodWorkspace::RodWorkspace() : impl(std::make_unique<Impl>()) {}
+RodWorkspace::~RodWorkspace() = default;
+RodWorkspace::RodWorkspace(RodWorkspace&&) noexcept = default;
+RodWorkspace& RodWorkspace::operator=(RodWorkspace&&) noexcept = default;
+
+namespace {
+
+/// Newton at a fixed load factor. Returns the cause of failure, empty on success. With a workspace, chord steps
+/// reuse its Hessian until one fails to cut the gradient by a fifth (or to factor, to descend, or to pass the line
+/// search); then it is recomputed.
 std::string newton(const RodModel& m, const RodField& field, RodState& s, double load, const RodSolveOptions& o,
-                   RodSolveReport& report, int max_iterations, const Inertia* inertia = nullptr) {
+                   RodSolveReport& report, int max_iterations, const Inertia* inertia = nullptr,
+                   RodWorkspace::Impl* ws = nullptr) {
+  bool fresh = ws == nullptr || ws->edges != m.edges;
+  bool last_was_chord = false;
+  double previous_norm = std::numeric_limits<double>::infinity();
   for (int it = 0; it < max_iterations; ++it) {
     if (report.iterations >= o.max_iterations) {
       return "iteration budget of " + std::to_string(o.max_iterations) + " Newton iterations exhausted";
@@ -436,22 +457,46 @@ std::string newton(const RodModel& m, const RodField& field, RodState& s, double
     if (!std::isfinite(energy) || !sys.gradient.allFinite()) return "NaN in the energy or its gradient";
     report.gradient_norm = scaled_norm(m, sys.gradient);
     if (report.gradient_norm <= std::max(o.tolerance, noise_floor(m))) return {};
+    if (last_was_chord && report.gradient_norm > 0.8 * previous_norm) fresh = true;
+    previous_norm = report.gradient_norm;
     ++report.iterations;
-    exact_hessian(m, field, s, load, sys, inertia);
+    bool chord = !fresh;
+    const auto refresh = [&] {
+      exact_hessian(m, field, s, load, sys, inertia);
+      ++report.hessians;
+      chord = false;
+      if (ws != nullptr) {
+        ws->diag = sys.diag;
+        ws->sub = sys.sub;
+        ws->edges = m.edges;
+      }
+    };
+    if (chord) {
+      sys.diag = ws->diag;
+      sys.sub = ws->sub;
+    } else {
+      refresh();
+    }
     // Levenberg damping only when the Hessian is not positive definite (near a snap, or a field against the
-    // magnetisation) or the step is not a descent direction.
+    // magnetisation) or the step is not a descent direction; a chord Hessian that needs it is recomputed first.
     VecX delta;
     double mu = 0.0;
     BlockFactor factor;
     for (;;) {
       if (factor.factor(sys, mu) && factor.solve(-sys.gradient, delta) && sys.gradient.dot(delta) < 0.0) break;
+      if (chord) {
+        refresh();
+        continue;
+      }
       mu = mu == 0.0 ? 1e-9 : 4.0 * mu;
       if (mu > 1e8) return "no descent direction";
     }
+    last_was_chord = chord;
+    fresh = ws == nullptr;
     // Converged when the undamped Newton step itself is below 1e-10 rad and 1e-10 L: the gradient can stall above
     // its tolerance from round-off alone (the strains of short edges carry ~1e-16·N relative error, times a stiff
     // EA), while the step the exact model asks for is already negligible.
-    if (mu == 0.0) {
+    if (mu == 0.0 && !chord) {
       double turn = 0.0;
       double move = 0.0;
       for (Eigen::Index j = 0; j < m.edges; ++j) {
@@ -519,6 +564,11 @@ std::string newton(const RodModel& m, const RodField& field, RodState& s, double
       }
     }
     if (!std::isfinite(e_next)) {
+      if (chord) {  // the old Hessian misled the step: recompute it and try again
+        fresh = true;
+        last_was_chord = false;
+        continue;
+      }
       // At round-off the energy cannot resolve the last digits; accept a nearly converged state.
       return report.gradient_norm <= 1e3 * o.tolerance ? std::string{} : "line search failed";
     }
@@ -698,7 +748,8 @@ RodDynamicsReport simulate_rod_dynamics(const RodModel& model, const RodField& f
 }
 
 RodSolveReport solve_rod_statics(const RodModel& model, const RodField& field, RodState& state,
-                                 const RodSolveOptions& options) {
+                                 const RodSolveOptions& options, RodWorkspace* workspace) {
+  RodWorkspace::Impl* ws = workspace != nullptr ? workspace->impl.get() : nullptr;
   validate(model);
   if (state.x.size() != static_cast<std::size_t>(model.edges) + 1 ||
       state.frames.size() != static_cast<std::size_t>(model.edges)) {
@@ -709,7 +760,7 @@ RodSolveReport solve_rod_statics(const RodModel& model, const RodField& field, R
   // straight rod). Only when that fails does the ramp start over from the unloaded state.
   if (options.min_load_steps <= 1) {
     RodState trial = state;
-    if (newton(model, field, trial, 1.0, options, report, options.max_newton).empty()) {
+    if (newton(model, field, trial, 1.0, options, report, options.max_newton, nullptr, ws).empty()) {
       state = std::move(trial);
       report.load_steps = 1;
       report.converged = true;
@@ -720,14 +771,14 @@ RodSolveReport solve_rod_statics(const RodModel& model, const RodField& field, R
   double step = 1.0 / std::max(2, options.min_load_steps);
   const double min_step = 1.0 / options.max_load_steps;
   // The unloaded state first (it may not be at rest if the caller's state is not).
-  if (std::string why = newton(model, field, state, 0.0, options, report, options.max_snap_newton); !why.empty()) {
+  if (std::string why = newton(model, field, state, 0.0, options, report, options.max_snap_newton, nullptr, ws); !why.empty()) {
     report.failure = "unloaded rod: " + why;
     return report;
   }
   while (load < 1.0) {
     const double next = std::min(1.0, load + step);
     RodState trial = state;
-    std::string why = newton(model, field, trial, next, options, report, options.max_newton);
+    std::string why = newton(model, field, trial, next, options, report, options.max_newton, nullptr, ws);
     if (!why.empty() && report.iterations >= options.max_iterations) {
       report.failure = "at load factor " + std::to_string(load) + ": " + why;
       return report;
@@ -737,7 +788,7 @@ RodSolveReport solve_rod_statics(const RodModel& model, const RodField& field, R
       // last one, however small the load step; the energy still decreases along Newton's steps, so follow them to
       // the next stable branch.
       trial = state;
-      why = newton(model, field, trial, next, options, report, options.max_snap_newton);
+      why = newton(model, field, trial, next, options, report, options.max_snap_newton, nullptr, ws);
       if (why.empty()) ++report.snaps;
     }
     if (why.empty()) {

@@ -21,6 +21,7 @@
 /// an exhausted ramp stop with a named cause.
 
 #include <functional>
+#include <memory>
 #include <optional>
 #include <string>
 #include <vector>
@@ -124,15 +125,29 @@ struct RodSolveReport {
   bool converged = false;
   int iterations = 0;  ///< Newton iterations summed over the ramp
   int load_steps = 0;
-  int snaps = 0;  ///< limit points passed (see RodSolveOptions::snap_step)
+  int snaps = 0;     ///< limit points passed (see RodSolveOptions::snap_step)
+  int hessians = 0;  ///< Hessians computed (fewer than iterations with a RodWorkspace)
   double gradient_norm = 0.0;  ///< scaled, at the end
   std::string failure;         ///< empty when converged; otherwise the cause (NaN, no descent, ramp exhausted)
 };
 
-/// Moves `state` to static equilibrium under the model's loads and `field` (empty: none), starting from `state`.
-/// Throws InputError for an invalid model.
+/// Scratch kept between solves of one rod (a simulation loop): the last Hessian, reused for chord steps from a
+/// nearby state and recomputed whenever a chord step fails to cut the gradient by a fifth. One per solver thread.
+class RodWorkspace {
+ public:
+  RodWorkspace();
+  ~RodWorkspace();
+  RodWorkspace(RodWorkspace&&) noexcept;
+  RodWorkspace& operator=(RodWorkspace&&) noexcept;
+  struct Impl;
+  std::unique_ptr<Impl> impl;
+};
+
+/// Moves `state` to static equilibrium under the model's loads and `field` (empty: none), starting from `state`
+/// (the full load first; the ramp from the unloaded state when that fails). With a workspace, Newton reuses the
+/// previous Hessian while it keeps reducing the gradient. Throws InputError for an invalid model.
 RodSolveReport solve_rod_statics(const RodModel& model, const RodField& field, RodState& state,
-                                 const RodSolveOptions& options = {});
+                                 const RodSolveOptions& options = {}, RodWorkspace* workspace = nullptr);
 
 /// Bending moment |M| at each joint [N·m]: joint 0 between the clamp and edge 0 (at x_0), joint j between edges
 /// j − 1 and j (at x_j), from the stored energy's derivative (the inflated-beam law for a vine).
