@@ -237,7 +237,9 @@ FreeSpaceScene parse_free_space_scene(const std::string& text, const std::string
       scene.model = robot::vine_rod(*scene.vine);
     } catch (const InputError& e) {
       const std::string what = e.what();
-      robot.fail(what.find("burst") != std::string::npos ? "pressure" : "kind", what);
+      const bool burst = what.find("burst") != std::string::npos;
+      const bool walls = what.find("thinner than the radius") != std::string::npos;
+      robot.fail(burst ? "pressure" : (walls ? "diameter" : "kind"), what);
     }
   } else {
     robot.fail("kind", "must be rod or vine (got '" + scene.kind + "')");
