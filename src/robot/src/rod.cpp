@@ -228,6 +228,21 @@ double evaluate(const RodModel& m, const RodField& field, const RodState& s, dou
     energy -= f.dot(s.x[static_cast<std::size_t>(i)]);
     if (sys != nullptr) sys->add_gradient(position_slot(i), -f);
   }
+  // A tip moment M (world frame) on the last edge: U = −M·φ with φ = log(R_N R_baseᵀ), the rotation vector from the
+  // clamp (exact for moments about a fixed axis, e.g. planar bending). dφ/dδφ = J_l⁻¹(φ) =
+  // I − ½[φ] + (1/θ² − (1 + cos θ)/(2θ sin θ))[φ]².
+  if (!m.tip_moment.isZero()) {
+    const Eigen::AngleAxisd turn(s.frames.back() * m.base_frame.transpose());
+    const Vec3 phi = turn.angle() * turn.axis();
+    energy -= load * m.tip_moment.dot(phi);
+    if (sys != nullptr) {
+      const double theta = turn.angle();
+      const double c = theta < 1e-4 ? 1.0 / 12.0 + theta * theta / 720.0
+                                     : 1.0 / (theta * theta) - (1.0 + std::cos(theta)) / (2.0 * theta * std::sin(theta));
+      const Mat3 inverse_jacobian = Mat3::Identity() - 0.5 * skew(phi) + c * skew(phi) * skew(phi);
+      sys->add_gradient(rotation_slot(n - 1), -load * inverse_jacobian.transpose() * m.tip_moment);
+    }
+  }
   return energy;
 }
 

@@ -10,7 +10,8 @@
 /// as a joint folds back (ψ → π). A vine replaces the bending part (about d2, d3) by the inflated-beam law
 /// (InflatedBending). The loads are potentials: a hard-magnetic edge of moment m_j = R_j m̂_j (m̂_j = M_j A h in the
 /// body frame) has U = −m_j·B(midpoint), so its torque is m × B and its force Gᵀm (PHYSICS.md §2); a soft-magnetic
-/// fill (InducedMagnetisation) has U = −V∫M·dB; gravity acts on lumped node masses; a tip force on x_N.
+/// fill (InducedMagnetisation) has U = −V∫M·dB; gravity acts on lumped node masses; a tip force on x_N and a tip
+/// moment on the last edge.
 /// Equilibrium minimises the total potential energy.
 ///
 /// Solver: Newton steps on the increments (δx_i, δφ_j) (frames updated by R ← exp([δφ]) R). The Hessian is block
@@ -76,6 +77,7 @@ struct RodModel {
   Mat3 base_frame = Mat3::Identity();  ///< columns: tangent, normal, binormal at the clamp
   Vec3 gravity = Vec3::Zero();         ///< [m/s²]
   Vec3 tip_force = Vec3::Zero();       ///< [N]
+  Vec3 tip_moment = Vec3::Zero();      ///< [N·m], world frame, on the last edge (U = −M·φ, φ its rotation vector)
   /// A vine: the inflated-beam law replaces the linear bending about d2 and d3 (EI_2 = EI_3 = the wall's EI).
   std::optional<InflatedBending> inflated;
   std::optional<InducedMagnetisation> induced;  ///< a soft-magnetic fill
