@@ -23,7 +23,8 @@ def read(path):
         with open(path, newline="") as f:
             return list(csv.DictReader(f))
     except OSError as e:
-        sys.exit(f"plot_mechanics: {path}: {e.strerror}")
+        print(f"plot_mechanics: {path}: {e.strerror}", file=sys.stderr)
+        sys.exit(2)
 
 
 def rod(dir_):
@@ -98,7 +99,8 @@ def fluid(dir_):
 
 def main():
     if len(sys.argv) != 2:
-        sys.exit("usage: plot_mechanics.py DIR")
+        print("usage: plot_mechanics.py DIR", file=sys.stderr)
+        sys.exit(2)
     try:
         rod(sys.argv[1])
         vine(sys.argv[1])

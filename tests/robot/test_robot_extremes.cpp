@@ -7,6 +7,7 @@
 
 #include <cmath>
 #include <cstdio>
+#include <string>
 
 #include "magvine/core/units.hpp"
 #include "magvine/magnetics/field_model.hpp"
@@ -25,6 +26,7 @@ RodField uniform(const Vec3& b) {
   };
 }
 
+/// Every node finite.
 bool finite(const RodState& s) {
   for (const Vec3& x : s.x) {
     if (!x.allFinite()) return false;
@@ -41,8 +43,8 @@ Outcome solve(const RodModel& m, const RodField& field) {
   Outcome o{straight_rod(m), {}};
   o.report = solve_rod_statics(m, field, o.state);
   EXPECT_TRUE(finite(o.state));
-  EXPECT_TRUE(o.report.converged || !o.report.failure.empty());
-  EXPECT_LT(o.report.iterations, 5000);
+  EXPECT_TRUE(o.report.converged || !o.report.failure.empty());  // a failure always names its cause
+  EXPECT_LE(o.report.iterations, RodSolveOptions{}.max_iterations);
   return o;
 }
 
@@ -115,6 +117,13 @@ TEST(RobotExtremes, MagnetOneMillimetreFromTheBody) {
   std::printf("  %s after %d iterations; tip (%.2f, %.2f) mm\n",
               a.report.converged ? "converged" : a.report.failure.c_str(), a.report.iterations,
               1e3 * a.state.tip().x(), 1e3 * a.state.tip().y());
+  // Measured: the beam is pulled into the magnet (no free-space equilibrium without contact); the solver stops at
+  // its iteration budget with that cause and keeps the last equilibrium, already bent towards the magnet.
+  EXPECT_LE(a.report.iterations, RodSolveOptions{}.max_iterations);
+  if (!a.report.converged) {
+    EXPECT_NE(a.report.failure.find("iteration budget"), std::string::npos) << a.report.failure;
+  }
+  EXPECT_LT(a.state.tip().y(), 0.0);
 }
 
 VineParameters horizontal_vine(double pressure) {

@@ -84,9 +84,6 @@ double joint_energy(const RodModel& m, double ell, const Vec3& omega, Vec3& stre
     const NormalisedBending w = normalised_inflated_bending(k);
     energy += ell * collapse * collapse / ei * w.energy;
     per_kappa += k <= 0.5 ? ell * ei : ell * collapse * w.moment / kappa;
-    const double t = 0.5 * ell * kappa;  // tan(ψ/2)
-    energy += 2.0 * collapse * (t - std::atan(t));
-    per_kappa += collapse * ell * (0.25 * ell * ell * kappa) / (1.0 + t * t);
   }
   stress += per_kappa * bend;
   return energy;
@@ -643,8 +640,11 @@ std::vector<double> joint_bending_moments(const RodModel& model, const RodState&
     const double ell = j == 0 ? 0.5 * h : h;
     const Mat3 q = ra.transpose() * state.frames[static_cast<std::size_t>(j)];
     Vec3 stress;
-    joint_energy(model, ell, joint_strain(q, ell), stress);
-    out.push_back(stress.tail<2>().norm() / ell);
+    const Vec3 omega = joint_strain(q, ell);
+    joint_energy(model, ell, omega, stress);
+    // dW/dψ = dW/dκ · dκ/dψ with κ = 2 tan(ψ/2)/ℓ: the stress over ℓ times 1 + tan²(ψ/2).
+    const double t = 0.5 * ell * omega.tail<2>().norm();
+    out.push_back(stress.tail<2>().norm() / ell * (1.0 + t * t));
   }
   return out;
 }

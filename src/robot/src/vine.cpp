@@ -6,12 +6,13 @@
 
 #include "magvine/core/error.hpp"
 #include "magvine/core/units.hpp"
+#include "magvine/robot/inflated_beam.hpp"
 
 namespace magvine::robot {
 namespace {
 
-void require(bool ok, const std::string& what) {
-  if (!ok) throw InputError("vine: " + what);
+void require(bool ok, const char* parameter, const std::string& what) {
+  if (!ok) throw VineParameterError(parameter, "vine: " + what);
 }
 
 double fill_density_of(const VineParameters& v) {
@@ -33,20 +34,20 @@ double pressure_tip_force(const VineParameters& v) { return v.pressure * kPi * v
 
 RodModel vine_rod(const VineParameters& v, double stretch_shear_factor) {
   const auto finite_positive = [](double x) { return x > 0.0 && std::isfinite(x); };
-  require(finite_positive(v.length), "length must be > 0");
-  require(finite_positive(v.radius), "radius must be > 0");
-  require(v.pressure >= 0.0 && std::isfinite(v.pressure), "pressure must be >= 0");
-  require(finite_positive(v.wall.thickness), "wall thickness must be > 0");
-  require(finite_positive(v.wall.modulus), "wall modulus must be > 0");
-  require(v.wall.density >= 0.0, "wall density must be >= 0");
-  require(v.skin.thickness >= 0.0 && v.skin.modulus >= 0.0 && v.skin.density >= 0.0,
+  require(finite_positive(v.length), "length", "length must be > 0");
+  require(finite_positive(v.radius), "diameter", "radius must be > 0");
+  require(v.pressure >= 0.0 && std::isfinite(v.pressure), "pressure", "pressure must be >= 0");
+  require(finite_positive(v.wall.thickness), "wall", "wall thickness must be > 0");
+  require(finite_positive(v.wall.modulus), "wall", "wall modulus must be > 0");
+  require(v.wall.density >= 0.0, "wall", "wall density must be >= 0");
+  require(v.skin.thickness >= 0.0 && v.skin.modulus >= 0.0 && v.skin.density >= 0.0, "skin",
           "skin thickness, modulus and density must be >= 0");
-  require(v.wall.thickness + v.skin.thickness < v.radius, "wall and skin must be thinner than the radius");
-  require(finite_positive(v.wall_strength), "wall strength must be > 0");
-  require(v.edges >= 1, "edges must be >= 1");
-  require(v.volume_fraction > 0.0 && v.volume_fraction < 1.0, "fluid volume fraction must be in (0, 1)");
+  require(v.wall.thickness + v.skin.thickness < v.radius, "diameter", "wall and skin must be thinner than the radius");
+  require(finite_positive(v.wall_strength), "wall", "wall strength must be > 0");
+  require(v.edges >= 1, "nodes", "edges must be >= 1");
+  require(v.volume_fraction > 0.0 && v.volume_fraction < 1.0, "fill", "fluid volume fraction must be in (0, 1)");
   if (hoop_stress(v) > v.wall_strength) {
-    throw InputError("vine: pressure " + std::to_string(v.pressure / kKpaToPa) + " kPa is above burst: hoop stress " +
+    throw VineParameterError("pressure", "vine: pressure " + std::to_string(v.pressure / kKpaToPa) + " kPa is above burst: hoop stress " +
                      std::to_string(hoop_stress(v) / 1e6) + " MPa exceeds the wall strength " +
                      std::to_string(v.wall_strength / 1e6) + " MPa (burst at " +
                      std::to_string(v.wall_strength * v.wall.thickness / v.radius / kKpaToPa) + " kPa)");
@@ -70,9 +71,9 @@ RodModel vine_rod(const VineParameters& v, double stretch_shear_factor) {
   m.rotational_inertia_per_length = 0.5 * m.mass_per_length * r * r;  // a thin tube (and its fill) about a diameter
   m.inflated = InflatedBending{.radius = r, .pressure = v.pressure, .flat_bending_stiffness = kPi * r * et3 / 6.0};
   if (v.skin.thickness > 0.0 && v.skin_remanence != 0.0) {
-    require(v.skin_direction.norm() > 0.0, "skin magnetisation direction must not be zero");
+    require(v.skin_direction.norm() > 0.0, "skin", "skin magnetisation direction must not be zero");
     const Vec3 d = v.skin_direction.normalized();
-    require(std::abs(d.x()) < 1e-6,
+    require(std::abs(d.x()) < 1e-6, "skin",
             "skin magnetisation must be orthogonal to the body axis (axial magnetisation cancels on eversion, "
             "thesis 4.4.2)");
     m.moment_per_length.assign(static_cast<std::size_t>(v.edges),
@@ -98,6 +99,20 @@ RodModel vine_rod(const VineParameters& v, double stretch_shear_factor) {
     m.induced = f;
   }
   return m;
+}
+
+VineBendState vine_bend_state(const RodModel& vine, const RodState& state) {
+  VineBendState out;
+  if (!vine.inflated) return out;
+  const double m_w = wrinkling_moment(vine.inflated->radius, vine.inflated->pressure);
+  const double m_c = collapse_moment(vine.inflated->radius, vine.inflated->pressure);
+  const double h = vine.length / vine.edges;
+  const std::vector<double> moments = joint_bending_moments(vine, state);
+  for (std::size_t i = 0; i < moments.size(); ++i) {
+    if (moments[i] > m_w) out.wrinkled_length += i == 0 ? 0.5 * h : h;
+    out.creased = out.creased || (m_c > 0.0 && moments[i] >= m_c);
+  }
+  return out;
 }
 
 }  // namespace magvine::robot

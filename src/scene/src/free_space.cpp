@@ -104,10 +104,18 @@ std::vector<Vec3> magnetisation_of(const YamlMap& robot, double length, double u
   }
   std::vector<Vec3> out(static_cast<std::size_t>(edges), Vec3::Zero());
   const double h = length / edges;
-  for (int j = 0; j < edges; ++j) {
-    const double mid = (j + 0.5) * h;
-    for (const Section& s : sections) {
-      if (mid >= s.from && mid < s.to) out[static_cast<std::size_t>(j)] = s.moment;
+  for (std::size_t i = 0; i < sections.size(); ++i) {
+    int covered = 0;
+    for (int j = 0; j < edges; ++j) {
+      const double mid = (j + 0.5) * h;
+      if (mid >= sections[i].from && mid < sections[i].to) {
+        out[static_cast<std::size_t>(j)] = sections[i].moment;
+        ++covered;
+      }
+    }
+    if (covered == 0) {
+      const YamlMap s(list[i], robot.file(), robot.key_path("magnetisation[" + std::to_string(i) + "]"));
+      s.fail("to", "the section holds no edge midpoint at this node spacing: give more nodes");
     }
   }
   return out;
@@ -235,11 +243,8 @@ FreeSpaceScene parse_free_space_scene(const std::string& text, const std::string
     scene.vine = parse_vine(robot, unit, stress_unit);
     try {
       scene.model = robot::vine_rod(*scene.vine);
-    } catch (const InputError& e) {
-      const std::string what = e.what();
-      const bool burst = what.find("burst") != std::string::npos;
-      const bool walls = what.find("thinner than the radius") != std::string::npos;
-      robot.fail(burst ? "pressure" : (walls ? "diameter" : "kind"), what);
+    } catch (const robot::VineParameterError& e) {
+      robot.fail(robot.has(e.parameter()) ? e.parameter() : "kind", e.what());
     }
   } else {
     robot.fail("kind", "must be rod or vine (got '" + scene.kind + "')");
@@ -301,24 +306,16 @@ void write_free_space_outputs(const FreeSpaceScene& scene, const FreeSpaceResult
   j["nodes"] = m.edges + 1;
   j["gradient_norm"] = result.report.gradient_norm;
   j["failure"] = result.report.failure;
-  j["max_bending_moment_Nm"] = moments.empty() ? 0.0 : *std::max_element(moments.begin(), moments.end());
+  j["max_bending_moment_Nm"] = *std::max_element(moments.begin(), moments.end());
   if (scene.vine) {
     const robot::VineParameters& v = *scene.vine;
-    const double m_w = robot::wrinkling_moment(v.radius, v.pressure);
-    const double m_c = robot::collapse_moment(v.radius, v.pressure);
-    const double h = m.length / m.edges;
-    double wrinkled = 0.0;
-    bool creased = false;
-    for (std::size_t i = 0; i < moments.size(); ++i) {
-      if (moments[i] > m_w) wrinkled += i == 0 ? 0.5 * h : h;
-      creased = creased || (m_c > 0.0 && moments[i] >= m_c);
-    }
+    const robot::VineBendState bend = robot::vine_bend_state(m, s);
     j["pressure_Pa"] = v.pressure;
     j["axial_tension_N"] = robot::pressure_tip_force(v);
-    j["wrinkling_moment_Nm"] = m_w;
-    j["collapse_moment_Nm"] = m_c;
-    j["wrinkled_length_m"] = wrinkled;
-    j["creased"] = creased;
+    j["wrinkling_moment_Nm"] = robot::wrinkling_moment(v.radius, v.pressure);
+    j["collapse_moment_Nm"] = robot::collapse_moment(v.radius, v.pressure);
+    j["wrinkled_length_m"] = bend.wrinkled_length;
+    j["creased"] = bend.creased;
   }
   create_output_directory(dir);
   std::ostringstream csv;

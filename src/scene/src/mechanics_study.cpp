@@ -137,13 +137,11 @@ VineDeflectionPoint vine_deflection_point(bool torque, double pressure, double d
   const RodField field = robot::field_function(magnet, magnet.rest_poses);
   RodState s = robot::straight_rod(m);
   const robot::RodSolveReport report = robot::solve_rod_statics(m, field, s);
-  const std::vector<double> moments = robot::joint_bending_moments(m, s);
-  const double m_c = robot::collapse_moment(v.radius, v.pressure);
   VineDeflectionPoint out;
   out.converged = report.converged;
   out.iterations = report.iterations;
   out.angle_deg = chord_angle(s.tip() - m.base_position);
-  out.creased = std::any_of(moments.begin(), moments.end(), [m_c](double x) { return x >= m_c; });
+  out.creased = robot::vine_bend_state(m, s).creased;
   // The two-stage reference: loads of the straight body (the same field), stage 2 with the body turned.
   const Vec3 m_hat = torque ? Vec3::UnitX() : Vec3::UnitY();
   robot::TwoStageLoads loads;
@@ -248,12 +246,17 @@ void run_fluid_vine_study(const std::filesystem::path& dir) {
           if (std::isnan(critical) && curve[i].second >= 20.0) critical = curve[i].first;
           if (i > 0) snap = std::max(snap, curve[i].second - curve[i - 1].second);
         }
-        const magnetics::FieldModel magnet = epm(Vec3(critical * kMmToM, 0.0, kLength), Vec3(-Vec3::UnitX()));
-        const magnetics::FieldSample at_tip = magnetics::field_gradient(magnet, magnet.rest_poses, Vec3(0, 0, kLength));
-        summary << law_name << ',' << diameter * 1e3 << ',' << pressure / kKpaToPa << ',' << critical << ',' << snap
-                << ',' << largest << ',' << at_tip.b.norm() * 1e3 << ','
-                << std::abs(at_tip.b.normalized().dot(at_tip.g * Vec3::UnitX())) * 1e3 << ",160,"
-                << thesis_angle[k] << '\n';
+        summary << law_name << ',' << diameter * 1e3 << ',' << pressure / kKpaToPa << ',';
+        if (std::isnan(critical)) {
+          summary << ',' << snap << ',' << largest << ",,,";  // never reaches 20° on the grid: no critical distance
+        } else {
+          const magnetics::FieldModel magnet = epm(Vec3(critical * kMmToM, 0.0, kLength), Vec3(-Vec3::UnitX()));
+          const magnetics::FieldSample at_tip =
+              magnetics::field_gradient(magnet, magnet.rest_poses, Vec3(0, 0, kLength));
+          summary << critical << ',' << snap << ',' << largest << ',' << at_tip.b.norm() * 1e3 << ','
+                  << std::abs(at_tip.b.normalized().dot(at_tip.g * Vec3::UnitX())) * 1e3 << ',';
+        }
+        summary << "160," << thesis_angle[k] << '\n';
         std::cerr << "  fluid vine " << law_name << " Ø" << diameter * 1e3 << " mm at " << pressure / kKpaToPa
                   << " kPa: 20° reached at " << critical << " mm (largest jump " << snap << "°), largest angle " << largest
                   << "°\n";

@@ -72,7 +72,7 @@ struct TwoStageResult {
   double base_moment = 0.0;      ///< M_e(0) of stage 1 [N·m]
 };
 
-/// Solves the two-stage model (Simpson's rule with `intervals` steps for stage 1). Throws InputError for
+/// Solves the two-stage model (trapezoids with `intervals` steps for stage 1). Throws InputError for
 /// non-positive radius, pressure, stiffness or length.
 TwoStageResult solve_two_stage(const TwoStageVine& vine, const TwoStageLoads& loads, int intervals = 2000);
 

@@ -36,12 +36,12 @@ namespace magvine::robot {
 using RodField = std::function<magnetics::FieldSample(const Vec3&)>;
 
 /// Bending of a pressurised thin-walled tube (PHYSICS.md §3, inflated_beam.hpp), per joint of bend angle ψ over ℓ
-/// with curvature κ = |ω_bend|:
-///   W = ℓ (M_c²/EI) Φ(κ EI/M_c) + ½ ℓ EI_flat κ² + 2 M_c (tan(ψ/2) − ψ/2),   M_c = πR³P,
+/// with curvature κ = |ω_bend| = 2 tan(ψ/2)/ℓ:
+///   W = ℓ (M_c²/EI) Φ(κ EI/M_c) + ½ ℓ EI_flat κ²,   M_c = πR³P,
 /// the first term the wrinkling law of eq 4.6/4.8 (linear to M_w = M_c/2, softening to the collapse M_c), the second
-/// the collapsed (flat) film, which is all that is left at P = 0, and the third the crease hinge of eq 4.13: its
-/// moment M_c tan²(ψ/2) added to the wrinkled moment (→ M_c) gives M_c(1 + tan²(ψ/2)) at a crease. For a smooth
-/// bend ψ = κℓ → 0 with the node spacing, so the crease term vanishes under refinement and acts only at kinks.
+/// the collapsed (flat) film, which is all that is left at P = 0. The joint's moment is dW/dψ = M(κ)(1 + tan²(ψ/2)):
+/// once the section has collapsed (M(κ) → M_c) this is the crease hinge of eq 4.13, M_c(1 + tan²(θ/2)), with no
+/// further term; for a smooth bend ψ = κℓ → 0 under refinement and it is the continuum law.
 struct InflatedBending {
   double radius = 0.0;                   ///< R [m]
   double pressure = 0.0;                 ///< P [Pa], ≥ 0
@@ -77,7 +77,9 @@ struct RodModel {
   Mat3 base_frame = Mat3::Identity();  ///< columns: tangent, normal, binormal at the clamp
   Vec3 gravity = Vec3::Zero();         ///< [m/s²]
   Vec3 tip_force = Vec3::Zero();       ///< [N]
-  Vec3 tip_moment = Vec3::Zero();      ///< [N·m], world frame, on the last edge (U = −M·φ, φ its rotation vector)
+  /// [N·m], world frame, on the last edge: U = −M·φ, φ the last edge's rotation vector from the clamp, so valid while
+  /// the tip turns less than half a turn (φ jumps at π).
+  Vec3 tip_moment = Vec3::Zero();
   /// A vine: the inflated-beam law replaces the linear bending about d2 and d3 (EI_2 = EI_3 = the wall's EI).
   std::optional<InflatedBending> inflated;
   std::optional<InducedMagnetisation> induced;  ///< a soft-magnetic fill
@@ -112,7 +114,10 @@ struct RodState {
 RodState straight_rod(const RodModel& model);
 
 struct RodSolveOptions {
-  double tolerance = 1e-9;    ///< on the gradient, relative to EI/L² (forces) and EI/L (torques)
+  /// On the gradient, relative to EI/L² (forces) and EI/L (torques); never below the round-off floor of the stiff
+  /// stretch terms (~1e3 ε EA L²/EI, 1.1e-6 for the 60 × 3 × 3 mm beam), and a Newton step under 1e-10 (rad, L)
+  /// also counts as converged.
+  double tolerance = 1e-9;
   int max_newton = 15;        ///< per load step (then the load step halves: cheaper than damped crawling)
   int min_load_steps = 1;     ///< the ramp starts with steps of 1/min_load_steps (1: the full load at once)
   int max_load_steps = 1024;  ///< gives up when the ramp would need more
@@ -151,8 +156,8 @@ class RodWorkspace {
 RodSolveReport solve_rod_statics(const RodModel& model, const RodField& field, RodState& state,
                                  const RodSolveOptions& options = {}, RodWorkspace* workspace = nullptr);
 
-/// Bending moment |M| at each joint [N·m]: joint 0 between the clamp and edge 0 (at x_0), joint j between edges
-/// j − 1 and j (at x_j), from the stored energy's derivative (the inflated-beam law for a vine).
+/// Bending moment |M| = dW/dψ at each joint [N·m]: joint 0 between the clamp and edge 0 (at x_0), joint j between
+/// edges j − 1 and j (at x_j), from the stored energy's derivative (the inflated-beam law for a vine).
 std::vector<double> joint_bending_moments(const RodModel& model, const RodState& state);
 
 /// Node velocities and edge angular velocities (world frame) for the dynamics.

@@ -17,6 +17,9 @@
 /// PR/t_wall above the wall's strength is refused.
 
 #include <string>
+#include <utility>
+
+#include "magvine/core/error.hpp"
 
 #include "magvine/robot/rod.hpp"
 
@@ -60,9 +63,27 @@ double hoop_stress(const VineParameters& v);
 /// The axial wall tension PπR² [N] that balances the pressure on the tip.
 double pressure_tip_force(const VineParameters& v);
 
-/// Builds the rod model of a vine (base frame, gravity, tip force left at their defaults). Throws InputError for
-/// bad parameters (non-positive sizes, a skin direction along the tangent, a pressure above burst), with the name of
-/// the offending parameter.
+/// Where a vine's wall has wrinkled and whether it has creased, from its joint moments (joint_bending_moments).
+struct VineBendState {
+  double wrinkled_length = 0.0;  ///< total length of joints carrying more than M_w = πR³P/2 [m]
+  bool creased = false;          ///< some joint carries the collapse moment πR³P
+};
+VineBendState vine_bend_state(const RodModel& vine, const RodState& state);
+
+/// A bad vine parameter: InputError with the parameter's name (length, diameter, pressure, wall, skin, fill, nodes).
+class VineParameterError : public InputError {
+ public:
+  VineParameterError(std::string parameter, const std::string& message)
+      : InputError(message), m_parameter(std::move(parameter)) {}
+  const std::string& parameter() const { return m_parameter; }
+
+ private:
+  std::string m_parameter;
+};
+
+/// Builds the rod model of a vine (base frame, gravity, tip force left at their defaults). Throws
+/// VineParameterError for bad parameters (non-positive sizes, walls thicker than the radius, a skin direction along
+/// the tangent, a pressure above burst).
 RodModel vine_rod(const VineParameters& v, double stretch_shear_factor = kNearInextensible);
 
 }  // namespace magvine::robot
