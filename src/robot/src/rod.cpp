@@ -165,37 +165,30 @@ double evaluate(const RodModel& m, const RodField& field, const RodState& s, dou
                    ra.transpose();
     add_stress<2>(sys, stress, {Slot{j == 0 ? -1 : j - 1, 3}, rotation_slot(j)}, {Mat3(-d), d});
   }
-  // Magnetic edges: U = −m·B at the midpoint.
-  if (field && !m.moment_per_length.empty()) {
+  // Magnetic edges, with the field sampled once per edge midpoint: a hard moment m_j = R_j m̂_j h has U = −m·B; a
+  // soft-magnetic fill has U = V e(R_jᵀB). With w = dU/dB (world) = −m + V R de/db, the force on each end node is
+  // −½Gᵀw and the rotation gradient w × B (the torque m × B of the hard and the induced moment).
+  const bool hard = !m.moment_per_length.empty();
+  const double volume = m.induced ? load * m.induced->volume_per_length * h : 0.0;
+  if (field && (hard || volume > 0.0)) {
     for (int j = 0; j < n; ++j) {
       const auto ju = static_cast<std::size_t>(j);
-      const Vec3 mj = load * h * (s.frames[ju] * m.moment_per_length[ju]);
-      if (mj.isZero()) continue;
+      const Mat3& r = s.frames[ju];
+      const Vec3 mj = hard ? Vec3(load * h * (r * m.moment_per_length[ju])) : Vec3::Zero();
+      if (mj.isZero() && volume == 0.0) continue;
       const magnetics::FieldSample f = field(0.5 * (s.x[ju] + s.x[ju + 1]));
       energy -= mj.dot(f.b);
+      Vec3 w = -mj;
+      if (volume > 0.0) {
+        Vec3 de_db;
+        energy += volume * fill_energy_density(*m.induced, r.transpose() * f.b, de_db);
+        w += volume * (r * de_db);
+      }
       if (sys == nullptr) continue;
-      const Vec3 force = 0.5 * f.g.transpose() * mj;  // Gᵀm, half on each end node
-      sys->add_gradient(position_slot(j), -force);
-      sys->add_gradient(position_slot(j + 1), -force);
-      sys->add_gradient(rotation_slot(j), -mj.cross(f.b));  // the torque m × B
-    }
-  }
-  // A soft-magnetic fill: U = V e(R_jᵀB) at the midpoint; force −V Gᵀ(R de/db), half on each end node, and the
-  // rotation gradient −V B × (R de/db) (the torque m × B of the induced moment m = −V R de/db).
-  if (field && m.induced) {
-    const double volume = load * m.induced->volume_per_length * h;
-    for (int j = 0; j < n && volume > 0.0; ++j) {
-      const auto ju = static_cast<std::size_t>(j);
-      const Mat3& r = s.frames[ju];
-      const magnetics::FieldSample f = field(0.5 * (s.x[ju] + s.x[ju + 1]));
-      Vec3 de_db;
-      energy += volume * fill_energy_density(*m.induced, r.transpose() * f.b, de_db);
-      if (sys == nullptr) continue;
-      const Vec3 de_dbw = volume * (r * de_db);
-      const Vec3 half_gradient = 0.5 * f.g.transpose() * de_dbw;
+      const Vec3 half_gradient = 0.5 * f.g.transpose() * w;
       sys->add_gradient(position_slot(j), half_gradient);
       sys->add_gradient(position_slot(j + 1), half_gradient);
-      sys->add_gradient(rotation_slot(j), -f.b.cross(de_dbw));
+      sys->add_gradient(rotation_slot(j), w.cross(f.b));
     }
   }
   if (inertia != nullptr) {

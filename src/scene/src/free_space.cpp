@@ -3,13 +3,13 @@
 #include <nlohmann/json.hpp>
 
 #include <algorithm>
-#include <chrono>
 #include <cmath>
 #include <sstream>
 
 #include "magnet_entries.hpp"
 #include "magvine/core/atomic_file.hpp"
 #include "magvine/core/error.hpp"
+#include "magvine/core/stopwatch.hpp"
 #include "magvine/core/units.hpp"
 #include "magvine/robot/elastica.hpp"
 #include "magvine/robot/inflated_beam.hpp"
@@ -280,9 +280,9 @@ FreeSpaceResult solve_free_space(const FreeSpaceScene& scene) {
   out.state = robot::straight_rod(scene.model);
   robot::RodField field;
   if (scene.magnets) field = robot::field_function(*scene.magnets, scene.magnets->rest_poses);
-  const auto start = std::chrono::steady_clock::now();
+  const Stopwatch clock;
   out.report = robot::solve_rod_statics(scene.model, field, out.state, scene.solver);
-  out.runtime_s = std::chrono::duration<double>(std::chrono::steady_clock::now() - start).count();
+  out.runtime_s = clock.seconds();
   return out;
 }
 

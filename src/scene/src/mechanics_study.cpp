@@ -2,7 +2,6 @@
 
 #include <algorithm>
 #include <array>
-#include <chrono>
 #include <cmath>
 #include <iostream>
 #include <sstream>
@@ -10,6 +9,7 @@
 #include <vector>
 
 #include "magvine/core/atomic_file.hpp"
+#include "magvine/core/stopwatch.hpp"
 #include "magvine/core/units.hpp"
 #include "magvine/magnetics/field_model.hpp"
 #include "magvine/robot/elastica.hpp"
@@ -28,20 +28,16 @@ constexpr double kEpmRadius = 50.8e-3;   // Ø101.6 × 101.6 mm N52 (thesis 4.6.
 constexpr double kEpmLength = 101.6e-3;
 constexpr double kEpmPolarisation = 1.48;  // J [T]: |m| = J V/μ0 = 970 A·m², the thesis's 970.1 A·m²
 
-double seconds_since(std::chrono::steady_clock::time_point start) {
-  return std::chrono::duration<double>(std::chrono::steady_clock::now() - start).count();
-}
-
 /// Mean wall time of one equilibrium from the straight rod (repeated for at least 0.2 s), and the solved state.
 double time_solve(const RodModel& m, const RodField& field, RodState& out, robot::RodSolveReport& report) {
   int runs = 0;
-  const auto start = std::chrono::steady_clock::now();
+  const Stopwatch clock;
   do {
     out = robot::straight_rod(m);
     report = robot::solve_rod_statics(m, field, out);
     ++runs;
-  } while (seconds_since(start) < 0.2 && runs < 1000);
-  return seconds_since(start) / runs;
+  } while (clock.seconds() < 0.2 && runs < 1000);
+  return clock.seconds() / runs;
 }
 
 magnetics::FieldModel epm(const Vec3& position, const Vec3& moment_direction) {

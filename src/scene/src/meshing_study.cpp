@@ -1,7 +1,6 @@
 #include "magvine/scene/meshing_study.hpp"
 
 #include <array>
-#include <chrono>
 #include <cmath>
 #include <cstdio>
 #include <limits>
@@ -11,17 +10,11 @@
 #include "magvine/anatomy/implicit_surface.hpp"
 #include "magvine/anatomy/phantom.hpp"
 #include "magvine/core/atomic_file.hpp"
+#include "magvine/core/stopwatch.hpp"
 #include "magvine/core/units.hpp"
 #include "magvine/scene/points_csv.hpp"
 
 namespace magvine::scene {
-namespace {
-
-double seconds_since(std::chrono::steady_clock::time_point start) {
-  return std::chrono::duration<double>(std::chrono::steady_clock::now() - start).count();
-}
-
-}  // namespace
 
 void run_meshing_study(const std::filesystem::path& dir) {
   std::string csv = "case,spacing_m,triangles,seconds,volume_rel_err,area_rel_err,max_surface_err_m\n";
@@ -38,9 +31,9 @@ void run_meshing_study(const std::filesystem::path& dir) {
   anatomy::CompositeSdf field;
   field.add_lumen(capsule, 0.0);
   for (const double h : {3e-3, 2e-3, 1.5e-3, 1e-3, 0.7e-3, 0.5e-3, 0.35e-3, 0.25e-3, 0.18e-3}) {
-    const auto start = std::chrono::steady_clock::now();
+    const Stopwatch clock;
     const anatomy::TriangleMesh mesh = anatomy::mesh_implicit(field, {.spacing = h});
-    const double seconds = seconds_since(start);
+    const double seconds = clock.seconds();
     double surface = 0.0;
     for (const Vec3& v : mesh.vertices) surface = std::max(surface, std::abs(anatomy::signed_distance(capsule, v)));
     const double volume_err = std::abs(anatomy::signed_volume(mesh) - volume) / volume;
@@ -59,9 +52,9 @@ void run_meshing_study(const std::filesystem::path& dir) {
   for (const double h : {0.5e-3, 0.45e-3, 0.4e-3, 0.35e-3, 0.3e-3, 0.26e-3, 0.22e-3}) {
     anatomy::BronchialTreeParams params;
     params.spacing = h;
-    const auto start = std::chrono::steady_clock::now();
+    const Stopwatch clock;
     const anatomy::Phantom phantom = anatomy::make_bronchial_tree(params);
-    const double seconds = seconds_since(start);
+    const double seconds = clock.seconds();
     tree.push_back({h, static_cast<double>(phantom.mesh.triangles.size()), seconds});
     volumes.push_back(anatomy::signed_volume(phantom.mesh));
     std::fprintf(stderr, "  tree     h %.2f mm  %8zu triangles  %.3f s\n", h * 1e3, phantom.mesh.triangles.size(),
