@@ -131,7 +131,7 @@ struct Inertia {
 
 /// Energy at load factor λ; adds its gradient to `sys` when given.
 double evaluate(const RodModel& m, const RodField& field, const RodState& s, double load, System* sys,
-                const Inertia* inertia = nullptr) {
+                const Inertia* inertia = nullptr, const std::vector<magnetics::FieldSample>* samples = nullptr) {
   const int n = m.edges;
   const double h = m.length / n;
   double energy = 0.0;
@@ -176,7 +176,7 @@ double evaluate(const RodModel& m, const RodField& field, const RodState& s, dou
       const Mat3& r = s.frames[ju];
       const Vec3 mj = hard ? Vec3(load * h * (r * m.moment_per_length[ju])) : Vec3::Zero();
       if (mj.isZero() && volume == 0.0) continue;
-      const magnetics::FieldSample f = field(0.5 * (s.x[ju] + s.x[ju + 1]));
+      const magnetics::FieldSample f = samples != nullptr ? (*samples)[ju] : field(0.5 * (s.x[ju] + s.x[ju + 1]));
       energy -= mj.dot(f.b);
       Vec3 w = -mj;
       if (volume > 0.0) {
@@ -255,6 +255,12 @@ void exact_hessian(const RodModel& m, const RodField& field, const RodState& s, 
   System plus(n, false);
   System minus(n, false);
   VecX delta(6 * n);
+  // Rotation columns move no node: the field at the midpoints is the base state's, sampled once here.
+  std::vector<magnetics::FieldSample> samples;
+  if (field && (!m.moment_per_length.empty() || m.induced)) {
+    samples.reserve(static_cast<std::size_t>(n));
+    for (std::size_t j = 0; j < static_cast<std::size_t>(n); ++j) samples.push_back(field(0.5 * (s.x[j] + s.x[j + 1])));
+  }
   for (int colour = 0; colour < 3; ++colour) {
     for (int k = 0; k < 6; ++k) {
       const double step = k < 3 ? step_x : step_phi;
@@ -262,8 +268,9 @@ void exact_hessian(const RodModel& m, const RodField& field, const RodState& s, 
       for (int j = colour; j < n; j += 3) delta[6 * j + k] = 1.0;
       plus.gradient.setZero();
       minus.gradient.setZero();
-      evaluate(m, field, apply(s, delta, step), load, &plus, inertia);
-      evaluate(m, field, apply(s, delta, -step), load, &minus, inertia);
+      const std::vector<magnetics::FieldSample>* cached = k >= 3 && !samples.empty() ? &samples : nullptr;
+      evaluate(m, field, apply(s, delta, step), load, &plus, inertia, cached);
+      evaluate(m, field, apply(s, delta, -step), load, &minus, inertia, cached);
       const VecX column = (plus.gradient - minus.gradient) / (2.0 * step);
       for (int j = colour; j < n; j += 3) {
         const auto ju = static_cast<std::size_t>(j);
