@@ -47,12 +47,11 @@ magnetics::FieldModel epm(const Vec3& position, const Vec3& moment_direction) {
   return model;
 }
 
+/// A uniform field through the magnetics module's own source (no gradient is evaluated for it).
 RodField uniform(const Vec3& b) {
-  return [b](const Vec3&) {
-    magnetics::FieldSample s;
-    s.b = b;
-    return s;
-  };
+  magnetics::FieldModel model;
+  model.add(magnetics::UniformSource{b}, magnetics::Pose{}, "uniform");
+  return robot::field_function(model, model.rest_poses);
 }
 
 /// The skin MVR of thesis 4.6 (wall LDPE 20 µm, E ≈ 0.2 GPa assumed; skin NdFeB–Ecoflex 0.2 mm, G = 33 kPa,
