@@ -4,7 +4,8 @@
 //   /uniform  10 mT perpendicular to the beam;
 //   /dipole   the thesis EPM (N52, Ø101.6 × 101.6 mm) as a dipole 200 mm below the midpoint;
 //   /dipole warm  the same, each solve starting from the previous equilibrium with the EPM moved by 1 mm;
-//                 second argument 1: with a RodWorkspace (the previous Hessian reused for chord steps).
+//                 second argument 1: with a RodWorkspace (the previous Hessian reused for chord steps);
+//   /cylinder warm  the same with the exact cylinder field of the EPM.
 // Counter `iterations` = Newton iterations per solve.
 //
 //   cmake --build build-bench --target bench_rod && build-bench/tests/bench/bench_rod
@@ -53,8 +54,8 @@ void BM_RodDipole(benchmark::State& state) {
 }
 
 /// Warm start, as in a simulation loop: the EPM moves 1 mm between solves (alternating between two positions) and
-/// each equilibrium starts from the previous one.
-void BM_RodDipoleWarm(benchmark::State& state) {
+/// each equilibrium starts from the previous one. `exact`: the exact cylinder field instead of the dipole.
+void warm(benchmark::State& state, bool exact) {
   const int edges = static_cast<int>(state.range(0));
   RodModel m = rectangular_rod(60e-3, 3e-3, 3e-3, 120e3, 1882.0, 0.125, Vec3::UnitX(), edges);
   m.gravity = Vec3(0.0, -9.81, 0.0);
@@ -62,8 +63,12 @@ void BM_RodDipoleWarm(benchmark::State& state) {
   RodField fields[2];
   for (int k = 0; k < 2; ++k) {
     magnetics::FieldModel magnets;
-    magnets.add(magnetics::DipoleSource{Vec3(0.0, 0.0, 1.45 * kPi * radius * radius * 2.0 * radius / kMu0)},
-                magnetics::Pose::from_axis(Vec3(30e-3 + 1e-3 * k, -0.2, 0.0), Vec3::UnitY()));
+    const magnetics::Pose pose = magnetics::Pose::from_axis(Vec3(30e-3 + 1e-3 * k, -0.2, 0.0), Vec3::UnitY());
+    if (exact) {
+      magnets.add(magnetics::CylinderMagnet(radius, 2.0 * radius, Vec3(0.0, 0.0, 1.45)), pose);
+    } else {
+      magnets.add(magnetics::DipoleSource{Vec3(0.0, 0.0, 1.45 * kPi * radius * radius * 2.0 * radius / kMu0)}, pose);
+    }
     fields[k] = field_function(magnets, magnets.rest_poses);
   }
   RodState s = straight_rod(m);
@@ -87,9 +92,13 @@ void BM_RodDipoleWarm(benchmark::State& state) {
   state.counters["hessians"] = solves > 0 ? static_cast<double>(hessians) / solves : 0.0;
 }
 
+void BM_RodDipoleWarm(benchmark::State& state) { warm(state, false); }
+void BM_RodCylinderWarm(benchmark::State& state) { warm(state, true); }
+
 }  // namespace
 
 BENCHMARK(BM_RodUniform)->Arg(100)->Unit(benchmark::kMillisecond);
 BENCHMARK(BM_RodDipole)->Arg(100)->Unit(benchmark::kMillisecond);
 BENCHMARK(BM_RodDipoleWarm)->Args({100, 0})->Args({100, 1})->Unit(benchmark::kMillisecond);
+BENCHMARK(BM_RodCylinderWarm)->Args({100, 0})->Args({100, 1})->Unit(benchmark::kMillisecond);
 BENCHMARK_MAIN();

@@ -117,12 +117,17 @@ TEST(RobotExtremes, MagnetOneMillimetreFromTheBody) {
   std::printf("  %s after %d iterations; tip (%.2f, %.2f) mm\n",
               a.report.converged ? "converged" : a.report.failure.c_str(), a.report.iterations,
               1e3 * a.state.tip().x(), 1e3 * a.state.tip().y());
-  // Measured: the beam is pulled into the magnet (no free-space equilibrium without contact); the solver stops at
-  // its iteration budget with that cause and keeps the last equilibrium, already bent towards the magnet.
+  // Measured: the beam is pulled into the magnet (no free-space equilibrium without contact); the solver stops with
+  // a cause (with the analytic Hessian: the load ramp exhausted at load factor 0.005 after ~320 iterations; with the
+  // finite-difference one it ran into the iteration budget) and keeps the last equilibrium, already bent towards the
+  // magnet, finite.
   EXPECT_LE(a.report.iterations, RodSolveOptions{}.max_iterations);
   if (!a.report.converged) {
-    EXPECT_NE(a.report.failure.find("iteration budget"), std::string::npos) << a.report.failure;
+    EXPECT_TRUE(a.report.failure.find("iteration budget") != std::string::npos ||
+                a.report.failure.find("load ramp exhausted") != std::string::npos)
+        << a.report.failure;
   }
+  for (const Vec3& x : a.state.x) EXPECT_TRUE(x.allFinite());
   EXPECT_LT(a.state.tip().y(), 0.0);
 }
 

@@ -58,6 +58,7 @@ TEST(Rod, GradientMatchesFiniteDifferencesOfTheEnergy) {
     r = Eigen::AngleAxisd(0.5 * u(rng), Vec3(u(rng), u(rng), u(rng)).normalized()).toRotationMatrix() * r;
   testing::nodes_along_frames(m, s, 1e-6, rng);
   testing::expect_gradient_matches_energy(m, field, s, "rod");
+  testing::expect_hessian_matches_finite_differences(m, field, s, "rod");
 }
 
 TEST(Rod, TipMomentGradientMatchesFiniteDifferences) {

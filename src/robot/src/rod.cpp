@@ -14,7 +14,7 @@ namespace magvine::robot {
 namespace {
 
 using Mat6 = Eigen::Matrix<double, 6, 6>;
-constexpr double kMaxTurn = 0.1;  // [rad] largest frame rotation of one Newton step
+constexpr double kMaxTurn = 0.5;  // [rad] largest frame rotation of one Newton step
 using Vec6 = Eigen::Matrix<double, 6, 1>;
 
 Mat3 skew(const Vec3& v) {
@@ -92,23 +92,46 @@ double joint_energy(const RodModel& m, double ell, const Vec3& omega, Vec3& stre
 /// ln cosh z for z ≥ 0 without overflow.
 double log_cosh(double z) { return z + std::log1p(std::exp(-2.0 * z)) - std::log(2.0); }
 
-/// Energy density e(b) [J/m³] of a soft-magnetic fill at body-frame field b, and de/db (InducedMagnetisation).
-double fill_energy_density(const InducedMagnetisation& f, const Vec3& b, Vec3& derivative) {
-  const Vec3 xb(f.axial_susceptibility * b.x(), f.transverse_susceptibility * b.y(),
-                f.transverse_susceptibility * b.z());
+/// Energy density e(b) [J/m³] of a soft-magnetic fill at body-frame field b, de/db, and d²e/db² when `second` is
+/// given (InducedMagnetisation). Saturating: de/db = −s(y)Xb with y = √(χ_ref bᵀXb)/μ0 and s = M_s tanh(y/M_s)/(μ0 y).
+double fill_energy_density(const InducedMagnetisation& f, const Vec3& b, Vec3& derivative, Mat3* second = nullptr) {
+  const Vec3 chi(f.axial_susceptibility, f.transverse_susceptibility, f.transverse_susceptibility);
+  const Vec3 xb = chi.cwiseProduct(b);
   const double quadratic = b.dot(xb) / kMu0;  // μ0 HᵀXH
-  if (!std::isfinite(f.saturation)) {
-    derivative = -xb / kMu0;
-    return -0.5 * quadratic;
-  }
   const double y = std::sqrt(f.reference_susceptibility * quadratic / kMu0);  // √(χ_ref HᵀXH) [A/m]
   const double z = y / f.saturation;
-  if (z < 1e-8) {
+  if (!std::isfinite(f.saturation) || z < 1e-8) {
     derivative = -xb / kMu0;
+    if (second != nullptr) *second = Mat3((-chi / kMu0).asDiagonal());
     return -0.5 * quadratic;
   }
-  derivative = -(f.saturation * std::tanh(z) / (kMu0 * y)) * xb;
+  const double tanh_z = std::tanh(z);
+  const double scale = f.saturation * tanh_z / (kMu0 * y);
+  derivative = -scale * xb;
+  if (second != nullptr) {
+    // ds/dy · dy/db = [(1 − tanh² z) − tanh z/z]/(μ0 y) · χ_ref Xb/(μ0² y).
+    const double ds = ((1.0 - tanh_z * tanh_z) - tanh_z / z) / (kMu0 * y) * f.reference_susceptibility /
+                      (kMu0 * kMu0 * y);
+    *second = Mat3((-scale * chi).asDiagonal()) - ds * xb * xb.transpose();
+  }
   return -kMu0 * f.saturation * f.saturation / f.reference_susceptibility * log_cosh(z);
+}
+
+/// Gradient of the rotational inertia term ½ k J |θ|², θ = vee(skew(P)), P = R R̃ᵀ, in δφ (R ← exp([δφ])R).
+Vec3 rotational_inertia_gradient(const Mat3& p, double k_j) {
+  return k_j * (0.5 * (p.trace() * Mat3::Identity() - p)).transpose() * skew_axis(p);
+}
+
+/// Gradient of the tip moment's potential −λM·φ, φ = log(R_N R_baseᵀ), in δφ of the last edge: −λ J_l⁻¹(φ)ᵀM with
+/// J_l⁻¹(φ) = I − ½[φ] + (1/θ² − (1 + cos θ)/(2θ sin θ))[φ]²; also returns φ.
+Vec3 tip_moment_gradient(const Mat3& last, const Mat3& base, const Vec3& moment, double load, Vec3& phi) {
+  const Eigen::AngleAxisd turn(last * base.transpose());
+  phi = turn.angle() * turn.axis();
+  const double theta = turn.angle();
+  const double c = theta < 1e-4 ? 1.0 / 12.0 + theta * theta / 720.0
+                                 : 1.0 / (theta * theta) - (1.0 + std::cos(theta)) / (2.0 * theta * std::sin(theta));
+  const Mat3 inverse_jacobian = Mat3::Identity() - 0.5 * skew(phi) + c * skew(phi) * skew(phi);
+  return -load * inverse_jacobian.transpose() * moment;
 }
 
 Slot position_slot(int node) {
@@ -204,10 +227,7 @@ double evaluate(const RodModel& m, const RodField& field, const RodState& s, dou
       const Mat3 p = s.frames[ju] * inertia->frames[ju].transpose();
       const Vec3 theta = skew_axis(p);
       energy += 0.5 * k * inertia->rotational * theta.squaredNorm();
-      if (sys != nullptr) {
-        sys->add_gradient(rotation_slot(j),
-                          k * inertia->rotational * (0.5 * (p.trace() * Mat3::Identity() - p)).transpose() * theta);
-      }
+      if (sys != nullptr) sys->add_gradient(rotation_slot(j), rotational_inertia_gradient(p, k * inertia->rotational));
     }
   }
   // Gravity on lumped node masses, and the tip force.
@@ -219,33 +239,28 @@ double evaluate(const RodModel& m, const RodField& field, const RodState& s, dou
     if (sys != nullptr) sys->add_gradient(position_slot(i), -f);
   }
   // A tip moment M (world frame) on the last edge: U = −M·φ with φ = log(R_N R_baseᵀ), the rotation vector from the
-  // clamp (exact for moments about a fixed axis, e.g. planar bending). dφ/dδφ = J_l⁻¹(φ) =
-  // I − ½[φ] + (1/θ² − (1 + cos θ)/(2θ sin θ))[φ]².
+  // clamp (exact for moments about a fixed axis, e.g. planar bending); tip_moment_gradient.
   if (!m.tip_moment.isZero()) {
-    const Eigen::AngleAxisd turn(s.frames.back() * m.base_frame.transpose());
-    const Vec3 phi = turn.angle() * turn.axis();
+    Vec3 phi;
+    const Vec3 g = tip_moment_gradient(s.frames.back(), m.base_frame, m.tip_moment, load, phi);
     energy -= load * m.tip_moment.dot(phi);
-    if (sys != nullptr) {
-      const double theta = turn.angle();
-      const double c = theta < 1e-4 ? 1.0 / 12.0 + theta * theta / 720.0
-                                     : 1.0 / (theta * theta) - (1.0 + std::cos(theta)) / (2.0 * theta * std::sin(theta));
-      const Mat3 inverse_jacobian = Mat3::Identity() - 0.5 * skew(phi) + c * skew(phi) * skew(phi);
-      sys->add_gradient(rotation_slot(n - 1), -load * inverse_jacobian.transpose() * m.tip_moment);
-    }
+    if (sys != nullptr) sys->add_gradient(rotation_slot(n - 1), g);
   }
   return energy;
 }
 
 RodState apply(const RodState& s, const VecX& delta, double t);
 
-/// Fills the Hessian blocks of `sys` from central differences of the analytic gradient: an unknown of block j
+/// The reference the analytic Hessian is tested against (rod_hessian with HessianMethod::finite_differences; the
+/// solver used it before the analytic one). Fills the Hessian blocks of `sys` from central differences of the
+/// analytic gradient: an unknown of block j
 /// changes only the gradient of blocks j − 1 .. j + 1, so unknowns three blocks apart are perturbed together (36
 /// gradient evaluations for any N). It carries every second-order term, the axial force's and the bending
 /// moment's geometric stiffness and the field's curvature included; a Gauss–Newton matrix without them made Newton
 /// crawl (hundreds of iterations) at large deflections. Symmetrised: with world-frame rotation increments the
 /// derivative of the gradient differs from the Hessian by an antisymmetric part.
-void exact_hessian(const RodModel& m, const RodField& field, const RodState& s, double load, System& sys,
-                   const Inertia* inertia) {
+void finite_difference_hessian(const RodModel& m, const RodField& field, const RodState& s, double load,
+                               System& sys, const Inertia* inertia) {
   const int n = m.edges;
   const double step_x = 1e-6 * m.length / n;  // relative to the edge: a strain step of 1e-6
   const double step_phi = 1e-6;
@@ -286,46 +301,282 @@ void exact_hessian(const RodModel& m, const RodField& field, const RodState& s, 
   }
 }
 
-/// Block LDLᵀ (block Thomas) factorisation of H + μ|diag H| for the block-tridiagonal H of a System.
+/// Adds the block H(a, b) of one element to the block-tridiagonal store (a lower-triangle pair lands in `sub`;
+/// the upper pair is the transpose of its lower one and skipped; pairs with the clamp are dropped).
+void add_hessian(System& sys, const Slot& a, const Slot& b, const Mat3& h) {
+  if (a.block < 0 || b.block < 0 || a.block < b.block) return;
+  if (a.block == b.block) {
+    sys.diag[static_cast<std::size_t>(a.block)].block<3, 3>(a.offset, b.offset) += h;
+  } else {
+    sys.sub[static_cast<std::size_t>(a.block)].block<3, 3>(a.offset, b.offset) += h;
+  }
+}
+
+/// Adds the pair H(a, b) = h and H(b, a) = hᵀ of a symmetric element Hessian (a ≠ b).
+void add_hessian_pair(System& sys, const Slot& a, const Slot& b, const Mat3& h) {
+  add_hessian(sys, a, b, h);
+  add_hessian(sys, b, a, h.transpose());
+}
+
+/// How an edge element sees its two nodes: through the edge vector x_{j+1} − x_j (stretch) or the midpoint (magnets).
+enum class EdgeVector { difference, midpoint };
+
+/// The Hessian of an element on (x_j, x_{j+1}, δφ_j) whose energy depends on the nodes through one vector u, given
+/// H_uu, H_uφ (rows u) and H_φφ.
+void add_edge_element(System& sys, int j, EdgeVector u, const Mat3& uu, const Mat3& uphi, const Mat3& phiphi) {
+  const double a = u == EdgeVector::difference ? -1.0 : 0.5;  // du/dx_j
+  const double b = u == EdgeVector::difference ? 1.0 : 0.5;   // du/dx_{j+1}
+  const Slot xa = position_slot(j);
+  const Slot xb = position_slot(j + 1);
+  const Slot phi = rotation_slot(j);
+  add_hessian(sys, xa, xa, a * a * uu);
+  add_hessian(sys, xb, xb, b * b * uu);
+  add_hessian(sys, xb, xa, a * b * uu);  // sub block (x_j's block is the lower index)
+  add_hessian_pair(sys, xb, phi, b * uphi);
+  add_hessian(sys, phi, xa, a * uphi.transpose());
+  add_hessian(sys, phi, phi, phiphi);
+}
+
+/// The symmetric part of a ⊗ b minus (a·b)I: the Hessian of aᵀ[φ]²b/2 in φ (aᵀ[φ]²b = φᵀ(sym(abᵀ) − a·b I)φ).
+Mat3 cross_squared(const Vec3& a, const Vec3& b) {
+  return 0.5 * (a * b.transpose() + b * a.transpose()) - a.dot(b) * Mat3::Identity();
+}
+
+/// d²W/dω² of joint_energy.
+Mat3 joint_stiffness(const RodModel& m, double ell, const Vec3& omega) {
+  if (!m.inflated) return (ell * Vec3(m.torsional_stiffness, m.bending_stiffness_2, m.bending_stiffness_3)).asDiagonal();
+  const InflatedBending& law = *m.inflated;
+  const double ei = m.bending_stiffness_3;
+  const Vec3 bend(0.0, omega.y(), omega.z());
+  const double kappa = bend.norm();
+  Mat3 k = Mat3::Zero();
+  k(0, 0) = ell * m.torsional_stiffness;
+  double per_kappa = ell * law.flat_bending_stiffness;
+  double slope = 0.0;  // d(per_kappa)/dκ / κ
+  const double collapse = collapse_moment(law.radius, law.pressure);
+  if (collapse > 0.0) {
+    const double kn = kappa * ei / collapse;
+    if (kn <= 0.5) {
+      per_kappa += ell * ei;
+    } else {
+      const NormalisedBending w = normalised_inflated_bending(kn);
+      per_kappa += ell * collapse * w.moment / kappa;
+      slope = ell * (ei * w.stiffness - collapse * w.moment / kappa) / (kappa * kappa);
+    }
+  }
+  k(1, 1) = per_kappa;
+  k(2, 2) = per_kappa;
+  return k + slope * bend * bend.transpose();
+}
+
+/// Central differences of a local gradient g(φ) of one frame's rotation increment (the rotational inertia and the
+/// tip moment: one block each, cheap), symmetrised (see finite_difference_hessian).
+/// exp([φ]) (identity at φ = 0).
+Mat3 exp_rotation(const Vec3& phi) {
+  const double angle = phi.norm();
+  return angle > 0.0 ? Mat3(Eigen::AngleAxisd(angle, phi / angle).toRotationMatrix()) : Mat3::Identity();
+}
+
+template <class Gradient>
+Mat3 local_rotation_hessian(const Gradient& gradient) {
+  constexpr double step = 1e-6;
+  Mat3 h;
+  for (int k = 0; k < 3; ++k) h.col(k) = (gradient(step * Vec3::Unit(k)) - gradient(-step * Vec3::Unit(k))) / (2.0 * step);
+  return 0.5 * (h + h.transpose());
+}
+
+/// The analytic Hessian of `evaluate` (rotation increments R ← exp([δφ])R, positions x ← x + δx), into sys.diag and
+/// sys.sub:
+///   stretch: JᵀKJ plus the axial force's geometric terms (f = Rσ, e the edge): (δx, δφ) couple through [f]/h, and
+///     δφ·δφ through (sym(f eᵀ) − f·e I)/h;
+///   joints: with Q = R_aᵀR_b and its Gibbs vector b = ℓω/2, a left turn u (body of a) gives
+///     ω = ω0 + J u/ℓ + (bᵀu) J u/(2ℓ),  J = I − [b] + bbᵀ,
+///     so H̃ = R_a[JᵀKJ/ℓ² + (b vᵀ + v bᵀ)/(2ℓ)]R_aᵀ, v = Jᵀσ, for either frame, and H_ab = −H̃ + [g]/2 (the
+///     Baker–Campbell–Hausdorff term of exp(−[δφ_a])exp([δφ_b]), g the joint's gradient in δφ_b);
+///   magnets: with w = dU/dB = −m + R p (p = V de/db, P = V d²e/db², body frame), c the midpoint and G = ∂B/∂c,
+///     δφδφ: sym(w Bᵀ) − w·B I + [B]ᵀRPRᵀ[B];  δφδc: ([w] − [B]RPRᵀ)G;  δcδc: GᵀRPRᵀG + Σ_i w_i ∇²B_i,
+///     the last from forward differences of G (skipped when the field has no gradient at any midpoint: uniform);
+///   inertia and the tip moment: central differences of their one-block gradients.
+/// Checked against finite_difference_hessian (central differences of the whole gradient) in test_rod.
+void analytic_hessian(const RodModel& m, const RodField& field, const RodState& s, double load, System& sys,
+                      const Inertia* inertia) {
+  const int n = m.edges;
+  const double h = m.length / n;
+  for (Mat6& b : sys.diag) b.setZero();
+  for (Mat6& b : sys.sub) b.setZero();
+  const Vec3 ks = h * Vec3(m.axial_stiffness, m.shear_stiffness, m.shear_stiffness);
+  for (int j = 0; j < n; ++j) {
+    const auto ju = static_cast<std::size_t>(j);
+    const Mat3& r = s.frames[ju];
+    const Vec3 e = s.x[ju + 1] - s.x[ju];
+    const Vec3 v = r.transpose() * e / h - Vec3::UnitX();
+    const Vec3 f = r * ks.cwiseProduct(v);
+    const Mat3 k_world = r * ks.asDiagonal() * r.transpose() / (h * h);  // H_ee
+    const Mat3 jphi = skew(e);                                           // R J_φ h = [e]
+    const Mat3 h_ephi = k_world * jphi - skew(f) / h;                    // rows δe, columns δφ
+    const Mat3 h_phiphi = jphi.transpose() * k_world * jphi + cross_squared(f, e) / h;
+    add_edge_element(sys, j, EdgeVector::difference, k_world, h_ephi, h_phiphi);
+  }
+  for (int j = 0; j < n; ++j) {
+    const Mat3& ra = j == 0 ? m.base_frame : s.frames[static_cast<std::size_t>(j) - 1];
+    const Mat3& rb = s.frames[static_cast<std::size_t>(j)];
+    const double ell = j == 0 ? 0.5 * h : h;
+    const Mat3 q = ra.transpose() * rb;
+    const Vec3 omega = joint_strain(q, ell);
+    Vec3 stress;
+    joint_energy(m, ell, omega, stress);
+    const Vec3 b = 0.5 * ell * omega;
+    const Mat3 jac = Mat3::Identity() - skew(b) + b * b.transpose();
+    const Vec3 vv = jac.transpose() * stress;
+    const Mat3 local = jac.transpose() * joint_stiffness(m, ell, omega) * jac / (ell * ell) +
+                       (b * vv.transpose() + vv * b.transpose()) / (2.0 * ell);
+    const Mat3 tilde = ra * local * ra.transpose();
+    const Slot sb = rotation_slot(j);
+    add_hessian(sys, sb, sb, tilde);
+    if (j == 0) continue;
+    const Slot sa = rotation_slot(j - 1);
+    const Vec3 g = ra * vv / ell;  // the joint's gradient in δφ_b
+    add_hessian(sys, sa, sa, tilde);
+    add_hessian(sys, sb, sa, -tilde - 0.5 * skew(g));  // H_ba = H_abᵀ
+  }
+  const bool hard = !m.moment_per_length.empty();
+  const double volume = m.induced ? load * m.induced->volume_per_length * h : 0.0;
+  if (field && (hard || volume > 0.0)) {
+    std::vector<magnetics::FieldSample> samples(static_cast<std::size_t>(n));
+    bool uniform = true;
+    for (std::size_t j = 0; j < samples.size(); ++j) {
+      samples[j] = field(0.5 * (s.x[j] + s.x[j + 1]));
+      uniform = uniform && samples[j].g.isZero(0.0);
+    }
+    // Forward differences of G: truncation ~step/d relative (d the distance to the magnet, ≫ L/1e6 here) and
+    // round-off ~ε·d/step, both far below what Newton's convergence notices; half the field samples of central ones.
+    const double step = 1e-6 * m.length;
+    for (int j = 0; j < n; ++j) {
+      const auto ju = static_cast<std::size_t>(j);
+      const Mat3& r = s.frames[ju];
+      const magnetics::FieldSample& f = samples[ju];
+      Vec3 w = hard ? Vec3(-load * h * (r * m.moment_per_length[ju])) : Vec3::Zero();
+      Mat3 p_world = Mat3::Zero();  // R P Rᵀ
+      if (volume > 0.0) {
+        Vec3 de_db;
+        Mat3 d2e;
+        fill_energy_density(*m.induced, r.transpose() * f.b, de_db, &d2e);
+        w += volume * (r * de_db);
+        p_world = volume * r * d2e * r.transpose();
+      }
+      if (w.isZero(0.0) && volume == 0.0) continue;
+      const Mat3 bx = skew(f.b);
+      const Mat3 h_phiphi = cross_squared(w, f.b) + bx.transpose() * p_world * bx;
+      const Mat3 h_phic = (skew(w) - bx * p_world) * f.g;
+      Mat3 h_cc = f.g.transpose() * p_world * f.g;
+      if (!uniform) {
+        const Vec3 c = 0.5 * (s.x[ju] + s.x[ju + 1]);
+        for (int k = 0; k < 3; ++k) h_cc.col(k) += (field(c + step * Vec3::Unit(k)).g - f.g).transpose() * w / step;
+        h_cc = 0.5 * (h_cc + h_cc.transpose()).eval();
+      }
+      add_edge_element(sys, j, EdgeVector::midpoint, h_cc, h_phic.transpose(), h_phiphi);
+    }
+  }
+  if (inertia != nullptr) {
+    const double k = 1.0 / (inertia->dt * inertia->dt);
+    for (int i = 1; i <= n; ++i) {
+      const Slot si = position_slot(i);
+      add_hessian(sys, si, si, k * inertia->mass[static_cast<std::size_t>(i)] * Mat3::Identity());
+    }
+    for (int j = 0; j < n; ++j) {
+      const auto ju = static_cast<std::size_t>(j);
+      const Mat3 p0 = s.frames[ju] * inertia->frames[ju].transpose();
+      add_hessian(sys, rotation_slot(j), rotation_slot(j), local_rotation_hessian([&](const Vec3& phi) {
+                    return rotational_inertia_gradient(exp_rotation(phi) * p0, k * inertia->rotational);
+                  }));
+    }
+  }
+  if (!m.tip_moment.isZero()) {
+    const Mat3 r0 = s.frames.back();
+    add_hessian(sys, rotation_slot(n - 1), rotation_slot(n - 1), local_rotation_hessian([&](const Vec3& phi) {
+                  Vec3 rotation;
+                  return tip_moment_gradient(exp_rotation(phi) * r0, m.base_frame, m.tip_moment, load, rotation);
+                }));
+  }
+}
+
+/// Block LDLᵀ (block Thomas) factorisation of H + μ|diag H| for the block-tridiagonal H of a System. Each pivot
+/// D_i = H_ii − H_i,i−1 D_{i−1}⁻¹ H_i,i−1ᵀ is checked positive definite by a Cholesky factorisation and kept as its
+/// inverse (cholesky_inverse), so both sweeps are fixed-size 6 × 6 products (Eigen's LLT solves took a third of the
+/// solver's time, measured with perf on bench_rod).
+/// The inverse of a symmetric 6 × 6 block through its Cholesky factor L (A⁻¹ = L⁻ᵀL⁻¹), in fixed-size loops (Eigen's
+/// LLT::solve with a matrix right-hand side goes through its dynamic-size kernels); false when A is not positive
+/// definite.
+bool cholesky_inverse(const Mat6& a, Mat6& inverse) {
+  Mat6 l = Mat6::Zero();
+  for (int j = 0; j < 6; ++j) {
+    double d = a(j, j);
+    for (int k = 0; k < j; ++k) d -= l(j, k) * l(j, k);
+    if (!(d > 0.0)) return false;
+    l(j, j) = std::sqrt(d);
+    for (int i = j + 1; i < 6; ++i) {
+      double v = a(i, j);
+      for (int k = 0; k < j; ++k) v -= l(i, k) * l(j, k);
+      l(i, j) = v / l(j, j);
+    }
+  }
+  Mat6 li = Mat6::Zero();  // L⁻¹, lower triangular
+  for (int j = 0; j < 6; ++j) {
+    li(j, j) = 1.0 / l(j, j);
+    for (int i = j + 1; i < 6; ++i) {
+      double v = 0.0;
+      for (int k = j; k < i; ++k) v -= l(i, k) * li(k, j);
+      li(i, j) = v / l(i, i);
+    }
+  }
+  inverse.noalias() = li.transpose() * li;
+  return true;
+}
+
 class BlockFactor {
  public:
   /// False when a pivot block is not positive definite (H + μ|diag H| is not).
   bool factor(const System& sys, double mu) {
     m_sys = &sys;
     const auto n = sys.diag.size();
-    m_pivots.resize(n);
+    m_inverse.resize(n);
+    m_lower.resize(n);
     for (std::size_t i = 0; i < n; ++i) {
       // Marquardt: damping in proportion to each unknown's own stiffness, so stiff stretch and soft bending are
       // damped alike (a multiple of I either stalls the bending or does nothing to the stretch).
       Mat6 s = sys.diag[i];
       if (mu > 0.0) s.diagonal() += mu * sys.diag[i].diagonal().cwiseAbs().cwiseMax(1e-300);
-      if (i > 0) s -= sys.sub[i] * m_pivots[i - 1].solve(sys.sub[i].transpose());
-      m_pivots[i].compute(s);
-      if (m_pivots[i].info() != Eigen::Success) return false;
+      if (i > 0) {
+        m_lower[i].noalias() = sys.sub[i] * m_inverse[i - 1];
+        s.noalias() -= m_lower[i] * sys.sub[i].transpose();
+      }
+      if (!cholesky_inverse(s, m_inverse[i])) return false;
     }
     return true;
   }
 
   /// (H + μ|diag H|)⁻¹ rhs; false if not finite.
   bool solve(const VecX& rhs, VecX& out) const {
-    const auto n = m_pivots.size();
-    std::vector<Vec6> y(n);
+    const auto n = m_inverse.size();
+    m_forward.resize(n);
     for (std::size_t i = 0; i < n; ++i) {
-      y[i] = rhs.segment<6>(static_cast<Eigen::Index>(6 * i));
-      if (i > 0) y[i] -= m_sys->sub[i] * m_pivots[i - 1].solve(y[i - 1]);
+      m_forward[i] = rhs.segment<6>(static_cast<Eigen::Index>(6 * i));
+      if (i > 0) m_forward[i] -= m_lower[i] * m_forward[i - 1];
     }
     out.resize(static_cast<Eigen::Index>(6 * n));
     for (std::size_t i = n; i-- > 0;) {
-      Vec6 r = y[i];
+      Vec6 r = m_forward[i];
       if (i + 1 < n) r -= m_sys->sub[i + 1].transpose() * out.segment<6>(static_cast<Eigen::Index>(6 * (i + 1)));
-      out.segment<6>(static_cast<Eigen::Index>(6 * i)) = m_pivots[i].solve(r);
+      out.segment<6>(static_cast<Eigen::Index>(6 * i)) = m_inverse[i] * r;
     }
     return out.allFinite();
   }
 
  private:
   const System* m_sys = nullptr;
-  std::vector<Eigen::LLT<Mat6>> m_pivots;
+  std::vector<Mat6> m_inverse;
+  std::vector<Mat6> m_lower;  ///< H_i,i−1 D_{i−1}⁻¹
+  mutable std::vector<Vec6> m_forward;
 };
 
 /// H·v for the block-tridiagonal H.
@@ -346,9 +597,7 @@ RodState apply(const RodState& s, const VecX& delta, double t) {
   RodState out = s;
   for (std::size_t j = 0; j < s.frames.size(); ++j) {
     out.x[j + 1] += t * delta.segment<3>(static_cast<Eigen::Index>(6 * j));
-    const Vec3 phi = t * delta.segment<3>(static_cast<Eigen::Index>(6 * j + 3));
-    const double angle = phi.norm();
-    if (angle > 0.0) out.frames[j] = Eigen::AngleAxisd(angle, phi / angle).toRotationMatrix() * s.frames[j];
+    out.frames[j] = exp_rotation(t * delta.segment<3>(static_cast<Eigen::Index>(6 * j + 3))) * s.frames[j];
   }
   return out;
 }
@@ -460,11 +709,13 @@ std::string newton(const RodModel& m, const RodField& field, RodState& s, double
   bool fresh = ws == nullptr || ws->edges != m.edges;
   bool last_was_chord = false;
   double previous_norm = std::numeric_limits<double>::infinity();
+  System sys(m.edges);
+  BlockFactor factor;
   for (int it = 0; it < max_iterations; ++it) {
     if (report.iterations >= o.max_iterations) {
       return "iteration budget of " + std::to_string(o.max_iterations) + " Newton iterations exhausted";
     }
-    System sys(m.edges);
+    sys.gradient.setZero();
     const double energy = evaluate(m, field, s, load, &sys, inertia);
     if (!std::isfinite(energy) || !sys.gradient.allFinite()) return "NaN in the energy or its gradient";
     report.gradient_norm = scaled_norm(m, sys.gradient);
@@ -474,7 +725,7 @@ std::string newton(const RodModel& m, const RodField& field, RodState& s, double
     ++report.iterations;
     bool chord = !fresh;
     const auto refresh = [&] {
-      exact_hessian(m, field, s, load, sys, inertia);
+      analytic_hessian(m, field, s, load, sys, inertia);
       ++report.hessians;
       chord = false;
       if (ws != nullptr) {
@@ -493,7 +744,6 @@ std::string newton(const RodModel& m, const RodField& field, RodState& s, double
     // magnetisation) or the step is not a descent direction; a chord Hessian that needs it is recomputed first.
     VecX delta;
     double mu = 0.0;
-    BlockFactor factor;
     for (;;) {
       if (factor.factor(sys, mu) && factor.solve(-sys.gradient, delta) && sys.gradient.dot(delta) < 0.0) break;
       if (chord) {
@@ -528,7 +778,9 @@ std::string newton(const RodModel& m, const RodField& field, RodState& s, double
     }
     const double slope = sys.gradient.dot(delta);
     // A trust bound on the rotation increments: frames turn exactly but positions move linearly, so a long step
-    // bends without the matching node motion and stretches the edges; 0.1 rad keeps that second-order error small.
+    // bends without the matching node motion and stretches the edges (the rebuilt trial below repairs most of it).
+    // 0.5 rad: from the straight beam under 10 mT, 6 Newton iterations instead of 33 at 0.1 rad (bench_rod), the
+    // same equilibria in every test and in `magvine validate` (angles equal to 1e-3), fewer iterations at snaps.
     double largest = 0.0;
     for (Eigen::Index j = 0; j < m.edges; ++j) largest = std::max(largest, delta.segment<3>(6 * j + 3).norm());
     double t = largest > kMaxTurn ? kMaxTurn / largest : 1.0;
@@ -668,6 +920,25 @@ VecX rod_gradient(const RodModel& model, const RodField& field, const RodState& 
   return sys.gradient;
 }
 
+MatX rod_hessian(const RodModel& model, const RodField& field, const RodState& state, double load,
+                 HessianMethod method) {
+  System sys(model.edges);
+  if (method == HessianMethod::analytic) {
+    analytic_hessian(model, field, state, load, sys, nullptr);
+  } else {
+    finite_difference_hessian(model, field, state, load, sys, nullptr);
+  }
+  const auto n = static_cast<Eigen::Index>(model.edges);
+  MatX out = MatX::Zero(6 * n, 6 * n);
+  for (Eigen::Index j = 0; j < n; ++j) {
+    out.block<6, 6>(6 * j, 6 * j) = sys.diag[static_cast<std::size_t>(j)];
+    if (j == 0) continue;
+    out.block<6, 6>(6 * j, 6 * (j - 1)) = sys.sub[static_cast<std::size_t>(j)];
+    out.block<6, 6>(6 * (j - 1), 6 * j) = sys.sub[static_cast<std::size_t>(j)].transpose();
+  }
+  return out;
+}
+
 RodMotion rod_at_rest(const RodModel& model) {
   RodMotion out;
   out.velocity.assign(static_cast<std::size_t>(model.edges) + 1, Vec3::Zero());
@@ -695,10 +966,7 @@ RodSolveReport step_rod_dynamics(const RodModel& model, const RodField& field, R
     inertia.mass[i] = model.mass_per_length * (i == n ? 0.5 * h : h);
   }
   for (std::size_t j = 0; j < n; ++j) {
-    const Vec3 turn = dt * motion.angular_velocity[j];
-    const double angle = turn.norm();
-    inertia.frames[j] = angle > 0.0 ? Mat3(Eigen::AngleAxisd(angle, turn / angle).toRotationMatrix() * state.frames[j])
-                                    : state.frames[j];
+    inertia.frames[j] = exp_rotation(dt * motion.angular_velocity[j]) * state.frames[j];
   }
   RodSolveReport report;
   RodState next = state;

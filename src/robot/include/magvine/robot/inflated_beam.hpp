@@ -42,6 +42,7 @@ double crease_moment(double crease_angle, double radius, double pressure);
 struct NormalisedBending {
   double moment = 0.0;  ///< m(k)
   double energy = 0.0;  ///< Φ(k)
+  double stiffness = 0.0;  ///< dm/dk: 1 up to k = ½, then (Nε − 4D sin ε)/(2πε), falling to 0 at the collapse
 };
 /// The law at normalised curvature k ≥ 0.
 NormalisedBending normalised_inflated_bending(double curvature);

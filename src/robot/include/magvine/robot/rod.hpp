@@ -15,11 +15,11 @@
 /// Equilibrium minimises the total potential energy.
 ///
 /// Solver: Newton steps on the increments (δx_i, δφ_j) (frames updated by R ← exp([δφ]) R). The Hessian is block
-/// tridiagonal in 6 × 6 blocks and factored in O(N); it comes from central differences of the analytic gradient
-/// (36 gradient evaluations for any N; analytic second derivatives are future work, see the benchmark). Steps turn
-/// no frame by more than 0.1 rad, then Armijo backtracking on the energy, each trial also offered with its nodes
-/// rebuilt along the new frames; the loads are ramped (full load first, the step halved when Newton fails); NaN and
-/// an exhausted ramp stop with a named cause.
+/// tridiagonal in 6 × 6 blocks and factored in O(N); its second derivatives are analytic (the field's curvature
+/// from forward differences of the field gradient, for non-uniform fields), checked in the tests against central
+/// differences of the gradient (rod_hessian). Steps turn no frame by more than 0.5 rad, then Armijo backtracking on
+/// the energy, each trial also offered with its nodes rebuilt along the new frames; the loads are ramped (full load
+/// first, the step halved when Newton fails); NaN and an exhausted ramp stop with a named cause.
 
 #include <functional>
 #include <memory>
@@ -140,6 +140,8 @@ struct RodSolveReport {
 
 /// Scratch kept between solves of one rod (a simulation loop): the last Hessian, reused for chord steps from a
 /// nearby state and recomputed whenever a chord step fails to cut the gradient by a fifth. One per solver thread.
+/// Since the Hessian became analytic it no longer pays (bench_rod, EPM moved 1 mm between solves: 0.46 vs 0.39 ms
+/// with the dipole field, 0.92 vs 0.73 ms with the exact cylinder field); kept for fields far costlier than these.
 class RodWorkspace {
  public:
   RodWorkspace();
@@ -202,5 +204,12 @@ RodDynamicsReport simulate_rod_dynamics(const RodModel& model, const RodField& f
 /// tests.
 double rod_energy(const RodModel& model, const RodField& field, const RodState& state, double load = 1.0);
 VecX rod_gradient(const RodModel& model, const RodField& field, const RodState& state, double load = 1.0);
+
+/// How the Newton Hessian is formed: `analytic` (what the solver uses) or `finite_differences` (central differences
+/// of the analytic gradient, 36 gradient evaluations for any N; the reference the tests check `analytic` against).
+enum class HessianMethod { analytic, finite_differences };
+/// The Hessian of rod_energy in the unknowns of rod_gradient, symmetric, dense (6N × 6N; for tests and tools).
+MatX rod_hessian(const RodModel& model, const RodField& field, const RodState& state, double load = 1.0,
+                 HessianMethod method = HessianMethod::analytic);
 
 }  // namespace magvine::robot
