@@ -61,6 +61,31 @@ TEST(Rod, GradientMatchesFiniteDifferencesOfTheEnergy) {
   testing::expect_hessian_matches_finite_differences(m, field, s, "rod");
 }
 
+TEST(Rod, ContactAnchorAndForceTermsMatchFiniteDifferences) {
+  // The terms a growth simulation adds: wall planes (two pressed in, one clear of its node, two smoothed: in the
+  // cubic zone and beyond it), tangential anchors and fixed node forces, on a bent rod without other loads.
+  RodModel m = acceptance_rod(Vec3::UnitX(), 6);
+  m.mass_per_length = 0.0;
+  m.moment_per_length.clear();
+  RodState s = straight_rod(m);
+  std::mt19937 rng(11);
+  std::uniform_real_distribution<double> u(-1.0, 1.0);
+  for (Mat3& r : s.frames) r = Eigen::AngleAxisd(0.2 * u(rng), Vec3(u(rng), u(rng), u(rng)).normalized()) * r;
+  testing::nodes_along_frames(m, s, 1e-6, rng);
+  RodConstraints c;
+  const double k = 1e3;
+  c.contacts.push_back({2, s.x[2] + Vec3(0.0, -1.0e-3, 0.0), Vec3::UnitY(), 1.5e-3, k});  // 0.5 mm deep
+  c.contacts.push_back({5, s.x[5] + Vec3(0.3e-3, 0.0, -1.2e-3), Vec3(0.0, 0.6, 0.8), 1.5e-3, k});
+  c.contacts.push_back({4, s.x[4] + Vec3(0.0, -3.0e-3, 0.0), Vec3::UnitY(), 1.5e-3, k});  // clear
+  c.contacts.push_back({1, s.x[1] + Vec3(0.0, 0.0, -1.4e-3), Vec3::UnitZ(), 1.5e-3, k, 0.3e-3});  // smoothing zone
+  c.contacts.push_back({3, s.x[3] + Vec3(0.0, 0.0, -1.0e-3), Vec3::UnitZ(), 1.5e-3, k, 0.3e-3});  // beyond it
+  c.anchors.push_back({3, s.x[3] + Vec3(0.4e-3, -0.2e-3, 0.1e-3), Vec3(0.0, 0.6, 0.8), 2e3});
+  c.anchors.push_back({6, s.x[6] + Vec3(-0.2e-3, 0.3e-3, 0.0), Vec3::UnitZ(), 2e3});
+  c.forces.push_back({6, Vec3(1e-3, -2e-3, 0.5e-3)});
+  testing::expect_gradient_matches_energy(m, {}, s, "constraints", &c);
+  testing::expect_hessian_matches_finite_differences(m, {}, s, "constraints", &c);
+}
+
 TEST(Rod, TipMomentGradientMatchesFiniteDifferences) {
   // The tip moment's term alone (the difference of two models that differ only in it), at a last edge turned by
   // 0.3–1.2 rad from the clamp, where J_l⁻¹(φ) differs from I by up to ~40 %. Tolerance 1e-5 of |M|: the round-off

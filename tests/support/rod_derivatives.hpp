@@ -29,8 +29,8 @@ void nodes_along_frames(const RodModel& m, RodState& s, double noise, Rng& rng) 
 /// asserted to 1e-6 relative plus 1e-9 of the
 /// largest component (components near zero).
 inline void expect_gradient_matches_energy(const RodModel& m, const RodField& field, const RodState& s,
-                                           const std::string& label) {
-  const VecX g = rod_gradient(m, field, s);
+                                           const std::string& label, const RodConstraints* constraints = nullptr) {
+  const VecX g = rod_gradient(m, field, s, 1.0, constraints);
   for (Eigen::Index k = 0; k < g.size(); ++k) {
     const auto block = static_cast<std::size_t>(k / 6);
     const int axis = static_cast<int>(k % 3);
@@ -43,7 +43,7 @@ inline void expect_gradient_matches_energy(const RodModel& m, const RodField& fi
       } else {
         t.x[block + 1][axis] += d;
       }
-      return rod_energy(m, field, t);
+      return rod_energy(m, field, t, 1.0, constraints);
     };
     const double fd = (shifted(step) - shifted(-step)) / (2.0 * step);
     EXPECT_NEAR(g[k], fd, 1e-6 * (std::abs(fd) + g.cwiseAbs().maxCoeff() * 1e-3)) << label << ": unknown " << k;
@@ -58,15 +58,16 @@ inline void expect_gradient_matches_energy(const RodModel& m, const RodField& fi
 /// diagonal and would let errors in the bending and magnetic terms pass (measured: dropping the joints' BCH term or
 /// the field curvature passes the first run, fails the second).
 inline void expect_hessian_matches_finite_differences(const RodModel& model, const RodField& field, const RodState& s,
-                                                      const std::string& label) {
+                                                      const std::string& label,
+                                                      const RodConstraints* constraints = nullptr) {
   RodModel soft = model;
   const double h = model.length / model.edges;
   soft.axial_stiffness = std::max(model.bending_stiffness_2, model.bending_stiffness_3) / (h * h);
   soft.shear_stiffness = soft.axial_stiffness;
   for (const bool stiff : {true, false}) {
     const RodModel& m = stiff ? model : soft;
-    const MatX a = rod_hessian(m, field, s, 1.0, HessianMethod::analytic);
-    const MatX f = rod_hessian(m, field, s, 1.0, HessianMethod::finite_differences);
+    const MatX a = rod_hessian(m, field, s, 1.0, HessianMethod::analytic, constraints);
+    const MatX f = rod_hessian(m, field, s, 1.0, HessianMethod::finite_differences, constraints);
     double worst = 0.0;
     for (Eigen::Index i = 0; i < a.rows(); ++i) {
       for (Eigen::Index j = 0; j < a.cols(); ++j) {

@@ -141,6 +141,26 @@ Slot rotation_slot(int edge) {
   return {edge, 3};
 }
 
+/// Energy, force (−dE/d(depth) along the normal, ≥ 0) and stiffness of one wall contact at node position x.
+struct ContactLaw {
+  double energy = 0.0;
+  double force = 0.0;
+  double stiffness = 0.0;
+};
+ContactLaw contact_law(const NodeContact& c, const Vec3& x) {
+  const double depth = c.radius - c.normal.dot(x - c.point);
+  const double k = c.stiffness;
+  const double e = c.smoothing;
+  if (depth >= e) {
+    // ½k d² (+ the smoothing zone's offset kε²/6, which keeps the energy continuous).
+    return {0.5 * k * depth * depth + k * e * e / 6.0, k * depth, k};
+  }
+  if (depth <= -e) return {};
+  // Cubic blend on |d| < ε: stiffness rising linearly from 0 at d = −ε to k at d = ε (C² energy).
+  const double s = depth + e;
+  return {k * s * s * s / (12.0 * e), k * s * s / (4.0 * e), k * s / (2.0 * e)};
+}
+
 /// The inertial terms of one backward-Euler step written as an incremental potential: with predictions
 /// x̃_i = x_i + Δt v_i and R̃_j = exp(Δt [w_j]) R_j, the step minimises E + Σ m_i|x_i − x̃_i|²/(2Δt²) +
 /// Σ J_j|θ_j|²/(2Δt²), θ_j = vee((R_j R̃_jᵀ − R̃_j R_jᵀ)/2) (the rotation from the prediction, sin θ·axis).
@@ -154,7 +174,8 @@ struct Inertia {
 
 /// Energy at load factor λ; adds its gradient to `sys` when given.
 double evaluate(const RodModel& m, const RodField& field, const RodState& s, double load, System* sys,
-                const Inertia* inertia = nullptr, const std::vector<magnetics::FieldSample>* samples = nullptr) {
+                const Inertia* inertia = nullptr, const RodConstraints* constraints = nullptr,
+                const std::vector<magnetics::FieldSample>* samples = nullptr) {
   const int n = m.edges;
   const double h = m.length / n;
   double energy = 0.0;
@@ -230,6 +251,24 @@ double evaluate(const RodModel& m, const RodField& field, const RodState& s, dou
       if (sys != nullptr) sys->add_gradient(rotation_slot(j), rotational_inertia_gradient(p, k * inertia->rotational));
     }
   }
+  // Wall contacts (frozen planes), tangential anchors and fixed node forces.
+  if (constraints != nullptr) {
+    for (const NodeContact& c : constraints->contacts) {
+      const ContactLaw law = contact_law(c, s.x[static_cast<std::size_t>(c.node)]);
+      energy += law.energy;
+      if (sys != nullptr && law.force > 0.0) sys->add_gradient(position_slot(c.node), -law.force * c.normal);
+    }
+    for (const NodeAnchor& a : constraints->anchors) {
+      const Vec3 d = s.x[static_cast<std::size_t>(a.node)] - a.anchor;
+      const Vec3 tangential = d - a.normal.dot(d) * a.normal;
+      energy += 0.5 * a.stiffness * tangential.squaredNorm();
+      if (sys != nullptr) sys->add_gradient(position_slot(a.node), a.stiffness * tangential);
+    }
+    for (const NodeForce& f : constraints->forces) {
+      energy -= f.force.dot(s.x[static_cast<std::size_t>(f.node)]);
+      if (sys != nullptr) sys->add_gradient(position_slot(f.node), -f.force);
+    }
+  }
   // Gravity on lumped node masses, and the tip force.
   for (int i = 1; i <= n; ++i) {
     const double mass = m.mass_per_length * (i == n ? 0.5 * h : h);
@@ -260,7 +299,7 @@ RodState apply(const RodState& s, const VecX& delta, double t);
 /// crawl (hundreds of iterations) at large deflections. Symmetrised: with world-frame rotation increments the
 /// derivative of the gradient differs from the Hessian by an antisymmetric part.
 void finite_difference_hessian(const RodModel& m, const RodField& field, const RodState& s, double load,
-                               System& sys, const Inertia* inertia) {
+                               System& sys, const Inertia* inertia, const RodConstraints* constraints) {
   const int n = m.edges;
   const double step_x = 1e-6 * m.length / n;  // relative to the edge: a strain step of 1e-6
   const double step_phi = 1e-6;
@@ -284,8 +323,8 @@ void finite_difference_hessian(const RodModel& m, const RodField& field, const R
       plus.gradient.setZero();
       minus.gradient.setZero();
       const std::vector<magnetics::FieldSample>* cached = k >= 3 && !samples.empty() ? &samples : nullptr;
-      evaluate(m, field, apply(s, delta, step), load, &plus, inertia, cached);
-      evaluate(m, field, apply(s, delta, -step), load, &minus, inertia, cached);
+      evaluate(m, field, apply(s, delta, step), load, &plus, inertia, constraints, cached);
+      evaluate(m, field, apply(s, delta, -step), load, &minus, inertia, constraints, cached);
       const VecX column = (plus.gradient - minus.gradient) / (2.0 * step);
       for (int j = colour; j < n; j += 3) {
         const auto ju = static_cast<std::size_t>(j);
@@ -399,7 +438,7 @@ Mat3 local_rotation_hessian(const Gradient& gradient) {
 ///   inertia and the tip moment: central differences of their one-block gradients.
 /// Checked against finite_difference_hessian (central differences of the whole gradient) in test_rod.
 void analytic_hessian(const RodModel& m, const RodField& field, const RodState& s, double load, System& sys,
-                      const Inertia* inertia) {
+                      const Inertia* inertia, const RodConstraints* constraints) {
   const int n = m.edges;
   const double h = m.length / n;
   for (Mat6& b : sys.diag) b.setZero();
@@ -489,6 +528,18 @@ void analytic_hessian(const RodModel& m, const RodField& field, const RodState& 
       add_hessian(sys, rotation_slot(j), rotation_slot(j), local_rotation_hessian([&](const Vec3& phi) {
                     return rotational_inertia_gradient(exp_rotation(phi) * p0, k * inertia->rotational);
                   }));
+    }
+  }
+  if (constraints != nullptr) {
+    for (const NodeContact& c : constraints->contacts) {
+      const ContactLaw law = contact_law(c, s.x[static_cast<std::size_t>(c.node)]);
+      if (law.stiffness > 0.0) {
+        add_hessian(sys, position_slot(c.node), position_slot(c.node), law.stiffness * c.normal * c.normal.transpose());
+      }
+    }
+    for (const NodeAnchor& a : constraints->anchors) {
+      add_hessian(sys, position_slot(a.node), position_slot(a.node),
+                  a.stiffness * (Mat3::Identity() - a.normal * a.normal.transpose()));
     }
   }
   if (!m.tip_moment.isZero()) {
@@ -705,7 +756,7 @@ namespace {
 /// search); then it is recomputed.
 std::string newton(const RodModel& m, const RodField& field, RodState& s, double load, const RodSolveOptions& o,
                    RodSolveReport& report, int max_iterations, const Inertia* inertia = nullptr,
-                   RodWorkspace::Impl* ws = nullptr) {
+                   RodWorkspace::Impl* ws = nullptr, const RodConstraints* constraints = nullptr) {
   bool fresh = ws == nullptr || ws->edges != m.edges;
   bool last_was_chord = false;
   double previous_norm = std::numeric_limits<double>::infinity();
@@ -716,7 +767,7 @@ std::string newton(const RodModel& m, const RodField& field, RodState& s, double
       return "iteration budget of " + std::to_string(o.max_iterations) + " Newton iterations exhausted";
     }
     sys.gradient.setZero();
-    const double energy = evaluate(m, field, s, load, &sys, inertia);
+    const double energy = evaluate(m, field, s, load, &sys, inertia, constraints);
     if (!std::isfinite(energy) || !sys.gradient.allFinite()) return "NaN in the energy or its gradient";
     report.gradient_norm = scaled_norm(m, sys.gradient);
     if (report.gradient_norm <= std::max(o.tolerance, noise_floor(m))) return {};
@@ -725,7 +776,7 @@ std::string newton(const RodModel& m, const RodField& field, RodState& s, double
     ++report.iterations;
     bool chord = !fresh;
     const auto refresh = [&] {
-      analytic_hessian(m, field, s, load, sys, inertia);
+      analytic_hessian(m, field, s, load, sys, inertia, constraints);
       ++report.hessians;
       chord = false;
       if (ws != nullptr) {
@@ -792,9 +843,9 @@ std::string newton(const RodModel& m, const RodField& field, RodState& s, double
     // Newton iterations with it; 1092–7196 without, and one case failed).
     const auto trial_at = [&](const VecX& step, double scale, double& e) {
       RodState trial = apply(s, step, scale);
-      e = evaluate(m, field, trial, load, nullptr, inertia);
+      e = evaluate(m, field, trial, load, nullptr, inertia, constraints);
       RodState rebuilt = rebuild_positions(trial, s, step, scale);
-      const double e_rebuilt = evaluate(m, field, rebuilt, load, nullptr, inertia);
+      const double e_rebuilt = evaluate(m, field, rebuilt, load, nullptr, inertia, constraints);
       if (std::isfinite(e_rebuilt) && !(e_rebuilt >= e)) {
         e = e_rebuilt;
         return rebuilt;
@@ -910,23 +961,25 @@ RodState straight_rod(const RodModel& model) {
   return s;
 }
 
-double rod_energy(const RodModel& model, const RodField& field, const RodState& state, double load) {
-  return evaluate(model, field, state, load, nullptr);
+double rod_energy(const RodModel& model, const RodField& field, const RodState& state, double load,
+                  const RodConstraints* constraints) {
+  return evaluate(model, field, state, load, nullptr, nullptr, constraints);
 }
 
-VecX rod_gradient(const RodModel& model, const RodField& field, const RodState& state, double load) {
+VecX rod_gradient(const RodModel& model, const RodField& field, const RodState& state, double load,
+                  const RodConstraints* constraints) {
   System sys(model.edges);
-  evaluate(model, field, state, load, &sys);
+  evaluate(model, field, state, load, &sys, nullptr, constraints);
   return sys.gradient;
 }
 
 MatX rod_hessian(const RodModel& model, const RodField& field, const RodState& state, double load,
-                 HessianMethod method) {
+                 HessianMethod method, const RodConstraints* constraints) {
   System sys(model.edges);
   if (method == HessianMethod::analytic) {
-    analytic_hessian(model, field, state, load, sys, nullptr);
+    analytic_hessian(model, field, state, load, sys, nullptr, constraints);
   } else {
-    finite_difference_hessian(model, field, state, load, sys, nullptr);
+    finite_difference_hessian(model, field, state, load, sys, nullptr, constraints);
   }
   const auto n = static_cast<Eigen::Index>(model.edges);
   MatX out = MatX::Zero(6 * n, 6 * n);
@@ -1031,7 +1084,8 @@ RodDynamicsReport simulate_rod_dynamics(const RodModel& model, const RodField& f
 }
 
 RodSolveReport solve_rod_statics(const RodModel& model, const RodField& field, RodState& state,
-                                 const RodSolveOptions& options, RodWorkspace* workspace) {
+                                 const RodSolveOptions& options, RodWorkspace* workspace,
+                                 const RodConstraints* constraints) {
   RodWorkspace::Impl* ws = workspace != nullptr ? workspace->impl.get() : nullptr;
   validate(model);
   if (state.x.size() != static_cast<std::size_t>(model.edges) + 1 ||
@@ -1043,7 +1097,7 @@ RodSolveReport solve_rod_statics(const RodModel& model, const RodField& field, R
   // straight rod). Only when that fails does the ramp start over from the unloaded state.
   if (options.min_load_steps <= 1) {
     RodState trial = state;
-    if (newton(model, field, trial, 1.0, options, report, options.max_newton, nullptr, ws).empty()) {
+    if (newton(model, field, trial, 1.0, options, report, options.max_newton, nullptr, ws, constraints).empty()) {
       state = std::move(trial);
       report.load_steps = 1;
       report.converged = true;
@@ -1054,14 +1108,14 @@ RodSolveReport solve_rod_statics(const RodModel& model, const RodField& field, R
   double step = 1.0 / std::max(2, options.min_load_steps);
   const double min_step = 1.0 / options.max_load_steps;
   // The unloaded state first (it may not be at rest if the caller's state is not).
-  if (std::string why = newton(model, field, state, 0.0, options, report, options.max_snap_newton, nullptr, ws); !why.empty()) {
+  if (std::string why = newton(model, field, state, 0.0, options, report, options.max_snap_newton, nullptr, ws, constraints); !why.empty()) {
     report.failure = "unloaded rod: " + why;
     return report;
   }
   while (load < 1.0) {
     const double next = std::min(1.0, load + step);
     RodState trial = state;
-    std::string why = newton(model, field, trial, next, options, report, options.max_newton, nullptr, ws);
+    std::string why = newton(model, field, trial, next, options, report, options.max_newton, nullptr, ws, constraints);
     if (!why.empty() && report.iterations >= options.max_iterations) {
       report.failure = "at load factor " + std::to_string(load) + ": " + why;
       return report;
@@ -1071,7 +1125,7 @@ RodSolveReport solve_rod_statics(const RodModel& model, const RodField& field, R
       // last one, however small the load step; the energy still decreases along Newton's steps, so follow them to
       // the next stable branch.
       trial = state;
-      why = newton(model, field, trial, next, options, report, options.max_snap_newton, nullptr, ws);
+      why = newton(model, field, trial, next, options, report, options.max_snap_newton, nullptr, ws, constraints);
       if (why.empty()) ++report.snaps;
     }
     if (why.empty()) {

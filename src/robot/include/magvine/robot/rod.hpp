@@ -152,11 +152,50 @@ class RodWorkspace {
   std::unique_ptr<Impl> impl;
 };
 
+/// Contact of node `node` with a wall, frozen as a plane for one solve (from CollisionWorld contacts), at depth
+/// d = r − n·(x − p) (n the unit normal from the wall toward the body, p a point on the wall, r the body's radius):
+/// energy ½k d² for d ≥ ε, none for d ≤ −ε, and between them the cubic k(d + ε)³/(12ε), whose stiffness rises
+/// linearly from 0 to k (a C² energy: Newton does not cycle on nodes resting at d ≈ 0, as it did with the plain
+/// ½k max(0, d)²). The force on the wall, k·d beyond ε, is along −n.
+struct NodeContact {
+  int node = 0;
+  Vec3 point = Vec3::Zero();
+  Vec3 normal = Vec3::UnitZ();
+  double radius = 0.0;     ///< [m]
+  double stiffness = 0.0;  ///< k [N/m]
+  double smoothing = 0.0;  ///< ε [m]; 0: the plain penalty
+};
+
+/// A node held against sliding along a wall (static friction, the everted vine's no-shear condition): energy
+/// ½ k |(I − nnᵀ)(x − a)|², the tangential part of its offset from the anchor a. The shear force on the wall is
+/// k (I − nnᵀ)(x − a).
+struct NodeAnchor {
+  int node = 0;
+  Vec3 anchor = Vec3::Zero();
+  Vec3 normal = Vec3::UnitZ();  ///< the wall normal at the anchor
+  double stiffness = 0.0;       ///< [N/m]
+};
+
+/// A fixed force on a node [N] (e.g. the kinetic friction of a pushed catheter).
+struct NodeForce {
+  int node = 0;
+  Vec3 force = Vec3::Zero();
+};
+
+/// Terms a simulation adds to the rod's energy for one solve; not scaled by the load ramp. Node 0 (the clamp)
+/// takes none.
+struct RodConstraints {
+  std::vector<NodeContact> contacts;
+  std::vector<NodeAnchor> anchors;
+  std::vector<NodeForce> forces;
+};
+
 /// Moves `state` to static equilibrium under the model's loads and `field` (empty: none), starting from `state`
 /// (the full load first; the ramp from the unloaded state when that fails). With a workspace, Newton reuses the
 /// previous Hessian while it keeps reducing the gradient. Throws InputError for an invalid model.
 RodSolveReport solve_rod_statics(const RodModel& model, const RodField& field, RodState& state,
-                                 const RodSolveOptions& options = {}, RodWorkspace* workspace = nullptr);
+                                 const RodSolveOptions& options = {}, RodWorkspace* workspace = nullptr,
+                                 const RodConstraints* constraints = nullptr);
 
 /// Bending moment |M| = dW/dψ at each joint [N·m]: joint 0 between the clamp and edge 0 (at x_0), joint j between
 /// edges j − 1 and j (at x_j), from the stored energy's derivative (the inflated-beam law for a vine).
@@ -202,14 +241,16 @@ RodDynamicsReport simulate_rod_dynamics(const RodModel& model, const RodField& f
 /// Total potential energy [J] and its gradient with respect to (δx_1, δφ_0, δx_2, δφ_1, …) (6 per edge, node j+1's
 /// position then edge j's rotation increment, world frame) at load factor `load` — exposed for the derivative
 /// tests.
-double rod_energy(const RodModel& model, const RodField& field, const RodState& state, double load = 1.0);
-VecX rod_gradient(const RodModel& model, const RodField& field, const RodState& state, double load = 1.0);
+double rod_energy(const RodModel& model, const RodField& field, const RodState& state, double load = 1.0,
+                  const RodConstraints* constraints = nullptr);
+VecX rod_gradient(const RodModel& model, const RodField& field, const RodState& state, double load = 1.0,
+                  const RodConstraints* constraints = nullptr);
 
 /// How the Newton Hessian is formed: `analytic` (what the solver uses) or `finite_differences` (central differences
 /// of the analytic gradient, 36 gradient evaluations for any N; the reference the tests check `analytic` against).
 enum class HessianMethod { analytic, finite_differences };
 /// The Hessian of rod_energy in the unknowns of rod_gradient, symmetric, dense (6N × 6N; for tests and tools).
 MatX rod_hessian(const RodModel& model, const RodField& field, const RodState& state, double load = 1.0,
-                 HessianMethod method = HessianMethod::analytic);
+                 HessianMethod method = HessianMethod::analytic, const RodConstraints* constraints = nullptr);
 
 }  // namespace magvine::robot

@@ -1,0 +1,169 @@
+#pragma once
+/// An everting vine growing through anatomy (PHYSICS.md §3): quasi-static steps of the discretised vine of vine.hpp
+/// against the airway wall of an anatomy::CollisionWorld.
+///
+/// Eversion. New material appears at the tip: the body is a chain of edges of fixed length h, and growing by h
+/// appends one edge along the tip's tangent. Material already everted never slides along the wall: a node that
+/// touches the wall is anchored where it touched (static friction, NodeAnchor) and keeps the anchor while it stays
+/// in contact, unless the tangential force it needs exceeds μ times its normal force (then the anchor slips to the
+/// Coulomb limit). Free spans still bend under the magnetic, gravity and contact loads: every step solves the whole
+/// body's equilibrium (solve_rod_statics) with the wall as frozen contact planes, re-queried until the contact set
+/// settles.
+///
+/// Pushed mode (InsertionMode::kPushed): the same body inserted from the base, as a catheter. The chain grows the
+/// same way (the path is the same), but every material point slides forward by h, so each node in contact carries
+/// kinetic friction μ·F_n against the sliding direction (its tangent), and no anchors.
+///
+/// Growth law (PHYSICS.md §3, Blumenschein et al. 2017's form; the constants are not published for these robots):
+///   L̇ = K·max(0, P − Y),  Y = Y0 + c_L·L + c_θ·Σθ,
+/// Σθ the total turning along the body (the sum of the joint angles). Growth stalls when Y ≥ P (an event naming the
+/// three terms) and when the wall in front of the tip pushes back along the tangent by more than the growth force
+/// (P − Y)·πR² (a "blocked" event; the edge is not added). The tether caps the length. Burst: a pressure whose
+/// hoop stress PR/t exceeds the film's strength is an event and ends growth. Diametric extension: the radius is
+/// R(1 + PR/(tE)) (the hoop strain), used for the contacts and the inflated-beam law.
+///
+/// Tissue forces per step: normal k·depth at every node in contact, shear the anchors' tangential force (eversion)
+/// or μ·F_n (pushed).
+
+#include <limits>
+#include <string>
+#include <vector>
+
+#include "magvine/core/eigen_types.hpp"
+#include "magvine/core/units.hpp"
+#include "magvine/robot/rod.hpp"
+#include "magvine/robot/vine.hpp"
+
+namespace magvine::anatomy {
+class CollisionWorld;
+}
+
+namespace magvine::robot {
+
+/// L̇ = K·max(0, P − Y0 − c_L·L − c_θ·Σθ). Defaults (not published; chosen so that the Ø8 mm skin vine of thesis
+/// 4.6 grows at its 12 kPa with two right-angle turns over its 250 mm: Y = 4 + 4 + 3.1 kPa < 12 kPa, at ~10 mm/s
+/// when short).
+struct GrowthLaw {
+  double extensibility = 1.25e-6;  ///< K [m/(s·Pa)]
+  double yield_pressure = 4e3;     ///< Y0 [Pa]
+  double length_yield = 16e3;      ///< c_L [Pa/m]
+  double turning_yield = 1e3;      ///< c_θ [Pa/rad]
+};
+
+enum class InsertionMode { kEversion, kPushed };
+
+struct GrowthOptions {
+  GrowthLaw law;
+  InsertionMode mode = InsertionMode::kEversion;
+  double edge_length = 0.0;        ///< h [m]; 0: the vine's radius
+  double friction = 0.3;           ///< Coulomb μ between the body and the wall
+  /// The steepest angle between the tip's tangent and a wall it meets at which the tip still slides along the wall
+  /// (Greer et al. 2020: shallow incidence deflects, steep incidence stops the tip); steeper: "blocked" [rad].
+  /// An assumption, not a thesis number.
+  double max_incidence = 45.0 * kDegToRad;
+  double contact_stiffness = 0.0;  ///< wall penalty k [N/m]; 0: automatic (the growth force at 2 % R depth)
+  double max_length = std::numeric_limits<double>::infinity();  ///< the vine's made length [m]
+  int max_contact_passes = 8;      ///< solves per step while the contact set settles
+  Vec3 gravity = Vec3(0.0, 0.0, -9.81);  ///< [m/s²] (bench phantoms: z up)
+  RodSolveOptions solver;
+};
+
+/// Something that happened during growth.
+struct GrowthEvent {
+  double time = 0.0;    ///< [s]
+  double length = 0.0;  ///< everted length then [m]
+  std::string kind;     ///< "stall", "resume", "blocked", "burst", "tether", "max_length", "solver"
+  std::string detail;   ///< human-readable cause with numbers (kPa, mm, N)
+};
+
+/// Forces on the tissue after a step [N], per node (0 for the clamp and nodes out of contact).
+struct WallForces {
+  std::vector<double> normal;
+  std::vector<double> shear;
+  double max_normal = 0.0;
+  double mean_normal = 0.0;  ///< over the nodes in contact
+  double total_normal = 0.0;
+  double max_shear = 0.0;
+  double total_shear = 0.0;
+  int nodes_in_contact = 0;
+};
+
+/// What one advance did.
+struct GrowthStepReport {
+  int edges_added = 0;
+  bool stalled = false;    ///< no growth this step (yield, blocked, tether, length or burst)
+  bool burst = false;
+  bool converged = true;   ///< the body reached equilibrium (else the cause is in failure and an event)
+  int contact_passes = 0;
+  int newton_iterations = 0;
+  double yield = 0.0;      ///< Y [Pa]
+  double speed = 0.0;      ///< the growth law's L̇ before tether and blocking [m/s]
+  std::string failure;
+};
+
+/// The control inputs of one step.
+struct GrowthControl {
+  double pressure = 0.0;  ///< P [Pa]
+  double tether_length = std::numeric_limits<double>::infinity();  ///< the length the tether has released [m]
+};
+
+/// A vine growing through one anatomy. The world and the field are borrowed (the world must outlive this).
+class VineGrowth {
+ public:
+  /// `vine`: the body (vine.length the initial everted length, ≥ one edge; vine.edges ignored); base pose of the
+  /// clamp (tangent = first column of base_frame). `world` may be null (free space). Throws InputError for bad
+  /// parameters (VineParameterError for the vine's own).
+  VineGrowth(const VineParameters& vine, const GrowthOptions& options, const anatomy::CollisionWorld* world,
+             RodField field, const Vec3& base_position, const Mat3& base_frame);
+
+  /// Advances by dt [s] under `control`: grows by the growth law (whole edges), then solves the body's equilibrium
+  /// with the wall.
+  GrowthStepReport advance(double dt, const GrowthControl& control);
+
+  /// Replaces the magnetic field (a moved EPM).
+  void set_field(RodField field) { m_field = std::move(field); }
+
+  const RodState& state() const { return m_state; }
+  const RodModel& model() const { return m_model; }
+  double time() const { return m_time; }
+  double length() const { return m_model.length; }  ///< everted length [m]
+  double edge_length() const { return m_h; }
+  double radius() const { return m_radius; }        ///< current (extended) radius [m]
+  double turning() const;                            ///< Σθ over the joints [rad]
+  bool burst() const { return m_burst; }
+  const std::vector<GrowthEvent>& events() const { return m_events; }
+  const WallForces& wall_forces() const { return m_forces; }
+  /// Where each node's anchor sits (NaN for free nodes); eversion mode.
+  const std::vector<Vec3>& anchors() const { return m_anchor; }
+
+ private:
+  void rebuild_model(double pressure);
+  double extended_radius(double pressure) const;
+  bool solve_with_wall(GrowthStepReport& report);
+  void add_event(std::string kind, std::string detail);
+
+  VineParameters m_vine;
+  GrowthOptions m_options;
+  const anatomy::CollisionWorld* m_world;
+  RodField m_field;
+  Vec3 m_base_position;
+  Mat3 m_base_frame;
+  double m_h = 0.0;
+  double m_radius = 0.0;
+  double m_pressure = 0.0;
+  double m_stiffness = 0.0;
+  double m_pending = 0.0;  ///< grown length not yet a whole edge [m]
+  double m_time = 0.0;
+  bool m_burst = false;
+  bool m_stalled = false;
+  RodModel m_model;
+  RodState m_state;
+  RodWorkspace m_workspace;
+  std::vector<Vec3> m_anchor;         ///< per node; NaN: none
+  std::vector<Vec3> m_anchor_normal;  ///< wall normal at the anchor
+  std::vector<double> m_normal_force; ///< per node, from the last solve [N]
+  WallForces m_forces;
+  std::vector<GrowthEvent> m_events;
+};
+
+}  // namespace magvine::robot

@@ -1,0 +1,355 @@
+#include "magvine/robot/growth.hpp"
+
+#include <algorithm>
+#include <array>
+#include <cmath>
+#include <cstdio>
+#include <limits>
+#include <string>
+#include <utility>
+
+#include "magvine/anatomy/collision_world.hpp"
+#include "magvine/core/error.hpp"
+#include "magvine/core/units.hpp"
+
+namespace magvine::robot {
+namespace {
+
+constexpr double kNone = std::numeric_limits<double>::quiet_NaN();
+constexpr std::size_t kContactsPerNode = 8;
+
+std::string format(const char* pattern, double a, double b = 0.0, double c = 0.0, double d = 0.0, double e = 0.0) {
+  char buffer[256];
+  std::snprintf(buffer, sizeof buffer, pattern, a, b, c, d, e);
+  return buffer;
+}
+
+bool has_anchor(const Vec3& a) { return !std::isnan(a.x()); }
+
+/// The unit tangent of the body at node i (mean of its edges' tangents).
+Vec3 node_tangent(const RodState& s, std::size_t i) {
+  const std::size_t n = s.frames.size();
+  Vec3 t = s.frames[std::min(i, n - 1)].col(0);
+  if (i > 0 && i < n) t += s.frames[i - 1].col(0);
+  return t.normalized();
+}
+
+}  // namespace
+
+VineGrowth::VineGrowth(const VineParameters& vine, const GrowthOptions& options, const anatomy::CollisionWorld* world,
+                       RodField field, const Vec3& base_position, const Mat3& base_frame)
+    : m_vine(vine),
+      m_options(options),
+      m_world(world),
+      m_field(std::move(field)),
+      m_base_position(base_position),
+      m_base_frame(base_frame) {
+  const GrowthLaw& law = options.law;
+  const auto check = [](bool ok, const std::string& what) {
+    if (!ok) throw InputError("vine growth: " + what);
+  };
+  check(law.extensibility >= 0.0 && std::isfinite(law.extensibility), "extensibility must be >= 0");
+  check(law.yield_pressure >= 0.0 && law.length_yield >= 0.0 && law.turning_yield >= 0.0,
+        "the yield terms must be >= 0");
+  check(options.friction >= 0.0 && std::isfinite(options.friction), "friction must be >= 0");
+  check(options.contact_stiffness >= 0.0, "contact_stiffness must be >= 0");
+  check(options.edge_length >= 0.0 && std::isfinite(options.edge_length), "edge_length must be >= 0");
+  check(options.max_contact_passes >= 1, "max_contact_passes must be >= 1");
+  check((base_frame.transpose() * base_frame).isApprox(Mat3::Identity(), 1e-9), "base_frame must be orthonormal");
+  check(vine.radius > 0.0 && std::isfinite(vine.radius), "radius must be > 0");
+  m_h = options.edge_length > 0.0 ? options.edge_length : vine.radius;
+  const int edges = std::max(1, static_cast<int>(std::lround(vine.length / m_h)));
+  m_vine.edges = edges;
+  m_vine.length = edges * m_h;
+  rebuild_model(vine.pressure);  // validates the vine (VineParameterError)
+  m_state = straight_rod(m_model);
+  m_anchor.assign(m_state.x.size(), Vec3::Constant(kNone));
+  m_anchor_normal.assign(m_state.x.size(), Vec3::Zero());
+  m_normal_force.assign(m_state.x.size(), 0.0);
+  GrowthStepReport report;
+  if (!solve_with_wall(report)) add_event("solver", "initial equilibrium: " + report.failure);
+}
+
+double VineGrowth::extended_radius(double pressure) const {
+  return m_vine.radius * (1.0 + pressure * m_vine.radius / (m_vine.wall.thickness * m_vine.wall.modulus));
+}
+
+void VineGrowth::rebuild_model(double pressure) {
+  VineParameters v = m_vine;
+  v.pressure = pressure;
+  v.radius = extended_radius(pressure);  // diametric extension: the hoop strain PR/(tE) of the film
+  v.edges = m_vine.edges;
+  v.length = m_vine.edges * m_h;
+  m_model = vine_rod(v);
+  m_model.base_position = m_base_position;
+  m_model.base_frame = m_base_frame;
+  m_model.gravity = m_options.gravity;
+  m_radius = v.radius;
+  m_pressure = pressure;
+  const double ei = m_model.bending_stiffness_3;
+  m_stiffness = m_options.contact_stiffness > 0.0
+                    ? m_options.contact_stiffness
+                    : std::max(50.0 * kPi * pressure * m_radius, 10.0 * ei / (m_h * m_h * m_h));
+}
+
+double VineGrowth::turning() const {
+  double sum = 0.0;
+  for (std::size_t j = 0; j < m_state.frames.size(); ++j) {
+    const Mat3& a = j == 0 ? m_base_frame : m_state.frames[j - 1];
+    const Mat3 q = a.transpose() * m_state.frames[j];
+    const double sine = 0.5 * Vec3(q(2, 1) - q(1, 2), q(0, 2) - q(2, 0), q(1, 0) - q(0, 1)).norm();
+    sum += std::atan2(sine, 0.5 * (q.trace() - 1.0));
+  }
+  return sum;
+}
+
+void VineGrowth::add_event(std::string kind, std::string detail) {
+  m_events.push_back({m_time, m_model.length, std::move(kind), std::move(detail)});
+}
+
+bool VineGrowth::solve_with_wall(GrowthStepReport& report) {
+  const std::size_t nodes = m_state.x.size();
+  m_anchor.resize(nodes, Vec3::Constant(kNone));
+  m_anchor_normal.resize(nodes, Vec3::Zero());
+  m_normal_force.assign(nodes, 0.0);
+  std::vector<double> previous_force(nodes, 0.0);
+  std::array<anatomy::Contact, kContactsPerNode> found{};
+  RodConstraints c;
+  const double tolerance = 1e-2 * m_radius;  // contact set settled: planes predict every depth to 1 % of R
+  const double margin = 0.25 * m_radius;     // planes are kept for nodes this close to the wall, and a node that
+                                             // moves farther than this in a solve is queried again
+  std::vector<Vec3> queried(nodes);
+  const double mu = m_options.friction;
+  const double smoothing = 0.01 * m_radius;  // the contact law's C² zone (NodeContact::smoothing)
+  const bool pushed = m_options.mode == InsertionMode::kPushed;
+  std::vector<Vec3> wall_force(nodes, Vec3::Zero());  // on the body, per node
+  for (int pass = 0; pass < m_options.max_contact_passes; ++pass) {
+    ++report.contact_passes;
+    c.contacts.clear();
+    c.anchors.clear();
+    c.forces.clear();
+    if (m_world != nullptr) {
+      for (std::size_t i = 1; i < nodes; ++i) {
+        queried[i] = m_state.x[i];
+        const std::size_t k = m_world->sphere_contacts(m_state.x[i], m_radius + margin, found);
+        for (std::size_t q = 0; q < k; ++q) {
+          // Radius R − ε: the law's smooth zone then starts where the body touches the wall (d = 0), so a node
+          // resting on a wall with a light load sits at the clamp's height, not ε off it.
+          c.contacts.push_back(
+              {static_cast<int>(i), found[q].point, found[q].normal, m_radius - smoothing, m_stiffness, smoothing});
+        }
+      }
+    }
+    for (std::size_t i = 1; i < nodes; ++i) {
+      if (!pushed && has_anchor(m_anchor[i])) {
+        c.anchors.push_back({static_cast<int>(i), m_anchor[i], m_anchor_normal[i], m_stiffness});
+      }
+      if (pushed && m_normal_force[i] > 0.0) {
+        c.forces.push_back({static_cast<int>(i), -mu * m_normal_force[i] * node_tangent(m_state, i)});
+      }
+    }
+    const RodSolveReport r = solve_rod_statics(m_model, m_field, m_state, m_options.solver, &m_workspace, &c);
+    report.newton_iterations += r.iterations;
+    if (!r.converged) {
+      report.converged = false;
+      report.failure = r.failure;
+      return false;
+    }
+    // Wall forces from the planes at the solved state, and whether fresh queries agree with the planes.
+    std::fill(wall_force.begin(), wall_force.end(), Vec3::Zero());
+    std::vector<double> plane_depth(nodes, 0.0);
+    for (const NodeContact& p : c.contacts) {
+      const auto i = static_cast<std::size_t>(p.node);
+      const double depth = p.radius - p.normal.dot(m_state.x[i] - p.point);
+      plane_depth[i] = std::max(plane_depth[i], depth + smoothing);
+      if (depth <= -smoothing) continue;
+      const double s = depth + smoothing;
+      wall_force[i] += (depth >= smoothing ? p.stiffness * depth : p.stiffness * s * s / (4.0 * smoothing)) * p.normal;
+    }
+    bool settled = true;
+    for (std::size_t i = 1; i < nodes && m_world != nullptr; ++i) {
+      const std::size_t k = m_world->sphere_contacts(m_state.x[i], m_radius, found);
+      const double depth = k > 0 ? found[0].depth : 0.0;
+      if (std::abs(depth - plane_depth[i]) > tolerance || (m_state.x[i] - queried[i]).norm() > margin) {
+        settled = false;
+      }
+    }
+    previous_force = m_normal_force;
+    for (std::size_t i = 0; i < nodes; ++i) m_normal_force[i] = wall_force[i].norm();
+    if (pushed) {
+      for (std::size_t i = 1; i < nodes; ++i) {
+        if (std::abs(m_normal_force[i] - previous_force[i]) > 1e-3 * (m_normal_force[i] + 1e-9)) settled = false;
+      }
+    } else {
+      // Static friction: anchor nodes where they touch, release them when they leave the wall, and let an anchor
+      // slip to the Coulomb limit when it holds more than μ·F_n.
+      for (std::size_t i = 1; i < nodes; ++i) {
+        const double fn = m_normal_force[i];
+        if (fn <= 0.0) {
+          m_anchor[i] = Vec3::Constant(kNone);
+          continue;
+        }
+        const Vec3 n = wall_force[i] / fn;
+        if (!has_anchor(m_anchor[i])) {
+          m_anchor[i] = m_state.x[i];
+          m_anchor_normal[i] = n;
+          continue;
+        }
+        const Vec3 d = m_state.x[i] - m_anchor[i];
+        const Vec3 tangential = d - m_anchor_normal[i].dot(d) * m_anchor_normal[i];
+        const double ft = m_stiffness * tangential.norm();
+        if (ft > mu * fn * (1.0 + 1e-6)) {
+          const Vec3 slip = tangential * (1.0 - mu * fn / ft);
+          m_anchor[i] += slip;
+          // Another solve only for a slip that matters: a tiny one converges slowly (each solve gives back part of
+          // it) and changes nothing at the scale of the body.
+          if (slip.norm() > 1e-3 * m_radius) settled = false;
+        }
+      }
+    }
+    if (settled) break;
+    if (pass + 1 == m_options.max_contact_passes) {
+      report.converged = false;
+      report.failure = "the wall contacts did not settle in " + std::to_string(m_options.max_contact_passes) +
+                       " solves (a node moved more than " + format("%.2f mm", 1e3 * margin) +
+                       " or its depth changed by more than 1 % of R between solves)";
+      return false;
+    }
+  }
+  // Tissue forces (the last solve's).
+  m_forces = WallForces{};
+  m_forces.normal.assign(nodes, 0.0);
+  m_forces.shear.assign(nodes, 0.0);
+  for (std::size_t i = 1; i < nodes; ++i) {
+    const double fn = m_normal_force[i];
+    double shear = 0.0;
+    if (pushed) {
+      shear = mu * fn;
+    } else if (has_anchor(m_anchor[i])) {
+      const Vec3 d = m_state.x[i] - m_anchor[i];
+      shear = m_stiffness * (d - m_anchor_normal[i].dot(d) * m_anchor_normal[i]).norm();
+    }
+    m_forces.normal[i] = fn;
+    m_forces.shear[i] = shear;
+    m_forces.max_normal = std::max(m_forces.max_normal, fn);
+    m_forces.total_normal += fn;
+    m_forces.max_shear = std::max(m_forces.max_shear, shear);
+    m_forces.total_shear += shear;
+    if (fn > 0.0) ++m_forces.nodes_in_contact;
+  }
+  if (m_forces.nodes_in_contact > 0) m_forces.mean_normal = m_forces.total_normal / m_forces.nodes_in_contact;
+  return true;
+}
+
+GrowthStepReport VineGrowth::advance(double dt, const GrowthControl& control) {
+  GrowthStepReport report;
+  if (!(dt > 0.0) || !std::isfinite(dt)) throw InputError("vine growth: dt must be > 0");
+  if (!(control.pressure >= 0.0) || !std::isfinite(control.pressure)) {
+    throw InputError("vine growth: pressure must be >= 0 and finite");
+  }
+  if (m_burst) {
+    report.stalled = true;
+    report.burst = true;
+    return report;
+  }
+  m_time += dt;
+  const double p = control.pressure;
+  const double hoop = p * extended_radius(p) / m_vine.wall.thickness;
+  if (hoop > m_vine.wall_strength) {
+    m_burst = true;
+    report.stalled = true;
+    report.burst = true;
+    add_event("burst", format("pressure %.1f kPa: hoop stress %.2f MPa above the film's strength %.2f MPa",
+                              p / kKpaToPa, hoop / 1e6, m_vine.wall_strength / 1e6));
+    return report;
+  }
+  if (p != m_pressure) rebuild_model(p);
+  const GrowthLaw& law = m_options.law;
+  const double sigma = turning();
+  const double length_term = law.length_yield * (m_model.length + m_pending);  // the grown length, whole edges or not
+  const double turning_term = law.turning_yield * sigma;
+  report.yield = law.yield_pressure + length_term + turning_term;
+  report.speed = law.extensibility * std::max(0.0, p - report.yield);
+  if (report.speed == 0.0 && !m_stalled) {
+    m_stalled = true;
+    add_event("stall", format("pressure %.2f kPa at or below the yield %.2f kPa (Y0 %.2f + length %.2f + turning "
+                              "%.2f kPa)",
+                              p / kKpaToPa, report.yield / kKpaToPa, law.yield_pressure / kKpaToPa,
+                              length_term / kKpaToPa, turning_term / kKpaToPa));
+  } else if (report.speed > 0.0 && m_stalled) {
+    m_stalled = false;
+    add_event("resume", format("pressure %.2f kPa above the yield %.2f kPa", p / kKpaToPa, report.yield / kKpaToPa));
+  }
+  const double cap = std::min(control.tether_length, m_options.max_length) - (m_model.length + m_pending);
+  m_pending += std::clamp(report.speed * dt, 0.0, std::max(0.0, cap));
+  const double growth_force = std::max(0.0, p - report.yield) * kPi * m_radius * m_radius;
+  while (m_pending >= m_h * (1.0 - 1e-12)) {
+    const RodModel old_model = m_model;
+    const RodState old_state = m_state;
+    const std::vector<Vec3> old_anchor = m_anchor;
+    const std::vector<Vec3> old_normal = m_anchor_normal;
+    const std::vector<double> old_force = m_normal_force;
+    const WallForces old_forces = m_forces;
+    // New material at the tip, along the tip's tangent.
+    ++m_vine.edges;
+    rebuild_model(p);
+    m_state.x.push_back(m_state.x.back() + m_h * m_state.frames.back().col(0));
+    m_state.frames.push_back(m_state.frames.back());
+    // Blocked before solving: the new tip meets the wall steeper than max_incidence (it cannot slide along it).
+    const Vec3 tangent = old_state.frames.back().col(0);
+    double incidence = 0.0;
+    if (m_world != nullptr) {
+      std::array<anatomy::Contact, kContactsPerNode> found{};
+      const std::size_t k = m_world->sphere_contacts(m_state.x.back(), m_radius, found);
+      for (std::size_t q = 0; q < k; ++q) incidence = std::max(incidence, std::asin(std::clamp(-found[q].normal.dot(tangent), -1.0, 1.0)));
+    }
+    const bool steep = incidence > m_options.max_incidence;
+    const bool solved = !steep && solve_with_wall(report);
+    // Blocked after solving: the wall pushes the new tip back along the old tip tangent by more than the growth
+    // force.
+    double push_back = 0.0;
+    if (solved && m_world != nullptr) {
+      std::array<anatomy::Contact, kContactsPerNode> found{};
+      const std::size_t k = m_world->sphere_contacts(m_state.x.back(), m_radius, found);
+      Vec3 force = Vec3::Zero();
+      for (std::size_t q = 0; q < k; ++q) force += m_stiffness * found[q].depth * found[q].normal;
+      push_back = -force.dot(tangent);
+    }
+    if (steep || !solved || push_back > growth_force) {
+      --m_vine.edges;
+      m_model = old_model;
+      m_state = old_state;
+      m_anchor = old_anchor;
+      m_anchor_normal = old_normal;
+      m_pending = 0.0;
+      if (steep) {
+        if (!m_stalled) {
+          m_stalled = true;
+          add_event("blocked", format("the tip meets the wall at %.1f deg, steeper than max_incidence %.1f deg",
+                                      incidence / kDegToRad, m_options.max_incidence / kDegToRad));
+        }
+      } else if (!solved) {
+        add_event("solver", "adding an edge at " + format("%.1f mm", 1e3 * m_model.length) + ": " + report.failure);
+        report.converged = true;  // the step is reverted, the body keeps its last equilibrium
+      } else if (!m_stalled) {
+        m_stalled = true;
+        add_event("blocked", format("the wall pushes the tip back with %.3f N, more than the growth force %.3f N",
+                                    push_back, growth_force));
+      }
+      m_normal_force = old_force;
+      m_forces = old_forces;
+      break;
+    }
+    m_pending -= m_h;
+    ++report.edges_added;
+  }
+  if (report.edges_added == 0) {
+    if (report.converged && !solve_with_wall(report)) add_event("solver", report.failure);
+  } else if (m_stalled && report.speed > 0.0) {
+    m_stalled = false;
+  }
+  report.stalled = report.edges_added == 0;
+  return report;
+}
+
+}  // namespace magvine::robot

@@ -1,0 +1,202 @@
+// Vine growth through anatomy (robot/growth.hpp): eversion without shear in a tube, the growth law's stall against
+// its closed form, burst, a tip blocked by a wall, and the pushed catheter's friction against the vine's.
+
+#include <gtest/gtest.h>
+
+#include <cmath>
+#include <cstdint>
+#include <utility>
+#include <cstdio>
+#include <vector>
+
+#include "magvine/anatomy/collision_world.hpp"
+#include "magvine/anatomy/phantom.hpp"
+#include "magvine/core/units.hpp"
+#include "magvine/robot/growth.hpp"
+
+namespace magvine::robot {
+namespace {
+
+/// The thesis's Ø8 mm skin MVR (thesis 4.6): LDPE 20 µm, magnetic silicone skin 0.2 mm, grown at 12 kPa.
+VineParameters skin_mvr(double length = 8e-3) {
+  VineParameters v;
+  v.length = length;
+  v.radius = 4e-3;
+  v.pressure = 12e3;
+  v.wall = {.thickness = 20e-6, .modulus = 0.2e9, .density = 920.0};
+  v.wall_strength = 10e6;
+  v.skin = {.thickness = 0.2e-3, .modulus = 99e3, .density = 1840.0};
+  v.skin_remanence = 0.101;
+  v.skin_direction = Vec3::UnitY();
+  return v;
+}
+
+/// A closed box [min, max] (12 triangles, outward normals): flat walls, so a body lying on its floor has one contact
+/// normal (a polygonal tube's floor is a shallow V whose facets push it sideways).
+anatomy::TriangleMesh box_mesh(const Vec3& lo, const Vec3& hi) {
+  anatomy::TriangleMesh m;
+  for (int k = 0; k < 2; ++k)
+    for (int j = 0; j < 2; ++j)
+      for (int i = 0; i < 2; ++i) m.vertices.emplace_back(i ? hi.x() : lo.x(), j ? hi.y() : lo.y(), k ? hi.z() : lo.z());
+  const auto v = [](int i, int j, int k) { return static_cast<std::uint32_t>(i + 2 * j + 4 * k); };
+  const Vec3 centre = 0.5 * (lo + hi);
+  const auto quad = [&](std::uint32_t a, std::uint32_t b, std::uint32_t c, std::uint32_t d) {
+    for (anatomy::Triangle t : {anatomy::Triangle{a, b, c}, anatomy::Triangle{a, c, d}}) {
+      const Vec3 n = (m.vertices[t[1]] - m.vertices[t[0]]).cross(m.vertices[t[2]] - m.vertices[t[0]]);
+      if (n.dot(m.vertices[t[0]] - centre) < 0.0) std::swap(t[1], t[2]);
+      m.triangles.push_back(t);
+    }
+  };
+  for (int s = 0; s < 2; ++s) {
+    quad(v(s, 0, 0), v(s, 1, 0), v(s, 1, 1), v(s, 0, 1));
+    quad(v(0, s, 0), v(1, s, 0), v(1, s, 1), v(0, s, 1));
+    quad(v(0, 0, s), v(1, 0, s), v(1, 1, s), v(0, 1, s));
+  }
+  return m;
+}
+
+struct Tube {
+  anatomy::Phantom phantom;
+  anatomy::CollisionWorld world;
+  explicit Tube(const anatomy::TubeParams& p) : phantom(anatomy::make_tube_phantom(p)), world(phantom.mesh) {}
+};
+
+TEST(Growth, FollowsTheGrowthLawToWhereTheYieldReachesThePressureAndStallsBelowIt) {
+  // Free space, no gravity, straight: Y = Y0 + c_L L, so dL/dt = K (P − Y0 − c_L L) and
+  // L(t) = L* − (L* − L0) e^(−K c_L t), L* = (P − Y0)/c_L = 125 mm, time constant 1/(K c_L) = 50 s. Whole edges
+  // only: the length lags the closed form by less than one edge (h = 4 mm); forward Euler in time (K c_L dt =
+  // 0.005) runs ahead of it by at most (K c_L dt/2)(L* − L0) max(τe^−τ) = 0.11 mm. After 8 time constants the vine sits within one edge of L*; a
+  // pressure below the yield then stalls it with an event naming the yield's terms.
+  GrowthOptions o;
+  o.gravity = Vec3::Zero();
+  o.law = {.extensibility = 1.25e-6, .yield_pressure = 4e3, .length_yield = 16e3, .turning_yield = 1e3};
+  VineGrowth g(skin_mvr(), o, nullptr, {}, Vec3::Zero(), Mat3::Identity());
+  const double p = 6e3;
+  const double l_star = (p - 4e3) / 16e3;
+  const double l0 = g.length();
+  const double h = g.edge_length();
+  const double rate = o.law.extensibility * o.law.length_yield;
+  double worst_lag = 0.0;
+  double worst_lead = 0.0;
+  while (g.time() < 8.0 / rate) {
+    const GrowthStepReport r = g.advance(0.25, {.pressure = p});
+    ASSERT_TRUE(r.converged) << r.failure;
+    const double lag = l_star - (l_star - l0) * std::exp(-rate * g.time()) - g.length();
+    worst_lag = std::max(worst_lag, lag);
+    worst_lead = std::max(worst_lead, -lag);
+  }
+  std::printf("  length vs the closed form: lags by up to %.2f mm, leads by up to %.3f mm\n", 1e3 * worst_lag,
+              1e3 * worst_lead);
+  EXPECT_LT(worst_lag, h);
+  EXPECT_LT(worst_lead, 0.15e-3);
+  EXPECT_LE(g.length(), l_star + 1e-9);
+  EXPECT_GT(g.length(), l_star - h);
+  // The yield at this length is Y0 + c_L L (+ 0 turning): just below it nothing grows.
+  const double yield = 4e3 + 16e3 * g.length();
+  const double before = g.length();
+  for (int i = 0; i < 40; ++i) EXPECT_TRUE(g.advance(0.25, {.pressure = yield - 10.0}).stalled);
+  EXPECT_EQ(g.length(), before);
+  ASSERT_FALSE(g.events().empty());
+  EXPECT_EQ(g.events().back().kind, "stall");
+  std::printf("  %s\n", g.events().back().detail.c_str());
+}
+
+TEST(Growth, BurstsWhenTheHoopStressPassesTheFilmStrength) {
+  // Hoop stress P R(1 + ε) / t: the 20 µm film at 10 MPa bursts above 47.7 kPa (46.2 kPa without the extension).
+  GrowthOptions o;
+  VineGrowth g(skin_mvr(), o, nullptr, {}, Vec3::Zero(), Mat3::Identity());
+  EXPECT_FALSE(g.advance(0.1, {.pressure = 47e3}).burst);
+  const double before = g.length();
+  const GrowthStepReport r = g.advance(0.1, {.pressure = 48.5e3});
+  EXPECT_TRUE(r.burst);
+  EXPECT_TRUE(g.burst());
+  EXPECT_EQ(g.events().back().kind, "burst");
+  EXPECT_TRUE(g.advance(1.0, {.pressure = 12e3}).stalled);  // a burst vine grows no more
+  EXPECT_EQ(g.length(), before);
+}
+
+/// Grows the Ø8 mm vine (or pushes it, `mode`) to 100 mm along the floor of a square channel, gravity pulling it
+/// down; returns the largest drift of a node after it first touched the wall and the summed wall forces.
+struct FloorRun {
+  double drift = 0.0;
+  double normal = 0.0;
+  double shear = 0.0;
+  int contacts = 0;
+};
+FloorRun grow_along_floor(InsertionMode mode) {
+  // A 12 mm square channel, floor at z = −5 mm.
+  const anatomy::CollisionWorld channel(box_mesh(Vec3(0.0, -6e-3, -5e-3), Vec3(0.12, 6e-3, 7e-3)));
+  GrowthOptions o;
+  o.mode = mode;
+  const VineParameters v = skin_mvr();
+  // The base rests on the floor: centre R(1 + ε) above it (ε the hoop strain at 12 kPa).
+  const double radius = v.radius * (1.0 + v.pressure * v.radius / (v.wall.thickness * v.wall.modulus));
+  VineGrowth g(v, o, &channel, {}, Vec3(2e-3, 0.0, radius - 5e-3), Mat3::Identity());
+  FloorRun out;
+  std::vector<Vec3> first_touch;
+  while (g.length() < 100e-3) {
+    const GrowthStepReport r = g.advance(0.05, {.pressure = 12e3});
+    EXPECT_TRUE(r.converged) << r.failure;
+    if (!r.converged || g.time() > 100.0) break;
+    const WallForces& f = g.wall_forces();
+    first_touch.resize(g.state().x.size(), Vec3::Constant(std::nan("")));
+    for (std::size_t i = 1; i < g.state().x.size(); ++i) {
+      if (f.normal[i] <= 0.0) continue;
+      if (std::isnan(first_touch[i].x())) first_touch[i] = g.state().x[i];
+      out.drift = std::max(out.drift, (g.state().x[i] - first_touch[i]).norm());
+    }
+    out.normal += f.total_normal;
+    out.shear += f.total_shear;
+    for (const Vec3& x : g.state().x) EXPECT_TRUE(channel.contains(x)) << "a node left the lumen";
+  }
+  out.contacts = g.wall_forces().nodes_in_contact;
+  EXPECT_NEAR(g.length(), 100e-3, g.edge_length());
+  return out;
+}
+
+TEST(Growth, EvertedNodesStayPutOnATubeFloorWhileTheTipAdvancesAndTheCatheterSlides) {
+  // Eversion: every node, once it touches the wall, stays where it touched (no sliding: PHYSICS.md §3) and the
+  // wall shear vanishes against the normal force (round-off of the anchors only). Pushed: the same body slides,
+  // so every node in contact carries kinetic friction μ·F_n (μ = 0.3).
+  const FloorRun vine = grow_along_floor(InsertionMode::kEversion);
+  const FloorRun pushed = grow_along_floor(InsertionMode::kPushed);
+  std::printf("  vine: %d nodes on the floor, largest drift after touching %.3g mm, shear/normal %.3g\n",
+              vine.contacts, 1e3 * vine.drift, vine.shear / vine.normal);
+  std::printf("  pushed: %d nodes on the floor, shear/normal %.3g\n", pushed.contacts, pushed.shear / pushed.normal);
+  EXPECT_GT(vine.contacts, 20);
+  EXPECT_LT(vine.drift, 1e-6);
+  EXPECT_LT(vine.shear, 1e-3 * vine.normal);
+  EXPECT_NEAR(pushed.shear / pushed.normal, 0.3, 1e-9);
+}
+
+TEST(Growth, TipGrowingIntoTheEndWallIsBlockedAndNeverTunnels) {
+  // The tube's capped far end stops the tip head-on: growth must stall with a "blocked" event, the body stay inside
+  // the lumen, and the Newton iterations stay bounded.
+  anatomy::TubeParams tp;
+  tp.diameter = 10e-3;
+  tp.length = 60e-3;
+  const Tube tube(tp);
+  GrowthOptions o;
+  VineGrowth g(skin_mvr(), o, &tube.world, {}, Vec3(2e-3, 0.0, 0.0), Mat3::Identity());
+  int most_iterations = 0;
+  for (int step = 0; step < 200; ++step) {
+    const GrowthStepReport r = g.advance(0.05, {.pressure = 12e3});
+    ASSERT_TRUE(r.converged) << r.failure;
+    most_iterations = std::max(most_iterations, r.newton_iterations);
+    for (const Vec3& x : g.state().x) {
+      ASSERT_TRUE(tube.world.contains(x)) << "a node left the lumen at " << 1e3 * x.transpose() << " mm, step " << step
+                                          << ", length " << 1e3 * g.length();
+    }
+  }
+  bool blocked = false;
+  for (const GrowthEvent& e : g.events()) blocked = blocked || e.kind == "blocked";
+  std::printf("  stopped at %.1f mm, tip x %.1f mm (end wall at 60 mm); most Newton iterations in a step %d\n",
+              1e3 * g.length(), 1e3 * g.state().tip().x(), most_iterations);
+  EXPECT_TRUE(blocked);
+  EXPECT_LT(g.state().tip().x(), tp.length);
+  EXPECT_GT(g.state().tip().x(), tp.length - g.radius() - g.edge_length());
+  EXPECT_LT(most_iterations, 500);
+}
+
+}  // namespace
+}  // namespace magvine::robot
