@@ -55,6 +55,19 @@ anatomy::TriangleMesh box_mesh(const Vec3& lo, const Vec3& hi) {
   return m;
 }
 
+/// The thesis's Ø5 mm magnetic-fluid vine (thesis 5.5): TPE film 38 µm, E = 10 MPa, grown at 35 kPa. Its yield
+/// here is 20 kPa (Y0), so it grows at ~19 mm/s when short.
+VineParameters fluid_vine() {
+  VineParameters v;
+  v.length = 5e-3;
+  v.radius = 2.5e-3;
+  v.pressure = 35e3;
+  v.wall = {.thickness = 38e-6, .modulus = 10e6, .density = 1000.0};
+  v.wall_strength = 10e6;
+  v.fill = FillKind::kMagneticFluid;
+  return v;
+}
+
 struct Tube {
   anatomy::Phantom phantom;
   anatomy::CollisionWorld world;
@@ -189,13 +202,98 @@ TEST(Growth, TipGrowingIntoTheEndWallIsBlockedAndNeverTunnels) {
     }
   }
   bool blocked = false;
-  for (const GrowthEvent& e : g.events()) blocked = blocked || e.kind == "blocked";
+  for (const GrowthEvent& e : g.events()) {
+    std::printf("  event at %.1f mm: %s: %s\n", 1e3 * e.length, e.kind.c_str(), e.detail.c_str());
+    blocked = blocked || e.kind == "blocked";
+  }
   std::printf("  stopped at %.1f mm, tip x %.1f mm (end wall at 60 mm); most Newton iterations in a step %d\n",
               1e3 * g.length(), 1e3 * g.state().tip().x(), most_iterations);
   EXPECT_TRUE(blocked);
   EXPECT_LT(g.state().tip().x(), tp.length);
   EXPECT_GT(g.state().tip().x(), tp.length - g.radius() - g.edge_length());
   EXPECT_LT(most_iterations, 500);
+}
+
+TEST(Growth, VineConformsIntoTheDaughterItLeansTowards) {
+  // The Y bifurcation (parent Ø12 mm, daughters Ø9.5 mm at ±35°): a fluid vine started against one side wall, its
+  // weight pulling it that way (gravity across the parent), slides along the wall into that side's daughter; mirrored,
+  // into the other. Every node stays in the lumen; the Newton work stays bounded.
+  const anatomy::Phantom y = anatomy::make_y_bifurcation({});
+  const anatomy::CollisionWorld world(y.mesh);
+  for (const double side : {1.0, -1.0}) {
+    GrowthOptions o;
+    o.gravity = Vec3(0.0, 9.81 * side, 0.0);
+    o.law.yield_pressure = 20e3;
+    VineGrowth g(fluid_vine(), o, &world, {}, Vec3(2e-3, 3e-3 * side, 0.0), Mat3::Identity());
+    int newton = 0;
+    while (g.length() < 100e-3 && g.time() < 20.0) {
+      const GrowthStepReport r = g.advance(0.02, {.pressure = 35e3});
+      ASSERT_TRUE(r.converged) << r.failure;
+      newton += r.newton_iterations;
+    }
+    for (const Vec3& x : g.state().x) EXPECT_TRUE(world.contains(x)) << "a node left the lumen";
+    const Vec3 tip = g.state().tip();
+    std::printf("  side %+.0f: %.1f mm grown in %.2f s, tip (%.1f, %.1f, %.1f) mm, %d Newton iterations, %d nodes on "
+                "the wall\n",
+                side, 1e3 * g.length(), g.time(), 1e3 * tip.x(), 1e3 * tip.y(), 1e3 * tip.z(), newton,
+                g.wall_forces().nodes_in_contact);
+    EXPECT_NEAR(g.length(), 100e-3, g.edge_length());
+    EXPECT_GT(side * tip.y(), 10e-3);  // well inside the daughter (its axis: y = (x − 66 mm)·tan 35°)
+    EXPECT_LT(newton, 5000);
+  }
+}
+
+TEST(Growth, BodyStartedDeepInTheWallIsPushedBackAndGrowsOn) {
+  // Deep penetration: the initial 20 mm body points 10° down into the floor of the square channel, its tip 3.5 mm
+  // into it. The first equilibrium must push it back into the lumen, and growth then goes on along the floor.
+  const anatomy::CollisionWorld channel(box_mesh(Vec3(0.0, -6e-3, -5e-3), Vec3(0.12, 6e-3, 7e-3)));
+  VineParameters v = skin_mvr(20e-3);
+  const double radius = v.radius * (1.0 + v.pressure * v.radius / (v.wall.thickness * v.wall.modulus));
+  const double tilt = 10.0 * kDegToRad;
+  const Mat3 frame = Eigen::AngleAxisd(tilt, Vec3::UnitY()).toRotationMatrix();  // tangent (cos, 0, −sin)
+  GrowthOptions o;
+  VineGrowth g(v, o, &channel, {}, Vec3(2e-3, 0.0, radius - 5e-3), frame);
+  for (const Vec3& x : g.state().x) EXPECT_TRUE(channel.contains(x)) << "not pushed back";
+  double deepest = 0.0;
+  for (const Vec3& x : g.state().x) deepest = std::max(deepest, -5e-3 - (x.z() - radius));
+  std::printf("  after the first equilibrium the deepest node is %.3f mm into the floor (was 3.5 mm)\n",
+              1e3 * deepest);
+  EXPECT_LT(deepest, 0.05 * radius);
+  while (g.length() < 60e-3 && g.time() < 20.0) ASSERT_TRUE(g.advance(0.05, {.pressure = 12e3}).converged);
+  for (const Vec3& x : g.state().x) EXPECT_TRUE(channel.contains(x));
+  EXPECT_NEAR(g.length(), 60e-3, g.edge_length());
+}
+
+TEST(Growth, GrazingASideWallIntoACornerSlidesThenBlocksWithoutTunnelling) {
+  // Sharp edges: the vine heads 20° off the channel's axis, meets the side wall at a shallow angle (it must slide
+  // along it), and ends in the corner between that wall and the channel's end (two walls at 90°, a sharp edge).
+  // The fluid vine (soft enough for the wall to turn it with less than its growth force).
+  const anatomy::CollisionWorld channel(box_mesh(Vec3(0.0, -6e-3, -5e-3), Vec3(0.06, 6e-3, 7e-3)));
+  VineParameters v = fluid_vine();
+  const double radius = v.radius * (1.0 + v.pressure * v.radius / (v.wall.thickness * v.wall.modulus));
+  const Mat3 frame = Eigen::AngleAxisd(20.0 * kDegToRad, Vec3::UnitZ()).toRotationMatrix();
+  GrowthOptions o;
+  o.law.yield_pressure = 20e3;
+  VineGrowth g(v, o, &channel, {}, Vec3(2e-3, 0.0, radius - 5e-3), frame);
+  int most = 0;
+  for (int step = 0; step < 200; ++step) {
+    const GrowthStepReport r = g.advance(0.02, {.pressure = 35e3});
+    ASSERT_TRUE(r.converged) << r.failure;
+    most = std::max(most, r.newton_iterations);
+    for (const Vec3& x : g.state().x) ASSERT_TRUE(channel.contains(x)) << "a node left the channel, step " << step;
+  }
+  bool blocked = false;
+  for (const GrowthEvent& e : g.events()) {
+    std::printf("  event at %.1f mm: %s: %s\n", 1e3 * e.length, e.kind.c_str(), e.detail.c_str());
+    blocked = blocked || e.kind == "blocked";
+  }
+  const Vec3 tip = g.state().tip();
+  std::printf("  tip (%.1f, %.1f) mm after %.1f mm, most Newton iterations in a step %d\n", 1e3 * tip.x(),
+              1e3 * tip.y(), 1e3 * g.length(), most);
+  EXPECT_TRUE(blocked);
+  EXPECT_GT(tip.y(), 6e-3 - radius - 0.5e-3);  // along the side wall
+  EXPECT_GT(tip.x(), 0.06 - radius - g.edge_length());  // at the end wall
+  EXPECT_LE(most, 2000);
 }
 
 }  // namespace

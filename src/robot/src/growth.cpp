@@ -116,8 +116,10 @@ bool VineGrowth::solve_with_wall(GrowthStepReport& report) {
   std::array<anatomy::Contact, kContactsPerNode> found{};
   RodConstraints c;
   const double tolerance = 1e-2 * m_radius;  // contact set settled: planes predict every depth to 1 % of R
-  const double margin = 0.25 * m_radius;     // planes are kept for nodes this close to the wall, and a node that
-                                             // moves farther than this in a solve is queried again
+  // Planes are kept for nodes within `margin` of the wall, and a node that moves farther than that in a solve is
+  // queried again. It starts at R/4 and grows to 1.5 times the largest move of the last solve (at most 2R), so a
+  // free span that swings across a wide lumen finds the walls it swings towards.
+  double margin = 0.25 * m_radius;
   std::vector<Vec3> queried(nodes);
   const double mu = m_options.friction;
   const double smoothing = 0.01 * m_radius;  // the contact law's C² zone (NodeContact::smoothing)
@@ -166,13 +168,20 @@ bool VineGrowth::solve_with_wall(GrowthStepReport& report) {
       const double s = depth + smoothing;
       wall_force[i] += (depth >= smoothing ? p.stiffness * depth : p.stiffness * s * s / (4.0 * smoothing)) * p.normal;
     }
+    // Settled: the planes predict every depth (1 % of R) and no node moved past its planes' margin. Safe: no node
+    // sits deeper in the wall than the planes allow (5 % of R beyond their prediction) or moved past the margin;
+    // a step whose passes run out while only the friction (slips, pushed-mode forces) or small depth differences
+    // are still changing is accepted as safe, and the friction carries on settling in the next step.
     bool settled = true;
+    bool safe = true;
+    double largest_move = 0.0;
     for (std::size_t i = 1; i < nodes && m_world != nullptr; ++i) {
+      const double move = (m_state.x[i] - queried[i]).norm();
+      largest_move = std::max(largest_move, move);
       const std::size_t k = m_world->sphere_contacts(m_state.x[i], m_radius, found);
       const double depth = k > 0 ? found[0].depth : 0.0;
-      if (std::abs(depth - plane_depth[i]) > tolerance || (m_state.x[i] - queried[i]).norm() > margin) {
-        settled = false;
-      }
+      if (std::abs(depth - plane_depth[i]) > tolerance || move > margin) settled = false;
+      if (depth - plane_depth[i] > 5.0 * tolerance || move > margin) safe = false;
     }
     previous_force = m_normal_force;
     for (std::size_t i = 0; i < nodes; ++i) m_normal_force[i] = wall_force[i].norm();
@@ -208,13 +217,15 @@ bool VineGrowth::solve_with_wall(GrowthStepReport& report) {
       }
     }
     if (settled) break;
+    if (pass + 1 == m_options.max_contact_passes && safe) break;
     if (pass + 1 == m_options.max_contact_passes) {
       report.converged = false;
       report.failure = "the wall contacts did not settle in " + std::to_string(m_options.max_contact_passes) +
                        " solves (a node moved more than " + format("%.2f mm", 1e3 * margin) +
-                       " or its depth changed by more than 1 % of R between solves)";
+                       " past its contact planes or sank 5 % of R deeper into the wall than they allow)";
       return false;
     }
+    margin = std::clamp(1.5 * largest_move, 0.25 * m_radius, 2.0 * m_radius);
   }
   // Tissue forces (the last solve's).
   m_forces = WallForces{};
@@ -263,7 +274,10 @@ GrowthStepReport VineGrowth::advance(double dt, const GrowthControl& control) {
                               p / kKpaToPa, hoop / 1e6, m_vine.wall_strength / 1e6));
     return report;
   }
-  if (p != m_pressure) rebuild_model(p);
+  if (p != m_pressure) {
+    rebuild_model(p);
+    m_dirty = true;
+  }
   const GrowthLaw& law = m_options.law;
   const double sigma = turning();
   const double length_term = law.length_yield * (m_model.length + m_pending);  // the grown length, whole edges or not
@@ -282,19 +296,42 @@ GrowthStepReport VineGrowth::advance(double dt, const GrowthControl& control) {
   }
   const double cap = std::min(control.tether_length, m_options.max_length) - (m_model.length + m_pending);
   m_pending += std::clamp(report.speed * dt, 0.0, std::max(0.0, cap));
+  if (m_blocked) m_pending = std::min(m_pending, m_h);  // a blocked tip does not store growth
   const double growth_force = std::max(0.0, p - report.yield) * kPi * m_radius * m_radius;
-  while (m_pending >= m_h * (1.0 - 1e-12)) {
+  // A blocked tip tries again only when the loads changed or retry_interval has passed (each try is a full solve).
+  const bool may_try = !m_blocked || m_dirty || m_time - m_last_try >= m_options.retry_interval;
+  while (may_try && m_pending >= m_h * (1.0 - 1e-12)) {
+    m_last_try = m_time;
     const RodModel old_model = m_model;
     const RodState old_state = m_state;
     const std::vector<Vec3> old_anchor = m_anchor;
     const std::vector<Vec3> old_normal = m_anchor_normal;
     const std::vector<double> old_force = m_normal_force;
     const WallForces old_forces = m_forces;
-    // New material at the tip, along the tip's tangent.
+    // New material at the tip, along the tip's tangent; where that runs into the wall, the first guess for the
+    // solver turns it into the wall's tangent plane (the tip slides along a wall it meets at a shallow angle,
+    // Greer et al. 2020), so Newton starts near the equilibrium instead of pushing the new node out of the wall.
     ++m_vine.edges;
     rebuild_model(p);
-    m_state.x.push_back(m_state.x.back() + m_h * m_state.frames.back().col(0));
-    m_state.frames.push_back(m_state.frames.back());
+    Mat3 frame = m_state.frames.back();
+    Vec3 next = m_state.x.back() + m_h * frame.col(0);
+    if (m_world != nullptr) {
+      std::array<anatomy::Contact, kContactsPerNode> found{};
+      for (int turn = 0; turn < 2; ++turn) {
+        const std::size_t k = m_world->sphere_contacts(next, m_radius, found);
+        if (k == 0) break;
+        const Vec3 t = frame.col(0);
+        const Vec3 n = found[0].normal;
+        // Only a shallow meeting slides (a steeper one is left for the blocked test below).
+        if (t.dot(n) >= 0.0 || -t.dot(n) > std::sin(m_options.max_incidence)) break;
+        const Vec3 slid = (t - t.dot(n) * n).normalized();
+        if (!slid.allFinite()) break;
+        frame = Eigen::Quaterniond::FromTwoVectors(t, slid).toRotationMatrix() * frame;
+        next = m_state.x.back() + m_h * slid;
+      }
+    }
+    m_state.x.push_back(next);
+    m_state.frames.push_back(frame);
     // Blocked before solving: the new tip meets the wall steeper than max_incidence (it cannot slide along it).
     const Vec3 tangent = old_state.frames.back().col(0);
     double incidence = 0.0;
@@ -323,16 +360,19 @@ GrowthStepReport VineGrowth::advance(double dt, const GrowthControl& control) {
       m_anchor_normal = old_normal;
       m_pending = 0.0;
       if (steep) {
-        if (!m_stalled) {
-          m_stalled = true;
+        if (!m_blocked) {
+          m_blocked = true;
           add_event("blocked", format("the tip meets the wall at %.1f deg, steeper than max_incidence %.1f deg",
                                       incidence / kDegToRad, m_options.max_incidence / kDegToRad));
         }
       } else if (!solved) {
-        add_event("solver", "adding an edge at " + format("%.1f mm", 1e3 * m_model.length) + ": " + report.failure);
+        if (!m_blocked) {
+          m_blocked = true;
+          add_event("solver", "adding an edge at " + format("%.1f mm", 1e3 * m_model.length) + ": " + report.failure);
+        }
         report.converged = true;  // the step is reverted, the body keeps its last equilibrium
-      } else if (!m_stalled) {
-        m_stalled = true;
+      } else if (!m_blocked) {
+        m_blocked = true;
         add_event("blocked", format("the wall pushes the tip back with %.3f N, more than the growth force %.3f N",
                                     push_back, growth_force));
       }
@@ -343,12 +383,22 @@ GrowthStepReport VineGrowth::advance(double dt, const GrowthControl& control) {
     m_pending -= m_h;
     ++report.edges_added;
   }
-  if (report.edges_added == 0) {
-    if (report.converged && !solve_with_wall(report)) add_event("solver", report.failure);
-  } else if (m_stalled && report.speed > 0.0) {
-    m_stalled = false;
+  if (report.edges_added == 0 && m_dirty) {
+    // No new edge, but the pressure or the field changed: the body finds its new equilibrium (or keeps the last one).
+    const RodState old_state = m_state;
+    const std::vector<Vec3> old_anchor = m_anchor;
+    const std::vector<Vec3> old_normal = m_anchor_normal;
+    if (!solve_with_wall(report)) {
+      add_event("solver", report.failure);
+      m_state = old_state;
+      m_anchor = old_anchor;
+      m_anchor_normal = old_normal;
+    }
+  } else if (report.edges_added > 0 && m_blocked) {
+    m_blocked = false;
   }
   report.stalled = report.edges_added == 0;
+  if (report.converged) m_dirty = false;
   return report;
 }
 

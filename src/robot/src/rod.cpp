@@ -1095,6 +1095,19 @@ RodSolveReport solve_rod_statics(const RodModel& model, const RodField& field, R
   RodSolveReport report;
   // Warm start: the full load from the caller's state (the previous equilibrium of a simulation loop, or the
   // straight rod). Only when that fails does the ramp start over from the unloaded state.
+  if (!options.ramp) {
+    RodState trial = state;
+    const std::string why =
+        newton(model, field, trial, 1.0, options, report, options.max_snap_newton, nullptr, ws, constraints);
+    if (!why.empty()) {
+      report.failure = why;
+      return report;
+    }
+    state = std::move(trial);
+    report.load_steps = 1;
+    report.converged = true;
+    return report;
+  }
   if (options.min_load_steps <= 1) {
     RodState trial = state;
     if (newton(model, field, trial, 1.0, options, report, options.max_newton, nullptr, ws, constraints).empty()) {

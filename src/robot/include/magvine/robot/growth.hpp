@@ -52,6 +52,16 @@ struct GrowthLaw {
 
 enum class InsertionMode { kEversion, kPushed };
 
+/// The body's solver in a growth step: from the last equilibrium at full load, no ramp (RodSolveOptions::ramp), at
+/// most 200 Newton iterations (a step that needs more is reverted and tried again later).
+inline RodSolveOptions growth_solver_options() {
+  RodSolveOptions o;
+  o.ramp = false;
+  o.max_snap_newton = 200;
+  o.max_iterations = 200;
+  return o;
+}
+
 struct GrowthOptions {
   GrowthLaw law;
   InsertionMode mode = InsertionMode::kEversion;
@@ -63,9 +73,10 @@ struct GrowthOptions {
   double max_incidence = 45.0 * kDegToRad;
   double contact_stiffness = 0.0;  ///< wall penalty k [N/m]; 0: automatic (the growth force at 2 % R depth)
   double max_length = std::numeric_limits<double>::infinity();  ///< the vine's made length [m]
-  int max_contact_passes = 8;      ///< solves per step while the contact set settles
+  int max_contact_passes = 10;     ///< solves per step while the contact set settles
+  double retry_interval = 0.5;     ///< a blocked tip tries to grow again after this long [s] (or when loads change)
   Vec3 gravity = Vec3(0.0, 0.0, -9.81);  ///< [m/s²] (bench phantoms: z up)
-  RodSolveOptions solver;
+  RodSolveOptions solver = growth_solver_options();
 };
 
 /// Something that happened during growth.
@@ -121,7 +132,10 @@ class VineGrowth {
   GrowthStepReport advance(double dt, const GrowthControl& control);
 
   /// Replaces the magnetic field (a moved EPM).
-  void set_field(RodField field) { m_field = std::move(field); }
+  void set_field(RodField field) {
+    m_field = std::move(field);
+    m_dirty = true;
+  }
 
   const RodState& state() const { return m_state; }
   const RodModel& model() const { return m_model; }
@@ -154,8 +168,11 @@ class VineGrowth {
   double m_stiffness = 0.0;
   double m_pending = 0.0;  ///< grown length not yet a whole edge [m]
   double m_time = 0.0;
+  double m_last_try = -std::numeric_limits<double>::infinity();  ///< when an edge was last tried [s]
   bool m_burst = false;
-  bool m_stalled = false;
+  bool m_stalled = false;  ///< by the yield (a "stall" event was given)
+  bool m_blocked = false;
+  bool m_dirty = false;    ///< the loads changed since the last equilibrium  ///< by the wall or the solver (a "blocked" or "solver" event was given)
   RodModel m_model;
   RodState m_state;
   RodWorkspace m_workspace;

@@ -126,6 +126,10 @@ struct RodSolveOptions {
   double snap_step = 1.0 / 64.0;
   int max_snap_newton = 1000;
   int max_iterations = 3000;  ///< Newton iterations over the whole ramp; then it stops with a cause
+  /// false: no load ramp; Newton runs from the given state at the full load for up to max_snap_newton iterations
+  /// (a simulation step whose last equilibrium is already close: ramping from the unloaded state would throw that
+  /// away).
+  bool ramp = true;
 };
 
 struct RodSolveReport {
