@@ -16,7 +16,9 @@ namespace magvine::robot {
 namespace {
 
 constexpr double kNone = std::numeric_limits<double>::quiet_NaN();
-constexpr std::size_t kContactsPerNode = 8;
+// A node that moved less than this (times R) since its last wall query keeps that query's planes, and its depth is
+// taken as theirs: a plane's error over 2 % of R is second order (the wall's curvature times the move squared).
+constexpr double kStill = 0.02;
 
 std::string format(const char* pattern, double a, double b = 0.0, double c = 0.0, double d = 0.0, double e = 0.0) {
   char buffer[256];
@@ -109,6 +111,7 @@ void VineGrowth::add_event(std::string kind, std::string detail) {
 
 bool VineGrowth::solve_with_wall(GrowthStepReport& report) {
   const std::size_t nodes = m_state.x.size();
+  m_cache.resize(nodes);
   m_anchor.resize(nodes, Vec3::Constant(kNone));
   m_anchor_normal.resize(nodes, Vec3::Zero());
   m_normal_force.assign(nodes, 0.0);
@@ -121,6 +124,7 @@ bool VineGrowth::solve_with_wall(GrowthStepReport& report) {
   // free span that swings across a wide lumen finds the walls it swings towards.
   double margin = 0.25 * m_radius;
   std::vector<Vec3> queried(nodes);
+  std::vector<char> has_planes(nodes, 0);
   const double mu = m_options.friction;
   const double smoothing = 0.01 * m_radius;  // the contact law's C² zone (NodeContact::smoothing)
   const bool pushed = m_options.mode == InsertionMode::kPushed;
@@ -133,12 +137,20 @@ bool VineGrowth::solve_with_wall(GrowthStepReport& report) {
     if (m_world != nullptr) {
       for (std::size_t i = 1; i < nodes; ++i) {
         queried[i] = m_state.x[i];
-        const std::size_t k = m_world->sphere_contacts(m_state.x[i], m_radius + margin, found);
-        for (std::size_t q = 0; q < k; ++q) {
+        PlaneCache& cache = m_cache[i];
+        // A node that has not moved since its last query (an anchored node on the wall, most of an everted body)
+        // keeps that query's planes: the sphere queries are most of a step's cost.
+        if (!(cache.reach >= m_radius + margin && (m_state.x[i] - cache.at).norm() <= kStill * m_radius)) {
+          cache.at = m_state.x[i];
+          cache.reach = m_radius + margin;
+          cache.count = m_world->sphere_contacts(m_state.x[i], cache.reach, cache.found);
+        }
+        has_planes[i] = cache.count > 0;
+        for (std::size_t q = 0; q < cache.count; ++q) {
           // Radius R − ε: the law's smooth zone then starts where the body touches the wall (d = 0), so a node
           // resting on a wall with a light load sits at the clamp's height, not ε off it.
-          c.contacts.push_back(
-              {static_cast<int>(i), found[q].point, found[q].normal, m_radius - smoothing, m_stiffness, smoothing});
+          const anatomy::Contact& k = cache.found[q];
+          c.contacts.push_back({static_cast<int>(i), k.point, k.normal, m_radius - smoothing, m_stiffness, smoothing});
         }
       }
     }
@@ -178,8 +190,16 @@ bool VineGrowth::solve_with_wall(GrowthStepReport& report) {
     for (std::size_t i = 1; i < nodes && m_world != nullptr; ++i) {
       const double move = (m_state.x[i] - queried[i]).norm();
       largest_move = std::max(largest_move, move);
-      const std::size_t k = m_world->sphere_contacts(m_state.x[i], m_radius, found);
-      const double depth = k > 0 ? found[0].depth : 0.0;
+      // A node that had no wall within R + margin and moved less than the margin cannot touch one; a node that has
+      // hardly moved since its query (kStill) has its planes' depth: no query.
+      const PlaneCache& cache = m_cache[i];
+      double depth = 0.0;
+      if ((m_state.x[i] - cache.at).norm() <= kStill * m_radius) {
+        depth = std::max(0.0, plane_depth[i]);
+      } else if (has_planes[i] || move >= margin) {
+        const std::size_t k = m_world->sphere_contacts(m_state.x[i], m_radius, found);
+        depth = k > 0 ? found[0].depth : 0.0;
+      }
       if (std::abs(depth - plane_depth[i]) > tolerance || move > margin) settled = false;
       if (depth - plane_depth[i] > 5.0 * tolerance || move > margin) safe = false;
     }

@@ -25,6 +25,7 @@
 /// Tissue forces per step: normal k·depth at every node in contact, shear the anchors' tangential force (eversion)
 /// or μ·F_n (pushed).
 
+#include <array>
 #include <limits>
 #include <string>
 #include <vector>
@@ -34,11 +35,11 @@
 #include "magvine/robot/rod.hpp"
 #include "magvine/robot/vine.hpp"
 
-namespace magvine::anatomy {
-class CollisionWorld;
-}
+#include "magvine/anatomy/collision_world.hpp"
 
 namespace magvine::robot {
+
+inline constexpr std::size_t kContactsPerNode = 8;  ///< wall contacts kept per node and query
 
 /// L̇ = K·max(0, P − Y0 − c_L·L − c_θ·Σθ). Defaults (not published; chosen so that the Ø8 mm skin vine of thesis
 /// 4.6 grows at its 12 kPa with two right-angle turns over its 250 mm: Y = 4 + 4 + 3.1 kPa < 12 kPa, at ~10 mm/s
@@ -179,6 +180,14 @@ class VineGrowth {
   std::vector<Vec3> m_anchor;         ///< per node; NaN: none
   std::vector<Vec3> m_anchor_normal;  ///< wall normal at the anchor
   std::vector<double> m_normal_force; ///< per node, from the last solve [N]
+  /// The last wall query per node (reused while the node does not move).
+  struct PlaneCache {
+    Vec3 at = Vec3::Constant(std::numeric_limits<double>::quiet_NaN());
+    double reach = 0.0;  ///< the query sphere's radius [m]
+    std::size_t count = 0;
+    std::array<anatomy::Contact, kContactsPerNode> found{};
+  };
+  std::vector<PlaneCache> m_cache;
   WallForces m_forces;
   std::vector<GrowthEvent> m_events;
 };
