@@ -36,7 +36,36 @@ Vec3 node_tangent(const RodState& s, std::size_t i) {
   return t.normalized();
 }
 
+/// A tube of radius r squeezed into a slot of width g < 2r keeps its perimeter 2πr (a thin, inextensible film):
+/// its section is a stadium of width g, two flat strips of width πr − πg/2 against the walls joined by half
+/// circles, of area πrg − πg²/4. At g ≥ 2r, the round section.
+double slot_area(double r, double g) { return g >= 2.0 * r ? kPi * r * r : kPi * r * g - 0.25 * kPi * g * g; }
+double flat_width(double r, double g) { return g >= 2.0 * r ? 0.0 : kPi * r - 0.5 * kPi * g; }
+
 }  // namespace
+
+double VineGrowth::lumen_width(const Vec3& x, const Mat3& frame) const {
+  const double reach = 2.0 * m_radius;
+  double width = 2.0 * reach;
+  for (int k = 0; k < 4; ++k) {
+    const double a = 0.25 * kPi * k;
+    const Vec3 u = std::cos(a) * frame.col(1) + std::sin(a) * frame.col(2);
+    const auto plus = m_world->ray_cast(x, u, reach);
+    const auto minus = m_world->ray_cast(x, -u, reach);
+    width = std::min(width, (plus ? plus->distance : reach) + (minus ? minus->distance : reach));
+  }
+  return width;
+}
+
+double VineGrowth::node_radius(const Vec3& x, const Mat3& frame) const {
+  if (m_world == nullptr) return m_radius;
+  const Vec3 t = frame.col(0);
+  double width = lumen_width(x, frame);
+  if (width < 4.0 * m_radius) {  // near a narrowing: the sphere's front and back too
+    width = std::min({width, lumen_width(x + m_radius * t, frame), lumen_width(x - m_radius * t, frame)});
+  }
+  return std::min(m_radius, 0.45 * width);
+}
 
 VineGrowth::VineGrowth(const VineParameters& vine, const GrowthOptions& options, const anatomy::CollisionWorld* world,
                        RodField field, const Vec3& base_position, const Mat3& base_frame)
@@ -125,6 +154,7 @@ bool VineGrowth::solve_with_wall(GrowthStepReport& report) {
   double margin = 0.25 * m_radius;
   std::vector<Vec3> queried(nodes);
   std::vector<char> has_planes(nodes, 0);
+  std::vector<double> radius(nodes, m_radius);
   const double mu = m_options.friction;
   const double smoothing = 0.01 * m_radius;  // the contact law's C² zone (NodeContact::smoothing)
   const bool pushed = m_options.mode == InsertionMode::kPushed;
@@ -146,11 +176,19 @@ bool VineGrowth::solve_with_wall(GrowthStepReport& report) {
           cache.count = m_world->sphere_contacts(m_state.x[i], cache.reach, cache.found);
         }
         has_planes[i] = cache.count > 0;
+        // Squeezed where the lumen across the body is narrower than its diameter, the section flattens (radial
+        // compliance, slot_area): the node's contact radius is half that width, and the pressure, not the
+        // penalty, presses on the walls (below).
+        if (has_planes[i] && !((m_state.x[i] - cache.radius_at).norm() <= kStill * m_radius)) {
+          cache.radius_at = m_state.x[i];
+          cache.radius = node_radius(m_state.x[i], m_state.frames[std::min(i, nodes - 2)]);
+        }
+        radius[i] = has_planes[i] ? cache.radius : m_radius;
         for (std::size_t q = 0; q < cache.count; ++q) {
-          // Radius R − ε: the law's smooth zone then starts where the body touches the wall (d = 0), so a node
+          // Radius r − ε: the law's smooth zone then starts where the body touches the wall (d = 0), so a node
           // resting on a wall with a light load sits at the clamp's height, not ε off it.
           const anatomy::Contact& k = cache.found[q];
-          c.contacts.push_back({static_cast<int>(i), k.point, k.normal, m_radius - smoothing, m_stiffness, smoothing});
+          c.contacts.push_back({static_cast<int>(i), k.point, k.normal, radius[i] - smoothing, m_stiffness, smoothing});
         }
       }
     }
@@ -198,13 +236,17 @@ bool VineGrowth::solve_with_wall(GrowthStepReport& report) {
         depth = std::max(0.0, plane_depth[i]);
       } else if (has_planes[i] || move >= margin) {
         const std::size_t k = m_world->sphere_contacts(m_state.x[i], m_radius, found);
-        depth = k > 0 ? found[0].depth : 0.0;
+        depth = k > 0 ? std::max(0.0, found[0].depth - (m_radius - radius[i])) : 0.0;
       }
       if (std::abs(depth - plane_depth[i]) > tolerance || move > margin) settled = false;
       if (depth - plane_depth[i] > 5.0 * tolerance || move > margin) safe = false;
     }
     previous_force = m_normal_force;
-    for (std::size_t i = 0; i < nodes; ++i) m_normal_force[i] = wall_force[i].norm();
+    for (std::size_t i = 0; i < nodes; ++i) {
+      m_normal_force[i] = wall_force[i].norm();
+      // A flattened section presses each of the two walls with P over its flat strip: 2·P·(πR − πg/2)·h.
+      if (radius[i] < m_radius) m_normal_force[i] += 2.0 * m_pressure * flat_width(m_radius, radius[i] / 0.45) * m_h;
+    }
     if (pushed) {
       for (std::size_t i = 1; i < nodes; ++i) {
         if (std::abs(m_normal_force[i] - previous_force[i]) > 1e-3 * (m_normal_force[i] + 1e-9)) settled = false;
@@ -269,6 +311,7 @@ bool VineGrowth::solve_with_wall(GrowthStepReport& report) {
     if (fn > 0.0) ++m_forces.nodes_in_contact;
   }
   if (m_forces.nodes_in_contact > 0) m_forces.mean_normal = m_forces.total_normal / m_forces.nodes_in_contact;
+  m_energy = rod_energy(m_model, m_field, m_state, 1.0, &c);
   return true;
 }
 
@@ -317,7 +360,22 @@ GrowthStepReport VineGrowth::advance(double dt, const GrowthControl& control) {
   const double cap = std::min(control.tether_length, m_options.max_length) - (m_model.length + m_pending);
   m_pending += std::clamp(report.speed * dt, 0.0, std::max(0.0, cap));
   if (m_blocked) m_pending = std::min(m_pending, m_h);  // a blocked tip does not store growth
-  const double growth_force = std::max(0.0, p - report.yield) * kPi * m_radius * m_radius;
+  if (m_dirty) {
+    // The pressure or the field changed: the body finds its new equilibrium first (or keeps the last one), so the
+    // energy balance of growing starts from the new loads.
+    const RodState old_state = m_state;
+    const std::vector<Vec3> old_anchor = m_anchor;
+    const std::vector<Vec3> old_normal = m_anchor_normal;
+    if (!solve_with_wall(report)) {
+      add_event("solver", report.failure);
+      m_state = old_state;
+      m_anchor = old_anchor;
+      m_anchor_normal = old_normal;
+      report.converged = true;
+      GrowthStepReport ignored;
+      solve_with_wall(ignored);  // the energy and forces of the kept state (its old contacts still hold)
+    }
+  }
   // A blocked tip tries again only when the loads changed or retry_interval has passed (each try is a full solve).
   const bool may_try = !m_blocked || m_dirty || m_time - m_last_try >= m_options.retry_interval;
   while (may_try && m_pending >= m_h * (1.0 - 1e-12)) {
@@ -337,8 +395,10 @@ GrowthStepReport VineGrowth::advance(double dt, const GrowthControl& control) {
     Vec3 next = m_state.x.back() + m_h * frame.col(0);
     if (m_world != nullptr) {
       std::array<anatomy::Contact, kContactsPerNode> found{};
+      // Heading into a narrowing the tip flattens (node_radius) rather than sliding off the narrowing's edges.
+      const double r = node_radius(next, frame);
       for (int turn = 0; turn < 2; ++turn) {
-        const std::size_t k = m_world->sphere_contacts(next, m_radius, found);
+        const std::size_t k = m_world->sphere_contacts(next, r, found);
         if (k == 0) break;
         const Vec3 t = frame.col(0);
         const Vec3 n = found[0].normal;
@@ -352,34 +412,44 @@ GrowthStepReport VineGrowth::advance(double dt, const GrowthControl& control) {
     }
     m_state.x.push_back(next);
     m_state.frames.push_back(frame);
+    // Squeezing: where the lumen ahead is narrower than the body, the tip flattens into it and the pressure drives
+    // it over the flattened section's area only: it advances while P·A_slot exceeds the yield force Y·πR² (the
+    // tail and the fold resist as before), and it is blocked otherwise.
+    const double tip_radius = node_radius(m_state.x.back(), m_state.frames.back());
+    const double squeeze = slot_area(m_radius, tip_radius / 0.45) / (kPi * m_radius * m_radius);
+    const bool squeezed_out = p * squeeze <= report.yield;
     // Blocked before solving: the new tip meets the wall steeper than max_incidence (it cannot slide along it).
     const Vec3 tangent = old_state.frames.back().col(0);
     double incidence = 0.0;
-    if (m_world != nullptr) {
+    if (m_world != nullptr && !squeezed_out) {
       std::array<anatomy::Contact, kContactsPerNode> found{};
-      const std::size_t k = m_world->sphere_contacts(m_state.x.back(), m_radius, found);
-      for (std::size_t q = 0; q < k; ++q) incidence = std::max(incidence, std::asin(std::clamp(-found[q].normal.dot(tangent), -1.0, 1.0)));
+      const std::size_t k = m_world->sphere_contacts(m_state.x.back(), tip_radius, found);
+      for (std::size_t q = 0; q < k; ++q) {
+        incidence = std::max(incidence, std::asin(std::clamp(-found[q].normal.dot(tangent), -1.0, 1.0)));
+      }
     }
-    const bool steep = incidence > m_options.max_incidence;
+    const bool steep = squeezed_out || incidence > m_options.max_incidence;
+    const double old_energy = m_energy;
     const bool solved = !steep && solve_with_wall(report);
-    // Blocked after solving: the wall pushes the new tip back along the old tip tangent by more than the growth
-    // force.
-    double push_back = 0.0;
-    if (solved && m_world != nullptr) {
-      std::array<anatomy::Contact, kContactsPerNode> found{};
-      const std::size_t k = m_world->sphere_contacts(m_state.x.back(), m_radius, found);
-      Vec3 force = Vec3::Zero();
-      for (std::size_t q = 0; q < k; ++q) force += m_stiffness * found[q].depth * found[q].normal;
-      push_back = -force.dot(tangent);
-    }
-    if (steep || !solved || push_back > growth_force) {
+    // Blocked after solving: growing by h stores more energy in the body, its contacts and its loads (bending the
+    // new edge along a wall, lifting it, pressing it in) than the growth force does work, (P·A/(πR²) − Y)·πR²·h.
+    const double tip_force = std::max(0.0, p * squeeze - report.yield) * kPi * m_radius * m_radius;
+    const double stored = solved ? m_energy - old_energy : 0.0;
+    if (steep || !solved || stored > tip_force * m_h) {
       --m_vine.edges;
       m_model = old_model;
       m_state = old_state;
       m_anchor = old_anchor;
       m_anchor_normal = old_normal;
       m_pending = 0.0;
-      if (steep) {
+      if (squeezed_out) {
+        if (!m_blocked) {
+          m_blocked = true;
+          add_event("squeeze", format("a %.2f mm gap leaves the tip %.0f %% of its section: %.2f kPa x %.2f is at or "
+                                      "below the yield %.2f kPa",
+                                      1e3 * tip_radius / 0.45, 100.0 * squeeze, p / kKpaToPa, squeeze, report.yield / kKpaToPa));
+        }
+      } else if (steep) {
         if (!m_blocked) {
           m_blocked = true;
           add_event("blocked", format("the tip meets the wall at %.1f deg, steeper than max_incidence %.1f deg",
@@ -393,32 +463,23 @@ GrowthStepReport VineGrowth::advance(double dt, const GrowthControl& control) {
         report.converged = true;  // the step is reverted, the body keeps its last equilibrium
       } else if (!m_blocked) {
         m_blocked = true;
-        add_event("blocked", format("the wall pushes the tip back with %.3f N, more than the growth force %.3f N",
-                                    push_back, growth_force));
+        add_event("blocked", format("growing %.1f mm would store %.3g mJ, more than the growth force's work %.3g mJ "
+                                    "(%.3f N)",
+                                    1e3 * m_h, 1e3 * stored, 1e3 * tip_force * m_h, tip_force));
       }
       m_normal_force = old_force;
       m_forces = old_forces;
+      m_energy = old_energy;
       break;
     }
     m_pending -= m_h;
     ++report.edges_added;
   }
-  if (report.edges_added == 0 && m_dirty) {
-    // No new edge, but the pressure or the field changed: the body finds its new equilibrium (or keeps the last one).
-    const RodState old_state = m_state;
-    const std::vector<Vec3> old_anchor = m_anchor;
-    const std::vector<Vec3> old_normal = m_anchor_normal;
-    if (!solve_with_wall(report)) {
-      add_event("solver", report.failure);
-      m_state = old_state;
-      m_anchor = old_anchor;
-      m_anchor_normal = old_normal;
-    }
-  } else if (report.edges_added > 0 && m_blocked) {
+  if (report.edges_added > 0 && m_blocked) {
     m_blocked = false;
   }
   report.stalled = report.edges_added == 0;
-  if (report.converged) m_dirty = false;
+  m_dirty = false;
   return report;
 }
 
