@@ -16,22 +16,14 @@
 #include "magvine/anatomy/collision_world.hpp"
 #include "magvine/anatomy/phantom.hpp"
 #include "magvine/robot/growth.hpp"
+#include "support/vines.hpp"
 
 namespace {
 
 using namespace magvine;
 using namespace magvine::robot;
 
-VineParameters fluid_vine() {
-  VineParameters v;
-  v.length = 5e-3;
-  v.radius = 2.5e-3;
-  v.pressure = 35e3;
-  v.wall = {.thickness = 38e-6, .modulus = 10e6, .density = 1000.0};
-  v.wall_strength = 10e6;
-  v.fill = FillKind::kMagneticFluid;
-  return v;
-}
+VineParameters fluid_vine() { return testing::thesis_fluid_vine(5e-3); }
 
 void grow(benchmark::State& state, const anatomy::CollisionWorld& world, const Vec3& gravity, const Vec3& base,
           const Mat3& frame) {

@@ -13,23 +13,13 @@
 #include "magvine/anatomy/phantom.hpp"
 #include "magvine/core/units.hpp"
 #include "magvine/robot/growth.hpp"
+#include "support/vines.hpp"
 
 namespace magvine::robot {
 namespace {
 
-/// The thesis's Ø8 mm skin MVR (thesis 4.6): LDPE 20 µm, magnetic silicone skin 0.2 mm, grown at 12 kPa.
-VineParameters skin_mvr(double length = 8e-3) {
-  VineParameters v;
-  v.length = length;
-  v.radius = 4e-3;
-  v.pressure = 12e3;
-  v.wall = {.thickness = 20e-6, .modulus = 0.2e9, .density = 920.0};
-  v.wall_strength = 10e6;
-  v.skin = {.thickness = 0.2e-3, .modulus = 99e3, .density = 1840.0};
-  v.skin_remanence = 0.101;
-  v.skin_direction = Vec3::UnitY();
-  return v;
-}
+/// The thesis vines (tests/support/vines.hpp): the Ø8 mm skin MVR at 12 kPa and the Ø5 mm fluid vine at 35 kPa.
+VineParameters skin_mvr(double length = 8e-3) { return testing::thesis_skin_mvr(length); }
 
 /// A closed box [min, max] (12 triangles, outward normals): flat walls, so a body lying on its floor has one contact
 /// normal (a polygonal tube's floor is a shallow V whose facets push it sideways).
@@ -55,18 +45,7 @@ anatomy::TriangleMesh box_mesh(const Vec3& lo, const Vec3& hi) {
   return m;
 }
 
-/// The thesis's Ø5 mm magnetic-fluid vine (thesis 5.5): TPE film 38 µm, E = 10 MPa, grown at 35 kPa. Its yield
-/// here is 20 kPa (Y0), so it grows at ~19 mm/s when short.
-VineParameters fluid_vine() {
-  VineParameters v;
-  v.length = 5e-3;
-  v.radius = 2.5e-3;
-  v.pressure = 35e3;
-  v.wall = {.thickness = 38e-6, .modulus = 10e6, .density = 1000.0};
-  v.wall_strength = 10e6;
-  v.fill = FillKind::kMagneticFluid;
-  return v;
-}
+VineParameters fluid_vine() { return testing::thesis_fluid_vine(5e-3); }
 
 struct Tube {
   anatomy::Phantom phantom;

@@ -19,6 +19,11 @@ constexpr double kNone = std::numeric_limits<double>::quiet_NaN();
 // A node that moved less than this (times R) since its last wall query keeps that query's planes, and its depth is
 // taken as theirs: a plane's error over 2 % of R is second order (the wall's curvature times the move squared).
 constexpr double kStill = 0.02;
+// A squeezed node's contact radius is this fraction of the lumen width w (a little slack between the two walls, so
+// the solver does not hold it at zero clearance from both); its physics (slot_area, flat_width) uses w itself. The
+// radius is continuous in w: min(R, kSlack·w) reaches R at w = 2.22R, where slot_area and flat_width are already
+// those of the round section.
+constexpr double kSlack = 0.45;
 
 std::string format(const char* pattern, double a, double b = 0.0, double c = 0.0, double d = 0.0, double e = 0.0) {
   char buffer[256];
@@ -64,7 +69,7 @@ double VineGrowth::node_radius(const Vec3& x, const Mat3& frame) const {
   if (width < 4.0 * m_radius) {  // near a narrowing: the sphere's front and back too
     width = std::min({width, lumen_width(x + m_radius * t, frame), lumen_width(x - m_radius * t, frame)});
   }
-  return std::min(m_radius, 0.45 * width);
+  return std::min(m_radius, kSlack * width);
 }
 
 VineGrowth::VineGrowth(const VineParameters& vine, const GrowthOptions& options, const anatomy::CollisionWorld* world,
@@ -245,7 +250,7 @@ bool VineGrowth::solve_with_wall(GrowthStepReport& report) {
     for (std::size_t i = 0; i < nodes; ++i) {
       m_normal_force[i] = wall_force[i].norm();
       // A flattened section presses each of the two walls with P over its flat strip: 2·P·(πR − πg/2)·h.
-      if (radius[i] < m_radius) m_normal_force[i] += 2.0 * m_pressure * flat_width(m_radius, radius[i] / 0.45) * m_h;
+      if (radius[i] < m_radius) m_normal_force[i] += 2.0 * m_pressure * flat_width(m_radius, radius[i] / kSlack) * m_h;
     }
     if (pushed) {
       for (std::size_t i = 1; i < nodes; ++i) {
@@ -416,7 +421,7 @@ GrowthStepReport VineGrowth::advance(double dt, const GrowthControl& control) {
     // it over the flattened section's area only: it advances while P·A_slot exceeds the yield force Y·πR² (the
     // tail and the fold resist as before), and it is blocked otherwise.
     const double tip_radius = node_radius(m_state.x.back(), m_state.frames.back());
-    const double squeeze = slot_area(m_radius, tip_radius / 0.45) / (kPi * m_radius * m_radius);
+    const double squeeze = slot_area(m_radius, tip_radius / kSlack) / (kPi * m_radius * m_radius);
     const bool squeezed_out = p * squeeze <= report.yield;
     // Blocked before solving: the new tip meets the wall steeper than max_incidence (it cannot slide along it).
     const Vec3 tangent = old_state.frames.back().col(0);
@@ -447,7 +452,7 @@ GrowthStepReport VineGrowth::advance(double dt, const GrowthControl& control) {
           m_blocked = true;
           add_event("squeeze", format("a %.2f mm gap leaves the tip %.0f %% of its section: %.2f kPa x %.2f is at or "
                                       "below the yield %.2f kPa",
-                                      1e3 * tip_radius / 0.45, 100.0 * squeeze, p / kKpaToPa, squeeze, report.yield / kKpaToPa));
+                                      1e3 * tip_radius / kSlack, 100.0 * squeeze, p / kKpaToPa, squeeze, report.yield / kKpaToPa));
         }
       } else if (steep) {
         if (!m_blocked) {
