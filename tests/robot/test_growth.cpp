@@ -12,6 +12,7 @@
 #include "magvine/anatomy/collision_world.hpp"
 #include "magvine/anatomy/phantom.hpp"
 #include "magvine/core/units.hpp"
+#include "magvine/magnetics/field_sample.hpp"
 #include "magvine/robot/growth.hpp"
 #include "support/vines.hpp"
 
@@ -91,6 +92,55 @@ TEST(Growth, FollowsTheGrowthLawToWhereTheYieldReachesThePressureAndStallsBelowI
   ASSERT_FALSE(g.events().empty());
   EXPECT_EQ(g.events().back().kind, "stall");
   std::printf("  %s\n", g.events().back().detail.c_str());
+}
+
+TEST(Growth, TetherReleaseCapsTheLength) {
+  // The tether pays out at 5 mm/s, slower than the growth law would grow (~13 mm/s at 12 kPa): the length follows the
+  // tether (whole edges: at most one edge behind it, never ahead), and a stopped tether stops the growth.
+  GrowthOptions o;
+  o.gravity = Vec3::Zero();
+  VineGrowth g(skin_mvr(), o, nullptr, {}, Vec3::Zero(), Mat3::Identity());
+  const double l0 = g.length();
+  double worst_lag = 0.0;
+  while (g.time() < 8.0) {
+    const double tether = l0 + 5e-3 * (g.time() + 0.05);
+    const GrowthStepReport r = g.advance(0.05, {.pressure = 12e3, .tether_length = tether});
+    ASSERT_TRUE(r.converged) << r.failure;
+    EXPECT_GT(r.speed, 10e-3);  // the law alone would outrun the tether
+    EXPECT_LE(g.length(), tether + 1e-12);
+    worst_lag = std::max(worst_lag, tether - g.length());
+  }
+  EXPECT_LT(worst_lag, g.edge_length() + 1e-12);
+  const double held = g.length();
+  for (int i = 0; i < 20; ++i) g.advance(0.05, {.pressure = 12e3, .tether_length = held});
+  EXPECT_EQ(g.length(), held);
+}
+
+TEST(Growth, AFieldSwitchedOnMidGrowthBendsTheBodyBeforeItGrowsOn) {
+  // Free space, no gravity: the skin vine (magnetised along its body y, ⟂ to its axis) grows straight along x; a
+  // uniform 20 mT field along x, switched on with set_field, exerts the distributed torque q = |m'||B| (m' the moment
+  // per length), so the clamped body bends in the x–y plane by the Euler–Bernoulli y(L) = −qL³/(3EI) (its base
+  // moment qL stays below the wrinkling moment, so the inflated beam is linear; 2 % for the small rotation of m and
+  // the discretisation). The next step first finds that equilibrium (the loads changed), then the vine grows on.
+  GrowthOptions o;
+  o.gravity = Vec3::Zero();
+  VineGrowth g(skin_mvr(40e-3), o, nullptr, {}, Vec3::Zero(), Mat3::Identity());
+  g.set_field([](const Vec3&) {
+    magnetics::FieldSample f;
+    f.b = Vec3(20e-3, 0.0, 0.0);
+    return f;
+  });
+  ASSERT_TRUE(g.advance(1e-3, {.pressure = 12e3}).converged);  // 0.013 mm of growth: no new edge yet
+  const double l = g.length();
+  ASSERT_NEAR(l, 40e-3, 1e-9);
+  const double q = g.model().moment_per_length[0].norm() * 20e-3;
+  const double ei = g.model().bending_stiffness_3;
+  const double expected = -q * l * l * l / (3.0 * ei);
+  std::printf("  tip y %.4f mm, Euler-Bernoulli %.4f mm\n", 1e3 * g.state().tip().y(), 1e3 * expected);
+  EXPECT_NEAR(g.state().tip().y(), expected, 0.02 * std::abs(expected));
+  EXPECT_NEAR(g.state().tip().z(), 0.0, 1e-9);
+  while (g.length() < l + 10e-3) ASSERT_TRUE(g.advance(0.05, {.pressure = 12e3}).converged);
+  EXPECT_LT(g.state().tip().y(), 1.5 * expected);  // grown on along the bent tip and bent further
 }
 
 TEST(Growth, BurstsWhenTheHoopStressPassesTheFilmStrength) {
