@@ -439,7 +439,9 @@ GrowthStepReport VineGrowth::advance(double dt, const GrowthControl& control) {
     // Blocked after solving: growing by h stores more energy in the body, its contacts and its loads (bending the
     // new edge along a wall, lifting it, pressing it in) than the growth force does work, (P·A/(πR²) − Y)·πR²·h.
     const double tip_force = std::max(0.0, p * squeeze - report.yield) * kPi * m_radius * m_radius;
-    const double stored = solved ? m_energy - old_energy : 0.0;
+    // (A pushed catheter has no such limit: the base pushes as hard as it takes.)
+    const bool eversion = m_options.mode == InsertionMode::kEversion;
+    const double stored = solved && eversion ? m_energy - old_energy : 0.0;
     if (steep || !solved || stored > tip_force * m_h) {
       --m_vine.edges;
       m_model = old_model;

@@ -12,7 +12,9 @@
 ///
 /// Pushed mode (InsertionMode::kPushed): the same body inserted from the base, as a catheter. The chain grows the
 /// same way (the path is the same), but every material point slides forward by h, so each node in contact carries
-/// kinetic friction μ·F_n against the sliding direction (its tangent), and no anchors.
+/// kinetic friction μ·F_n against the sliding direction (its tangent), and no anchors. Its insertion follows the same
+/// growth law and tether (a stand-in for an insertion schedule), but nothing limits the push: the energy test of a
+/// blocked tip below applies to eversion only.
 ///
 /// Growth law (PHYSICS.md §3, Blumenschein et al. 2017's form; the constants are not published for these robots):
 ///   L̇ = K·max(0, P − Y),  Y = Y0 + c_L·L + c_θ·Σθ,
