@@ -16,14 +16,13 @@
 #include "magvine/anatomy/collision_world.hpp"
 #include "magvine/anatomy/phantom.hpp"
 #include "magvine/robot/growth.hpp"
-#include "support/vines.hpp"
 
 namespace {
 
 using namespace magvine;
 using namespace magvine::robot;
 
-VineParameters fluid_vine() { return testing::thesis_fluid_vine(5e-3); }
+VineParameters fluid_vine() { return thesis_fluid_vine(5e-3); }
 
 void grow(benchmark::State& state, const anatomy::CollisionWorld& world, const Vec3& gravity, const Vec3& base,
           const Mat3& frame) {

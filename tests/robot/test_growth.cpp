@@ -14,13 +14,13 @@
 #include "magvine/core/units.hpp"
 #include "magvine/magnetics/field_sample.hpp"
 #include "magvine/robot/growth.hpp"
-#include "support/vines.hpp"
 
 namespace magvine::robot {
 namespace {
 
-/// The thesis vines (tests/support/vines.hpp): the Ø8 mm skin MVR at 12 kPa and the Ø5 mm fluid vine at 35 kPa.
-VineParameters skin_mvr(double length = 8e-3) { return testing::thesis_skin_mvr(length); }
+/// The thesis vines (robot::thesis_skin_mvr, thesis_fluid_vine): the Ø8 mm skin MVR at 12 kPa, the Ø5 mm fluid vine
+/// at 35 kPa.
+VineParameters skin_mvr(double length = 8e-3) { return thesis_skin_mvr(length); }
 
 /// A closed box [min, max] (12 triangles, outward normals): flat walls, so a body lying on its floor has one contact
 /// normal (a polygonal tube's floor is a shallow V whose facets push it sideways).
@@ -46,7 +46,7 @@ anatomy::TriangleMesh box_mesh(const Vec3& lo, const Vec3& hi) {
   return m;
 }
 
-VineParameters fluid_vine() { return testing::thesis_fluid_vine(5e-3); }
+VineParameters fluid_vine() { return thesis_fluid_vine(5e-3); }
 
 struct Tube {
   anatomy::Phantom phantom;

@@ -15,14 +15,13 @@
 #include "magvine/robot/inflated_beam.hpp"
 #include "magvine/robot/vine.hpp"
 #include "support/rod_derivatives.hpp"
-#include "support/vines.hpp"
 
 namespace magvine::robot {
 namespace {
 
 // The thesis's skin MVR (thesis 4.6): Ø8 mm, LDPE 20 µm (E ≈ 0.2 GPa, ρ 920), NdFeB–Ecoflex skin 0.2 mm
 // (E = 3 × 33 kPa, ρ 1840, Br 0.101 T), 80 mm, 12 kPa.
-VineParameters skin_mvr(int edges = 80) { return testing::thesis_skin_mvr(80e-3, edges); }
+VineParameters skin_mvr(int edges = 80) { return thesis_skin_mvr(80e-3, edges); }
 
 TEST(InflatedLaw, NormalisedLawIsTheThesisLawAndItsEnergyIntegratesTheMoment) {
   // Independent reference: eq 4.8 gives M(φ0) and eq 4.6 κ(M); their normalised pair must lie on the law.

@@ -54,19 +54,10 @@ RodField uniform(const Vec3& b) {
   return robot::field_function(model, model.rest_poses);
 }
 
-/// The skin MVR of thesis 4.6 (wall LDPE 20 µm, E ≈ 0.2 GPa assumed; skin NdFeB–Ecoflex 0.2 mm, G = 33 kPa,
-/// Br 0.101 T), 80 mm, at pressure p.
+/// The skin MVR of thesis 4.6 (robot::thesis_skin_mvr), 80 mm, at pressure p.
 robot::VineParameters skin_mvr(double pressure, int edges) {
-  robot::VineParameters v;
-  v.length = 80e-3;
-  v.radius = 4e-3;
+  robot::VineParameters v = robot::thesis_skin_mvr(80e-3, edges);
   v.pressure = pressure;
-  v.wall = {.thickness = 20e-6, .modulus = 0.2e9, .density = 920.0};
-  v.wall_strength = 10e6;
-  v.skin = {.thickness = 0.2e-3, .modulus = 99e3, .density = 1840.0};
-  v.skin_remanence = 0.101;
-  v.skin_direction = Vec3::UnitY();
-  v.edges = edges;
   return v;
 }
 
@@ -205,14 +196,10 @@ void run_fluid_vine_study(const std::filesystem::path& dir) {
       // Growing pressure: 35 kPa at Ø4 mm (thesis 5.6.1), scaled with 1/d² (thesis 5.8.2) for the others.
       const double growing = 35e3 * std::pow(4e-3 / diameter, 2);
       for (const double pressure : {growing, 0.5 * growing}) {
-        robot::VineParameters v;
-        v.length = kLength;
+        robot::VineParameters v = robot::thesis_fluid_vine(kLength, kEdges);
         v.radius = 0.5 * diameter;
         v.pressure = pressure;
-        v.wall = {.thickness = 38e-6, .modulus = 10e6, .density = 1000.0};  // TPE (Stretchlon 200), thesis 5.5
-        v.fill = robot::FillKind::kMagneticFluid;
         v.law = law;
-        v.edges = kEdges;
         RodModel m = robot::vine_rod(v);
         m.base_frame.col(0) = Vec3::UnitZ();
         m.base_frame.col(1) = Vec3::UnitX();

@@ -58,6 +58,13 @@ struct VineParameters {
   int edges = 0;
 };
 
+/// The skin MVR of thesis 4.6 at its 12 kPa: Ø8 mm, LDPE 20 µm (E 0.2 GPa assumed, strength 10 MPa), magnetic skin
+/// (NdFeB–Ecoflex) 0.2 mm, E 99 kPa, Br 0.101 T across the body (d2).
+VineParameters thesis_skin_mvr(double length, int edges = 0);
+/// The magnetic-fluid vine of thesis 5.5 at 35 kPa: Ø5 mm, TPE film (Stretchlon 200) 38 µm, E 10 MPa, strength
+/// kDefaultWallStrength (2.9 MPa, from its Ø3 mm burst), filled with magnetic fluid (the bounded law).
+VineParameters thesis_fluid_vine(double length, int edges = 0);
+
 /// Hoop stress at pressure P [Pa].
 double hoop_stress(const VineParameters& v);
 /// The axial wall tension PπR² [N] that balances the pressure on the tip.
