@@ -5,6 +5,7 @@
 #include <cmath>
 #include <cstdio>
 #include <limits>
+#include <numeric>
 #include <string>
 #include <utility>
 
@@ -129,14 +130,8 @@ void VineGrowth::rebuild_model(double pressure) {
 }
 
 double VineGrowth::turning() const {
-  double sum = 0.0;
-  for (std::size_t j = 0; j < m_state.frames.size(); ++j) {
-    const Mat3& a = j == 0 ? m_base_frame : m_state.frames[j - 1];
-    const Mat3 q = a.transpose() * m_state.frames[j];
-    const double sine = 0.5 * Vec3(q(2, 1) - q(1, 2), q(0, 2) - q(2, 0), q(1, 0) - q(0, 1)).norm();
-    sum += std::atan2(sine, 0.5 * (q.trace() - 1.0));
-  }
-  return sum;
+  const std::vector<double> angles = joint_angles(m_model, m_state);
+  return std::accumulate(angles.begin(), angles.end(), 0.0);
 }
 
 void VineGrowth::add_event(std::string kind, std::string detail) {

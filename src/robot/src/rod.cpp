@@ -948,6 +948,16 @@ RodModel circular_rod(double length, double diameter, double shear_modulus, doub
   return m;
 }
 
+std::vector<double> joint_angles(const RodModel& model, const RodState& state) {
+  std::vector<double> out;
+  out.reserve(state.frames.size());
+  for (std::size_t j = 0; j < state.frames.size(); ++j) {
+    const Mat3 q = (j == 0 ? model.base_frame : state.frames[j - 1]).transpose() * state.frames[j];
+    out.push_back(std::atan2(skew_axis(q).norm(), 0.5 * (q.trace() - 1.0)));
+  }
+  return out;
+}
+
 std::vector<double> joint_bending_moments(const RodModel& model, const RodState& state) {
   const double h = model.length / model.edges;
   std::vector<double> out;

@@ -205,6 +205,9 @@ RodSolveReport solve_rod_statics(const RodModel& model, const RodField& field, R
 /// edges j − 1 and j (at x_j), from the stored energy's derivative (the inflated-beam law for a vine).
 std::vector<double> joint_bending_moments(const RodModel& model, const RodState& state);
 
+/// Rotation angle ψ ∈ [0, π] of each joint (bend and twist together) [rad], joints numbered as above.
+std::vector<double> joint_angles(const RodModel& model, const RodState& state);
+
 /// Node velocities and edge angular velocities (world frame) for the dynamics.
 struct RodMotion {
   std::vector<Vec3> velocity;          ///< N + 1 [m/s] (node 0: clamped, zero)
