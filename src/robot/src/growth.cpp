@@ -48,9 +48,16 @@ Vec3 node_tangent(const RodState& s, std::size_t i) {
 double slot_area(double r, double g) { return g >= 2.0 * r ? kPi * r * r : kPi * r * g - 0.25 * kPi * g * g; }
 double flat_width(double r, double g) { return g >= 2.0 * r ? 0.0 : kPi * r - 0.5 * kPi * g; }
 
+/// The line load on each wall [N/m] of a catheter tube pinched into a gap g (CatheterTube: Roark's thin ring).
+double ring_crush_load(const CatheterTube& c, double g) {
+  const double t = 0.5 * (c.outer_diameter - c.inner_diameter);
+  const double r = 0.25 * (c.outer_diameter + c.inner_diameter);
+  return std::max(0.0, c.outer_diameter - g) * c.modulus * t * t * t / (12.0 * 0.149 * r * r * r);
+}
+
 }  // namespace
 
-double VineGrowth::lumen_width(const Vec3& x, const Mat3& frame) const {
+double VineGrowth::lumen_width(const Vec3& x, const Mat3& frame, Vec3* across) const {
   const double reach = 2.0 * m_radius;
   double width = 2.0 * reach;
   for (int k = 0; k < 4; ++k) {
@@ -58,18 +65,27 @@ double VineGrowth::lumen_width(const Vec3& x, const Mat3& frame) const {
     const Vec3 u = std::cos(a) * frame.col(1) + std::sin(a) * frame.col(2);
     const auto plus = m_world->ray_cast(x, u, reach);
     const auto minus = m_world->ray_cast(x, -u, reach);
-    width = std::min(width, (plus ? plus->distance : reach) + (minus ? minus->distance : reach));
+    const double w = (plus ? plus->distance : reach) + (minus ? minus->distance : reach);
+    if (w < width && across != nullptr) *across = u;
+    width = std::min(width, w);
   }
   return width;
 }
 
-double VineGrowth::node_radius(const Vec3& x, const Mat3& frame) const {
+double VineGrowth::node_radius(const Vec3& x, const Mat3& frame, Vec3* across) const {
   if (m_world == nullptr) return m_radius;
   const Vec3 t = frame.col(0);
-  double width = lumen_width(x, frame);
+  Vec3 line = frame.col(1);
+  double width = lumen_width(x, frame, &line);
   if (width < 4.0 * m_radius) {  // near a narrowing: the sphere's front and back too
-    width = std::min({width, lumen_width(x + m_radius * t, frame), lumen_width(x - m_radius * t, frame)});
+    for (const double side : {1.0, -1.0}) {
+      Vec3 u = line;
+      const double w = lumen_width(x + side * m_radius * t, frame, &u);
+      if (w < width) line = u;
+      width = std::min(width, w);
+    }
   }
+  if (across != nullptr) *across = line;
   return std::min(m_radius, kSlack * width);
 }
 
@@ -94,7 +110,15 @@ VineGrowth::VineGrowth(const VineParameters& vine, const GrowthOptions& options,
   check(options.max_contact_passes >= 1, "max_contact_passes must be >= 1");
   check((base_frame.transpose() * base_frame).isApprox(Mat3::Identity(), 1e-9), "base_frame must be orthonormal");
   check(vine.radius > 0.0 && std::isfinite(vine.radius), "radius must be > 0");
-  m_h = options.edge_length > 0.0 ? options.edge_length : vine.radius;
+  if (options.catheter) {
+    const CatheterTube& c = *options.catheter;
+    check(options.mode == InsertionMode::kPushed, "a catheter tube is pushed: set mode to pushed");
+    check(c.inner_diameter >= 0.0 && c.outer_diameter > c.inner_diameter && std::isfinite(c.outer_diameter),
+          "catheter: need 0 <= inner_diameter < outer_diameter");
+    check(c.modulus > 0.0 && std::isfinite(c.modulus) && c.density >= 0.0, "catheter: modulus must be > 0");
+    m_vine.radius = 0.5 * c.outer_diameter;  // the edge length and contact radius follow the tube
+  }
+  m_h = options.edge_length > 0.0 ? options.edge_length : m_vine.radius;
   const int edges = std::max(1, static_cast<int>(std::lround(vine.length / m_h)));
   m_vine.edges = edges;
   m_vine.length = edges * m_h;
@@ -108,6 +132,7 @@ VineGrowth::VineGrowth(const VineParameters& vine, const GrowthOptions& options,
 }
 
 double VineGrowth::extended_radius(double pressure) const {
+  if (m_options.catheter) return 0.5 * m_options.catheter->outer_diameter;
   return m_vine.radius * (1.0 + pressure * m_vine.radius / (m_vine.wall.thickness * m_vine.wall.modulus));
 }
 
@@ -117,7 +142,12 @@ void VineGrowth::rebuild_model(double pressure) {
   v.radius = extended_radius(pressure);  // diametric extension: the hoop strain PR/(tE) of the film
   v.edges = m_vine.edges;
   v.length = m_vine.edges * m_h;
-  m_model = vine_rod(v);
+  if (m_options.catheter) {
+    const CatheterTube& c = *m_options.catheter;
+    m_model = circular_tube_rod(v.length, c.outer_diameter, c.inner_diameter, c.modulus / 3.0, c.density, v.edges);
+  } else {
+    m_model = vine_rod(v);
+  }
   m_model.base_position = m_base_position;
   m_model.base_frame = m_base_frame;
   m_model.gravity = m_options.gravity;
@@ -126,7 +156,8 @@ void VineGrowth::rebuild_model(double pressure) {
   const double ei = m_model.bending_stiffness_3;
   m_stiffness = m_options.contact_stiffness > 0.0
                     ? m_options.contact_stiffness
-                    : std::max(50.0 * kPi * pressure * m_radius, 10.0 * ei / (m_h * m_h * m_h));
+                    : std::max(50.0 * kPi * (m_options.catheter ? 0.0 : pressure) * m_radius,
+                               10.0 * ei / (m_h * m_h * m_h));
 }
 
 double VineGrowth::turning() const {
@@ -159,6 +190,16 @@ bool VineGrowth::solve_with_wall(GrowthStepReport& report) {
   const double smoothing = 0.01 * m_radius;  // the contact law's C² zone (NodeContact::smoothing)
   const bool pushed = m_options.mode == InsertionMode::kPushed;
   std::vector<Vec3> wall_force(nodes, Vec3::Zero());  // on the body, per node
+  const std::vector<Vec3> start = m_state.x;           // pushed mode: where each node began the step
+  // Per node, an orthonormal basis of the normals of the planes pressing it: a wall, not friction, holds a node
+  // along them, so the shear is the anchor's force with those directions removed (two jaws and a floor leave only
+  // the direction along the slot).
+  std::vector<std::array<Vec3, 3>> pressed(nodes);
+  std::vector<int> pressed_count(nodes, 0);
+  const auto free_part = [&](std::size_t i, Vec3 v) {
+    for (int b = 0; b < pressed_count[i]; ++b) v -= pressed[i][static_cast<std::size_t>(b)].dot(v) * pressed[i][static_cast<std::size_t>(b)];
+    return v;
+  };
   for (int pass = 0; pass < m_options.max_contact_passes; ++pass) {
     ++report.contact_passes;
     c.contacts.clear();
@@ -181,7 +222,7 @@ bool VineGrowth::solve_with_wall(GrowthStepReport& report) {
         // penalty, presses on the walls (below).
         if (has_planes[i] && !((m_state.x[i] - cache.radius_at).norm() <= kStill * m_radius)) {
           cache.radius_at = m_state.x[i];
-          cache.radius = node_radius(m_state.x[i], m_state.frames[std::min(i, nodes - 2)]);
+          cache.radius = node_radius(m_state.x[i], m_state.frames[std::min(i, nodes - 2)], &cache.across);
         }
         radius[i] = has_planes[i] ? cache.radius : m_radius;
         for (std::size_t q = 0; q < cache.count; ++q) {
@@ -197,7 +238,11 @@ bool VineGrowth::solve_with_wall(GrowthStepReport& report) {
         c.anchors.push_back({static_cast<int>(i), m_anchor[i], m_anchor_normal[i], m_stiffness});
       }
       if (pushed && m_normal_force[i] > 0.0) {
-        c.forces.push_back({static_cast<int>(i), -mu * m_normal_force[i] * node_tangent(m_state, i)});
+        // Kinetic friction against the sliding velocity h·t + δ (δ the node's sideways move in this step):
+        // μF_n along −t, and sideways μF_n·δ/h for δ ≪ h, a spring of stiffness μF_n/h (the anchor below).
+        const Vec3 t = node_tangent(m_state, i);
+        c.forces.push_back({static_cast<int>(i), -mu * m_normal_force[i] * t});
+        c.anchors.push_back({static_cast<int>(i), start[i], t, mu * m_normal_force[i] / m_h});
       }
     }
     const RodSolveReport r = solve_rod_statics(m_model, m_field, m_state, m_options.solver, &m_workspace, &c);
@@ -210,13 +255,22 @@ bool VineGrowth::solve_with_wall(GrowthStepReport& report) {
     // Wall forces from the planes at the solved state, and whether fresh queries agree with the planes.
     std::fill(wall_force.begin(), wall_force.end(), Vec3::Zero());
     std::vector<double> plane_depth(nodes, 0.0);
+    std::fill(pressed_count.begin(), pressed_count.end(), 0);
+    for (std::size_t i = 1; i < nodes; ++i) {  // a pinched section is held across the pinch by its two walls
+      if (radius[i] < m_radius) pressed[i][static_cast<std::size_t>(pressed_count[i]++)] = m_cache[i].across;
+    }
     for (const NodeContact& p : c.contacts) {
       const auto i = static_cast<std::size_t>(p.node);
       const double depth = p.radius - p.normal.dot(m_state.x[i] - p.point);
       plane_depth[i] = std::max(plane_depth[i], depth + smoothing);
       if (depth <= -smoothing) continue;
       const double s = depth + smoothing;
-      wall_force[i] += (depth >= smoothing ? p.stiffness * depth : p.stiffness * s * s / (4.0 * smoothing)) * p.normal;
+      const double f = depth >= smoothing ? p.stiffness * depth : p.stiffness * s * s / (4.0 * smoothing);
+      wall_force[i] += f * p.normal;
+      if (f > 0.0 && pressed_count[i] < 3) {
+        const Vec3 rest = free_part(i, p.normal);
+        if (rest.norm() > 0.85) pressed[i][static_cast<std::size_t>(pressed_count[i]++)] = rest.normalized();
+      }
     }
     // Settled: the planes predict every depth (1 % of R) and no node moved past its planes' margin. Safe: no node
     // sits deeper in the wall than the planes allow (5 % of R beyond their prediction) or moved past the margin;
@@ -244,8 +298,14 @@ bool VineGrowth::solve_with_wall(GrowthStepReport& report) {
     previous_force = m_normal_force;
     for (std::size_t i = 0; i < nodes; ++i) {
       m_normal_force[i] = wall_force[i].norm();
-      // A flattened section presses each of the two walls with P over its flat strip: 2·P·(πR − πg/2)·h.
-      if (radius[i] < m_radius) m_normal_force[i] += 2.0 * m_pressure * flat_width(m_radius, radius[i] / kSlack) * m_h;
+      // A flattened section presses each of the two walls with P over its flat strip, 2·P·(πR − πg/2)·h; a
+      // pinched catheter with its ring's line load, 2·q(g)·h.
+      if (radius[i] < m_radius) {
+        const double g = radius[i] / kSlack;
+        m_normal_force[i] += 2.0 * m_h *
+                             (m_options.catheter ? ring_crush_load(*m_options.catheter, g)
+                                                 : m_pressure * flat_width(m_radius, g));
+      }
     }
     if (pushed) {
       for (std::size_t i = 1; i < nodes; ++i) {
@@ -260,6 +320,9 @@ bool VineGrowth::solve_with_wall(GrowthStepReport& report) {
           m_anchor[i] = Vec3::Constant(kNone);
           continue;
         }
+        // The anchor's wall normal: the planes' push over the whole normal force, a unit vector for a node held by
+        // its planes. For a pinched section, whose flattened strips' pressure carries most of F_n, it is shorter,
+        // and the anchor then also holds the node across the wall (I − nnᵀ keeps part of n): the two jaws grip it.
         const Vec3 n = wall_force[i] / fn;
         if (!has_anchor(m_anchor[i])) {
           m_anchor[i] = m_state.x[i];
@@ -300,7 +363,7 @@ bool VineGrowth::solve_with_wall(GrowthStepReport& report) {
       shear = mu * fn;
     } else if (has_anchor(m_anchor[i])) {
       const Vec3 d = m_state.x[i] - m_anchor[i];
-      shear = m_stiffness * (d - m_anchor_normal[i].dot(d) * m_anchor_normal[i]).norm();
+      shear = m_stiffness * free_part(i, d - m_anchor_normal[i].dot(d) * m_anchor_normal[i]).norm();
     }
     m_forces.normal[i] = fn;
     m_forces.shear[i] = shear;
@@ -329,7 +392,7 @@ GrowthStepReport VineGrowth::advance(double dt, const GrowthControl& control) {
   m_time += dt;
   const double p = control.pressure;
   const double hoop = p * extended_radius(p) / m_vine.wall.thickness;
-  if (hoop > m_vine.wall_strength) {
+  if (!m_options.catheter && hoop > m_vine.wall_strength) {
     m_burst = true;
     report.stalled = true;
     report.burst = true;
@@ -416,8 +479,11 @@ GrowthStepReport VineGrowth::advance(double dt, const GrowthControl& control) {
     // it over the flattened section's area only: it advances while P·A_slot exceeds the yield force Y·πR² (the
     // tail and the fold resist as before), and it is blocked otherwise.
     const double tip_radius = node_radius(m_state.x.back(), m_state.frames.back());
-    const double squeeze = slot_area(m_radius, tip_radius / kSlack) / (kPi * m_radius * m_radius);
-    const bool squeezed_out = p * squeeze <= report.yield;
+    // (A catheter is pushed from the base: the gap does not slow it until the tube is pressed flat.)
+    const double squeeze = m_options.catheter ? 1.0 : slot_area(m_radius, tip_radius / kSlack) / (kPi * m_radius * m_radius);
+    const bool flat = m_options.catheter &&
+                      tip_radius / kSlack < m_options.catheter->outer_diameter - m_options.catheter->inner_diameter;
+    const bool squeezed_out = flat || p * squeeze <= report.yield;
     // Blocked before solving: the new tip meets the wall steeper than max_incidence (it cannot slide along it).
     const Vec3 tangent = old_state.frames.back().col(0);
     double incidence = 0.0;
@@ -444,7 +510,14 @@ GrowthStepReport VineGrowth::advance(double dt, const GrowthControl& control) {
       m_anchor = old_anchor;
       m_anchor_normal = old_normal;
       m_pending = 0.0;
-      if (squeezed_out) {
+      if (flat) {
+        if (!m_blocked) {
+          m_blocked = true;
+          add_event("squeeze", format("a %.2f mm gap is narrower than the catheter pressed flat (%.2f mm)",
+                                      1e3 * tip_radius / kSlack,
+                                      1e3 * (m_options.catheter->outer_diameter - m_options.catheter->inner_diameter)));
+        }
+      } else if (squeezed_out) {
         if (!m_blocked) {
           m_blocked = true;
           add_event("squeeze", format("a %.2f mm gap leaves the tip %.0f %% of its section: %.2f kPa x %.2f is at or "

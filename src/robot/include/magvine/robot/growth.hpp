@@ -12,9 +12,11 @@
 ///
 /// Pushed mode (InsertionMode::kPushed): the same body inserted from the base, as a catheter. The chain grows the
 /// same way (the path is the same), but every material point slides forward by h, so each node in contact carries
-/// kinetic friction μ·F_n against the sliding direction (its tangent), and no anchors. Its insertion follows the same
-/// growth law and tether (a stand-in for an insertion schedule), but nothing limits the push: the energy test of a
-/// blocked tip below applies to eversion only.
+/// kinetic friction μ·F_n against the sliding velocity h·t + δ (t its tangent, δ its sideways move in the step): μ·F_n
+/// along −t, and sideways μ·F_n·δ/h for δ ≪ h, a spring of stiffness μ·F_n/h towards where the node began the step
+/// (without it a pushed body loaded by its own friction buckles sideways in one solve). Its insertion follows the
+/// same growth law and tether (a stand-in for an insertion schedule), but nothing limits the push: the energy test
+/// of a blocked tip below applies to eversion only. GrowthOptions::catheter pushes a solid tube instead of the vine.
 ///
 /// Growth law (PHYSICS.md §3, Blumenschein et al. 2017's form; the constants are not published for these robots):
 ///   L̇ = K·max(0, P − Y),  Y = Y0 + c_L·L + c_θ·Σθ,
@@ -31,11 +33,13 @@
 /// P·(πR − πw/2) per unit length, and the tip in the narrowing is driven over the stadium's area
 /// A = πRw − πw²/4 only: it advances while P·A/(πR²) > Y (else a "squeeze" event).
 ///
-/// Tissue forces per step: normal k·depth at every node in contact (plus the flattened section's pressure), shear the
-/// anchors' tangential force (eversion) or μ·F_n (pushed).
+/// Tissue forces per step: normal k·depth at every node in contact (plus the flattened section's pressure, or a pinched
+/// catheter's ring force), shear the anchors' tangential force (eversion; the directions a wall pressing the node
+/// holds, including a pinch, removed) or μ·F_n (pushed).
 
 #include <array>
 #include <limits>
+#include <optional>
 #include <string>
 #include <vector>
 
@@ -64,6 +68,20 @@ struct GrowthLaw {
 
 enum class InsertionMode { kEversion, kPushed };
 
+/// A solid-walled tube pushed as a catheter (InsertionMode::kPushed only), in place of the vine's body: the
+/// comparison of thesis 5.6.2, a TPU tube of OD 4 mm and ID 3 mm. Squeezed into a gap g narrower than its outer
+/// diameter D, its wall bends like a ring pinched across a diameter (Roark, thin ring under two opposite line
+/// loads: δ = 0.149·q·r³/(E·t³/12) per unit length, r the wall's mean radius, t its thickness), so each wall
+/// carries q = (D − g)·E·t³/(12·0.149·r³) per unit length; the hard limit is the tube pressed flat, g = 2t.
+struct CatheterTube {
+  double outer_diameter = 4e-3;  ///< [m]
+  double inner_diameter = 3e-3;  ///< [m]
+  /// Young's modulus [Pa]. TPU of Shore 85A–95A has E ≈ 20–50 MPa; 26 MPa is an assumption (the thesis gives no
+  /// grade), not fitted.
+  double modulus = 26e6;
+  double density = 1200.0;       ///< [kg/m³] (TPU)
+};
+
 /// The body's solver in a growth step: from the last equilibrium at full load, no ramp (RodSolveOptions::ramp), at
 /// most 200 Newton iterations (a step that needs more is reverted and tried again later).
 inline RodSolveOptions growth_solver_options() {
@@ -78,6 +96,10 @@ inline RodSolveOptions growth_solver_options() {
 struct GrowthOptions {
   GrowthLaw law;
   InsertionMode mode = InsertionMode::kEversion;
+  /// Pushed mode only: push this tube instead of the (pressurised) vine body. The growth law still sets the
+  /// insertion speed (control.pressure as a stand-in for the push); pressure, burst and diametric extension do not
+  /// apply to it.
+  std::optional<CatheterTube> catheter;
   double edge_length = 0.0;        ///< h [m]; 0: the vine's radius
   double friction = 0.3;           ///< Coulomb μ between the body and the wall
   /// The steepest angle between the tip's tangent and a wall it meets at which the tip still slides along the wall
@@ -168,9 +190,10 @@ class VineGrowth {
   double extended_radius(double pressure) const;
   /// Narrowest width of the lumen across the body at x (4 lines through x in the plane ⟂ frame.col(0), ray casts
   /// up to 2R each way) [m].
-  double lumen_width(const Vec3& x, const Mat3& frame) const;
+  double lumen_width(const Vec3& x, const Mat3& frame, Vec3* across = nullptr) const;
   /// The body's contact radius at x: R, or half the lumen width at x or R ahead of or behind it when narrower.
-  double node_radius(const Vec3& x, const Mat3& frame) const;
+  /// `across`, if given, receives the direction of the narrowest line (the pinch).
+  double node_radius(const Vec3& x, const Mat3& frame, Vec3* across = nullptr) const;
   bool solve_with_wall(GrowthStepReport& report);
   void add_event(std::string kind, std::string detail);
 
@@ -189,8 +212,8 @@ class VineGrowth {
   double m_last_try = -std::numeric_limits<double>::infinity();  ///< when an edge was last tried [s]
   bool m_burst = false;
   bool m_stalled = false;  ///< by the yield (a "stall" event was given)
-  bool m_blocked = false;
-  bool m_dirty = false;    ///< the loads changed since the last equilibrium  ///< by the wall or the solver (a "blocked" or "solver" event was given)
+  bool m_blocked = false;  ///< by the wall or the solver (a "blocked" or "solver" event was given)
+  bool m_dirty = false;    ///< the loads changed since the last equilibrium
   RodModel m_model;
   RodState m_state;
   RodWorkspace m_workspace;
@@ -205,6 +228,7 @@ class VineGrowth {
     std::array<anatomy::Contact, kContactsPerNode> found{};
     Vec3 radius_at = Vec3::Constant(std::numeric_limits<double>::quiet_NaN());
     double radius = 0.0;  ///< the node's squeezed radius there [m]
+    Vec3 across = Vec3::UnitY();  ///< the pinch direction there (node_radius)
   };
   std::vector<PlaneCache> m_cache;
   WallForces m_forces;

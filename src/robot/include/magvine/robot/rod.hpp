@@ -101,6 +101,11 @@ RodModel rectangular_rod(double length, double width, double thickness, double s
 RodModel circular_rod(double length, double diameter, double shear_modulus, double density, int edges,
                       double stretch_shear_factor = kNearInextensible);
 
+/// A hollow circular tube (a catheter: outer and inner diameter), E = 3G, not magnetic. Thin-walled tubes shear with
+/// Timoshenko's factor 2(1+ν)/(4+3ν) = 0.55 at ν = ½.
+RodModel circular_tube_rod(double length, double outer_diameter, double inner_diameter, double shear_modulus,
+                           double density, int edges, double stretch_shear_factor = kNearInextensible);
+
 /// The configuration: N + 1 node positions and N edge frames.
 struct RodState {
   std::vector<Vec3> x;
