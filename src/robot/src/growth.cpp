@@ -256,6 +256,7 @@ bool VineGrowth::solve_with_wall(GrowthStepReport& report) {
     std::fill(wall_force.begin(), wall_force.end(), Vec3::Zero());
     std::vector<double> plane_depth(nodes, 0.0);
     std::fill(pressed_count.begin(), pressed_count.end(), 0);
+    std::vector<double> nearest(nodes, -std::numeric_limits<double>::infinity());  // deepest plane's depth
     for (std::size_t i = 1; i < nodes; ++i) {  // a pinched section is held across the pinch by its two walls
       if (radius[i] < m_radius) pressed[i][static_cast<std::size_t>(pressed_count[i]++)] = m_cache[i].across;
     }
@@ -263,6 +264,7 @@ bool VineGrowth::solve_with_wall(GrowthStepReport& report) {
       const auto i = static_cast<std::size_t>(p.node);
       const double depth = p.radius - p.normal.dot(m_state.x[i] - p.point);
       plane_depth[i] = std::max(plane_depth[i], depth + smoothing);
+      nearest[i] = std::max(nearest[i], depth);
       if (depth <= -smoothing) continue;
       const double s = depth + smoothing;
       const double f = depth >= smoothing ? p.stiffness * depth : p.stiffness * s * s / (4.0 * smoothing);
@@ -317,7 +319,12 @@ bool VineGrowth::solve_with_wall(GrowthStepReport& report) {
       for (std::size_t i = 1; i < nodes; ++i) {
         const double fn = m_normal_force[i];
         if (fn <= 0.0) {
-          m_anchor[i] = Vec3::Constant(kNone);
+          // Off the wall by more than 2 % of R (a node lifted by a hair keeps its hold, else the anchors flicker
+          // as the body settles): released, and solved again without it if it held the node.
+          if (has_anchor(m_anchor[i]) && nearest[i] < -kStill * m_radius) {
+            if ((m_state.x[i] - m_anchor[i]).norm() > 1e-6 * m_radius) settled = false;
+            m_anchor[i] = Vec3::Constant(kNone);
+          }
           continue;
         }
         // The anchor's wall normal: the planes' push over the whole normal force, a unit vector for a node held by
