@@ -3,6 +3,8 @@
 // (TPE 38 µm, 35 kPa, yield 20 kPa here), no field; each iteration grows a fresh vine from 5 mm to 105 mm:
 //   /trachea  the generated bronchial tree (Weibel A to generation 4, 0.5 mm meshing, ~0.58 M triangles), the vine
 //             started 3 mm off the trachea's axis with gravity across it, so it grows lying on the wall;
+//   /carina   the same tree, the vine started 70 mm down the trachea leaning on its wall: it grows past the carina
+//             and 35 mm into the main bronchus on its side (the "through the tree");
 //   /y        the Y bifurcation phantom (parent Ø12 mm, daughters Ø9.5 mm at 35°, ~0.31 M triangles), the vine
 //             started against one side wall and leaning that way: it turns into that daughter.
 // Counters: steps (advance calls of 20 ms), Newton iterations, contact passes, nodes on the wall at the end.
@@ -55,18 +57,31 @@ void grow(benchmark::State& state, const anatomy::CollisionWorld& world, const V
   state.counters["contacts"] = contacts;
 }
 
-void BM_GrowthTrachea(benchmark::State& state) {
+/// The generated tree to generation 4 at 0.5 mm meshing (built once).
+const anatomy::CollisionWorld& tree() {
   static const auto world = [] {
     anatomy::BronchialTreeParams p;
     p.max_generation = 4;
     p.spacing = 0.5e-3;
     return std::make_unique<anatomy::CollisionWorld>(anatomy::make_bronchial_tree(p).mesh);
   }();
+  return *world;
+}
+
+void BM_GrowthTrachea(benchmark::State& state) {
   Mat3 frame;  // tangent down the trachea (−z), normal +x
   frame.col(0) = -Vec3::UnitZ();
   frame.col(1) = Vec3::UnitX();
   frame.col(2) = frame.col(0).cross(frame.col(1));
-  grow(state, *world, Vec3(9.81, 0.0, 0.0), Vec3(3e-3, 0.0, -5e-3), frame);
+  grow(state, tree(), Vec3(9.81, 0.0, 0.0), Vec3(3e-3, 0.0, -5e-3), frame);
+}
+
+void BM_GrowthCarina(benchmark::State& state) {
+  Mat3 frame;
+  frame.col(0) = -Vec3::UnitZ();
+  frame.col(1) = Vec3::UnitX();
+  frame.col(2) = frame.col(0).cross(frame.col(1));
+  grow(state, tree(), Vec3(9.81, 0.0, 0.0), Vec3(3e-3, 0.0, -70e-3), frame);
 }
 
 void BM_GrowthY(benchmark::State& state) {
@@ -78,5 +93,6 @@ void BM_GrowthY(benchmark::State& state) {
 }  // namespace
 
 BENCHMARK(BM_GrowthTrachea)->Unit(benchmark::kMillisecond)->MinTime(2.0);
+BENCHMARK(BM_GrowthCarina)->Unit(benchmark::kMillisecond)->MinTime(2.0);
 BENCHMARK(BM_GrowthY)->Unit(benchmark::kMillisecond)->MinTime(2.0);
 BENCHMARK_MAIN();
