@@ -385,6 +385,7 @@ TEST(Growth, SqueezesThroughTheThesisConstrictionsAndStopsWhereItDid) {
   GrowthOptions fluid;
   fluid.law.yield_pressure = 15e3;
   EXPECT_TRUE(passes_constriction(fluid_vine(), 35e3, 2.5e-3, fluid));
+  EXPECT_TRUE(passes_constriction(fluid_vine(), 35e3, 3e-3, fluid));  // once stuck: Newton stalled at round-off
 }
 
 TEST(Growth, ThroughAThreeMillimetreGapTheVineShearsTheJawsFarLessThanAPushedTube) {
