@@ -12,7 +12,10 @@
 #include "magvine/anatomy/collision_world.hpp"
 #include "magvine/anatomy/phantom.hpp"
 #include "magvine/core/units.hpp"
+#include "magvine/magnetics/cylinder.hpp"
+#include "magvine/magnetics/field_model.hpp"
 #include "magvine/magnetics/field_sample.hpp"
+#include "magvine/robot/elastica.hpp"
 #include "magvine/robot/growth.hpp"
 
 namespace magvine::robot {
@@ -411,6 +414,39 @@ TEST(Growth, ThroughAThreeMillimetreGapTheVineShearsTheJawsFarLessThanAPushedTub
   EXPECT_TRUE(pushed.passed);
   EXPECT_GE(pushed.shear, 10.0 * grown.shear);  // the acceptance: a ratio of at least 10
   EXPECT_LT(grown.normal, pushed.normal);
+}
+
+TEST(Growth, ADeflatedVineLyingInTheSBendBendsTowardsAMagnetBroughtClose) {
+  // The skin vine grown 68 mm along the S-bend phantom's floor (past the first obstacle's end), then deflated to
+  // 1 kPa as the thesis's EPM (Ø101.6 mm N52) is brought beside the channel, its axis vertical so its field at the
+  // body lies along the skin's magnetisation (gradient mode, thesis 4.7.3): the full load at once does not converge
+  // from the inflated equilibrium, so the step ramps it up from there. The body creases and its free part swings
+  // towards the magnet and over the obstacle; no node leaves the lumen.
+  const anatomy::Phantom ph = anatomy::make_s_bend({});
+  const anatomy::CollisionWorld world(ph.mesh);
+  Mat3 frame;  // tangent +x, the skin's magnetisation (body y) vertical
+  frame.col(0) = Vec3::UnitX();
+  frame.col(1) = Vec3::UnitZ();
+  frame.col(2) = -Vec3::UnitY();
+  const VineParameters v = skin_mvr();
+  const double radius = v.radius * (1.0 + v.pressure * v.radius / (v.wall.thickness * v.wall.modulus));
+  VineGrowth g(v, {}, &world, {}, Vec3(2e-3, 14e-3, -10e-3 + radius), frame);
+  while (g.time() < 8.0) ASSERT_TRUE(g.advance(0.1, {.pressure = 12e3, .tether_length = 70e-3}).converged);
+  const Vec3 before = g.state().tip();
+  magnetics::FieldModel epm;
+  epm.add(magnetics::CylinderMagnet(50.8e-3, 101.6e-3, Vec3(0.0, 0.0, 1.48)),
+          magnetics::Pose::from_axis(Vec3(85e-3, -85e-3, 0.0), -Vec3::UnitZ()), "EPM");
+  g.set_field(field_function(epm, epm.rest_poses));
+  const GrowthStepReport r = g.advance(0.1, {.pressure = 1e3, .tether_length = 70e-3});
+  ASSERT_TRUE(r.converged) << r.failure;
+  const Vec3 after = g.state().tip();
+  std::printf("  tip (%.1f, %.1f) mm -> (%.1f, %.1f) mm, %d Newton iterations, creased %d\n", 1e3 * before.x(),
+              1e3 * before.y(), 1e3 * after.x(), 1e3 * after.y(), r.newton_iterations,
+              static_cast<int>(vine_bend_state(g.model(), g.state()).creased));
+  EXPECT_NEAR(before.y(), 14e-3, 0.5e-3);
+  EXPECT_LT(after.y(), before.y() - 5e-3);  // towards the magnet (−y)
+  EXPECT_TRUE(vine_bend_state(g.model(), g.state()).creased);
+  for (const Vec3& x : g.state().x) EXPECT_TRUE(world.contains(x)) << "a node left the lumen";
 }
 
 }  // namespace

@@ -437,14 +437,31 @@ GrowthStepReport VineGrowth::advance(double dt, const GrowthControl& control) {
     const RodState old_state = m_state;
     const std::vector<Vec3> old_anchor = m_anchor;
     const std::vector<Vec3> old_normal = m_anchor_normal;
-    if (!solve_with_wall(report)) {
-      add_event("solver", report.failure);
+    const std::vector<double> old_force = m_normal_force;
+    bool solved = solve_with_wall(report);
+    if (!solved) {
+      // A large change at once (a magnet brought close to a deflated body): ramp the loads up from the last
+      // equilibrium instead.
       m_state = old_state;
       m_anchor = old_anchor;
       m_anchor_normal = old_normal;
+      const RodSolveOptions fast = m_options.solver;
+      m_options.solver = RodSolveOptions{};  // the ramp, with the default budgets
+      m_options.solver.tolerance = fast.tolerance;
       report.converged = true;
-      GrowthStepReport ignored;
-      solve_with_wall(ignored);  // the energy and forces of the kept state (its old contacts still hold)
+      report.failure.clear();
+      solved = solve_with_wall(report);
+      m_options.solver = fast;
+    }
+    if (!solved) {
+      // Keep the last equilibrium (under the old loads), report the failure and try again next step.
+      add_event("solver", "new loads: " + report.failure);
+      m_state = old_state;
+      m_anchor = old_anchor;
+      m_anchor_normal = old_normal;
+      m_normal_force = old_force;
+      report.stalled = true;
+      return report;
     }
   }
   // A blocked tip tries again only when the loads changed or retry_interval has passed (each try is a full solve).
