@@ -5,6 +5,7 @@
 
 #include <cmath>
 #include <cstdint>
+#include <string>
 #include <utility>
 #include <cstdio>
 #include <vector>
@@ -447,6 +448,88 @@ TEST(Growth, ADeflatedVineLyingInTheSBendBendsTowardsAMagnetBroughtClose) {
   EXPECT_LT(after.y(), before.y() - 5e-3);  // towards the magnet (−y)
   EXPECT_TRUE(vine_bend_state(g.model(), g.state()).creased);
   for (const Vec3& x : g.state().x) EXPECT_TRUE(world.contains(x)) << "a node left the lumen";
+}
+
+TEST(Growth, MagnetorheologicalStiffeningStallsTheFluidVineAtTheBinghamLength) {
+  // GrowthOptions::magnetorheology: a uniform 20 mT field along the fluid vine (free space, no gravity: the fill's
+  // induced moment lies along the body, so nothing bends) adds ΔP = 2τ_y·L/R to the yield, so growth stalls where
+  // P = Y0 + (c_L + 2τ_y/R)·L: L* = (P − Y0)/(c_L + 2τ_y/R), 16 mm here instead of 1.7 m without it. Tolerance one
+  // edge (growth is by whole edges).
+  GrowthOptions o;
+  o.gravity = Vec3::Zero();
+  o.law.yield_pressure = 15e3;
+  o.magnetorheology = true;
+  const double b = 20e-3;
+  VineGrowth g(fluid_vine(), o, nullptr, [b](const Vec3&) {
+    magnetics::FieldSample f;
+    f.b = Vec3(b, 0.0, 0.0);
+    return f;
+  }, Vec3::Zero(), Mat3::Identity());
+  for (int i = 0; i < 400; ++i) ASSERT_TRUE(g.advance(0.05, {.pressure = 35e3}).converged);
+  const double tau = magnetorheological_yield_stress(b / kMu0, fluid_vine().volume_fraction);
+  const double expected = (35e3 - 15e3) / (o.law.length_yield + 2.0 * tau / g.radius());
+  std::printf("  tau_y %.0f Pa at %.0f mT; stalled at %.2f mm, Bingham length %.2f mm\n", tau, 1e3 * b,
+              1e3 * g.length(), 1e3 * expected);
+  EXPECT_NEAR(g.length(), expected, g.edge_length());
+  ASSERT_FALSE(g.events().empty());
+  EXPECT_EQ(g.events().back().kind, "stall");
+  EXPECT_NE(g.events().back().detail.find("magnetorheological"), std::string::npos);
+  // Ginder & Davis's law: τ_y ∝ H^{3/2} below saturation, capped at 0.086 φ μ0 M_s².
+  EXPECT_NEAR(magnetorheological_yield_stress(4.0 * b / kMu0, 0.23) / tau, 8.0, 1e-9);
+  EXPECT_NEAR(magnetorheological_yield_stress(1e9, 0.23), 0.086 * 0.23 * kMu0 * kIronSaturation * kIronSaturation,
+              1e-6);
+}
+
+TEST(Growth, TheStiffenedFluidResumesGrowingWhenTheMagnetIsWithdrawn) {
+  // Thesis 5.6.4: near the EPM the magnetorheological fluid stiffened and growth stopped; withdrawing the magnet let
+  // it grow. The fluid vine grows along x in free space towards the thesis's EPM placed 60 mm beyond its tip line.
+  GrowthOptions o;
+  o.gravity = Vec3::Zero();
+  o.law.yield_pressure = 15e3;
+  o.magnetorheology = true;
+  const auto epm_at = [](const Vec3& centre) {
+    magnetics::FieldModel epm;
+    epm.add(magnetics::CylinderMagnet(50.8e-3, 101.6e-3, Vec3(0.0, 0.0, 1.48)),
+            magnetics::Pose::from_axis(centre, Vec3::UnitY()), "EPM");
+    return field_function(epm, epm.rest_poses);
+  };
+  VineGrowth g(thesis_fluid_vine(40e-3), o, nullptr, epm_at(Vec3(40e-3, -80e-3, 0.0)), Vec3::Zero(),
+               Mat3::Identity());
+  for (int i = 0; i < 40; ++i) ASSERT_TRUE(g.advance(0.05, {.pressure = 35e3}).converged);
+  const double near = g.length();
+  const double extra = g.advance(0.05, {.pressure = 35e3}).magnetorheological_yield;
+  g.set_field(epm_at(Vec3(40e-3, -400e-3, 0.0)));
+  for (int i = 0; i < 40; ++i) ASSERT_TRUE(g.advance(0.05, {.pressure = 35e3}).converged);
+  std::printf("  magnet 80 mm off: stalled at %.1f mm (magnetorheological yield %.1f kPa); withdrawn to 400 mm: %.1f "
+              "mm\n",
+              1e3 * near, extra / 1e3, 1e3 * g.length());
+  EXPECT_NEAR(near, 40e-3, g.edge_length());  // no growth near the magnet
+  EXPECT_GT(extra, 20e3);                       // the fluid's yield alone exceeds P − Y0
+  EXPECT_GT(g.length(), near + 10e-3);          // grows once it is withdrawn
+}
+
+TEST(Growth, RetractsByDeflatingAndPullingTheTether) {
+  // GrowthOptions::retraction_pressure: pulled back at 12 kPa the vine holds its length (an event says so);
+  // deflated to 0.5 kPa it inverts from the tip down to the tether, by whole edges.
+  GrowthOptions o;
+  o.gravity = Vec3::Zero();
+  o.retraction_pressure = 1e3;
+  VineGrowth g(skin_mvr(60e-3), o, nullptr, {}, Vec3::Zero(), Mat3::Identity());
+  const double made = g.length();
+  ASSERT_TRUE(g.advance(0.1, {.pressure = 12e3, .tether_length = 40e-3}).converged);
+  EXPECT_EQ(g.length(), made);
+  ASSERT_FALSE(g.events().empty());
+  EXPECT_EQ(g.events().back().kind, "retract");
+  const GrowthStepReport r = g.advance(0.1, {.pressure = 0.5e3, .tether_length = 40e-3});
+  ASSERT_TRUE(r.converged) << r.failure;
+  std::printf("  %.1f mm pulled back to %.1f mm (%d edges inverted)\n", 1e3 * made, 1e3 * g.length(),
+              r.edges_removed);
+  EXPECT_LE(g.length(), 40e-3 + 1e-12);
+  EXPECT_GT(g.length(), 40e-3 - g.edge_length());
+  EXPECT_EQ(g.state().x.size(), static_cast<std::size_t>(std::lround(g.length() / g.edge_length())) + 1);
+  // Pressurised again with the tether where it is: no growth past it.
+  for (int i = 0; i < 20; ++i) ASSERT_TRUE(g.advance(0.1, {.pressure = 12e3, .tether_length = 40e-3}).converged);
+  EXPECT_LE(g.length(), 40e-3 + 1e-12);
 }
 
 }  // namespace

@@ -57,6 +57,40 @@ double ring_crush_load(const CatheterTube& c, double g) {
 
 }  // namespace
 
+double magnetorheological_yield_stress(double field_strength, double volume_fraction) {
+  const double h = std::abs(field_strength);
+  const double chains = std::sqrt(6.0) * volume_fraction * kMu0 * std::sqrt(kIronSaturation) * h * std::sqrt(h);
+  const double saturated = 0.086 * volume_fraction * kMu0 * kIronSaturation * kIronSaturation;
+  return std::min(chains, saturated);
+}
+
+double VineGrowth::magnetorheological_yield() const {
+  if (!m_options.magnetorheology || !m_field) return 0.0;
+  double integral = 0.0;  // ∫τ_y ds, the field at each edge's midpoint
+  for (std::size_t j = 0; j + 1 < m_state.x.size(); ++j) {
+    const Vec3 mid = 0.5 * (m_state.x[j] + m_state.x[j + 1]);
+    integral += magnetorheological_yield_stress(m_field(mid).b.norm() / kMu0, m_vine.volume_fraction) * m_h;
+  }
+  return 2.0 * integral / m_radius;
+}
+
+int VineGrowth::retract_to(double length, GrowthStepReport& report) {
+  int removed = 0;
+  while (m_vine.edges > 1 && (m_vine.edges - 1) * m_h >= length - 1e-12 * m_h) {
+    --m_vine.edges;
+    m_state.x.pop_back();
+    m_state.frames.pop_back();
+    ++removed;
+  }
+  if (removed == 0) return 0;
+  rebuild_model(m_pressure);
+  m_anchor.resize(m_state.x.size());
+  m_anchor_normal.resize(m_state.x.size());
+  m_cache.resize(m_state.x.size());
+  if (!solve_with_wall(report)) add_event("solver", "after retracting: " + report.failure);
+  return removed;
+}
+
 double VineGrowth::lumen_width(const Vec3& x, const Mat3& frame, Vec3* across) const {
   const double reach = 2.0 * m_radius;
   double width = 2.0 * reach;
@@ -108,6 +142,9 @@ VineGrowth::VineGrowth(const VineParameters& vine, const GrowthOptions& options,
   check(options.contact_stiffness >= 0.0, "contact_stiffness must be >= 0");
   check(options.edge_length >= 0.0 && std::isfinite(options.edge_length), "edge_length must be >= 0");
   check(options.max_contact_passes >= 1, "max_contact_passes must be >= 1");
+  check(!options.magnetorheology || vine.fill == FillKind::kMagneticFluid,
+        "magnetorheology needs a magnetic-fluid fill");
+  check(std::isfinite(options.retraction_pressure), "retraction_pressure must be finite");
   check((base_frame.transpose() * base_frame).isApprox(Mat3::Identity(), 1e-9), "base_frame must be orthonormal");
   check(vine.radius > 0.0 && std::isfinite(vine.radius), "radius must be > 0");
   if (options.catheter) {
@@ -416,17 +453,42 @@ GrowthStepReport VineGrowth::advance(double dt, const GrowthControl& control) {
   const double sigma = turning();
   const double length_term = law.length_yield * (m_model.length + m_pending);  // the grown length, whole edges or not
   const double turning_term = law.turning_yield * sigma;
-  report.yield = law.yield_pressure + length_term + turning_term;
+  report.magnetorheological_yield = magnetorheological_yield();
+  report.yield = law.yield_pressure + length_term + turning_term + report.magnetorheological_yield;
   report.speed = law.extensibility * std::max(0.0, p - report.yield);
   if (report.speed == 0.0 && !m_stalled) {
     m_stalled = true;
-    add_event("stall", format("pressure %.2f kPa at or below the yield %.2f kPa (Y0 %.2f + length %.2f + turning "
-                              "%.2f kPa)",
-                              p / kKpaToPa, report.yield / kKpaToPa, law.yield_pressure / kKpaToPa,
-                              length_term / kKpaToPa, turning_term / kKpaToPa));
+    std::string detail = format("pressure %.2f kPa at or below the yield %.2f kPa (Y0 %.2f + length %.2f + turning "
+                                "%.2f kPa",
+                                p / kKpaToPa, report.yield / kKpaToPa, law.yield_pressure / kKpaToPa,
+                                length_term / kKpaToPa, turning_term / kKpaToPa);
+    if (m_options.magnetorheology) {
+      detail += format(" + magnetorheological %.2f kPa", report.magnetorheological_yield / kKpaToPa);
+    }
+    add_event("stall", detail + ")");
   } else if (report.speed > 0.0 && m_stalled) {
     m_stalled = false;
     add_event("resume", format("pressure %.2f kPa above the yield %.2f kPa", p / kKpaToPa, report.yield / kKpaToPa));
+  }
+  // Retraction: a tether pulled back below the everted length inverts the tip of a deflated vine.
+  if (m_options.retraction_pressure >= 0.0 && control.tether_length < m_model.length - 1e-9 * m_h) {
+    m_pending = 0.0;
+    if (p <= m_options.retraction_pressure) {
+      m_retract_refused = false;
+      const int removed = retract_to(control.tether_length, report);
+      report.edges_removed = removed;
+      if (removed > 0 && !m_retracting) {
+        m_retracting = true;
+        add_event("retract", format("the tether pulls the deflated vine (%.2f kPa) back from %.1f mm",
+                                    p / kKpaToPa, 1e3 * (m_model.length + removed * m_h)));
+      }
+    } else if (!m_retract_refused) {
+      m_retract_refused = true;
+      add_event("retract", format("the tether pulls back to %.1f mm but the vine is at %.2f kPa, above the "
+                                  "retraction pressure %.2f kPa: the length is held",
+                                  1e3 * control.tether_length, p / kKpaToPa,
+                                  m_options.retraction_pressure / kKpaToPa));
+    }
   }
   const double cap = std::min(control.tether_length, m_options.max_length) - (m_model.length + m_pending);
   m_pending += std::clamp(report.speed * dt, 0.0, std::max(0.0, cap));
@@ -575,6 +637,7 @@ GrowthStepReport VineGrowth::advance(double dt, const GrowthControl& control) {
     m_pending -= m_h;
     ++report.edges_added;
   }
+  if (report.edges_added > 0) m_retracting = false;
   if (report.edges_added > 0 && m_blocked) {
     m_blocked = false;
   }

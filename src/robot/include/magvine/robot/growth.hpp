@@ -109,16 +109,33 @@ struct GrowthOptions {
   double contact_stiffness = 0.0;  ///< wall penalty k [N/m]; 0: automatic (the growth force at 2 % R depth)
   double max_length = std::numeric_limits<double>::infinity();  ///< the vine's made length [m]
   int max_contact_passes = 10;     ///< solves per step while the contact set settles
+  /// Magnetorheological stiffening of a magnetic-fluid fill (thesis 5.6.4: near the EPM the fluid stiffened and
+  /// growth stopped until the magnet was withdrawn). Growth feeds the tip with fluid flowing along the body; a
+  /// Bingham fluid of yield stress τ_y flows through a tube of radius R only where the pressure gradient exceeds
+  /// 2τ_y/R, so growing needs the extra pressure ΔP = (2/R)∫τ_y(|B(s)|/μ0) ds over the body (added to the yield Y).
+  /// τ_y(H) = min(√6·φ·μ0·M_s^½·H^{3/2}, 0.086·φ·μ0·M_s²) (Ginder & Davis 1994: chains of saturating iron spheres,
+  /// intermediate fields and saturation), φ the iron fraction, M_s = 1.7 MA/m. Off by default; only for a
+  /// magnetic-fluid fill.
+  bool magnetorheology = false;
+  /// Retraction by deflating and pulling: at or below this pressure [Pa] a tether pulled back below the everted
+  /// length inverts the tip (whole edges, as far as the tether has been pulled); above it the tether holds the
+  /// length (a pressurised vine does not retract: the pull buckles it) and a "retract" event says so once.
+  /// Negative: no retraction (the tether only caps growth).
+  double retraction_pressure = -1.0;
   double retry_interval = 0.5;     ///< a blocked tip tries to grow again after this long [s] (or when loads change)
   Vec3 gravity = Vec3(0.0, 0.0, -9.81);  ///< [m/s²] (bench phantoms: z up)
   RodSolveOptions solver = growth_solver_options();
 };
 
+/// The yield stress τ_y [Pa] of a magnetorheological fluid of iron volume fraction φ in an applied field H [A/m]
+/// (GrowthOptions::magnetorheology: Ginder & Davis 1994, intermediate fields, capped at saturation).
+double magnetorheological_yield_stress(double field_strength, double volume_fraction);
+
 /// Something that happened during growth.
 struct GrowthEvent {
   double time = 0.0;    ///< [s]
   double length = 0.0;  ///< everted length then [m]
-  std::string kind;     ///< "stall", "resume", "blocked", "burst", "tether", "max_length", "solver"
+  std::string kind;     ///< "stall", "resume", "blocked", "squeeze", "burst", "retract", "solver"
   std::string detail;   ///< human-readable cause with numbers (kPa, mm, N)
 };
 
@@ -142,7 +159,9 @@ struct GrowthStepReport {
   bool converged = true;   ///< the body reached equilibrium (else the cause is in failure and an event)
   int contact_passes = 0;
   int newton_iterations = 0;
-  double yield = 0.0;      ///< Y [Pa]
+  double yield = 0.0;      ///< Y [Pa] (with the magnetorheological term)
+  double magnetorheological_yield = 0.0;  ///< its magnetorheological part ΔP [Pa]
+  int edges_removed = 0;   ///< retraction
   double speed = 0.0;      ///< the growth law's L̇ before tether and blocking [m/s]
   std::string failure;
 };
@@ -187,6 +206,10 @@ class VineGrowth {
 
  private:
   void rebuild_model(double pressure);
+  /// ΔP of GrowthOptions::magnetorheology for the current body and field [Pa] (0 when off).
+  double magnetorheological_yield() const;
+  /// Inverts whole edges at the tip down to `length` (keeps one edge) and solves again; returns how many.
+  int retract_to(double length, GrowthStepReport& report);
   double extended_radius(double pressure) const;
   /// Narrowest width of the lumen across the body at x (4 lines through x in the plane ⟂ frame.col(0), ray casts
   /// up to 2R each way) [m].
@@ -214,6 +237,8 @@ class VineGrowth {
   bool m_stalled = false;  ///< by the yield (a "stall" event was given)
   bool m_blocked = false;  ///< by the wall or the solver (a "blocked" or "solver" event was given)
   bool m_dirty = false;    ///< the loads changed since the last equilibrium
+  bool m_retract_refused = false;  ///< a "retract" event said the vine must be deflated
+  bool m_retracting = false;       ///< a "retract" event announced this retraction
   RodModel m_model;
   RodState m_state;
   RodWorkspace m_workspace;
