@@ -1,5 +1,6 @@
 # magvine: the two commands of the README quick start, and a few more.
-#   make demo   installs dependencies, builds, writes the field map of the default EPM and prints where it is
+#   make demo   installs dependencies, builds, grows the magnetic-fluid vine into the Y phantom with the EPM
+#               (assets/scenes/y_bifurcation_fluid_vine.yaml), plots it, writes the EPM's field map
 #   make test   installs dependencies, builds (warnings are errors), runs the whole ctest suite
 # Other targets: build, minimal (core-only configuration + its tests), bench, figures, phantoms (the standard
 # generated phantoms' meshes into phantoms/), format, lint (naming), clean.
@@ -34,14 +35,18 @@ phantoms: build
 	phantoms/generate.sh $(BUILD)/src/cli/magvine phantoms
 
 demo: build
+	$(BUILD)/src/cli/magvine run assets/scenes/y_bifurcation_fluid_vine.yaml --out $(DEMO_OUT)/y_bifurcation
+	$(PYTHON) tools/plot_experiment.py $(DEMO_OUT)/y_bifurcation --out $(DEMO_OUT)/y_bifurcation.png \
+	    --title "Ø5 mm magnetic-fluid vine steered into daughter 0-1 by the EPM (35 kPa)"
 	$(BUILD)/src/cli/magvine field-map --magnets assets/magnets/epm_n52.yaml --plane xz \
 	    --extent 300 --units mm --resolution 241 --out $(DEMO_OUT)
 	$(PYTHON) tools/plot_field_map.py $(DEMO_OUT)/field_map.csv --out $(DEMO_OUT)/field_map.png \
 	    --title "N52 EPM, Ø101.6 × 101.6 mm, J = 1.48 T (exact cylinder)"
 	@echo
 	@echo "demo outputs:"
-	@echo "  $(DEMO_OUT)/field_map.png   |B| and |grad B| of the default EPM in the xz plane"
-	@echo "  $(DEMO_OUT)/field_map.csv   the sampled field (SI units)"
+	@echo "  $(DEMO_OUT)/y_bifurcation.png  the vine grown into the Y phantom: path, body, magnet, wall forces"
+	@echo "  $(DEMO_OUT)/y_bifurcation/     metrics.json, tip_trajectory.csv, magnet_trajectory.csv, events.json"
+	@echo "  $(DEMO_OUT)/field_map.png      |B| and |grad B| of the default EPM in the xz plane"
 
 bench: deps
 	cmake -S . -B $(BUILD) -DCMAKE_BUILD_TYPE=Release -DMAGVINE_BUILD_BENCHMARKS=ON $(CMAKE_FLAGS)

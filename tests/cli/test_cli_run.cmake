@@ -1,4 +1,4 @@
-# End-to-end test of `magvine run` (issue 4): the exact rod scene of the issue gives the contract outputs and the
+# End-to-end test of `magvine run` (issues 4 and 6): the exact rod scene of the issue gives the contract outputs and the
 # elastica's tip; bad scenes exit 2 with one line and write nothing; a body pulled into the magnet exits 3.
 # Run by CTest with -DMAGVINE=... -DWORK=... -DSRC=... -DPYTHON=...
 include(${CMAKE_CURRENT_LIST_DIR}/cli_common.cmake)
@@ -75,4 +75,47 @@ file(READ ${WORK}/inside/metrics.json metrics)
 string(FIND "${metrics}" "\"converged\": false" pos)
 if(pos EQUAL -1)
   message(FATAL_ERROR "metrics.json of the failed run does not say converged: false")
+endif()
+
+# 4. A growth experiment (a scene with anatomy:): the bundled demo reaches its target; the contract files exist;
+#    a misspelt control key exits 2 with one line naming file and key and writes nothing.
+execute_process(COMMAND ${MAGVINE} run ${SRC}/assets/scenes/y_bifurcation_fluid_vine.yaml --out ${WORK}/experiment
+                RESULT_VARIABLE rc ERROR_VARIABLE err)
+expect_rc(${rc} 0 "experiment scene: ${err}")
+execute_process(COMMAND ${PYTHON} -c "
+import csv, json
+m = json.load(open('${WORK}/experiment/metrics.json'))
+assert m['success'] is True, m
+assert m['branches_reached'][-1] == '0-1', m['branches_reached']
+rows = list(csv.reader(open('${WORK}/experiment/tip_trajectory.csv')))
+assert rows[0][:4] == ['t_s', 'x_m', 'y_m', 'z_m'], rows[0]
+assert len(rows) == 401, len(rows)
+events = json.load(open('${WORK}/experiment/events.json'))
+assert all('kind' in e and 'time_s' in e for e in events)
+" RESULT_VARIABLE rc ERROR_VARIABLE err)
+expect_rc(${rc} 0 "experiment outputs: ${err}")
+file(READ ${SRC}/assets/scenes/y_bifurcation_fluid_vine.yaml experiment)
+string(REPLACE "  pressure: [[0, 35]]" "  presure: [[0, 35]]" misspelt "${experiment}")
+file(WRITE ${WORK}/misspelt.yaml "${misspelt}")
+execute_process(COMMAND ${MAGVINE} run ${WORK}/misspelt.yaml --out ${WORK}/misspelt RESULT_VARIABLE rc ERROR_VARIABLE err)
+expect_rc(${rc} 2 "misspelt experiment: ${err}")
+string(FIND "${err}" "control.presure: unknown key (did you mean 'pressure'" pos)
+string(STRIP "${err}" stripped)
+string(FIND "${stripped}" "\n" nl)
+if(pos EQUAL -1 OR NOT nl EQUAL -1 OR EXISTS ${WORK}/misspelt)
+  message(FATAL_ERROR "misspelt experiment: want one line naming control.presure and no output, got '${err}'")
+endif()
+
+# 5. Its plot (tools/plot_experiment.py): a PNG from the run; a missing run folder exits 2 with one line.
+execute_process(COMMAND ${PYTHON} ${SRC}/tools/plot_experiment.py ${WORK}/experiment --out ${WORK}/experiment.png
+                RESULT_VARIABLE rc ERROR_VARIABLE err)
+expect_rc(${rc} 0 "plot_experiment: ${err}")
+if(NOT EXISTS ${WORK}/experiment.png)
+  message(FATAL_ERROR "plot_experiment wrote no PNG")
+endif()
+execute_process(COMMAND ${PYTHON} ${SRC}/tools/plot_experiment.py ${WORK}/no_such_run --out ${WORK}/none.png
+                RESULT_VARIABLE rc ERROR_VARIABLE err)
+expect_rc(${rc} 2 "plot_experiment on a missing folder: ${err}")
+if(EXISTS ${WORK}/none.png)
+  message(FATAL_ERROR "plot_experiment wrote a PNG for a missing run")
 endif()

@@ -13,6 +13,7 @@
 #include "magvine/magnetics/field_model.hpp"
 #include "magvine/scene/field_map.hpp"
 #include "magvine/scene/field_study.hpp"
+#include "magvine/scene/experiment.hpp"
 #include "magvine/scene/free_space.hpp"
 #include "magvine/scene/mechanics_study.hpp"
 #include "magvine/scene/magnets_file.hpp"
@@ -114,10 +115,40 @@ int run_mesh_check(const MeshCheckArgs& args) {
   return 0;
 }
 
+int run_experiment_scene(const RunArgs& args, const std::filesystem::path& out) {
+  const scene::ExperimentScene sc = scene::load_experiment_scene(args.scene);
+  std::cerr << "magvine run: growing a vine in " << sc.anatomy_label << " for " << sc.duration << " s (" << sc.mesh.triangles.size()
+            << " triangles)\n";
+  int shown = -1;
+  const scene::ExperimentResult result = scene::run_experiment(sc, [&](double done) {
+    const int percent = static_cast<int>(100.0 * done);
+    if (percent / 10 == shown) return;
+    shown = percent / 10;
+    std::cerr << "\r  [" << std::string(static_cast<std::size_t>(shown), '#')
+              << std::string(static_cast<std::size_t>(10 - shown), '.') << "] " << percent << " %" << std::flush;
+  });
+  std::cerr << '\n';
+  scene::write_experiment_outputs(sc, result, out);
+  const Vec3 tip = result.final_state.tip() / kMmToM;
+  std::cerr << "magvine run: " << result.samples.back().length / kMmToM << " mm everted, tip at (" << tip.x() << ", "
+            << tip.y() << ", " << tip.z() << ") mm, " << result.events.size() << " events"
+            << (sc.target ? (result.success ? ", target reached at " + std::to_string(result.time_to_target) + " s"
+                                            : std::string(", target not reached"))
+                          : std::string())
+            << "; " << result.runtime_s << " s of computing -> " << out.string() << "/{metrics.json,tip_trajectory.csv,"
+            << (sc.magnets ? "magnet_trajectory.csv," : "") << "events.json,shape.csv}\n";
+  if (!result.converged) {
+    std::cerr << "magvine: numerical failure: " << result.failure << '\n';
+    return static_cast<int>(ExitCode::kNumericalFailure);
+  }
+  return 0;
+}
+
 int run_scene(const RunArgs& args) {
-  const scene::FreeSpaceScene sc = scene::load_free_space_scene(args.scene);
   const std::filesystem::path out =
       args.out.empty() ? std::filesystem::path("runs") / std::filesystem::path(args.scene).stem() : std::filesystem::path(args.out);
+  if (scene::is_experiment_scene(args.scene)) return run_experiment_scene(args, out);
+  const scene::FreeSpaceScene sc = scene::load_free_space_scene(args.scene);
   const scene::FreeSpaceResult result = scene::solve_free_space(sc);
   scene::write_free_space_outputs(sc, result, out);
   const Vec3 tip = result.state.tip() / kMmToM;

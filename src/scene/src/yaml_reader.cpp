@@ -36,16 +36,19 @@ YamlMap::YamlMap(const YAML::Node& node, std::string file, std::string path)
 }
 
 void YamlMap::allow_only(std::initializer_list<std::string_view> allowed) const {
+  allow_only(std::vector<std::string_view>(allowed));
+}
+
+void YamlMap::allow_only(const std::vector<std::string_view>& allowed) const {
   for (const auto& kv : m_node) {
     const std::string key = kv.first.as<std::string>();
     bool ok = false;
     for (auto a : allowed) ok = ok || key == a;
     if (!ok) {
-      const std::vector<std::string_view> list(allowed);
       std::string names;
       for (auto a : allowed) names += (names.empty() ? "" : ", ") + std::string(a);
       fail_at(kv.first, key_path(key),
-              "unknown key (did you mean '" + closest_match(key, list) + "'? allowed: " + names + ")");
+              "unknown key (did you mean '" + closest_match(key, allowed) + "'? allowed: " + names + ")");
     }
   }
 }

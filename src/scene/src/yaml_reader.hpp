@@ -20,6 +20,7 @@ class YamlMap {
 
   /// Throws for any key not in `allowed`, naming the closest allowed one.
   void allow_only(std::initializer_list<std::string_view> allowed) const;
+  void allow_only(const std::vector<std::string_view>& allowed) const;
   bool has(const std::string& key) const;
 
   double number(const std::string& key) const;

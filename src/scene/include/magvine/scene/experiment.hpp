@@ -1,0 +1,143 @@
+#pragma once
+/// Growth experiments (issue 6, first part): a vine grown through anatomy under keyframed control of its pressure,
+/// its tether and the magnets' poses, run by `magvine run` for any scene file with an `anatomy:` key.
+///
+/// ```yaml
+/// units: {length: mm, pressure: kPa}       # as in free_space.hpp; times in seconds
+/// anatomy:                                  # one of:
+///   phantom: {kind: y_bifurcation}          #   a generated phantom (bronchial_tree, tube, y_bifurcation, s_bend,
+///                                           #   constriction) at its default parameters; bronchial_tree also takes
+///                                           #   max_generation
+///   # mesh: airway.stl                      #   or a mesh file (any format assimp reads), relative to this file,
+///   # mesh_units: mm                        #   in mm | cm | m (default: units.length)
+/// robot:                                    # a vine as in free_space.hpp; length = the everted length at t = 0
+///   kind: vine
+///   ...
+/// growth:                                   # optional (robot/growth.hpp); defaults in brackets
+///   mode: eversion                          # eversion | pushed
+///   yield_pressure: 5                       # Y0 [5 kPa], pressure units
+///   length_yield: 0.012                     # c_L [12 kPa/m], pressure units per length unit
+///   turning_yield: 1                        # c_θ [1 kPa/rad], pressure units per radian
+///   extensibility: 2                        # K [2 µm/(s·Pa)], in µm/(s·Pa)
+///   friction: 0.3                           # Coulomb μ against the wall
+///   edge_length: 2.5                        # h [the radius], length units
+/// magnets:                                  # optional, as in the magnets file; poses at t = 0
+///   - {kind: cylinder, diameter: 101.6, length: 101.6, polarisation: 1.48, position: [60, -150, 0], axis: [0, 1, 0]}
+/// control:
+///   pressure: [[0, 35], [20, 35]]           # keyframes [time, pressure]: linear between, held beyond the ends
+///   tether: [[0, 5], [20, 105]]             # optional keyframes [time, released length]; none: free growth
+///   magnets:                                # optional, per magnet (index in magnets:), poses at times
+///     - {magnet: 0, keyframes: [{time: 0, position: [60, -150, 0], axis: [0, 1, 0]}, {time: 10, ...}]}
+/// simulation: {duration: 20, dt: 0.02, gravity: [0, 0, -9.81]}   # duration and step [s]; gravity [m/s²]
+/// target: {position: [100, -20, 0], tolerance: 5}                 # optional: success when the tip is within it
+/// ```
+/// Magnet poses between keyframes: positions linear, axes turned along the great circle (slerp); held beyond the
+/// ends. Unknown keys are errors naming the closest valid one (exit 2), and every problem names the file, line and
+/// key. Paths are relative to the scene file.
+
+#include <cstdint>
+#include <filesystem>
+#include <functional>
+#include <optional>
+#include <string>
+#include <vector>
+
+#include "magvine/anatomy/airway_graph.hpp"
+#include "magvine/anatomy/triangle_mesh.hpp"
+#include "magvine/magnetics/field_model.hpp"
+#include "magvine/robot/growth.hpp"
+#include "magvine/robot/vine.hpp"
+
+namespace magvine::scene {
+
+/// A scalar schedule: linear between keyframes, held beyond the first and last.
+struct Schedule {
+  std::vector<double> times;   ///< [s], increasing
+  std::vector<double> values;  ///< SI
+  double at(double time) const;
+};
+
+/// One magnet's pose at a time.
+struct MagnetKeyframe {
+  double time = 0.0;
+  Vec3 position = Vec3::Zero();  ///< [m]
+  Vec3 axis = Vec3::UnitZ();     ///< unit: the magnetisation axis (the source's local z)
+};
+
+struct ExperimentScene {
+  std::string file;                 ///< the scene file (for messages)
+  std::string anatomy_label;        ///< "phantom y_bifurcation" or the mesh path
+  anatomy::TriangleMesh mesh;       ///< [m]
+  std::optional<anatomy::AirwayGraph> graph;  ///< ground-truth graph of a generated phantom
+  robot::VineParameters vine;
+  Vec3 base_position = Vec3::Zero();
+  Mat3 base_frame = Mat3::Identity();
+  robot::GrowthOptions growth;
+  std::optional<magnetics::FieldModel> magnets;
+  std::vector<std::vector<MagnetKeyframe>> magnet_keyframes;  ///< per source of `magnets`; empty: its rest pose
+  Schedule pressure;                ///< [Pa]
+  std::optional<Schedule> tether;   ///< [m]
+  double duration = 0.0;            ///< [s]
+  double dt = 0.02;                 ///< [s]
+  std::optional<Vec3> target;       ///< [m]
+  double target_tolerance = 0.0;    ///< [m]
+  std::uint64_t seed = 0;
+};
+
+/// Whether a scene file is an experiment (has `anatomy:`) rather than a free-space scene. InputError for an
+/// unreadable or malformed file.
+bool is_experiment_scene(const std::filesystem::path& file);
+
+ExperimentScene load_experiment_scene(const std::filesystem::path& file);
+/// `directory`: where relative paths (mesh:) are resolved.
+ExperimentScene parse_experiment_scene(const std::string& text, const std::string& file_label,
+                                       const std::filesystem::path& directory);
+
+/// One sample of the run, every step.
+struct ExperimentSample {
+  double time = 0.0;           ///< [s]
+  Vec3 tip = Vec3::Zero();     ///< [m]
+  double length = 0.0;         ///< everted length [m]
+  double pressure = 0.0;       ///< [Pa]
+  double max_normal = 0.0;     ///< largest wall normal force on a node [N]
+  double total_normal = 0.0;   ///< [N]
+  double total_shear = 0.0;    ///< [N]
+  int branch = -1;             ///< nearest branch of the phantom's graph to the tip (−1: no graph)
+};
+
+struct MagnetSample {
+  double time = 0.0;
+  int magnet = 0;
+  Vec3 position = Vec3::Zero();
+  Vec3 axis = Vec3::UnitZ();
+};
+
+struct ExperimentResult {
+  std::vector<ExperimentSample> samples;
+  std::vector<MagnetSample> magnet_samples;  ///< at every step where a keyframed magnet moved, and at t = 0
+  std::vector<robot::GrowthEvent> events;
+  robot::RodState final_state;
+  bool converged = true;       ///< the last step reached equilibrium
+  int failed_steps = 0;        ///< steps whose new loads did not converge (the body kept its last equilibrium)
+  std::string failure;         ///< the first such step's cause
+  bool success = false;        ///< the tip came within the target's tolerance (false without a target)
+  double time_to_target = -1;  ///< [s], −1 when not reached
+  double runtime_s = 0.0;
+};
+
+/// Runs the experiment from t = 0 to duration in steps of dt. `progress` (optional) is called with the fraction
+/// done after each step.
+ExperimentResult run_experiment(const ExperimentScene& scene,
+                                const std::function<void(double)>& progress = nullptr);
+
+/// Writes, atomically, into `dir` (created): metrics.json, tip_trajectory.csv, magnet_trajectory.csv (when the
+/// scene has magnets), events.json, shape.csv (the final body) and, for a generated phantom, graph.json (its
+/// centreline graph, anatomy/airway_graph.hpp). metrics.json keys: success, time_to_target_s,
+/// final_tip_error_m (null without a target), tip_position_m, everted_length_m, tip_path_length_m, branches_reached
+/// (graph names in order, generated phantoms), max_wall_normal_N, mean_wall_normal_N (time average of the total),
+/// max_wall_shear_N (largest total over the steps), stalls, blocked, events, magnet_travel_m, simulated_s,
+/// runtime_s, real_time_factor, converged (the last step), failed_steps, failure, seed.
+void write_experiment_outputs(const ExperimentScene& scene, const ExperimentResult& result,
+                              const std::filesystem::path& dir);
+
+}  // namespace magvine::scene

@@ -1,0 +1,457 @@
+#include "magvine/scene/experiment.hpp"
+
+#include <nlohmann/json.hpp>
+
+#include <algorithm>
+#include <cmath>
+#include <limits>
+#include <sstream>
+
+#include "magnet_entries.hpp"
+#include "magvine/anatomy/collision_world.hpp"
+#include "magvine/anatomy/mesh_io.hpp"
+#include "magvine/anatomy/phantom.hpp"
+#include "magvine/core/atomic_file.hpp"
+#include "magvine/core/error.hpp"
+#include "magvine/core/stopwatch.hpp"
+#include "magvine/core/units.hpp"
+#include "magvine/robot/elastica.hpp"
+#include "robot_entries.hpp"
+#include "yaml_reader.hpp"
+
+namespace magvine::scene {
+namespace {
+
+constexpr double kMaxSteps = 1e7;  // duration / dt beyond this is a typo, not an experiment
+
+/// `[[t, v], ...]` keyframes with increasing times; values times `scale`.
+Schedule schedule_of(const YamlMap& parent, const std::string& key, double scale, bool non_negative) {
+  const YAML::Node list = parent.node(key);
+  const std::string path = parent.key_path(key);
+  if (!list.IsSequence() || list.size() == 0) parent.fail(key, "must be a list of [time, value] keyframes");
+  Schedule s;
+  for (std::size_t i = 0; i < list.size(); ++i) {
+    const YAML::Node k = list[i];
+    const std::string at = path + "[" + std::to_string(i) + "]";
+    if (!k.IsSequence() || k.size() != 2) parent.fail_at(k, at, "must be [time, value]");
+    double t = 0.0;
+    double v = 0.0;
+    try {
+      t = k[0].as<double>();
+      v = k[1].as<double>();
+    } catch (const YAML::Exception&) {
+      parent.fail_at(k, at, "must be two numbers [time, value]");
+    }
+    if (!std::isfinite(t) || !std::isfinite(v)) parent.fail_at(k, at, "must be finite");
+    if (t < 0.0) parent.fail_at(k, at, "time must be >= 0");
+    if (!s.times.empty() && !(t > s.times.back())) parent.fail_at(k, at, "times must increase");
+    if (non_negative && v < 0.0) parent.fail_at(k, at, "value must be >= 0");
+    s.times.push_back(t);
+    s.values.push_back(v * scale);
+  }
+  return s;
+}
+
+anatomy::Phantom phantom_of(const YamlMap& entry) {
+  entry.allow_only({"kind", "max_generation"});
+  const std::string name = entry.text("kind");
+  const auto kind = anatomy::parse_phantom_kind(name);
+  if (!kind) {
+    entry.fail("kind", "must be bronchial_tree, tube, y_bifurcation, s_bend or constriction (got '" + name + "')");
+  }
+  anatomy::PhantomParams params = anatomy::default_params(*kind);
+  if (entry.has("max_generation")) {
+    auto* tree = std::get_if<anatomy::BronchialTreeParams>(&params);
+    if (tree == nullptr) entry.fail("max_generation", "only a bronchial_tree takes max_generation");
+    const double g = entry.number("max_generation");
+    if (g != std::floor(g) || g < 0 || g > 10) entry.fail("max_generation", "must be a whole number from 0 to 10");
+    tree->max_generation = static_cast<int>(g);
+  }
+  try {
+    return anatomy::make_phantom(params);
+  } catch (const InputError& e) {
+    entry.fail("kind", e.what());
+  }
+}
+
+/// The rest pose turned so that its z axis is `axis` (the smallest rotation) and moved to `position`.
+magnetics::Pose pose_at(const magnetics::Pose& rest, const Vec3& position, const Vec3& axis) {
+  magnetics::Pose p = rest;
+  p.position = position;
+  p.rotation = Eigen::Quaterniond::FromTwoVectors(rest.rotation.col(2), axis).toRotationMatrix() * rest.rotation;
+  return p;
+}
+
+/// Linear position, great-circle axis between the keyframes around `time`; held beyond the ends.
+MagnetKeyframe interpolate(const std::vector<MagnetKeyframe>& keys, double time) {
+  if (time <= keys.front().time) return keys.front();
+  if (time >= keys.back().time) return keys.back();
+  std::size_t i = 1;
+  while (keys[i].time < time) ++i;
+  const MagnetKeyframe& a = keys[i - 1];
+  const MagnetKeyframe& b = keys[i];
+  const double u = (time - a.time) / (b.time - a.time);
+  MagnetKeyframe out;
+  out.time = time;
+  out.position = (1.0 - u) * a.position + u * b.position;
+  const Eigen::Quaterniond full = Eigen::Quaterniond::FromTwoVectors(a.axis, b.axis);
+  out.axis = (Eigen::Quaterniond::Identity().slerp(u, full) * a.axis).normalized();
+  return out;
+}
+
+/// The nearest branch of `graph` to x (by distance to its polyline segments).
+int nearest_branch(const anatomy::AirwayGraph& graph, const Vec3& x) {
+  int best = -1;
+  double best_d2 = std::numeric_limits<double>::infinity();
+  for (const anatomy::AirwayBranch& b : graph.branches) {
+    for (std::size_t k = 0; k + 1 < b.nodes.size(); ++k) {
+      const Vec3& p = graph.nodes[b.nodes[k]].position;
+      const Vec3& q = graph.nodes[b.nodes[k + 1]].position;
+      const Vec3 d = q - p;
+      const double t = std::clamp((x - p).dot(d) / std::max(d.squaredNorm(), 1e-30), 0.0, 1.0);
+      const double d2 = (p + t * d - x).squaredNorm();
+      if (d2 < best_d2) {
+        best_d2 = d2;
+        best = b.id;
+      }
+    }
+  }
+  return best;
+}
+
+}  // namespace
+
+double Schedule::at(double time) const {
+  if (time <= times.front()) return values.front();
+  if (time >= times.back()) return values.back();
+  const auto it = std::upper_bound(times.begin(), times.end(), time);
+  const std::size_t i = static_cast<std::size_t>(it - times.begin());
+  const double u = (time - times[i - 1]) / (times[i] - times[i - 1]);
+  return (1.0 - u) * values[i - 1] + u * values[i];
+}
+
+bool is_experiment_scene(const std::filesystem::path& file) {
+  const YAML::Node root = parse_yaml(read_text_file(file.string(), "scene file"), file.string());
+  return root && root.IsMap() && static_cast<bool>(root["anatomy"]);
+}
+
+ExperimentScene parse_experiment_scene(const std::string& text, const std::string& file_label,
+                                       const std::filesystem::path& directory) {
+  const YAML::Node root = parse_yaml(text, file_label);
+  if (!root || root.IsNull()) throw InputError(file_label, 0, "", "empty scene file");
+  const YamlMap top(root, file_label, "");
+  top.allow_only({"units", "seed", "anatomy", "robot", "growth", "magnets", "control", "simulation", "target"});
+  const YamlMap units = top.map("units");
+  units.allow_only({"length", "pressure"});
+  const std::string length_unit = units.text("length");
+  const auto lu = parse_length_unit(length_unit);
+  if (!lu) units.fail("length", "must be mm, cm or m (got '" + length_unit + "')");
+  const double unit = metres_per(*lu);
+  const double stress_unit = pascals_per(units);
+
+  ExperimentScene scene;
+  scene.file = file_label;
+  if (top.has("seed")) {
+    const double seed = top.number("seed");
+    if (seed != std::floor(seed) || seed < 0 || seed > 9.007e15) top.fail("seed", "must be a whole number >= 0");
+    scene.seed = static_cast<std::uint64_t>(seed);
+  }
+
+  // Anatomy: a generated phantom or a mesh file.
+  const YamlMap anatomy_entry = top.map("anatomy");
+  anatomy_entry.allow_only({"phantom", "mesh", "mesh_units"});
+  if (anatomy_entry.has("phantom") == anatomy_entry.has("mesh")) {
+    anatomy_entry.fail("phantom", "give exactly one of phantom: {kind: ...} or mesh: FILE");
+  }
+  if (anatomy_entry.has("phantom")) {
+    const YamlMap p = anatomy_entry.map("phantom");
+    anatomy::Phantom ph = phantom_of(p);
+    scene.anatomy_label = "phantom " + p.text("kind");
+    scene.mesh = std::move(ph.mesh);
+    scene.graph = std::move(ph.graph);
+  } else {
+    if (anatomy_entry.has("mesh_units") && !parse_length_unit(anatomy_entry.text("mesh_units"))) {
+      anatomy_entry.fail("mesh_units", "must be mm, cm or m (got '" + anatomy_entry.text("mesh_units") + "')");
+    }
+    const LengthUnit mesh_units =
+        anatomy_entry.has("mesh_units") ? *parse_length_unit(anatomy_entry.text("mesh_units")) : *lu;
+    const std::filesystem::path mesh = directory / anatomy_entry.text("mesh");
+    scene.anatomy_label = mesh.string();
+    try {
+      scene.mesh = anatomy::import_mesh(mesh, {.units = mesh_units}).mesh;
+    } catch (const InputError& e) {
+      anatomy_entry.fail("mesh", e.what());
+    }
+  }
+
+  // The vine.
+  const YamlMap robot = top.map("robot");
+  if (robot.text("kind") != "vine") robot.fail("kind", "an experiment grows a vine (kind: vine)");
+  scene.vine = parse_vine(robot, unit, stress_unit);
+  try {
+    (void)robot::vine_rod(scene.vine);
+  } catch (const robot::VineParameterError& e) {
+    robot.fail(robot.has(e.parameter()) ? e.parameter() : "kind", e.what());
+  }
+  const YamlMap base = robot.map("base");
+  base.allow_only({"position", "direction", "normal"});
+  scene.base_position = base.vec3("position") * unit;
+  scene.base_frame = base_frame_of(base);
+
+  if (top.has("growth")) {
+    const YamlMap g = top.map("growth");
+    g.allow_only({"mode", "yield_pressure", "length_yield", "turning_yield", "extensibility", "friction",
+                  "edge_length"});
+    robot::GrowthOptions& o = scene.growth;
+    if (g.has("mode")) {
+      const std::string mode = g.text("mode");
+      if (mode == "eversion") {
+        o.mode = robot::InsertionMode::kEversion;
+      } else if (mode == "pushed") {
+        o.mode = robot::InsertionMode::kPushed;
+      } else {
+        g.fail("mode", "must be eversion or pushed (got '" + mode + "')");
+      }
+    }
+    const auto non_negative = [&](const std::string& key) {
+      const double v = g.number(key);
+      if (v < 0.0) g.fail(key, "must be >= 0");
+      return v;
+    };
+    if (g.has("yield_pressure")) o.law.yield_pressure = non_negative("yield_pressure") * stress_unit;
+    if (g.has("length_yield")) o.law.length_yield = non_negative("length_yield") * stress_unit / unit;
+    if (g.has("turning_yield")) o.law.turning_yield = non_negative("turning_yield") * stress_unit;
+    if (g.has("extensibility")) o.law.extensibility = non_negative("extensibility") * 1e-6;
+    if (g.has("friction")) o.friction = non_negative("friction");
+    if (g.has("edge_length")) o.edge_length = g.positive("edge_length") * unit;
+  }
+
+  if (top.has("magnets")) scene.magnets = parse_magnet_list(top, unit);
+
+  const YamlMap sim = top.map("simulation");
+  sim.allow_only({"duration", "dt", "gravity"});
+  scene.duration = sim.positive("duration");
+  if (sim.has("dt")) scene.dt = sim.positive("dt");
+  if (scene.duration / scene.dt > kMaxSteps) sim.fail("dt", "gives more than 10 million steps");
+  if (sim.has("gravity")) scene.growth.gravity = sim.vec3("gravity");
+
+  const YamlMap control = top.map("control");
+  control.allow_only({"pressure", "tether", "magnets"});
+  scene.pressure = schedule_of(control, "pressure", stress_unit, true);
+  if (control.has("tether")) scene.tether = schedule_of(control, "tether", unit, true);
+  if (scene.magnets) scene.magnet_keyframes.resize(scene.magnets->size());
+  if (control.has("magnets")) {
+    const YAML::Node list = control.node("magnets");
+    if (!list.IsSequence()) control.fail("magnets", "must be a list of {magnet, keyframes}");
+    if (!scene.magnets) control.fail("magnets", "keyframes for magnets, but the scene has no magnets: list");
+    for (std::size_t i = 0; i < list.size(); ++i) {
+      const YamlMap entry(list[i], file_label, control.key_path("magnets[" + std::to_string(i) + "]"));
+      entry.allow_only({"magnet", "keyframes"});
+      const double index = entry.number("magnet");
+      if (index != std::floor(index) || index < 0 || index >= static_cast<double>(scene.magnets->size())) {
+        entry.fail("magnet", "must be the index of an entry of magnets: (0 to " +
+                                 std::to_string(scene.magnets->size() - 1) + ")");
+      }
+      auto& keys = scene.magnet_keyframes[static_cast<std::size_t>(index)];
+      if (!keys.empty()) entry.fail("magnet", "this magnet already has keyframes");
+      const YAML::Node frames = entry.node("keyframes");
+      if (!frames.IsSequence() || frames.size() == 0) entry.fail("keyframes", "must be a list of {time, position, axis}");
+      for (std::size_t k = 0; k < frames.size(); ++k) {
+        const YamlMap f(frames[k], file_label, entry.key_path("keyframes[" + std::to_string(k) + "]"));
+        f.allow_only({"time", "position", "axis"});
+        MagnetKeyframe key;
+        key.time = f.number("time");
+        if (key.time < 0.0) f.fail("time", "must be >= 0");
+        if (!keys.empty() && !(key.time > keys.back().time)) f.fail("time", "times must increase");
+        key.position = f.vec3("position") * unit;
+        key.axis = f.nonzero_vec3("axis").normalized();
+        keys.push_back(key);
+      }
+    }
+  }
+
+  if (top.has("target")) {
+    const YamlMap t = top.map("target");
+    t.allow_only({"position", "tolerance"});
+    scene.target = t.vec3("position") * unit;
+    scene.target_tolerance = t.positive("tolerance") * unit;
+  }
+  return scene;
+}
+
+ExperimentScene load_experiment_scene(const std::filesystem::path& file) {
+  return parse_experiment_scene(read_text_file(file.string(), "scene file"), file.string(), file.parent_path());
+}
+
+ExperimentResult run_experiment(const ExperimentScene& scene, const std::function<void(double)>& progress) {
+  const Stopwatch clock;
+  ExperimentResult out;
+  const anatomy::CollisionWorld world(scene.mesh);
+  std::vector<magnetics::Pose> poses;
+  const auto poses_at = [&](double t) {
+    std::vector<magnetics::Pose> p = scene.magnets->rest_poses;
+    for (std::size_t i = 0; i < p.size(); ++i) {
+      const auto& keys = scene.magnet_keyframes[i];
+      if (keys.empty()) continue;
+      const MagnetKeyframe k = interpolate(keys, t);
+      p[i] = pose_at(scene.magnets->rest_poses[i], k.position, k.axis);
+    }
+    return p;
+  };
+  const auto record_magnets = [&](double t) {
+    for (std::size_t i = 0; i < poses.size(); ++i) {
+      out.magnet_samples.push_back({t, static_cast<int>(i), poses[i].position, poses[i].rotation.col(2)});
+    }
+  };
+  robot::RodField field;
+  if (scene.magnets) {
+    poses = poses_at(0.0);
+    field = robot::field_function(*scene.magnets, poses);
+    record_magnets(0.0);
+  }
+  robot::VineParameters vine = scene.vine;
+  vine.pressure = scene.pressure.at(0.0);
+  robot::VineGrowth growth(vine, scene.growth, &world, field, scene.base_position, scene.base_frame);
+  const auto steps = static_cast<long>(std::ceil(scene.duration / scene.dt - 1e-9));
+  const bool moving = std::any_of(scene.magnet_keyframes.begin(), scene.magnet_keyframes.end(),
+                                  [](const auto& k) { return k.size() > 1; });
+  for (long k = 1; k <= steps; ++k) {
+    const double t = std::min(scene.duration, static_cast<double>(k) * scene.dt);
+    const double dt = t - growth.time();
+    if (scene.magnets && moving) {
+      std::vector<magnetics::Pose> next = poses_at(t);
+      bool changed = false;
+      for (std::size_t i = 0; i < next.size(); ++i) {
+        changed = changed || !next[i].position.isApprox(poses[i].position, 1e-12) ||
+                  !next[i].rotation.isApprox(poses[i].rotation, 1e-12);
+      }
+      if (changed) {
+        poses = std::move(next);
+        growth.set_field(robot::field_function(*scene.magnets, poses));
+        record_magnets(t);
+      }
+    }
+    robot::GrowthControl control;
+    control.pressure = scene.pressure.at(t);
+    if (scene.tether) control.tether_length = scene.tether->at(t);
+    const robot::GrowthStepReport r = growth.advance(dt, control);
+    out.converged = r.converged;
+    if (!r.converged) {
+      if (out.failed_steps++ == 0) out.failure = "at " + std::to_string(t) + " s: " + r.failure;
+    }
+    ExperimentSample s;
+    s.time = t;
+    s.tip = growth.state().tip();
+    s.length = growth.length();
+    s.pressure = control.pressure;
+    s.max_normal = growth.wall_forces().max_normal;
+    s.total_normal = growth.wall_forces().total_normal;
+    s.total_shear = growth.wall_forces().total_shear;
+    if (scene.graph) s.branch = nearest_branch(*scene.graph, s.tip);
+    out.samples.push_back(s);
+    if (scene.target && out.time_to_target < 0.0 && (s.tip - *scene.target).norm() <= scene.target_tolerance) {
+      out.time_to_target = t;
+      out.success = true;
+    }
+    if (progress) progress(static_cast<double>(k) / static_cast<double>(steps));
+  }
+  out.events = growth.events();
+  out.final_state = growth.state();
+  out.runtime_s = clock.seconds();
+  return out;
+}
+
+void write_experiment_outputs(const ExperimentScene& scene, const ExperimentResult& result,
+                              const std::filesystem::path& dir) {
+  const auto vec = [](const Vec3& v) { return nlohmann::json::array({v.x(), v.y(), v.z()}); };
+  nlohmann::json j;
+  const Vec3 tip = result.final_state.tip();
+  j["scene"] = scene.file;
+  j["anatomy"] = scene.anatomy_label;
+  j["seed"] = scene.seed;
+  j["success"] = result.success;
+  j["time_to_target_s"] = result.time_to_target >= 0.0 ? nlohmann::json(result.time_to_target) : nlohmann::json();
+  j["final_tip_error_m"] = scene.target ? nlohmann::json((tip - *scene.target).norm()) : nlohmann::json();
+  j["tip_position_m"] = vec(tip);
+  j["everted_length_m"] = result.samples.empty() ? scene.vine.length : result.samples.back().length;
+  double path = 0.0;
+  double max_normal = 0.0;
+  double mean_normal = 0.0;
+  double max_shear = 0.0;
+  Vec3 last = result.samples.empty() ? tip : result.samples.front().tip;
+  nlohmann::json branches = nlohmann::json::array();
+  int last_branch = -1;
+  for (const ExperimentSample& s : result.samples) {
+    path += (s.tip - last).norm();
+    last = s.tip;
+    max_normal = std::max(max_normal, s.max_normal);
+    mean_normal += s.total_normal / static_cast<double>(result.samples.size());
+    max_shear = std::max(max_shear, s.total_shear);
+    if (scene.graph && s.branch >= 0 && s.branch != last_branch) {
+      branches.push_back(scene.graph->branches[static_cast<std::size_t>(s.branch)].name);
+      last_branch = s.branch;
+    }
+  }
+  j["tip_path_length_m"] = path;
+  j["branches_reached"] = branches;
+  j["max_wall_normal_N"] = max_normal;
+  j["mean_wall_normal_N"] = mean_normal;
+  j["max_wall_shear_N"] = max_shear;
+  int stalls = 0;
+  int blocked = 0;
+  nlohmann::json events = nlohmann::json::array();
+  for (const robot::GrowthEvent& e : result.events) {
+    stalls += e.kind == "stall" || e.kind == "squeeze";
+    blocked += e.kind == "blocked";
+    events.push_back({{"time_s", e.time}, {"length_m", e.length}, {"kind", e.kind}, {"detail", e.detail}});
+  }
+  j["stalls"] = stalls;
+  j["blocked"] = blocked;
+  j["events"] = static_cast<int>(result.events.size());
+  double travel = 0.0;
+  std::vector<std::optional<Vec3>> previous(scene.magnets ? scene.magnets->size() : 0);
+  for (const MagnetSample& m : result.magnet_samples) {
+    auto& p = previous[static_cast<std::size_t>(m.magnet)];
+    if (p) travel += (m.position - *p).norm();
+    p = m.position;
+  }
+  j["magnet_travel_m"] = travel;
+  j["simulated_s"] = scene.duration;
+  j["runtime_s"] = result.runtime_s;
+  j["real_time_factor"] = result.runtime_s > 0.0 ? nlohmann::json(scene.duration / result.runtime_s) : nlohmann::json();
+  j["converged"] = result.converged;
+  j["failed_steps"] = result.failed_steps;
+  j["failure"] = result.failure;
+
+  std::ostringstream tips;
+  tips.precision(10);
+  tips << "t_s,x_m,y_m,z_m,length_m,pressure_Pa,max_normal_N,total_normal_N,total_shear_N,branch\n";
+  for (const ExperimentSample& s : result.samples) {
+    tips << s.time << ',' << s.tip.x() << ',' << s.tip.y() << ',' << s.tip.z() << ',' << s.length << ','
+         << s.pressure << ',' << s.max_normal << ',' << s.total_normal << ',' << s.total_shear << ','
+         << (s.branch >= 0 ? scene.graph->branches[static_cast<std::size_t>(s.branch)].name : std::string()) << '\n';
+  }
+  std::ostringstream shape;
+  shape.precision(10);
+  shape << "x_m,y_m,z_m\n";
+  for (const Vec3& x : result.final_state.x) shape << x.x() << ',' << x.y() << ',' << x.z() << '\n';
+
+  create_output_directory(dir);
+  write_file_atomically(dir / "tip_trajectory.csv", tips.str());
+  write_file_atomically(dir / "shape.csv", shape.str());
+  write_file_atomically(dir / "events.json", events.dump(2) + "\n");
+  if (scene.graph) anatomy::write_graph(dir / "graph.json", *scene.graph);
+  if (scene.magnets) {
+    std::ostringstream mags;
+    mags.precision(10);
+    mags << "t_s,magnet,x_m,y_m,z_m,axis_x,axis_y,axis_z\n";
+    for (const MagnetSample& m : result.magnet_samples) {
+      mags << m.time << ',' << m.magnet << ',' << m.position.x() << ',' << m.position.y() << ',' << m.position.z()
+           << ',' << m.axis.x() << ',' << m.axis.y() << ',' << m.axis.z() << '\n';
+    }
+    write_file_atomically(dir / "magnet_trajectory.csv", mags.str());
+  }
+  write_file_atomically(dir / "metrics.json", j.dump(2) + "\n");
+}
+
+}  // namespace magvine::scene
