@@ -89,7 +89,7 @@ assert m['success'] is True, m
 assert m['branches_reached'][-1] == '0-1', m['branches_reached']
 rows = list(csv.reader(open('${WORK}/experiment/tip_trajectory.csv')))
 assert rows[0][:4] == ['t_s', 'x_m', 'y_m', 'z_m'], rows[0]
-assert len(rows) == 401, len(rows)
+assert len(rows) == round(m['simulated_s'] / 0.02) + 1, (len(rows), m['simulated_s'])
 events = json.load(open('${WORK}/experiment/events.json'))
 assert all('kind' in e and 'time_s' in e for e in events)
 " RESULT_VARIABLE rc ERROR_VARIABLE err)

@@ -59,6 +59,50 @@ TEST(Experiment, DemoSceneSteersIntoTheDaughterAndReachesTheTargetButNotWithoutT
   EXPECT_GT(unsteered.final_state.tip().y(), -10e-3);
 }
 
+/// The result of the scene `file` with the navigator's target replaced.
+ExperimentResult navigate_to(const std::filesystem::path& file, const std::string& from, const std::string& to) {
+  std::ifstream in(file);
+  const std::string text(std::istreambuf_iterator<char>(in), {});
+  const ExperimentScene scene = parse_experiment_scene(replaced(text, from, to), file.string(), file.parent_path());
+  const ExperimentResult r = run_experiment(scene);
+  std::string branches;
+  int last = -1;
+  for (const ExperimentSample& s : r.samples) {
+    if (s.branch == last) continue;
+    last = s.branch;
+    branches += (branches.empty() ? "" : " ") + scene.graph->branches[static_cast<std::size_t>(s.branch)].name;
+  }
+  std::printf("  navigator to %s: %s (%s), %.0f mm everted, %.2f s of computing\n", to.c_str(),
+              r.success ? "reached" : "NOT reached", branches.c_str(), 1e3 * r.samples.back().length, r.runtime_s);
+  return r;
+}
+
+TEST(Experiment, NavigatorSteersIntoEitherDaughterOfTheYAndToGenerationTwoOfTheTree) {
+  // control.navigator: the path is planned on the phantom's graph and the EPM placed 110 mm from the tip on the line
+  // through the aim point each 0.1 s. The Y's two daughters are mirror images (±35°), and so are the tree's 0-0-1
+  // and 0-1-0: each pair reached both ways shows the steering, not a bias of the start, picks the branch.
+  const std::filesystem::path dir = std::filesystem::path(MAGVINE_SOURCE_DIR) / "assets/scenes";
+  std::ifstream in(kDemo);
+  std::string y(std::istreambuf_iterator<char>(in), {});
+  y = replaced(y, "  magnets:\n    - {magnet: 0, keyframes: [{time: 0, position: [90, -250, 0], axis: [0, 1, 0]},\n"
+                  "                              {time: 1, position: [70, -110, 0], axis: [0, 1, 0]}]}",
+               "  navigator: {target: \"0-1\", magnet: 0, distance: 110}");
+  y = replaced(y, "target: {position: [100, -24, 0], tolerance: 6}\n", "");
+  const std::filesystem::path y_file = std::filesystem::temp_directory_path() / "magvine_y_navigator.yaml";
+  std::ofstream(y_file) << y;
+  for (const char* daughter : {"0-0", "0-1"}) {
+    const ExperimentResult r = navigate_to(y_file, "target: \"0-1\"", "target: \"" + std::string(daughter) + "\"");
+    EXPECT_TRUE(r.success) << daughter;
+  }
+  std::filesystem::remove(y_file);
+  for (const char* branch : {"0-0-1", "0-1-0"}) {
+    const ExperimentResult r = navigate_to(dir / "bronchial_tree_navigator.yaml", "target: \"0-0-1\"",
+                                           "target: \"" + std::string(branch) + "\"");
+    EXPECT_TRUE(r.success) << branch;
+    EXPECT_TRUE(r.converged) << r.failure;
+  }
+}
+
 TEST(Experiment, SameSceneSameResult) {
   const ExperimentScene scene = load_experiment_scene(kDemo);
   const ExperimentResult a = run_experiment(scene);
@@ -126,6 +170,9 @@ TEST(Experiment, BadScenesNameTheFileAndKey) {
   expect_error(replaced(text, "phantom: {kind: y_bifurcation}", "mesh: no_such_airway.stl"), "no_such_airway.stl");
   expect_error(replaced(text, "duration: 8, ", ""), "simulation.duration");
   expect_error(replaced(text, "kind: vine", "kind: rod"), "robot.kind");
+  const std::string navigated =
+      replaced(text, "  pressure: [[0, 35]]\n", "  pressure: [[0, 35]]\n  navigator: {target: \"0-7\"}\n");
+  expect_error(navigated, "control.navigator.target: no branch '0-7'");  // (and magnet 0 is also keyframed)
 }
 
 }  // namespace

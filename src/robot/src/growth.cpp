@@ -448,6 +448,7 @@ GrowthStepReport VineGrowth::advance(double dt, const GrowthControl& control) {
   if (p != m_pressure) {
     rebuild_model(p);
     m_dirty = true;
+    m_loads_failed = false;
   }
   const GrowthLaw& law = m_options.law;
   const double sigma = turning();
@@ -493,6 +494,15 @@ GrowthStepReport VineGrowth::advance(double dt, const GrowthControl& control) {
   const double cap = std::min(control.tether_length, m_options.max_length) - (m_model.length + m_pending);
   m_pending += std::clamp(report.speed * dt, 0.0, std::max(0.0, cap));
   if (m_blocked) m_pending = std::min(m_pending, m_h);  // a blocked tip does not store growth
+  if (m_dirty && m_loads_failed && m_time - m_loads_failed_at < m_options.retry_interval) {
+    // These loads failed to converge lately: the body keeps its last equilibrium until they change again or
+    // retry_interval has passed (each try can cost a whole ramp).
+    report.converged = false;
+    report.failure = "the new loads have no equilibrium yet (retried every " +
+                     format("%.2f s", m_options.retry_interval) + ")";
+    report.stalled = true;
+    return report;
+  }
   if (m_dirty) {
     // The pressure or the field changed: the body finds its new equilibrium first (or keeps the last one), so the
     // energy balance of growing starts from the new loads.
@@ -508,16 +518,20 @@ GrowthStepReport VineGrowth::advance(double dt, const GrowthControl& control) {
       m_anchor = old_anchor;
       m_anchor_normal = old_normal;
       const RodSolveOptions fast = m_options.solver;
-      m_options.solver = RodSolveOptions{};  // the ramp, with the default budgets
+      m_options.solver = RodSolveOptions{};  // the ramp
       m_options.solver.tolerance = fast.tolerance;
+      m_options.solver.max_iterations = 600;
+      m_options.solver.max_snap_newton = 300;
       report.converged = true;
       report.failure.clear();
       solved = solve_with_wall(report);
       m_options.solver = fast;
     }
     if (!solved) {
-      // Keep the last equilibrium (under the old loads), report the failure and try again next step.
-      add_event("solver", "new loads: " + report.failure);
+      // Keep the last equilibrium (under the old loads), report the failure and try again later.
+      if (!m_loads_failed) add_event("solver", "new loads: " + report.failure);
+      m_loads_failed = true;
+      m_loads_failed_at = m_time;
       m_state = old_state;
       m_anchor = old_anchor;
       m_anchor_normal = old_normal;
@@ -525,6 +539,7 @@ GrowthStepReport VineGrowth::advance(double dt, const GrowthControl& control) {
       report.stalled = true;
       return report;
     }
+    m_loads_failed = false;
   }
   // A blocked tip tries again only when the loads changed or retry_interval has passed (each try is a full solve).
   const bool may_try = !m_blocked || m_dirty || m_time - m_last_try >= m_options.retry_interval;

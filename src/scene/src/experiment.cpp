@@ -119,6 +119,42 @@ int nearest_branch(const anatomy::AirwayGraph& graph, const Vec3& x) {
   return best;
 }
 
+/// The point `lead` along the centreline of `branch` from its start (its end if shorter).
+Vec3 along(const anatomy::AirwayGraph& graph, int branch, double lead) {
+  const anatomy::AirwayBranch& b = graph.branches[static_cast<std::size_t>(branch)];
+  double left = lead;
+  for (std::size_t k = 0; k + 1 < b.nodes.size(); ++k) {
+    const Vec3& p = graph.nodes[b.nodes[k]].position;
+    const Vec3& q = graph.nodes[b.nodes[k + 1]].position;
+    const double l = (q - p).norm();
+    if (l >= left) return p + (left / l) * (q - p);
+    left -= l;
+  }
+  return graph.nodes[b.nodes.back()].position;
+}
+
+/// The navigator's magnet pose for the tip at `tip`: on the line from the tip through the aim point.
+MagnetKeyframe navigate(const Navigator& nav, const anatomy::AirwayGraph& graph, const std::vector<int>& plan,
+                        const Vec3& tip, double time) {
+  const int here = nearest_branch(graph, tip);
+  const auto at = std::find(plan.begin(), plan.end(), here);
+  Vec3 aim;
+  if (at == plan.end() || *at == plan.back()) {
+    aim = graph.nodes[graph.branches[static_cast<std::size_t>(plan.back())].nodes.back()].position;
+  } else {
+    aim = along(graph, *(at + 1), nav.lead);
+  }
+  Vec3 u = aim - tip;
+  if (u.norm() < 1e-9) u = graph.nodes[graph.branches[static_cast<std::size_t>(plan.back())].nodes.back()].position - tip;
+  if (u.norm() < 1e-9) u = Vec3::UnitX();
+  u.normalize();
+  MagnetKeyframe k;
+  k.time = time;
+  k.position = tip + std::clamp(nav.distance, nav.min_distance, nav.max_distance) * u;
+  k.axis = u;
+  return k;
+}
+
 }  // namespace
 
 double Schedule::at(double time) const {
@@ -229,14 +265,19 @@ ExperimentScene parse_experiment_scene(const std::string& text, const std::strin
   if (top.has("magnets")) scene.magnets = parse_magnet_list(top, unit);
 
   const YamlMap sim = top.map("simulation");
-  sim.allow_only({"duration", "dt", "gravity"});
+  sim.allow_only({"duration", "dt", "gravity", "stop_at_target"});
+  if (sim.has("stop_at_target")) {
+    const std::string v = sim.text("stop_at_target");
+    if (v != "true" && v != "false") sim.fail("stop_at_target", "must be true or false");
+    scene.stop_at_target = v == "true";
+  }
   scene.duration = sim.positive("duration");
   if (sim.has("dt")) scene.dt = sim.positive("dt");
   if (scene.duration / scene.dt > kMaxSteps) sim.fail("dt", "gives more than 10 million steps");
   if (sim.has("gravity")) scene.growth.gravity = sim.vec3("gravity");
 
   const YamlMap control = top.map("control");
-  control.allow_only({"pressure", "tether", "magnets"});
+  control.allow_only({"pressure", "tether", "magnets", "navigator"});
   scene.pressure = schedule_of(control, "pressure", stress_unit, true);
   if (control.has("tether")) scene.tether = schedule_of(control, "tether", unit, true);
   if (scene.magnets) scene.magnet_keyframes.resize(scene.magnets->size());
@@ -270,11 +311,46 @@ ExperimentScene parse_experiment_scene(const std::string& text, const std::strin
     }
   }
 
+  if (control.has("navigator")) {
+    const YamlMap n = control.map("navigator");
+    n.allow_only({"target", "magnet", "distance", "min_distance", "max_distance", "lead", "interval"});
+    if (!scene.graph) n.fail("target", "the navigator plans on a generated phantom's airway graph (anatomy.phantom)");
+    if (!scene.magnets) n.fail("magnet", "the navigator moves a magnet, but the scene has no magnets: list");
+    Navigator nav;
+    nav.target = n.text("target");
+    const auto branch = anatomy::find_branch(*scene.graph, nav.target);
+    if (!branch) n.fail("target", "no branch '" + nav.target + "' in the phantom's graph (names like 0-1-0)");
+    nav.target_branch = *branch;
+    if (n.has("magnet")) {
+      const double index = n.number("magnet");
+      if (index != std::floor(index) || index < 0 || index >= static_cast<double>(scene.magnets->size())) {
+        n.fail("magnet", "must be the index of an entry of magnets:");
+      }
+      nav.magnet = static_cast<int>(index);
+    }
+    if (!scene.magnet_keyframes[static_cast<std::size_t>(nav.magnet)].empty()) {
+      n.fail("magnet", "this magnet is keyframed in control.magnets; the navigator moves it itself");
+    }
+    if (n.has("min_distance")) nav.min_distance = n.positive("min_distance") * unit;
+    if (n.has("max_distance")) nav.max_distance = n.positive("max_distance") * unit;
+    if (nav.max_distance < nav.min_distance) n.fail("max_distance", "must be >= min_distance");
+    nav.distance = n.has("distance") ? n.positive("distance") * unit : nav.min_distance;
+    if (n.has("lead")) nav.lead = n.positive("lead") * unit;
+    if (n.has("interval")) nav.interval = n.positive("interval");
+    scene.navigator = nav;
+  }
+
   if (top.has("target")) {
     const YamlMap t = top.map("target");
     t.allow_only({"position", "tolerance"});
     scene.target = t.vec3("position") * unit;
     scene.target_tolerance = t.positive("tolerance") * unit;
+  }
+  if (scene.navigator && !scene.target) {
+    const anatomy::AirwayBranch& b = scene.graph->branches[static_cast<std::size_t>(scene.navigator->target_branch)];
+    const anatomy::AirwayNode& end = scene.graph->nodes[b.nodes.back()];
+    scene.target = end.position;
+    scene.target_tolerance = 1.5 * end.radius;
   }
   return scene;
 }
@@ -287,6 +363,10 @@ ExperimentResult run_experiment(const ExperimentScene& scene, const std::functio
   const Stopwatch clock;
   ExperimentResult out;
   const anatomy::CollisionWorld world(scene.mesh);
+  std::vector<int> plan;
+  double next_navigation = 0.0;
+  std::optional<MagnetKeyframe> steered;  // the navigator's current pose for its magnet
+  if (scene.navigator) plan = anatomy::path_from_root(*scene.graph, scene.navigator->target_branch);
   std::vector<magnetics::Pose> poses;
   const auto poses_at = [&](double t) {
     std::vector<magnetics::Pose> p = scene.magnets->rest_poses;
@@ -296,6 +376,10 @@ ExperimentResult run_experiment(const ExperimentScene& scene, const std::functio
       const MagnetKeyframe k = interpolate(keys, t);
       p[i] = pose_at(scene.magnets->rest_poses[i], k.position, k.axis);
     }
+    if (steered) {
+      const auto i = static_cast<std::size_t>(scene.navigator->magnet);
+      p[i] = pose_at(scene.magnets->rest_poses[i], steered->position, steered->axis);
+    }
     return p;
   };
   const auto record_magnets = [&](double t) {
@@ -304,6 +388,12 @@ ExperimentResult run_experiment(const ExperimentScene& scene, const std::functio
     }
   };
   robot::RodField field;
+  if (scene.navigator) {
+    // The first pose from the straight body's tip, before the vine is built.
+    const Vec3 tip0 = scene.base_position + scene.vine.length * scene.base_frame.col(0);
+    steered = navigate(*scene.navigator, *scene.graph, plan, tip0, 0.0);
+    next_navigation = scene.navigator->interval;
+  }
   if (scene.magnets) {
     poses = poses_at(0.0);
     field = robot::field_function(*scene.magnets, poses);
@@ -313,11 +403,16 @@ ExperimentResult run_experiment(const ExperimentScene& scene, const std::functio
   vine.pressure = scene.pressure.at(0.0);
   robot::VineGrowth growth(vine, scene.growth, &world, field, scene.base_position, scene.base_frame);
   const auto steps = static_cast<long>(std::ceil(scene.duration / scene.dt - 1e-9));
-  const bool moving = std::any_of(scene.magnet_keyframes.begin(), scene.magnet_keyframes.end(),
-                                  [](const auto& k) { return k.size() > 1; });
+  const bool moving = scene.navigator || std::any_of(scene.magnet_keyframes.begin(), scene.magnet_keyframes.end(),
+                                                     [](const auto& k) { return k.size() > 1; });
+
   for (long k = 1; k <= steps; ++k) {
     const double t = std::min(scene.duration, static_cast<double>(k) * scene.dt);
     const double dt = t - growth.time();
+    if (scene.navigator && t >= next_navigation - 1e-12) {
+      steered = navigate(*scene.navigator, *scene.graph, plan, growth.state().tip(), t);
+      next_navigation += scene.navigator->interval;
+    }
     if (scene.magnets && moving) {
       std::vector<magnetics::Pose> next = poses_at(t);
       bool changed = false;
@@ -354,6 +449,10 @@ ExperimentResult run_experiment(const ExperimentScene& scene, const std::functio
       out.success = true;
     }
     if (progress) progress(static_cast<double>(k) / static_cast<double>(steps));
+    if (out.success && scene.stop_at_target) {
+      if (progress) progress(1.0);
+      break;
+    }
   }
   out.events = growth.events();
   out.final_state = growth.state();
@@ -416,9 +515,10 @@ void write_experiment_outputs(const ExperimentScene& scene, const ExperimentResu
     p = m.position;
   }
   j["magnet_travel_m"] = travel;
-  j["simulated_s"] = scene.duration;
+  const double simulated = result.samples.empty() ? 0.0 : result.samples.back().time;
+  j["simulated_s"] = simulated;
   j["runtime_s"] = result.runtime_s;
-  j["real_time_factor"] = result.runtime_s > 0.0 ? nlohmann::json(scene.duration / result.runtime_s) : nlohmann::json();
+  j["real_time_factor"] = result.runtime_s > 0.0 ? nlohmann::json(simulated / result.runtime_s) : nlohmann::json();
   j["converged"] = result.converged;
   j["failed_steps"] = result.failed_steps;
   j["failure"] = result.failure;

@@ -189,6 +189,7 @@ class VineGrowth {
   void set_field(RodField field) {
     m_field = std::move(field);
     m_dirty = true;
+    m_loads_failed = false;  // new loads: a fresh try
   }
 
   const RodState& state() const { return m_state; }
@@ -237,6 +238,8 @@ class VineGrowth {
   bool m_stalled = false;  ///< by the yield (a "stall" event was given)
   bool m_blocked = false;  ///< by the wall or the solver (a "blocked" or "solver" event was given)
   bool m_dirty = false;    ///< the loads changed since the last equilibrium
+  bool m_loads_failed = false;     ///< the current loads did not converge (a "solver" event was given)
+  double m_loads_failed_at = 0.0;  ///< when [s]
   bool m_retract_refused = false;  ///< a "retract" event said the vine must be deflated
   bool m_retracting = false;       ///< a "retract" event announced this retraction
   RodModel m_model;

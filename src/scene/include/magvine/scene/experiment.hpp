@@ -28,11 +28,23 @@
 ///   tether: [[0, 5], [20, 105]]             # optional keyframes [time, released length]; none: free growth
 ///   magnets:                                # optional, per magnet (index in magnets:), poses at times
 ///     - {magnet: 0, keyframes: [{time: 0, position: [60, -150, 0], axis: [0, 1, 0]}, {time: 10, ...}]}
-/// simulation: {duration: 20, dt: 0.02, gravity: [0, 0, -9.81]}   # duration and step [s]; gravity [m/s²]
+///   # navigator: {target: "0-1", magnet: 0, distance: 110}   # or: steer a magnet automatically (below)
+/// simulation: {duration: 20, dt: 0.02, gravity: [0, 0, -9.81]}   # duration and step [s]; gravity [m/s²];
+///                                                                  # stop_at_target: true (default) ends the run
+///                                                                  # when the target is reached
 /// target: {position: [100, -20, 0], tolerance: 5}                 # optional: success when the tip is within it
 /// ```
 /// Magnet poses between keyframes: positions linear, axes turned along the great circle (slerp); held beyond the
-/// ends. Unknown keys are errors naming the closest valid one (exit 2), and every problem names the file, line and
+/// ends.
+///
+/// Navigator (`control.navigator`, generated phantoms: it plans on their airway graph): the path of branches from the
+/// root to `target` (a branch name); every `interval` seconds (default 0.1) the tip's nearest branch on that path
+/// gives the branch to enter next, and the aim point `lead` (default 15 mm) along the centreline past its start (the
+/// target's end once the tip is in it). The magnet is placed on the line from the tip through the aim point,
+/// `distance` from the tip (clamped to min_distance–max_distance, default 100–300 mm: the EPM stays outside the
+/// patient), its axis along that line: the tip then sits on the magnet's axis, where a magnetic-fluid fill is pulled
+/// hardest towards it (gradient pull; torque steering of skin vines is not automated yet). Its success: the tip within
+/// 1.5 lumen radii of the target branch's end (unless `target:` gives a point). Unknown keys are errors naming the closest valid one (exit 2), and every problem names the file, line and
 /// key. Paths are relative to the scene file.
 
 #include <cstdint>
@@ -64,6 +76,18 @@ struct MagnetKeyframe {
   Vec3 axis = Vec3::UnitZ();     ///< unit: the magnetisation axis (the source's local z)
 };
 
+/// The automatic navigator of control.navigator.
+struct Navigator {
+  std::string target;             ///< branch name
+  int target_branch = -1;         ///< its id in the phantom's graph
+  int magnet = 0;                 ///< index in magnets:
+  double distance = 0.11;         ///< [m]
+  double min_distance = 0.10;     ///< [m]
+  double max_distance = 0.30;     ///< [m]
+  double lead = 0.015;            ///< [m]
+  double interval = 0.1;          ///< [s]
+};
+
 struct ExperimentScene {
   std::string file;                 ///< the scene file (for messages)
   std::string anatomy_label;        ///< "phantom y_bifurcation" or the mesh path
@@ -77,10 +101,12 @@ struct ExperimentScene {
   std::vector<std::vector<MagnetKeyframe>> magnet_keyframes;  ///< per source of `magnets`; empty: its rest pose
   Schedule pressure;                ///< [Pa]
   std::optional<Schedule> tether;   ///< [m]
+  std::optional<Navigator> navigator;
   double duration = 0.0;            ///< [s]
   double dt = 0.02;                 ///< [s]
   std::optional<Vec3> target;       ///< [m]
   double target_tolerance = 0.0;    ///< [m]
+  bool stop_at_target = true;       ///< end the run when the target is reached (simulation.stop_at_target)
   std::uint64_t seed = 0;
 };
 
