@@ -119,3 +119,30 @@ expect_rc(${rc} 2 "plot_experiment on a missing folder: ${err}")
 if(EXISTS ${WORK}/none.png)
   message(FATAL_ERROR "plot_experiment wrote a PNG for a missing run")
 endif()
+
+# 6. magvine trials: the tree navigator towards both main bronchi, once each on two threads: the summary table and
+#    the per-trial CSV; an unknown branch exits 2 with one line.
+execute_process(COMMAND ${MAGVINE} trials ${SRC}/assets/scenes/bronchial_tree_navigator.yaml --targets 0-0,0-1
+                        --repeats 1 --jobs 2 --out ${WORK}/trials
+                RESULT_VARIABLE rc OUTPUT_VARIABLE table ERROR_VARIABLE err)
+expect_rc(${rc} 0 "trials: ${err}")
+string(FIND "${table}" "| target | path length [mm] | success | mean time [s] | SD [s] |" pos)
+if(pos EQUAL -1)
+  message(FATAL_ERROR "trials printed no summary table: '${table}'")
+endif()
+execute_process(COMMAND ${PYTHON} -c "
+import csv
+rows = list(csv.DictReader(open('${WORK}/trials/trials.csv')))
+assert [r['target'] for r in rows] == ['0-0', '0-1'], rows
+assert all(r['success'] == '1' for r in rows), rows
+s = list(csv.DictReader(open('${WORK}/trials/summary.csv')))
+assert [r['success_rate'] for r in s] == ['1.000', '1.000'], s
+" RESULT_VARIABLE rc ERROR_VARIABLE err)
+expect_rc(${rc} 0 "trials outputs: ${err}")
+execute_process(COMMAND ${MAGVINE} trials ${SRC}/assets/scenes/bronchial_tree_navigator.yaml --targets 0-9
+                        --out ${WORK}/trials_bad RESULT_VARIABLE rc ERROR_VARIABLE err)
+expect_rc(${rc} 2 "trials towards an unknown branch: ${err}")
+string(FIND "${err}" "no branch '0-9'" pos)
+if(pos EQUAL -1 OR EXISTS ${WORK}/trials_bad)
+  message(FATAL_ERROR "trials towards 0-9: want one line naming the branch and no output, got '${err}'")
+endif()

@@ -1,9 +1,12 @@
 #include "commands.hpp"
 
+#include <algorithm>
 #include <cmath>
 #include <filesystem>
+#include <fstream>
 #include <iostream>
 #include <sstream>
+#include <thread>
 
 #include "magvine/anatomy/mesh_io.hpp"
 #include "magvine/anatomy/mesh_report.hpp"
@@ -161,6 +164,31 @@ int run_scene(const RunArgs& args) {
     std::cerr << "magvine: numerical failure: static equilibrium: " << result.report.failure << '\n';
     return static_cast<int>(ExitCode::kNumericalFailure);
   }
+  return 0;
+}
+
+int run_trials(const TrialsArgs& args) {
+  const scene::ExperimentScene sc = scene::load_experiment_scene(args.scene);
+  const std::filesystem::path out = args.out.empty()
+                                        ? std::filesystem::path("runs") / (std::filesystem::path(args.scene).stem().string() + "-trials")
+                                        : std::filesystem::path(args.out);
+  const int jobs = args.jobs > 0 ? args.jobs : static_cast<int>(std::max(1u, std::thread::hardware_concurrency()));
+  for (const std::string& t : args.targets) (void)scene::with_target(sc, t);  // bad names fail before any output
+  const std::size_t targets = args.targets.empty() ? 1 : args.targets.size();
+  std::cerr << "magvine trials: " << targets * static_cast<std::size_t>(args.repeats) << " runs (" << targets
+            << " target(s) x " << args.repeats << " repeats) on " << jobs << " thread(s)\n";
+  const std::vector<scene::TrialOutcome> outcomes =
+      scene::run_trials(sc, args.targets, args.repeats, jobs, [](int done, int total) {
+        const int bar = 20 * done / total;
+        std::cerr << "\r  [" << std::string(static_cast<std::size_t>(bar), '#')
+                  << std::string(static_cast<std::size_t>(20 - bar), '.') << "] " << done << "/" << total << std::flush;
+      });
+  std::cerr << '\n';
+  scene::write_trial_outputs(outcomes, out);
+  std::ifstream md(out / "summary.md");
+  std::cout << md.rdbuf();
+  std::cerr << "magvine trials: " << (out / "trials.csv").string() << ", " << (out / "summary.csv").string() << ", "
+            << (out / "summary.md").string() << '\n';
   return 0;
 }
 

@@ -3,6 +3,7 @@
 
 #include <optional>
 #include <string>
+#include <vector>
 
 #include "magvine/core/eigen_types.hpp"
 #include "magvine/core/units.hpp"
@@ -51,6 +52,16 @@ struct RunArgs {
 };
 /// One free-space equilibrium (issue 4's scene): 0 converged, 3 not (outputs written with converged: false).
 int run_scene(const RunArgs& args);
+
+struct TrialsArgs {
+  std::string scene;
+  std::vector<std::string> targets;  // branch names; empty: the scene's own target
+  int repeats = 4;
+  int jobs = 0;                      // 0: every core
+  std::string out;                   // empty: runs/<scene stem>-trials
+};
+/// `magvine trials`: seeded perturbed repeats of an experiment towards each target, in parallel (scene/experiment.hpp).
+int run_trials(const TrialsArgs& args);
 
 /// `magvine validate --out DIR`: the robot-mechanics studies (scene/mechanics_study.hpp).
 int run_validate(const std::string& out_dir);

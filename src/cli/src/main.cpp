@@ -65,10 +65,24 @@ int main(int argc, char** argv) {
   mesh_check_cmd->add_option("--out", mesh_check.out, "also write the JSON report to this file");
 
   magvine::cli::RunArgs run;
-  auto* run_cmd = app.add_subcommand("run", "one experiment: static equilibrium of a rod or vine in free space "
-                                            "(metrics.json, shape.csv); exit 3 when it does not converge");
+  auto* run_cmd = app.add_subcommand("run", "one experiment: a free-space equilibrium (metrics.json, shape.csv) or, for "
+                                            "a scene with anatomy:, growth under its control schedule (metrics, "
+                                            "trajectories, events); exit 3 when it does not converge");
   run_cmd->add_option("scene", run.scene, "scene file (YAML)")->required();
   run_cmd->add_option("--out", run.out, "output folder (default: runs/<scene name>)");
+
+  magvine::cli::TrialsArgs trials;
+  auto* trials_cmd = app.add_subcommand(
+      "trials", "repeated experiments with seeded perturbations (EPM placement, pressure, material), in parallel; a "
+                "summary table like thesis table 5.2 (CSV + Markdown)");
+  trials_cmd->add_option("scene", trials.scene, "experiment scene (YAML, with control.navigator for --targets)")
+      ->required();
+  trials_cmd->add_option("--targets", trials.targets, "branch names to aim the navigator at (default: the scene's)")
+      ->delimiter(',');
+  trials_cmd->add_option("--repeats", trials.repeats, "trials per target")->capture_default_str()
+      ->check(CLI::Range(1, 100000));
+  trials_cmd->add_option("--jobs", trials.jobs, "threads (default: every core)")->check(CLI::Range(1, 1024));
+  trials_cmd->add_option("--out", trials.out, "output folder (default: runs/<scene name>-trials)");
 
   std::string validate_out;
   auto* validate_cmd = app.add_subcommand(
@@ -101,6 +115,7 @@ int main(int argc, char** argv) {
     if (phantom.parsed()) return phantom.run();
     if (run_cmd->parsed()) return magvine::cli::run_scene(run);
     if (validate_cmd->parsed()) return magvine::cli::run_validate(validate_out);
+    if (trials_cmd->parsed()) return magvine::cli::run_trials(trials);
   } catch (const magvine::InputError& e) {
     std::cerr << "magvine: " << e.what() << '\n';
     return static_cast<int>(ExitCode::kBadInput);

@@ -3,9 +3,13 @@
 #include <nlohmann/json.hpp>
 
 #include <algorithm>
+#include <atomic>
 #include <cmath>
 #include <limits>
+#include <mutex>
+#include <random>
 #include <sstream>
+#include <thread>
 
 #include "magnet_entries.hpp"
 #include "magvine/anatomy/collision_world.hpp"
@@ -135,7 +139,7 @@ Vec3 along(const anatomy::AirwayGraph& graph, int branch, double lead) {
 
 /// The navigator's magnet pose for the tip at `tip`: on the line from the tip through the aim point.
 MagnetKeyframe navigate(const Navigator& nav, const anatomy::AirwayGraph& graph, const std::vector<int>& plan,
-                        const Vec3& tip, double time) {
+                        const Vec3& tip, double time, const Vec3& offset) {
   const int here = nearest_branch(graph, tip);
   const auto at = std::find(plan.begin(), plan.end(), here);
   Vec3 aim;
@@ -150,7 +154,7 @@ MagnetKeyframe navigate(const Navigator& nav, const anatomy::AirwayGraph& graph,
   u.normalize();
   MagnetKeyframe k;
   k.time = time;
-  k.position = tip + std::clamp(nav.distance, nav.min_distance, nav.max_distance) * u;
+  k.position = tip + std::clamp(nav.distance, nav.min_distance, nav.max_distance) * u + offset;
   k.axis = u;
   return k;
 }
@@ -176,7 +180,8 @@ ExperimentScene parse_experiment_scene(const std::string& text, const std::strin
   const YAML::Node root = parse_yaml(text, file_label);
   if (!root || root.IsNull()) throw InputError(file_label, 0, "", "empty scene file");
   const YamlMap top(root, file_label, "");
-  top.allow_only({"units", "seed", "anatomy", "robot", "growth", "magnets", "control", "simulation", "target"});
+  top.allow_only(
+      {"units", "seed", "anatomy", "robot", "growth", "magnets", "control", "simulation", "target", "trials"});
   const YamlMap units = top.map("units");
   units.allow_only({"length", "pressure"});
   const std::string length_unit = units.text("length");
@@ -346,6 +351,21 @@ ExperimentScene parse_experiment_scene(const std::string& text, const std::strin
     scene.target = t.vec3("position") * unit;
     scene.target_tolerance = t.positive("tolerance") * unit;
   }
+  if (top.has("trials")) {
+    const YamlMap t = top.map("trials");
+    t.allow_only({"magnet_position_sd", "pressure_sd", "material_spread"});
+    const auto non_negative = [&](const std::string& key) {
+      const double v = t.number(key);
+      if (v < 0.0) t.fail(key, "must be >= 0");
+      return v;
+    };
+    if (t.has("magnet_position_sd")) scene.perturbation.magnet_position_sd = non_negative("magnet_position_sd") * unit;
+    if (t.has("pressure_sd")) scene.perturbation.pressure_sd = non_negative("pressure_sd") * stress_unit;
+    if (t.has("material_spread")) {
+      scene.perturbation.material_spread = non_negative("material_spread");
+      if (scene.perturbation.material_spread >= 0.3) t.fail("material_spread", "must be below 0.3 (relative)");
+    }
+  }
   if (scene.navigator && !scene.target) {
     const anatomy::AirwayBranch& b = scene.graph->branches[static_cast<std::size_t>(scene.navigator->target_branch)];
     const anatomy::AirwayNode& end = scene.graph->nodes[b.nodes.back()];
@@ -391,7 +411,7 @@ ExperimentResult run_experiment(const ExperimentScene& scene, const std::functio
   if (scene.navigator) {
     // The first pose from the straight body's tip, before the vine is built.
     const Vec3 tip0 = scene.base_position + scene.vine.length * scene.base_frame.col(0);
-    steered = navigate(*scene.navigator, *scene.graph, plan, tip0, 0.0);
+    steered = navigate(*scene.navigator, *scene.graph, plan, tip0, 0.0, scene.navigator_offset);
     next_navigation = scene.navigator->interval;
   }
   if (scene.magnets) {
@@ -401,7 +421,17 @@ ExperimentResult run_experiment(const ExperimentScene& scene, const std::functio
   }
   robot::VineParameters vine = scene.vine;
   vine.pressure = scene.pressure.at(0.0);
-  robot::VineGrowth growth(vine, scene.growth, &world, field, scene.base_position, scene.base_frame);
+  std::optional<robot::VineGrowth> built;
+  try {
+    built.emplace(vine, scene.growth, &world, field, scene.base_position, scene.base_frame);
+  } catch (const robot::VineParameterError& e) {
+    // A starting pressure above burst (a perturbed trial): start at half of it; the first step then bursts the vine
+    // (an event and an outcome, not an error).
+    if (e.parameter() != "pressure") throw;
+    vine.pressure *= 0.5;
+    built.emplace(vine, scene.growth, &world, field, scene.base_position, scene.base_frame);
+  }
+  robot::VineGrowth& growth = *built;
   const auto steps = static_cast<long>(std::ceil(scene.duration / scene.dt - 1e-9));
   const bool moving = scene.navigator || std::any_of(scene.magnet_keyframes.begin(), scene.magnet_keyframes.end(),
                                                      [](const auto& k) { return k.size() > 1; });
@@ -410,7 +440,7 @@ ExperimentResult run_experiment(const ExperimentScene& scene, const std::functio
     const double t = std::min(scene.duration, static_cast<double>(k) * scene.dt);
     const double dt = t - growth.time();
     if (scene.navigator && t >= next_navigation - 1e-12) {
-      steered = navigate(*scene.navigator, *scene.graph, plan, growth.state().tip(), t);
+      steered = navigate(*scene.navigator, *scene.graph, plan, growth.state().tip(), t, scene.navigator_offset);
       next_navigation += scene.navigator->interval;
     }
     if (scene.magnets && moving) {
@@ -458,6 +488,153 @@ ExperimentResult run_experiment(const ExperimentScene& scene, const std::functio
   out.final_state = growth.state();
   out.runtime_s = clock.seconds();
   return out;
+}
+
+ExperimentScene with_target(const ExperimentScene& scene, const std::string& target) {
+  if (!scene.navigator) {
+    throw InputError(scene.file, 0, "control.navigator", "trials towards named targets need a navigator");
+  }
+  const auto branch = anatomy::find_branch(*scene.graph, target);
+  if (!branch) throw InputError("--targets", 0, "", "no branch '" + target + "' in the phantom's graph of " + scene.file);
+  ExperimentScene out = scene;
+  out.navigator->target = target;
+  out.navigator->target_branch = *branch;
+  const anatomy::AirwayNode& end = scene.graph->nodes[scene.graph->branches[static_cast<std::size_t>(*branch)].nodes.back()];
+  out.target = end.position;
+  out.target_tolerance = 1.5 * end.radius;
+  return out;
+}
+
+ExperimentScene perturbed(const ExperimentScene& scene, std::uint64_t seed) {
+  ExperimentScene out = scene;
+  std::mt19937_64 rng(seed);
+  std::normal_distribution<double> normal(0.0, 1.0);
+  const TrialPerturbation& p = scene.perturbation;
+  const Vec3 offset(p.magnet_position_sd * normal(rng), p.magnet_position_sd * normal(rng),
+                    p.magnet_position_sd * normal(rng));
+  const double pressure = p.pressure_sd * normal(rng);
+  const double modulus = 1.0 + p.material_spread * normal(rng);
+  const double yield = 1.0 + p.material_spread * normal(rng);
+  if (out.magnets) {
+    for (magnetics::Pose& pose : out.magnets->rest_poses) pose.position += offset;
+    for (auto& keys : out.magnet_keyframes)
+      for (MagnetKeyframe& k : keys) k.position += offset;
+  }
+  if (out.navigator) out.navigator_offset = offset;
+  for (double& v : out.pressure.values) v = std::max(0.0, v + pressure);
+  out.vine.wall.modulus *= modulus;
+  out.growth.law.yield_pressure *= yield;
+  out.seed = seed;
+  return out;
+}
+
+std::vector<TrialOutcome> run_trials(const ExperimentScene& scene, const std::vector<std::string>& targets,
+                                     int repeats, int jobs, const std::function<void(int, int)>& progress) {
+  if (repeats < 1) throw InputError("--repeats", 0, "", "must be >= 1");
+  if (jobs < 1) throw InputError("--jobs", 0, "", "must be >= 1");
+  std::vector<ExperimentScene> aimed;
+  std::vector<std::string> names;
+  if (targets.empty()) {
+    aimed.push_back(scene);
+    names.push_back(scene.navigator ? scene.navigator->target : std::string("target"));
+  } else {
+    for (const std::string& t : targets) {
+      aimed.push_back(with_target(scene, t));
+      names.push_back(t);
+    }
+  }
+  const int total = static_cast<int>(aimed.size()) * repeats;
+  std::vector<TrialOutcome> outcomes(static_cast<std::size_t>(total));
+  std::atomic<int> next{0};
+  std::atomic<int> done{0};
+  std::mutex report;
+  std::exception_ptr failure;
+  const auto worker = [&] {
+    for (int i = next++; i < total; i = next++) {
+      try {
+        const std::size_t t = static_cast<std::size_t>(i / repeats);
+        const int r = i % repeats;
+        // The seed: the scene's, the target's index and the repeat (std::hash of a string is not stable across
+        // library versions; the index is).
+        const std::uint64_t seed = scene.seed * 1000003ULL + t * 10007ULL + static_cast<std::uint64_t>(r);
+        const ExperimentScene trial = perturbed(aimed[t], seed);
+        const ExperimentResult res = run_experiment(trial);
+        TrialOutcome& o = outcomes[static_cast<std::size_t>(i)];
+        o.target = names[t];
+        o.repeat = r;
+        o.seed = seed;
+        o.success = res.success;
+        o.time_to_target = res.time_to_target;
+        o.everted_length = res.samples.empty() ? trial.vine.length : res.samples.back().length;
+        o.final_error = trial.target ? (res.final_state.tip() - *trial.target).norm() : 0.0;
+        for (const ExperimentSample& s : res.samples) o.max_normal = std::max(o.max_normal, s.max_normal);
+        for (const robot::GrowthEvent& e : res.events) o.burst = o.burst || e.kind == "burst";
+        o.runtime_s = res.runtime_s;
+      } catch (...) {
+        const std::lock_guard lock(report);
+        if (!failure) failure = std::current_exception();
+      }
+      const int d = ++done;
+      if (progress) {
+        const std::lock_guard lock(report);
+        progress(d, total);
+      }
+    }
+  };
+  std::vector<std::thread> threads;
+  for (int j = 1; j < std::min(jobs, total); ++j) threads.emplace_back(worker);
+  worker();
+  for (std::thread& t : threads) t.join();
+  if (failure) std::rethrow_exception(failure);
+  return outcomes;
+}
+
+void write_trial_outputs(const std::vector<TrialOutcome>& outcomes, const std::filesystem::path& dir) {
+  std::ostringstream all;
+  all.precision(10);
+  all << "target,repeat,seed,success,burst,time_to_target_s,everted_length_m,final_error_m,max_normal_N,runtime_s\n";
+  for (const TrialOutcome& o : outcomes) {
+    all << o.target << ',' << o.repeat << ',' << o.seed << ',' << (o.success ? 1 : 0) << ',' << (o.burst ? 1 : 0) << ','
+        << (o.success ? std::to_string(o.time_to_target) : std::string()) << ',' << o.everted_length << ','
+        << o.final_error << ',' << o.max_normal << ',' << o.runtime_s << '\n';
+  }
+  std::ostringstream csv;
+  std::ostringstream md;
+  csv << "target,path_length_mm,successes,trials,success_rate,mean_time_s,sd_time_s\n";
+  md << "| target | path length [mm] | success | mean time [s] | SD [s] |\n|---|---|---|---|---|\n";
+  std::vector<std::string> order;
+  for (const TrialOutcome& o : outcomes) {
+    if (std::find(order.begin(), order.end(), o.target) == order.end()) order.push_back(o.target);
+  }
+  char line[256];
+  for (const std::string& target : order) {
+    int n = 0;
+    int ok = 0;
+    double sum_t = 0.0;
+    double sum_t2 = 0.0;
+    double sum_l = 0.0;
+    for (const TrialOutcome& o : outcomes) {
+      if (o.target != target) continue;
+      ++n;
+      if (!o.success) continue;
+      ++ok;
+      sum_t += o.time_to_target;
+      sum_t2 += o.time_to_target * o.time_to_target;
+      sum_l += o.everted_length;
+    }
+    const double mean = ok > 0 ? sum_t / ok : std::nan("");
+    const double sd = ok > 1 ? std::sqrt(std::max(0.0, (sum_t2 - ok * mean * mean) / (ok - 1))) : std::nan("");
+    const double length = ok > 0 ? 1e3 * sum_l / ok : std::nan("");
+    std::snprintf(line, sizeof line, "%s,%.1f,%d,%d,%.3f,%.2f,%.2f\n", target.c_str(), length, ok, n,
+                  static_cast<double>(ok) / n, mean, sd);
+    csv << line;
+    std::snprintf(line, sizeof line, "| %s | %.0f | %d/%d | %.1f | %.1f |\n", target.c_str(), length, ok, n, mean, sd);
+    md << line;
+  }
+  create_output_directory(dir);
+  write_file_atomically(dir / "trials.csv", all.str());
+  write_file_atomically(dir / "summary.csv", csv.str());
+  write_file_atomically(dir / "summary.md", md.str());
 }
 
 void write_experiment_outputs(const ExperimentScene& scene, const ExperimentResult& result,

@@ -88,6 +88,17 @@ struct Navigator {
   double interval = 0.1;          ///< [s]
 };
 
+/// Seeded perturbations of `magvine trials` (the scene's optional `trials:` section; each trial draws its own
+/// normal deviates once, from the scene's seed, the target and the repeat number): the magnets' placement is off by
+/// a constant offset (each coordinate σ = magnet_position_sd, default 2 mm: a robot arm's and a registration's
+/// error), the pressure by a constant (σ = pressure_sd, default 0.5 kPa: a regulator's), the film's modulus and the
+/// growth law's yield by a factor (σ = material_spread, default 5 %: batch to batch).
+struct TrialPerturbation {
+  double magnet_position_sd = 2e-3;  ///< [m]
+  double pressure_sd = 0.5e3;        ///< [Pa]
+  double material_spread = 0.05;     ///< relative
+};
+
 struct ExperimentScene {
   std::string file;                 ///< the scene file (for messages)
   std::string anatomy_label;        ///< "phantom y_bifurcation" or the mesh path
@@ -107,6 +118,8 @@ struct ExperimentScene {
   std::optional<Vec3> target;       ///< [m]
   double target_tolerance = 0.0;    ///< [m]
   bool stop_at_target = true;       ///< end the run when the target is reached (simulation.stop_at_target)
+  TrialPerturbation perturbation;   ///< for `magvine trials`
+  Vec3 navigator_offset = Vec3::Zero();  ///< a trial's placement error added to the navigator's poses [m]
   std::uint64_t seed = 0;
 };
 
@@ -155,6 +168,36 @@ struct ExperimentResult {
 /// done after each step.
 ExperimentResult run_experiment(const ExperimentScene& scene,
                                 const std::function<void(double)>& progress = nullptr);
+
+/// The scene with its navigator aimed at branch `target` (its end the target point). InputError when the scene has no
+/// navigator or no such branch.
+ExperimentScene with_target(const ExperimentScene& scene, const std::string& target);
+
+/// The scene perturbed for one trial (TrialPerturbation), deterministic in `seed`.
+ExperimentScene perturbed(const ExperimentScene& scene, std::uint64_t seed);
+
+struct TrialOutcome {
+  std::string target;
+  int repeat = 0;
+  std::uint64_t seed = 0;
+  bool success = false;
+  bool burst = false;            ///< the perturbed pressure burst the vine
+  double time_to_target = -1.0;  ///< [s]
+  double everted_length = 0.0;   ///< [m]
+  double final_error = 0.0;      ///< tip to target [m]
+  double max_normal = 0.0;       ///< [N]
+  double runtime_s = 0.0;
+};
+
+/// Runs `repeats` perturbed trials towards each target (branch names; empty: the scene's own target) on `jobs`
+/// threads; outcomes in (target, repeat) order whatever the threads. `progress` gets (done, total).
+std::vector<TrialOutcome> run_trials(const ExperimentScene& scene, const std::vector<std::string>& targets,
+                                     int repeats, int jobs, const std::function<void(int, int)>& progress = nullptr);
+
+/// trials.csv (every trial) and summary.csv + summary.md in the form of thesis table 5.2 (target, path length =
+/// the everted length at the target [mm], success rate, mean time to target and its SD [s], over the successes),
+/// atomically into `dir`.
+void write_trial_outputs(const std::vector<TrialOutcome>& outcomes, const std::filesystem::path& dir);
 
 /// Writes, atomically, into `dir` (created): metrics.json, tip_trajectory.csv, magnet_trajectory.csv (when the
 /// scene has magnets), events.json, shape.csv (the final body) and, for a generated phantom, graph.json (its
