@@ -52,6 +52,15 @@ anatomy::TriangleMesh box_mesh(const Vec3& lo, const Vec3& hi) {
 
 VineParameters fluid_vine() { return thesis_fluid_vine(5e-3); }
 
+/// The field of the thesis's EPM (Ø101.6 × 101.6 mm N52, J = 1.48 T, exact cylinder) centred at `centre`, its
+/// magnetisation along `axis`.
+RodField thesis_epm(const Vec3& centre, const Vec3& axis) {
+  magnetics::FieldModel epm;
+  epm.add(magnetics::CylinderMagnet(50.8e-3, 101.6e-3, Vec3(0.0, 0.0, 1.48)), magnetics::Pose::from_axis(centre, axis),
+          "EPM");
+  return field_function(epm, epm.rest_poses);
+}
+
 struct Tube {
   anatomy::Phantom phantom;
   anatomy::CollisionWorld world;
@@ -434,10 +443,7 @@ TEST(Growth, ADeflatedVineLyingInTheSBendBendsTowardsAMagnetBroughtClose) {
   VineGrowth g(v, {}, &world, {}, Vec3(2e-3, 14e-3, -10e-3 + radius), frame);
   while (g.time() < 8.0) ASSERT_TRUE(g.advance(0.1, {.pressure = 12e3, .tether_length = 70e-3}).converged);
   const Vec3 before = g.state().tip();
-  magnetics::FieldModel epm;
-  epm.add(magnetics::CylinderMagnet(50.8e-3, 101.6e-3, Vec3(0.0, 0.0, 1.48)),
-          magnetics::Pose::from_axis(Vec3(85e-3, -85e-3, 0.0), -Vec3::UnitZ()), "EPM");
-  g.set_field(field_function(epm, epm.rest_poses));
+  g.set_field(thesis_epm(Vec3(85e-3, -85e-3, 0.0), -Vec3::UnitZ()));
   const GrowthStepReport r = g.advance(0.1, {.pressure = 1e3, .tether_length = 70e-3});
   ASSERT_TRUE(r.converged) << r.failure;
   const Vec3 after = g.state().tip();
@@ -487,18 +493,12 @@ TEST(Growth, TheStiffenedFluidResumesGrowingWhenTheMagnetIsWithdrawn) {
   o.gravity = Vec3::Zero();
   o.law.yield_pressure = 15e3;
   o.magnetorheology = true;
-  const auto epm_at = [](const Vec3& centre) {
-    magnetics::FieldModel epm;
-    epm.add(magnetics::CylinderMagnet(50.8e-3, 101.6e-3, Vec3(0.0, 0.0, 1.48)),
-            magnetics::Pose::from_axis(centre, Vec3::UnitY()), "EPM");
-    return field_function(epm, epm.rest_poses);
-  };
-  VineGrowth g(thesis_fluid_vine(40e-3), o, nullptr, epm_at(Vec3(40e-3, -80e-3, 0.0)), Vec3::Zero(),
-               Mat3::Identity());
+  VineGrowth g(thesis_fluid_vine(40e-3), o, nullptr, thesis_epm(Vec3(40e-3, -80e-3, 0.0), Vec3::UnitY()),
+               Vec3::Zero(), Mat3::Identity());
   for (int i = 0; i < 40; ++i) ASSERT_TRUE(g.advance(0.05, {.pressure = 35e3}).converged);
   const double near = g.length();
   const double extra = g.advance(0.05, {.pressure = 35e3}).magnetorheological_yield;
-  g.set_field(epm_at(Vec3(40e-3, -400e-3, 0.0)));
+  g.set_field(thesis_epm(Vec3(40e-3, -400e-3, 0.0), Vec3::UnitY()));
   for (int i = 0; i < 40; ++i) ASSERT_TRUE(g.advance(0.05, {.pressure = 35e3}).converged);
   std::printf("  magnet 80 mm off: stalled at %.1f mm (magnetorheological yield %.1f kPa); withdrawn to 400 mm: %.1f "
               "mm\n",

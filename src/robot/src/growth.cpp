@@ -228,7 +228,7 @@ bool VineGrowth::solve_with_wall(GrowthStepReport& report) {
   const double smoothing = 0.01 * m_radius;  // the contact law's C² zone (NodeContact::smoothing)
   const bool pushed = m_options.mode == InsertionMode::kPushed;
   std::vector<Vec3> wall_force(nodes, Vec3::Zero());  // on the body, per node
-  const std::vector<Vec3> start = m_state.x;           // pushed mode: where each node began the step
+  const std::vector<Vec3> start = pushed ? m_state.x : std::vector<Vec3>{};  // where each node began the step
   // Per node, an orthonormal basis of the normals of the planes pressing it: a wall, not friction, holds a node
   // along them, so the shear is the anchor's force with those directions removed (two jaws and a floor leave only
   // the direction along the slot).

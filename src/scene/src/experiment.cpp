@@ -159,6 +159,16 @@ MagnetKeyframe navigate(const Navigator& nav, const anatomy::AirwayGraph& graph,
   return k;
 }
 
+/// Aims the scene's navigator at `branch`: the plan's last branch, and its end (within 1.5 lumen radii) the target.
+void aim_at(ExperimentScene& scene, int branch) {
+  const anatomy::AirwayBranch& b = scene.graph->branches[static_cast<std::size_t>(branch)];
+  const anatomy::AirwayNode& end = scene.graph->nodes[b.nodes.back()];
+  scene.navigator->target = b.name;
+  scene.navigator->target_branch = branch;
+  scene.target = end.position;
+  scene.target_tolerance = 1.5 * end.radius;
+}
+
 }  // namespace
 
 double Schedule::at(double time) const {
@@ -182,13 +192,9 @@ ExperimentScene parse_experiment_scene(const std::string& text, const std::strin
   const YamlMap top(root, file_label, "");
   top.allow_only(
       {"units", "seed", "anatomy", "robot", "growth", "magnets", "control", "simulation", "target", "trials"});
-  const YamlMap units = top.map("units");
-  units.allow_only({"length", "pressure"});
-  const std::string length_unit = units.text("length");
-  const auto lu = parse_length_unit(length_unit);
-  if (!lu) units.fail("length", "must be mm, cm or m (got '" + length_unit + "')");
-  const double unit = metres_per(*lu);
-  const double stress_unit = pascals_per(units);
+  const FileUnits units = file_units(top);
+  const double unit = units.metres;
+  const double stress_unit = units.pascals;
 
   ExperimentScene scene;
   scene.file = file_label;
@@ -215,7 +221,7 @@ ExperimentScene parse_experiment_scene(const std::string& text, const std::strin
       anatomy_entry.fail("mesh_units", "must be mm, cm or m (got '" + anatomy_entry.text("mesh_units") + "')");
     }
     const LengthUnit mesh_units =
-        anatomy_entry.has("mesh_units") ? *parse_length_unit(anatomy_entry.text("mesh_units")) : *lu;
+        anatomy_entry.has("mesh_units") ? *parse_length_unit(anatomy_entry.text("mesh_units")) : units.length;
     const std::filesystem::path mesh = directory / anatomy_entry.text("mesh");
     scene.anatomy_label = mesh.string();
     try {
@@ -366,12 +372,7 @@ ExperimentScene parse_experiment_scene(const std::string& text, const std::strin
       if (scene.perturbation.material_spread >= 0.3) t.fail("material_spread", "must be below 0.3 (relative)");
     }
   }
-  if (scene.navigator && !scene.target) {
-    const anatomy::AirwayBranch& b = scene.graph->branches[static_cast<std::size_t>(scene.navigator->target_branch)];
-    const anatomy::AirwayNode& end = scene.graph->nodes[b.nodes.back()];
-    scene.target = end.position;
-    scene.target_tolerance = 1.5 * end.radius;
-  }
+  if (scene.navigator && !scene.target) aim_at(scene, scene.navigator->target_branch);
   return scene;
 }
 
@@ -497,11 +498,7 @@ ExperimentScene with_target(const ExperimentScene& scene, const std::string& tar
   const auto branch = anatomy::find_branch(*scene.graph, target);
   if (!branch) throw InputError("--targets", 0, "", "no branch '" + target + "' in the phantom's graph of " + scene.file);
   ExperimentScene out = scene;
-  out.navigator->target = target;
-  out.navigator->target_branch = *branch;
-  const anatomy::AirwayNode& end = scene.graph->nodes[scene.graph->branches[static_cast<std::size_t>(*branch)].nodes.back()];
-  out.target = end.position;
-  out.target_tolerance = 1.5 * end.radius;
+  aim_at(out, *branch);
   return out;
 }
 

@@ -23,8 +23,10 @@ constexpr int kDefaultNodes = 51;   // 50 edges: the rod's acceptance resolution
 constexpr int kMaxNodes = 100001;
 constexpr double kMaxNormalDot = 8.7e-3;  // sin(0.5°): base normal ⟂ direction within half a degree
 
+}  // namespace
+
 /// Pascals per one file pressure unit.
-double pascals_per_unit(const YamlMap& units) {
+double pascals_per(const YamlMap& units) {
   if (!units.has("pressure")) return 1.0;
   const std::string u = units.text("pressure");
   if (u == "Pa") return 1.0;
@@ -34,7 +36,7 @@ double pascals_per_unit(const YamlMap& units) {
 }
 
 /// Rotation whose columns are (tangent, normal, tangent × normal) from the base entry.
-Mat3 base_frame_from(const YamlMap& base) {
+Mat3 base_frame_of(const YamlMap& base) {
   const Vec3 t = base.nonzero_vec3("direction").normalized();
   Vec3 n = base.nonzero_vec3("normal").normalized();
   if (std::abs(t.dot(n)) > kMaxNormalDot) base.fail("normal", "must be perpendicular to direction (within 0.5°)");
@@ -45,6 +47,18 @@ Mat3 base_frame_from(const YamlMap& base) {
   r.col(2) = t.cross(n);
   return r;
 }
+
+FileUnits file_units(const YamlMap& top) {
+  const YamlMap units = top.map("units");
+  units.allow_only({"length", "pressure"});
+  const std::string length_unit = units.text("length");
+  const auto lu = parse_length_unit(length_unit);
+  if (!lu) units.fail("length", "must be mm, cm or m (got '" + length_unit + "')");
+  return {*lu, metres_per(*lu), pascals_per(units)};
+}
+
+namespace {
+
 
 int edges_of(const YamlMap& robot, double length, double unit) {
   if (robot.has("nodes") && robot.has("node_spacing")) robot.fail("node_spacing", "give either nodes or node_spacing");
@@ -159,7 +173,10 @@ robot::WallLayer layer_of(const YamlMap& m, double unit, double stress_unit) {
   return l;
 }
 
-robot::VineParameters parse_vine_fields(const YamlMap& robot, double unit, double stress_unit) {
+}  // namespace
+
+robot::VineParameters parse_vine(const YamlMap& robot, double unit, double stress_unit) {
+  robot.allow_only({"kind", "length", "diameter", "pressure", "wall", "skin", "fill", "base", "nodes", "node_spacing"});
   robot::VineParameters v;
   v.length = robot.positive("length") * unit;
   v.radius = 0.5 * robot.positive("diameter") * unit;
@@ -219,31 +236,14 @@ robot::VineParameters parse_vine_fields(const YamlMap& robot, double unit, doubl
   return v;
 }
 
-}  // namespace
-
-double pascals_per(const YamlMap& units) { return pascals_per_unit(units); }
-Mat3 base_frame_of(const YamlMap& base) { return base_frame_from(base); }
-robot::VineParameters parse_vine(const YamlMap& robot, double unit, double stress_unit,
-                                 std::initializer_list<std::string_view> extra_keys) {
-  std::vector<std::string_view> keys = {"kind", "length", "diameter", "pressure", "wall", "skin", "fill", "base",
-                                        "nodes", "node_spacing"};
-  keys.insert(keys.end(), extra_keys.begin(), extra_keys.end());
-  robot.allow_only(keys);
-  return parse_vine_fields(robot, unit, stress_unit);
-}
-
 FreeSpaceScene parse_free_space_scene(const std::string& text, const std::string& file_label) {
   const YAML::Node root = parse_yaml(text, file_label);
   if (!root || root.IsNull()) throw InputError(file_label, 0, "", "empty scene file (expected units: and robot:)");
   const YamlMap top(root, file_label, "");
   top.allow_only({"units", "seed", "robot", "magnets", "simulation"});
-  const YamlMap units = top.map("units");
-  units.allow_only({"length", "pressure"});
-  const std::string length_unit = units.text("length");
-  const auto lu = parse_length_unit(length_unit);
-  if (!lu) units.fail("length", "must be mm, cm or m (got '" + length_unit + "')");
-  const double unit = metres_per(*lu);
-  const double stress_unit = pascals_per_unit(units);
+  const FileUnits units = file_units(top);
+  const double unit = units.metres;
+  const double stress_unit = units.pascals;
 
   FreeSpaceScene scene;
   const YamlMap robot = top.map("robot");
@@ -263,7 +263,7 @@ FreeSpaceScene parse_free_space_scene(const std::string& text, const std::string
   const YamlMap base = robot.map("base");
   base.allow_only({"position", "direction", "normal"});
   scene.model.base_position = base.vec3("position") * unit;
-  scene.model.base_frame = base_frame_from(base);
+  scene.model.base_frame = base_frame_of(base);
 
   if (top.has("magnets")) scene.magnets = parse_magnet_list(top, unit);
   if (top.has("simulation")) {

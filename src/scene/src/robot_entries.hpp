@@ -1,20 +1,25 @@
 #pragma once
-// Robot entries shared by the free-space and experiment scene files. Private to the scene module.
+// Entries shared by the free-space and experiment scene files (units, the vine, its base). Private to the scene module.
 
-#include <initializer_list>
-#include <string_view>
-
+#include "magvine/core/units.hpp"
 #include "magvine/robot/vine.hpp"
 #include "yaml_reader.hpp"
 
 namespace magvine::scene {
 
-/// Pascals per one pressure unit of `units:` (Pa default; kPa, MPa).
+/// The `units:` entry of a scene file.
+struct FileUnits {
+  LengthUnit length = LengthUnit::kMm;
+  double metres = 1e-3;  ///< per file length unit
+  double pascals = 1.0;  ///< per file pressure unit (Pa default; kPa, MPa)
+};
+/// `top`'s `units: {length, pressure}` (length required).
+FileUnits file_units(const YamlMap& top);
+/// Pascals per one pressure unit of `units:`.
 double pascals_per(const YamlMap& units);
 /// The base entry's frame: columns tangent (direction), normal, tangent × normal.
 Mat3 base_frame_of(const YamlMap& base);
-/// A `robot: {kind: vine, ...}` entry (free_space.hpp), with `extra_keys` also allowed (read by the caller).
-robot::VineParameters parse_vine(const YamlMap& robot, double unit, double stress_unit,
-                                 std::initializer_list<std::string_view> extra_keys = {});
+/// A `robot: {kind: vine, ...}` entry (free_space.hpp).
+robot::VineParameters parse_vine(const YamlMap& robot, double unit, double stress_unit);
 
 }  // namespace magvine::scene
