@@ -1,4 +1,5 @@
 #include "magvine/anatomy/collision_world.hpp"
+#include "magvine/core/usage.hpp"
 
 #include <algorithm>
 #include <array>
@@ -635,7 +636,9 @@ CollisionWorld::Impl::Impl(const TriangleMesh& source, const CollisionWorldOptio
 }
 
 CollisionWorld::CollisionWorld(const TriangleMesh& mesh, const CollisionWorldOptions& options)
-    : m_impl(std::make_unique<const Impl>(mesh, options)) {}
+    : m_impl(std::make_unique<const Impl>(mesh, options)) {
+  usage::note(usage::Component::kCollisionWorld);
+}
 CollisionWorld::~CollisionWorld() = default;
 CollisionWorld::CollisionWorld(CollisionWorld&&) noexcept = default;
 CollisionWorld& CollisionWorld::operator=(CollisionWorld&&) noexcept = default;

@@ -1,4 +1,5 @@
 #include "magvine/anatomy/distance_query.hpp"
+#include "magvine/core/usage.hpp"
 
 #include <algorithm>
 #include <cmath>
@@ -429,6 +430,7 @@ struct DistanceQuery::Impl {
 
 DistanceQuery::DistanceQuery(const TriangleMesh& mesh, const DistanceQueryOptions& options)
     : m_impl(std::make_unique<Impl>()) {
+  usage::note(usage::Component::kDistanceModel);
   if (options.traversal == DistanceTraversal::kFcl && options.bv == DistanceBv::kAabb) {
     throw std::invalid_argument("DistanceQuery: DistanceTraversal::kFcl needs DistanceBv::kRss or kObbRss");
   }

@@ -1,4 +1,5 @@
 #include "magvine/robot/elastica.hpp"
+#include "magvine/core/usage.hpp"
 
 #include <array>
 #include <cmath>
@@ -127,6 +128,7 @@ void validate(const ElasticaProblem& p, const ElasticaOptions& o) {
 
 FieldFunction field_function(const magnetics::FieldModel& model, std::vector<magnetics::Pose> poses) {
   if (model.has_gradient()) {
+    usage::note(usage::Component::kGradientField);
     return [model, poses = std::move(poses)](const Vec3& x) { return magnetics::field_gradient(model, poses, x); };
   }
   return [model, poses = std::move(poses)](const Vec3& x) {

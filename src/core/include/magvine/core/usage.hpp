@@ -1,0 +1,25 @@
+#pragma once
+/// Counts of the costly components a run builds, so tests can show that a scene builds only what it uses (DESIGN.md:
+/// no collision world without anatomy, no field gradients for uniform fields, no FCL distance model unless a
+/// distance is asked). Incremented where each component is constructed, never in a solver's inner loop; relaxed
+/// atomics, so counts from parallel trials add up.
+
+#include <cstdint>
+
+namespace magvine::usage {
+
+enum class Component {
+  kCollisionWorld,  ///< anatomy::CollisionWorld (contact BVH, edge tables)
+  kDistanceModel,   ///< anatomy::DistanceQuery (FCL BVH)
+  kGradientField,   ///< a robot field function that evaluates ∇B (magnets with gradients)
+  kCount
+};
+
+/// One more `c` built.
+void note(Component c);
+/// How many `c` were built since the program started (or the last reset).
+std::uint64_t count(Component c);
+/// Sets every count to 0 (tests).
+void reset();
+
+}  // namespace magvine::usage

@@ -1,0 +1,57 @@
+// Components are built only when a scene uses them (issue 6, DESIGN.md): core/usage.hpp counts what a run built.
+// A free-space scene builds no collision world; a uniform field builds no gradient evaluation; an experiment builds
+// one collision world and no FCL distance model (no distance metric asks for one); magnets with gradients build
+// a gradient field only when the scene has them.
+
+#include <gtest/gtest.h>
+
+#include <filesystem>
+
+#include "magvine/core/usage.hpp"
+#include "magvine/scene/experiment.hpp"
+#include "magvine/scene/free_space.hpp"
+
+namespace magvine::scene {
+namespace {
+
+using usage::Component;
+
+const std::filesystem::path kScenes = std::filesystem::path(MAGVINE_SOURCE_DIR) / "assets/scenes";
+
+TEST(Components, AFreeSpaceRodInAUniformFieldBuildsNoWorldNoDistanceModelNoGradient) {
+  usage::reset();
+  const FreeSpaceResult r = solve_free_space(load_free_space_scene(kScenes / "rod_uniform_field.yaml"));
+  ASSERT_TRUE(r.report.converged);
+  EXPECT_EQ(usage::count(Component::kCollisionWorld), 0u);
+  EXPECT_EQ(usage::count(Component::kDistanceModel), 0u);
+  EXPECT_EQ(usage::count(Component::kGradientField), 0u);
+}
+
+TEST(Components, AFreeSpaceVineUnderTheEpmBuildsItsGradientButNoWorld) {
+  usage::reset();
+  const FreeSpaceResult r = solve_free_space(load_free_space_scene(kScenes / "skin_vine_epm.yaml"));
+  ASSERT_TRUE(r.report.converged);
+  EXPECT_EQ(usage::count(Component::kCollisionWorld), 0u);
+  EXPECT_EQ(usage::count(Component::kDistanceModel), 0u);
+  EXPECT_EQ(usage::count(Component::kGradientField), 1u);
+}
+
+TEST(Components, AnExperimentBuildsOneWorldAndNoDistanceModelAndAGradientOnlyWithMagnets) {
+  ExperimentScene scene = load_experiment_scene(kScenes / "y_bifurcation_fluid_vine.yaml");
+  scene.duration = 0.2;
+  usage::reset();
+  (void)run_experiment(scene);
+  EXPECT_EQ(usage::count(Component::kCollisionWorld), 1u);
+  EXPECT_EQ(usage::count(Component::kDistanceModel), 0u);
+  EXPECT_GE(usage::count(Component::kGradientField), 1u);  // one per magnet pose (it moves every step)
+  scene.magnets.reset();
+  scene.magnet_keyframes.clear();
+  usage::reset();
+  (void)run_experiment(scene);
+  EXPECT_EQ(usage::count(Component::kCollisionWorld), 1u);
+  EXPECT_EQ(usage::count(Component::kDistanceModel), 0u);
+  EXPECT_EQ(usage::count(Component::kGradientField), 0u);
+}
+
+}  // namespace
+}  // namespace magvine::scene
