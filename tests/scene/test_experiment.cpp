@@ -15,6 +15,7 @@
 
 #include "magvine/core/error.hpp"
 #include "magvine/scene/experiment.hpp"
+#include "magvine/scene/free_space.hpp"
 
 namespace magvine::scene {
 namespace {
@@ -142,6 +143,25 @@ TEST(Experiment, TrialsPerturbEachRunAndGiveTheSameOutcomesOnOneThreadOrTwo) {
   EXPECT_THROW(run_trials(scene, {"0-9"}, 1, 1), InputError);
 }
 
+TEST(Experiment, EveryBundledSceneLoads) {
+  // docs/scenes.md points at these as the examples of each feature: each must load as what it claims to be.
+  int experiments = 0;
+  int free_space = 0;
+  for (const auto& entry : std::filesystem::directory_iterator(kDemo.parent_path())) {
+    if (entry.path().extension() != ".yaml") continue;
+    SCOPED_TRACE(entry.path().string());
+    if (is_experiment_scene(entry.path())) {
+      EXPECT_NO_THROW((void)load_experiment_scene(entry.path()));
+      ++experiments;
+    } else {
+      EXPECT_NO_THROW((void)load_free_space_scene(entry.path()));
+      ++free_space;
+    }
+  }
+  EXPECT_GE(experiments, 4);
+  EXPECT_GE(free_space, 2);
+}
+
 TEST(Experiment, SameSceneSameResult) {
   const ExperimentScene scene = load_experiment_scene(kDemo);
   const ExperimentResult a = run_experiment(scene);
@@ -209,6 +229,10 @@ TEST(Experiment, BadScenesNameTheFileAndKey) {
   expect_error(replaced(text, "phantom: {kind: y_bifurcation}", "mesh: no_such_airway.stl"), "no_such_airway.stl");
   expect_error(replaced(text, "duration: 8, ", ""), "simulation.duration");
   expect_error(replaced(text, "kind: vine", "kind: rod"), "robot.kind");
+  expect_error(replaced(text, "growth: {yield_pressure: 20}",
+                        "growth: {yield_pressure: 20, catheter: {outer_diameter: 4, inner_diameter: 3, "
+                        "youngs_modulus: 26000}}"),
+               "growth.catheter: a catheter tube is pushed");
   const std::string navigated =
       replaced(text, "  pressure: [[0, 35]]\n", "  pressure: [[0, 35]]\n  navigator: {target: \"0-7\"}\n");
   expect_error(navigated, "control.navigator.target: no branch '0-7'");  // (and magnet 0 is also keyframed)

@@ -248,7 +248,7 @@ ExperimentScene parse_experiment_scene(const std::string& text, const std::strin
   if (top.has("growth")) {
     const YamlMap g = top.map("growth");
     g.allow_only({"mode", "yield_pressure", "length_yield", "turning_yield", "extensibility", "friction",
-                  "edge_length"});
+                  "edge_length", "catheter", "magnetorheology", "retraction_pressure"});
     robot::GrowthOptions& o = scene.growth;
     if (g.has("mode")) {
       const std::string mode = g.text("mode");
@@ -271,6 +271,29 @@ ExperimentScene parse_experiment_scene(const std::string& text, const std::strin
     if (g.has("extensibility")) o.law.extensibility = non_negative("extensibility") * 1e-6;
     if (g.has("friction")) o.friction = non_negative("friction");
     if (g.has("edge_length")) o.edge_length = g.positive("edge_length") * unit;
+    if (g.has("catheter")) {
+      if (o.mode != robot::InsertionMode::kPushed) g.fail("catheter", "a catheter tube is pushed: set mode: pushed");
+      const YamlMap c = g.map("catheter");
+      c.allow_only({"outer_diameter", "inner_diameter", "youngs_modulus", "density"});
+      robot::CatheterTube tube;
+      tube.outer_diameter = c.positive("outer_diameter") * unit;
+      tube.inner_diameter = c.number("inner_diameter") * unit;
+      if (!(tube.inner_diameter >= 0.0 && tube.inner_diameter < tube.outer_diameter)) {
+        c.fail("inner_diameter", "must satisfy 0 <= inner_diameter < outer_diameter");
+      }
+      tube.modulus = c.positive("youngs_modulus") * stress_unit;
+      if (c.has("density")) tube.density = c.positive("density");
+      o.catheter = tube;
+    }
+    if (g.has("magnetorheology")) {
+      const std::string v = g.text("magnetorheology");
+      if (v != "true" && v != "false") g.fail("magnetorheology", "must be true or false");
+      o.magnetorheology = v == "true";
+      if (o.magnetorheology && scene.vine.fill != robot::FillKind::kMagneticFluid) {
+        g.fail("magnetorheology", "needs a magnetic-fluid fill (robot.fill.kind: magnetic_fluid)");
+      }
+    }
+    if (g.has("retraction_pressure")) o.retraction_pressure = non_negative("retraction_pressure") * stress_unit;
   }
 
   if (top.has("magnets")) scene.magnets = parse_magnet_list(top, unit);
