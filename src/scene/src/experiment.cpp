@@ -159,6 +159,38 @@ MagnetKeyframe navigate(const Navigator& nav, const anatomy::AirwayGraph& graph,
   return k;
 }
 
+/// The whole-run figures of metrics.json, also the trials' outcomes.
+struct RunFigures {
+  double everted_length = 0.0;       ///< at the end [m]
+  std::optional<double> final_error;  ///< tip to target at the end [m]; none without a target
+  double path = 0.0;                 ///< tip path length [m]
+  double max_normal = 0.0;           ///< largest wall normal force on a node [N]
+  double mean_normal = 0.0;          ///< time average of the total [N]
+  double max_shear = 0.0;            ///< largest total shear [N]
+  std::vector<std::string> branches; ///< graph branches the tip passed through, in order
+};
+
+RunFigures figures_of(const ExperimentScene& scene, const ExperimentResult& result) {
+  RunFigures f;
+  const Vec3 tip = result.final_state.tip();
+  f.everted_length = result.samples.empty() ? scene.vine.length : result.samples.back().length;
+  if (scene.target) f.final_error = (tip - *scene.target).norm();
+  Vec3 last = result.samples.empty() ? tip : result.samples.front().tip;
+  int last_branch = -1;
+  for (const ExperimentSample& s : result.samples) {
+    f.path += (s.tip - last).norm();
+    last = s.tip;
+    f.max_normal = std::max(f.max_normal, s.max_normal);
+    f.mean_normal += s.total_normal / static_cast<double>(result.samples.size());
+    f.max_shear = std::max(f.max_shear, s.total_shear);
+    if (scene.graph && s.branch >= 0 && s.branch != last_branch) {
+      f.branches.push_back(scene.graph->branches[static_cast<std::size_t>(s.branch)].name);
+      last_branch = s.branch;
+    }
+  }
+  return f;
+}
+
 /// Aims the scene's navigator at `branch`: the plan's last branch, and its end (within 1.5 lumen radii) the target.
 void aim_at(ExperimentScene& scene, int branch) {
   const anatomy::AirwayBranch& b = scene.graph->branches[static_cast<std::size_t>(branch)];
@@ -585,9 +617,10 @@ std::vector<TrialOutcome> run_trials(const ExperimentScene& scene, const std::ve
         o.seed = seed;
         o.success = res.success;
         o.time_to_target = res.time_to_target;
-        o.everted_length = res.samples.empty() ? trial.vine.length : res.samples.back().length;
-        o.final_error = trial.target ? (res.final_state.tip() - *trial.target).norm() : 0.0;
-        for (const ExperimentSample& s : res.samples) o.max_normal = std::max(o.max_normal, s.max_normal);
+        const RunFigures f = figures_of(trial, res);
+        o.everted_length = f.everted_length;
+        o.final_error = f.final_error.value_or(0.0);
+        o.max_normal = f.max_normal;
         for (const robot::GrowthEvent& e : res.events) o.burst = o.burst || e.kind == "burst";
         o.runtime_s = res.runtime_s;
       } catch (...) {
@@ -667,32 +700,15 @@ void write_experiment_outputs(const ExperimentScene& scene, const ExperimentResu
   j["seed"] = scene.seed;
   j["success"] = result.success;
   j["time_to_target_s"] = result.time_to_target >= 0.0 ? nlohmann::json(result.time_to_target) : nlohmann::json();
-  j["final_tip_error_m"] = scene.target ? nlohmann::json((tip - *scene.target).norm()) : nlohmann::json();
+  const RunFigures f = figures_of(scene, result);
+  j["final_tip_error_m"] = f.final_error ? nlohmann::json(*f.final_error) : nlohmann::json();
   j["tip_position_m"] = vec(tip);
-  j["everted_length_m"] = result.samples.empty() ? scene.vine.length : result.samples.back().length;
-  double path = 0.0;
-  double max_normal = 0.0;
-  double mean_normal = 0.0;
-  double max_shear = 0.0;
-  Vec3 last = result.samples.empty() ? tip : result.samples.front().tip;
-  nlohmann::json branches = nlohmann::json::array();
-  int last_branch = -1;
-  for (const ExperimentSample& s : result.samples) {
-    path += (s.tip - last).norm();
-    last = s.tip;
-    max_normal = std::max(max_normal, s.max_normal);
-    mean_normal += s.total_normal / static_cast<double>(result.samples.size());
-    max_shear = std::max(max_shear, s.total_shear);
-    if (scene.graph && s.branch >= 0 && s.branch != last_branch) {
-      branches.push_back(scene.graph->branches[static_cast<std::size_t>(s.branch)].name);
-      last_branch = s.branch;
-    }
-  }
-  j["tip_path_length_m"] = path;
-  j["branches_reached"] = branches;
-  j["max_wall_normal_N"] = max_normal;
-  j["mean_wall_normal_N"] = mean_normal;
-  j["max_wall_shear_N"] = max_shear;
+  j["everted_length_m"] = f.everted_length;
+  j["tip_path_length_m"] = f.path;
+  j["branches_reached"] = f.branches;
+  j["max_wall_normal_N"] = f.max_normal;
+  j["mean_wall_normal_N"] = f.mean_normal;
+  j["max_wall_shear_N"] = f.max_shear;
   int stalls = 0;
   int blocked = 0;
   nlohmann::json events = nlohmann::json::array();
