@@ -86,6 +86,43 @@ TEST(Rod, ContactAnchorAndForceTermsMatchFiniteDifferences) {
   testing::expect_hessian_matches_finite_differences(m, {}, s, "constraints", &c);
 }
 
+TEST(Rod, RestStrainTermsMatchFiniteDifferences) {
+  // RodModel::rest_strain shifts each joint's law: the same derivative checks with a random rest strain per joint
+  // (up to 20 /m of bend and twist, joints of 1.2 mm: up to 1.4° of rest turn each), rod and vine laws.
+  RodModel m = acceptance_rod(Vec3(0.3, 1.0, 0.2), 8);
+  m.gravity = Vec3(0.5, -9.81, 1.0);
+  std::mt19937 rng(17);
+  std::uniform_real_distribution<double> u(-1.0, 1.0);
+  for (int j = 0; j < m.edges; ++j) m.rest_strain.push_back(20.0 * Vec3(u(rng), u(rng), u(rng)));
+  RodState s = straight_rod(m);
+  for (Mat3& r : s.frames)
+    r = Eigen::AngleAxisd(0.3 * u(rng), Vec3(u(rng), u(rng), u(rng)).normalized()).toRotationMatrix() * r;
+  testing::nodes_along_frames(m, s, 1e-6, rng);
+  testing::expect_gradient_matches_energy(m, {}, s, "rest strain");
+  testing::expect_hessian_matches_finite_differences(m, {}, s, "rest strain");
+}
+
+TEST(Rod, AnUnloadedRodWithUniformRestCurvatureIsACircularArc) {
+  // Independent reference: with no loads a rod of uniform rest curvature κ0 (about d3) relaxes to the arc of
+  // curvature κ0, tip at (sin κ0L/κ0, (1 − cos κ0L)/κ0). The discrete arc's joints turn by ψ with 2 tan(ψ/2)/ℓ =
+  // κ0, so its tip differs from the continuum by O(h²): 1e-4 L at 100 edges (κ0L = 2 rad, h = 0.6 mm gives
+  // (κ0h)²/12 ≈ 4e-5 per unit of turning).
+  RodModel m = acceptance_rod(Vec3::UnitX(), 100);
+  m.mass_per_length = 0.0;
+  m.moment_per_length.clear();
+  const double kappa = 2.0 / kLength;
+  m.rest_strain.assign(static_cast<std::size_t>(m.edges), Vec3(0.0, 0.0, kappa));
+  RodState s = straight_rod(m);
+  const RodSolveReport r = solve_rod_statics(m, {}, s);
+  ASSERT_TRUE(r.converged) << r.failure;
+  const Vec3 expected(std::sin(kappa * kLength) / kappa, (1.0 - std::cos(kappa * kLength)) / kappa, 0.0);
+  std::printf("  tip (%.4f, %.4f) mm vs the arc (%.4f, %.4f) mm\n", 1e3 * s.tip().x(), 1e3 * s.tip().y(),
+              1e3 * expected.x(), 1e3 * expected.y());
+  EXPECT_LT((s.tip() - expected).norm(), 1e-4 * kLength);
+  // The bending moments vanish at rest.
+  for (const double moment : joint_bending_moments(m, s)) EXPECT_LT(moment, 1e-9);
+}
+
 TEST(Rod, TipMomentGradientMatchesFiniteDifferences) {
   // The tip moment's term alone (the difference of two models that differ only in it), at a last edge turned by
   // 0.3–1.2 rad from the clamp, where J_l⁻¹(φ) differs from I by up to ~40 %. Tolerance 1e-5 of |M|: the round-off
@@ -305,6 +342,10 @@ TEST(Rod, BadModelsAreRejected) {
   m = acceptance_rod();
   s = straight_rod(m);
   s.x.pop_back();
+  EXPECT_THROW(solve_rod_statics(m, {}, s), InputError);
+  m = acceptance_rod();
+  s = straight_rod(m);
+  m.rest_strain.assign(3, Vec3::Zero());  // not one per edge
   EXPECT_THROW(solve_rod_statics(m, {}, s), InputError);
 }
 

@@ -61,6 +61,11 @@ void add_stress(System* sys, const Vec3& stress, const std::array<Slot, K>& slot
 /// ω = 2 tan(ψ/2)·axis/ℓ of the joint rotation Q (the Gibbs vector over ℓ/2).
 Vec3 joint_strain(const Mat3& q, double ell) { return 4.0 * skew_axis(q) / ((1.0 + q.trace()) * ell); }
 
+/// The rest strain of joint j (RodModel::rest_strain).
+Vec3 rest_strain(const RodModel& m, int j) {
+  return m.rest_strain.empty() ? Vec3::Zero() : m.rest_strain[static_cast<std::size_t>(j)];
+}
+
 /// The stored energy of one joint of length ℓ at curvature-twist ω (body frame of the joint's first edge), and
 /// `stress` = dW/dω: the linear law of a rod, or the inflated-beam law of a vine (InflatedBending).
 double joint_energy(const RodModel& m, double ell, const Vec3& omega, Vec3& stress) {
@@ -201,7 +206,7 @@ double evaluate(const RodModel& m, const RodField& field, const RodState& s, dou
     const Vec3 half_sine = skew_axis(q);                               // sin ψ · axis
     const Vec3 omega = joint_strain(q, ell);
     Vec3 stress;
-    energy += joint_energy(m, ell, omega, stress);
+    energy += joint_energy(m, ell, omega - rest_strain(m, j), stress);
     if (sys == nullptr) continue;
     // dω/dδφ_b = (2/ℓ)[(tr Q·I − Q)/c + 4 s sᵀ/c²] R_aᵀ, and the opposite for δφ_a.
     const Mat3 d = (2.0 / ell) *
@@ -462,12 +467,13 @@ void analytic_hessian(const RodModel& m, const RodField& field, const RodState& 
     const double ell = j == 0 ? 0.5 * h : h;
     const Mat3 q = ra.transpose() * rb;
     const Vec3 omega = joint_strain(q, ell);
+    const Vec3 strain = omega - rest_strain(m, j);
     Vec3 stress;
-    joint_energy(m, ell, omega, stress);
+    joint_energy(m, ell, strain, stress);
     const Vec3 b = 0.5 * ell * omega;
     const Mat3 jac = Mat3::Identity() - skew(b) + b * b.transpose();
     const Vec3 vv = jac.transpose() * stress;
-    const Mat3 local = jac.transpose() * joint_stiffness(m, ell, omega) * jac / (ell * ell) +
+    const Mat3 local = jac.transpose() * joint_stiffness(m, ell, strain) * jac / (ell * ell) +
                        (b * vv.transpose() + vv * b.transpose()) / (2.0 * ell);
     const Mat3 tilde = ra * local * ra.transpose();
     const Slot sb = rotation_slot(j);
@@ -714,6 +720,12 @@ void validate(const RodModel& m) {
   if (!(m.mass_per_length >= 0.0)) throw InputError("rod: mass_per_length must be >= 0");
   if (!m.moment_per_length.empty() && m.moment_per_length.size() != static_cast<std::size_t>(m.edges)) {
     throw InputError("rod: moment_per_length needs one entry per edge");
+  }
+  if (!m.rest_strain.empty() && m.rest_strain.size() != static_cast<std::size_t>(m.edges)) {
+    throw InputError("rod: rest_strain needs one entry per edge");
+  }
+  for (const Vec3& w : m.rest_strain) {
+    if (!w.allFinite()) throw InputError("rod: rest_strain must be finite");
   }
   if (!(m.base_frame.transpose() * m.base_frame).isApprox(Mat3::Identity(), 1e-9)) {
     throw InputError("rod: base_frame must be orthonormal");
@@ -991,7 +1003,7 @@ std::vector<double> joint_bending_moments(const RodModel& model, const RodState&
     const Mat3 q = ra.transpose() * state.frames[static_cast<std::size_t>(j)];
     Vec3 stress;
     const Vec3 omega = joint_strain(q, ell);
-    joint_energy(model, ell, omega, stress);
+    joint_energy(model, ell, omega - rest_strain(model, j), stress);
     // dW/dψ = dW/dκ · dκ/dψ with κ = 2 tan(ψ/2)/ℓ: the stress over ℓ times 1 + tan²(ψ/2).
     const double t = 0.5 * ell * omega.tail<2>().norm();
     out.push_back(stress.tail<2>().norm() / ell * (1.0 + t * t));
