@@ -7,6 +7,7 @@
 #include <cmath>
 #include <cstdio>
 #include <random>
+#include <vector>
 
 #include "magvine/core/error.hpp"
 #include "magvine/core/units.hpp"
@@ -181,6 +182,57 @@ TEST(Vine, BadParametersAreRefusedWithTheirName) {
   v = skin_mvr();
   v.skin_direction = Vec3::UnitX();  // axial skin magnetisation cancels on eversion
   EXPECT_THROW(vine_rod(v), InputError);
+}
+
+}  // namespace
+}  // namespace magvine::robot
+
+namespace magvine::robot {
+namespace {
+
+/// The fig 4.8 sequence: the skin MVR, 80 mm, vertical against gravity, in the torque setup (EPM axis vertical,
+/// 65 mm above the base, the skin's moment in the bending plane), the EPM moved through `distances` in turn, each
+/// equilibrium starting from the last. Returns the chord angles [deg].
+std::vector<double> figure_48_sequence(double pressure, const std::vector<double>& distances) {
+  VineParameters v = skin_mvr(40);
+  v.pressure = pressure;
+  RodModel m = vine_rod(v);
+  m.base_frame.col(0) = Vec3::UnitZ();
+  m.base_frame.col(1) = Vec3::UnitX();
+  m.base_frame.col(2) = m.base_frame.col(0).cross(m.base_frame.col(1));
+  m.gravity = Vec3(0.0, 0.0, -9.81);
+  RodState s = straight_rod(m);
+  std::vector<double> out;
+  for (const double d : distances) {
+    magnetics::FieldModel epm;
+    epm.add(magnetics::CylinderMagnet(50.8e-3, 101.6e-3, Vec3(0.0, 0.0, 1.48)),
+            magnetics::Pose::from_axis(Vec3(d, 0.0, 65e-3), Vec3::UnitZ()), "EPM");
+    const RodSolveReport r = solve_rod_statics(m, field_function(epm, epm.rest_poses), s);
+    EXPECT_TRUE(r.converged) << d << " m: " << r.failure;
+    out.push_back(std::atan2(s.tip().x(), s.tip().z()) / kDegToRad);
+  }
+  return out;
+}
+
+TEST(Vine, BentByTheMagnetAndLetGoItKeepsItsCreaseAsInFigure48) {
+  // Thesis fig 4.8 (torque setup, h = 65 mm, with the internal tail and tether): EPM at 270 mm → 8°, 218 → 11°,
+  // 190 → 72°, then back to 252 mm → 56°: hysteresis, which the thesis puts down to the tensioned tether and leaves
+  // out of its model. The pressure is not stated; 2 kPa is where this model's crease onset falls between 218 and
+  // 190 mm, as the experiment's did (at 1.75 and 2.25 kPa it keeps 58° and 46° at 252 mm instead of 54°). Nothing
+  // else is fitted: the crease holds because the creased body's own weight, tilted, adds to the moment that creased
+  // it, so the crease hinge (eq 4.13) stays loaded past M_c when the magnet withdraws. Asserted: straight before the
+  // snap, creased beyond 45° at 190 mm, and at 252 mm within 10° of the thesis's 56° (the spread over 1.75–2.25 kPa);
+  // then, far enough away, it does straighten. Gap reported, not tuned: before the crease the thesis's vine bent
+  // 8–11°, this one under 1° (the tail and tether the thesis's setup had are not modelled).
+  const std::vector<double> a = figure_48_sequence(2e3, {0.270, 0.218, 0.190, 0.252, 0.300});
+  std::printf("  2 kPa: 270 mm %.1f deg (thesis 8), 218 mm %.1f (11), 190 mm %.1f (72), back to 252 mm %.1f (56); "
+              "300 mm %.1f\n",
+              a[0], a[1], a[2], a[3], a[4]);
+  EXPECT_LT(a[0], 15.0);
+  EXPECT_LT(a[1], 15.0);
+  EXPECT_GT(a[2], 45.0);
+  EXPECT_NEAR(a[3], 56.0, 10.0);
+  EXPECT_LT(a[4], 15.0);
 }
 
 }  // namespace

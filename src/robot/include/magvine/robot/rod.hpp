@@ -85,8 +85,7 @@ struct RodModel {
   std::optional<InducedMagnetisation> induced;  ///< a soft-magnetic fill
   /// Rest strain of each joint (joint j between edge j − 1 and edge j, joint 0 at the clamp), the curvature–twist ω
   /// (= 2 tan(ψ/2)·axis/ℓ, body frame of the joint's first edge, ℓ = h/2 at the clamp, h elsewhere) at which it stores
-  /// no energy: a pre-curved rod, or the set a vine's crease leaves (vine.hpp, update_crease_set). The laws above act
-  /// on ω − ω_rest. Empty: straight at rest; otherwise one entry per edge.
+  /// no energy: a pre-curved rod (a catheter with a shaped tip). The laws above act on ω − ω_rest. Empty: straight at rest; otherwise one entry per edge.
   std::vector<Vec3> rest_strain;
 };
 
