@@ -8,6 +8,7 @@
 #include <cstdio>
 #include <filesystem>
 #include <fstream>
+#include <limits>
 #include <string>
 #include <vector>
 
@@ -74,8 +75,17 @@ ExperimentResult navigate_to(const std::filesystem::path& file, const std::strin
     last = s.branch;
     branches += (branches.empty() ? "" : " ") + scene.graph->branches[static_cast<std::size_t>(s.branch)].name;
   }
-  std::printf("  navigator to %s: %s (%s), %.0f mm everted, %.2f s of computing\n", to.c_str(),
-              r.success ? "reached" : "NOT reached", branches.c_str(), 1e3 * r.samples.back().length, r.runtime_s);
+  // The workspace: the EPM (bounding sphere of the Ø101.6 × 101.6 mm cylinder, 71.8 mm) never overlaps the airway
+  // wall (vertices, the check's own measure: at most half an edge off the surface), and stays 100–300 mm from the tip
+  // it was placed for (it moves every 0.1 s, so compare with the tip then).
+  double closest = std::numeric_limits<double>::infinity();
+  for (const MagnetSample& m : r.magnet_samples) {
+    for (const Vec3& v : scene.mesh.vertices) closest = std::min(closest, (v - m.position).norm());
+  }
+  std::printf("  navigator to %s: %s (%s), %.0f mm everted, %.2f s of computing, EPM at least %.1f mm from the wall\n",
+              to.c_str(), r.success ? "reached" : "NOT reached", branches.c_str(), 1e3 * r.samples.back().length,
+              r.runtime_s, 1e3 * closest);
+  EXPECT_GE(closest, std::hypot(50.8e-3, 50.8e-3));
   return r;
 }
 
@@ -236,6 +246,29 @@ TEST(Experiment, BadScenesNameTheFileAndKey) {
   const std::string navigated =
       replaced(text, "  pressure: [[0, 35]]\n", "  pressure: [[0, 35]]\n  navigator: {target: \"0-7\"}\n");
   expect_error(navigated, "control.navigator.target: no branch '0-7'");  // (and magnet 0 is also keyframed)
+  // A magnet inside the body: its rest pose or a keyframe with the Ø101.6 mm EPM on the phantom.
+  expect_error(replaced(text, "position: [90, -250, 0], axis: [0, 1, 0]}\n", "position: [60, -30, 0], axis: [0, 1, 0]}\n"),
+               "magnets[0].position: the magnet would overlap the anatomy");
+  expect_error(replaced(text, "{time: 1, position: [70, -110, 0]", "{time: 1, position: [70, -40, 0]"),
+               "control.magnets[0].keyframes[1].position: the magnet would overlap the anatomy");
+}
+
+TEST(Experiment, ATargetOrABaseOutsideTheLumenIsRefusedBeforeTheRun) {
+  // Checked by the collision world's ray parity when the run starts, before any step or output.
+  const auto error_of = [](const std::string& scene) -> std::string {
+    try {
+      (void)run_experiment(parse_experiment_scene(scene, "bad.yaml", MAGVINE_SOURCE_DIR));
+    } catch (const InputError& e) {
+      return e.what();
+    }
+    return "no error";
+  };
+  const std::string text = demo_text();
+  const std::string target = error_of(replaced(text, "position: [100, -24, 0], tolerance", "position: [100, -60, 0], tolerance"));
+  EXPECT_NE(target.find("bad.yaml:"), std::string::npos) << target;
+  EXPECT_NE(target.find("target.position: (100, -60, 0) mm is outside the lumen"), std::string::npos) << target;
+  const std::string base = error_of(replaced(text, "position: [2, 0, -0.5]", "position: [2, 0, -9]"));
+  EXPECT_NE(base.find("robot.base.position: (2, 0, -9) mm is outside the lumen"), std::string::npos) << base;
 }
 
 }  // namespace

@@ -14,6 +14,7 @@
 #include "magnet_entries.hpp"
 #include "magvine/anatomy/collision_world.hpp"
 #include "magvine/anatomy/mesh_io.hpp"
+#include "magvine/anatomy/mesh_report.hpp"
 #include "magvine/anatomy/phantom.hpp"
 #include "magvine/core/atomic_file.hpp"
 #include "magvine/core/error.hpp"
@@ -138,6 +139,32 @@ Vec3 along(const anatomy::AirwayGraph& graph, int branch, double lead) {
 }
 
 /// The navigator's magnet pose for the tip at `tip`: on the line from the tip through the aim point.
+/// Radius of the sphere that bounds source i [m]: a cylinder's half diagonal; 0 for a dipole or a uniform field.
+double bounding_radius(const magnetics::FieldModel& magnets, std::size_t i) {
+  const auto* cylinder = std::get_if<magnetics::CylinderMagnet>(&magnets.sources[i]);
+  return cylinder == nullptr ? 0.0 : std::hypot(cylinder->radius(), 0.5 * cylinder->length());
+}
+
+/// Distance from `point` to the nearest vertex of the mesh [m] (an upper bound on the distance to its surface, within
+/// half an edge: enough to tell a magnet from the anatomy).
+double nearest_vertex_distance(const anatomy::TriangleMesh& mesh, const Vec3& point) {
+  double best = std::numeric_limits<double>::infinity();
+  for (const Vec3& v : mesh.vertices) best = std::min(best, (v - point).squaredNorm());
+  return std::sqrt(best);
+}
+
+/// Why a magnet of bounding radius r at `centre` may not be placed there (it overlaps the anatomy), or empty.
+std::string overlap_problem(const anatomy::TriangleMesh& mesh, const Vec3& centre, double r) {
+  if (!(r > 0.0)) return {};
+  const double d = nearest_vertex_distance(mesh, centre);
+  if (d >= r) return {};
+  std::ostringstream why;
+  why.precision(3);
+  why << "the magnet would overlap the anatomy (its centre is " << 1e3 * d << " mm from the airway wall, its "
+      << "bounding sphere " << 1e3 * r << " mm): an EPM stays outside the patient";
+  return why.str();
+}
+
 MagnetKeyframe navigate(const Navigator& nav, const anatomy::AirwayGraph& graph, const std::vector<int>& plan,
                         const Vec3& tip, double time, const Vec3& offset) {
   const int here = nearest_branch(graph, tip);
@@ -157,6 +184,20 @@ MagnetKeyframe navigate(const Navigator& nav, const anatomy::AirwayGraph& graph,
   k.position = tip + std::clamp(nav.distance, nav.min_distance, nav.max_distance) * u + offset;
   k.axis = u;
   return k;
+}
+
+/// The navigator's pose kept clear of the anatomy: moved out along its line from the tip, 5 mm at a time up to
+/// max_distance, while its bounding sphere (radius r) would overlap the airway mesh. Returns whether it is clear.
+bool keep_clear(const Navigator& nav, const anatomy::TriangleMesh& mesh, double r, const Vec3& tip, MagnetKeyframe& k) {
+  const Vec3 u = k.axis;
+  double d = (k.position - tip).dot(u);
+  while (nearest_vertex_distance(mesh, k.position) < r) {
+    if (d >= nav.max_distance) return false;
+    const double next = std::min(nav.max_distance, d + 5e-3);
+    k.position += (next - d) * u;
+    d = next;
+  }
+  return true;
 }
 
 /// The whole-run figures of metrics.json, also the trials' outcomes.
@@ -248,6 +289,7 @@ ExperimentScene parse_experiment_scene(const std::string& text, const std::strin
     scene.anatomy_label = "phantom " + p.text("kind");
     scene.mesh = std::move(ph.mesh);
     scene.graph = std::move(ph.graph);
+    scene.closed_anatomy = true;  // generated phantoms are closed by construction
   } else {
     if (anatomy_entry.has("mesh_units") && !parse_length_unit(anatomy_entry.text("mesh_units"))) {
       anatomy_entry.fail("mesh_units", "must be mm, cm or m (got '" + anatomy_entry.text("mesh_units") + "')");
@@ -258,6 +300,7 @@ ExperimentScene parse_experiment_scene(const std::string& text, const std::strin
     scene.anatomy_label = mesh.string();
     try {
       scene.mesh = anatomy::import_mesh(mesh, {.units = mesh_units}).mesh;
+      scene.closed_anatomy = anatomy::analyse_mesh(scene.mesh).watertight;
     } catch (const InputError& e) {
       anatomy_entry.fail("mesh", e.what());
     }
@@ -275,6 +318,7 @@ ExperimentScene parse_experiment_scene(const std::string& text, const std::strin
   const YamlMap base = robot.map("base");
   base.allow_only({"position", "direction", "normal"});
   scene.base_position = base.vec3("position") * unit;
+  scene.base_line = line_of(robot.node("base"));
   scene.base_frame = base_frame_of(base);
 
   if (top.has("growth")) {
@@ -328,7 +372,15 @@ ExperimentScene parse_experiment_scene(const std::string& text, const std::strin
     if (g.has("retraction_pressure")) o.retraction_pressure = non_negative("retraction_pressure") * stress_unit;
   }
 
-  if (top.has("magnets")) scene.magnets = parse_magnet_list(top, unit);
+  if (top.has("magnets")) {
+    scene.magnets = parse_magnet_list(top, unit);
+    const YAML::Node list = top.node("magnets");
+    for (std::size_t i = 0; i < scene.magnets->size(); ++i) {
+      const std::string why =
+          overlap_problem(scene.mesh, scene.magnets->rest_poses[i].position, bounding_radius(*scene.magnets, i));
+      if (!why.empty()) top.fail_at(list[i], "magnets[" + std::to_string(i) + "].position", why);
+    }
+  }
 
   const YamlMap sim = top.map("simulation");
   sim.allow_only({"duration", "dt", "gravity", "stop_at_target"});
@@ -372,6 +424,9 @@ ExperimentScene parse_experiment_scene(const std::string& text, const std::strin
         if (!keys.empty() && !(key.time > keys.back().time)) f.fail("time", "times must increase");
         key.position = f.vec3("position") * unit;
         key.axis = f.nonzero_vec3("axis").normalized();
+        const std::string why =
+            overlap_problem(scene.mesh, key.position, bounding_radius(*scene.magnets, static_cast<std::size_t>(index)));
+        if (!why.empty()) f.fail("position", why);
         keys.push_back(key);
       }
     }
@@ -411,6 +466,7 @@ ExperimentScene parse_experiment_scene(const std::string& text, const std::strin
     t.allow_only({"position", "tolerance"});
     scene.target = t.vec3("position") * unit;
     scene.target_tolerance = t.positive("tolerance") * unit;
+    scene.target_line = line_of(top.node("target"));
   }
   if (top.has("trials")) {
     const YamlMap t = top.map("trials");
@@ -439,10 +495,31 @@ ExperimentResult run_experiment(const ExperimentScene& scene, const std::functio
   const Stopwatch clock;
   ExperimentResult out;
   const anatomy::CollisionWorld world(scene.mesh);
+  // Placements only the collision world can check (ray parity: closed anatomy only), before anything is written.
+  if (scene.closed_anatomy) {
+    const auto where = [](const Vec3& p) {
+      std::ostringstream s;
+      s.precision(4);
+      s << "(" << 1e3 * p.x() << ", " << 1e3 * p.y() << ", " << 1e3 * p.z() << ") mm";
+      return s.str();
+    };
+    if (!world.contains(scene.base_position)) {
+      throw InputError(scene.file, scene.base_line, "robot.base.position",
+                       where(scene.base_position) + " is outside the lumen of the " + scene.anatomy_label);
+    }
+    if (scene.target && !world.contains(*scene.target)) {
+      throw InputError(scene.file, scene.target_line, "target.position",
+                       where(*scene.target) + " is outside the lumen of the " + scene.anatomy_label);
+    }
+  }
   std::vector<int> plan;
   double next_navigation = 0.0;
   std::optional<MagnetKeyframe> steered;  // the navigator's current pose for its magnet
   if (scene.navigator) plan = anatomy::path_from_root(*scene.graph, scene.navigator->target_branch);
+  const double steered_radius =
+      scene.navigator ? bounding_radius(*scene.magnets, static_cast<std::size_t>(scene.navigator->magnet)) : 0.0;
+  bool workspace_warned = false;
+  std::vector<robot::GrowthEvent> workspace_events;  // the navigator's, merged with the growth's at the end
   std::vector<magnetics::Pose> poses;
   const auto poses_at = [&](double t) {
     std::vector<magnetics::Pose> p = scene.magnets->rest_poses;
@@ -468,6 +545,7 @@ ExperimentResult run_experiment(const ExperimentScene& scene, const std::functio
     // The first pose from the straight body's tip, before the vine is built.
     const Vec3 tip0 = scene.base_position + scene.vine.length * scene.base_frame.col(0);
     steered = navigate(*scene.navigator, *scene.graph, plan, tip0, 0.0, scene.navigator_offset);
+    keep_clear(*scene.navigator, scene.mesh, steered_radius, tip0, *steered);
     next_navigation = scene.navigator->interval;
   }
   if (scene.magnets) {
@@ -497,6 +575,12 @@ ExperimentResult run_experiment(const ExperimentScene& scene, const std::functio
     const double dt = t - growth.time();
     if (scene.navigator && t >= next_navigation - 1e-12) {
       steered = navigate(*scene.navigator, *scene.graph, plan, growth.state().tip(), t, scene.navigator_offset);
+      if (!keep_clear(*scene.navigator, scene.mesh, steered_radius, growth.state().tip(), *steered) &&
+          !workspace_warned) {
+        workspace_warned = true;
+        workspace_events.push_back({t, growth.length(), "workspace",
+                              "the navigator's magnet overlaps the anatomy even at max_distance; placed there anyway"});
+      }
       next_navigation += scene.navigator->interval;
     }
     if (scene.magnets && moving) {
@@ -541,6 +625,9 @@ ExperimentResult run_experiment(const ExperimentScene& scene, const std::functio
     }
   }
   out.events = growth.events();
+  out.events.insert(out.events.end(), workspace_events.begin(), workspace_events.end());
+  std::stable_sort(out.events.begin(), out.events.end(),
+                   [](const robot::GrowthEvent& a, const robot::GrowthEvent& b) { return a.time < b.time; });
   out.final_state = growth.state();
   out.runtime_s = clock.seconds();
   return out;

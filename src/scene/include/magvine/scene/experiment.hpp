@@ -42,9 +42,11 @@
 /// gives the branch to enter next, and the aim point `lead` (default 15 mm) along the centreline past its start (the
 /// target's end once the tip is in it). The magnet is placed on the line from the tip through the aim point,
 /// `distance` from the tip (clamped to min_distance–max_distance, default 100–300 mm: the EPM stays outside the
-/// patient), its axis along that line: the tip then sits on the magnet's axis, where a magnetic-fluid fill is pulled
+/// patient; moved further out along that line while it would overlap the airway mesh), its axis along that line: the tip then sits on the magnet's axis, where a magnetic-fluid fill is pulled
 /// hardest towards it (gradient pull; torque steering of skin vines is not automated yet). Its success: the tip within
-/// 1.5 lumen radii of the target branch's end (unless `target:` gives a point). Unknown keys are errors naming the closest valid one (exit 2), and every problem names the file, line and
+/// 1.5 lumen radii of the target branch's end (unless `target:` gives a point). Placement checks (InputError): a
+/// magnet overlapping the anatomy at rest or at a keyframe (at load); a base or target outside the lumen of closed
+/// anatomy (when the run starts). Unknown keys are errors naming the closest valid one (exit 2), and every problem names the file, line and
 /// key. Paths are relative to the scene file.
 
 #include <cstdint>
@@ -121,6 +123,9 @@ struct ExperimentScene {
   TrialPerturbation perturbation;   ///< for `magvine trials`
   Vec3 navigator_offset = Vec3::Zero();  ///< a trial's placement error added to the navigator's poses [m]
   std::uint64_t seed = 0;
+  bool closed_anatomy = false;      ///< the mesh is closed (generated, or watertight): inside/outside is defined
+  int target_line = 0;              ///< lines of target: and robot.base: in the file (for messages)
+  int base_line = 0;
 };
 
 /// Whether a scene file is an experiment (has `anatomy:`) rather than a free-space scene. InputError for an
