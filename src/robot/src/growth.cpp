@@ -1,6 +1,7 @@
 #include "magvine/robot/growth.hpp"
 
 #include <algorithm>
+#include <optional>
 #include <array>
 #include <cmath>
 #include <cstdio>
@@ -238,6 +239,11 @@ bool VineGrowth::solve_with_wall(GrowthStepReport& report) {
     for (int b = 0; b < pressed_count[i]; ++b) v -= pressed[i][static_cast<std::size_t>(b)].dot(v) * pressed[i][static_cast<std::size_t>(b)];
     return v;
   };
+  // Walls a node's centre passed through in a solve (its planes came from where it started, and a large move can
+  // carry it past walls it had not met): the pass is undone and the wall kept as a plane for that node for the rest
+  // of the step, facing the side it came from (continuous collision for a swing across an obstacle).
+  std::vector<NodeContact> crossed;
+  RodState before;
   for (int pass = 0; pass < m_options.max_contact_passes; ++pass) {
     ++report.contact_passes;
     c.contacts.clear();
@@ -283,12 +289,34 @@ bool VineGrowth::solve_with_wall(GrowthStepReport& report) {
         c.anchors.push_back({static_cast<int>(i), start[i], t, mu * m_normal_force[i] / m_h});
       }
     }
+    c.contacts.insert(c.contacts.end(), crossed.begin(), crossed.end());
+    if (m_world != nullptr) before = m_state;
     const RodSolveReport r = solve_rod_statics(m_model, m_field, m_state, m_options.solver, &m_workspace, &c);
     report.newton_iterations += r.iterations;
     if (!r.converged) {
       report.converged = false;
       report.failure = r.failure;
       return false;
+    }
+    bool tunnelled = false;
+    for (std::size_t i = 1; i < nodes && m_world != nullptr; ++i) {
+      const Vec3 path = m_state.x[i] - before.x[i];
+      const double length = path.norm();
+      if (length < 0.25 * m_radius) continue;  // shorter than any wall's planes allow to go unnoticed
+      const std::optional<anatomy::RayHit> hit = m_world->ray_cast(before.x[i], path / length, length);
+      if (!hit) continue;
+      crossed.push_back({static_cast<int>(i), hit->point, hit->normal, radius[i] - smoothing, m_stiffness, smoothing});
+      tunnelled = true;
+    }
+    if (tunnelled) {
+      m_state = before;
+      if (pass + 1 == m_options.max_contact_passes) {
+        report.converged = false;
+        report.failure = "the body kept passing through the wall in " + std::to_string(m_options.max_contact_passes) +
+                         " solves";
+        return false;
+      }
+      continue;
     }
     // Wall forces from the planes at the solved state, and whether fresh queries agree with the planes.
     std::fill(wall_force.begin(), wall_force.end(), Vec3::Zero());

@@ -139,29 +139,52 @@ Vec3 along(const anatomy::AirwayGraph& graph, int branch, double lead) {
 }
 
 /// The navigator's magnet pose for the tip at `tip`: on the line from the tip through the aim point.
-/// Radius of the sphere that bounds source i [m]: a cylinder's half diagonal; 0 for a dipole or a uniform field.
-double bounding_radius(const magnetics::FieldModel& magnets, std::size_t i) {
+/// The magnet body of source i for the placement checks: a cylinder's radius and half length [m]; none for a dipole
+/// or a uniform field (points and fields do not collide).
+struct MagnetBody {
+  double radius = 0.0;
+  double half_length = 0.0;
+};
+std::optional<MagnetBody> magnet_body(const magnetics::FieldModel& magnets, std::size_t i) {
   const auto* cylinder = std::get_if<magnetics::CylinderMagnet>(&magnets.sources[i]);
-  return cylinder == nullptr ? 0.0 : std::hypot(cylinder->radius(), 0.5 * cylinder->length());
+  if (cylinder == nullptr) return std::nullopt;
+  return MagnetBody{cylinder->radius(), 0.5 * cylinder->length()};
 }
 
-/// Distance from `point` to the nearest vertex of the mesh [m] (an upper bound on the distance to its surface, within
-/// half an edge: enough to tell a magnet from the anatomy).
-double nearest_vertex_distance(const anatomy::TriangleMesh& mesh, const Vec3& point) {
-  double best = std::numeric_limits<double>::infinity();
-  for (const Vec3& v : mesh.vertices) best = std::min(best, (v - point).squaredNorm());
-  return std::sqrt(best);
+constexpr double kMagnetClearance = 2e-3;  ///< the least gap between a magnet and the airway wall [m]
+
+/// How many of the mesh's vertices lie inside the magnet's cylinder grown by kMagnetClearance (centre, unit axis), and
+/// the deepest one's depth [m] (the mesh's edges are far shorter than a magnet, so its vertices stand for it).
+std::size_t vertices_inside(const anatomy::TriangleMesh& mesh, const MagnetBody& body, const Vec3& centre,
+                            const Vec3& axis, double* depth = nullptr) {
+  const double r = body.radius + kMagnetClearance;
+  const double h = body.half_length + kMagnetClearance;
+  std::size_t count = 0;
+  double deepest = 0.0;
+  for (const Vec3& v : mesh.vertices) {
+    const Vec3 d = v - centre;
+    const double a = std::abs(d.dot(axis));
+    if (a > h) continue;
+    const double rho = (d - d.dot(axis) * axis).norm();
+    if (rho > r) continue;
+    ++count;
+    deepest = std::max(deepest, std::min(h - a, r - rho));
+  }
+  if (depth != nullptr) *depth = deepest;
+  return count;
 }
 
-/// Why a magnet of bounding radius r at `centre` may not be placed there (it overlaps the anatomy), or empty.
-std::string overlap_problem(const anatomy::TriangleMesh& mesh, const Vec3& centre, double r) {
-  if (!(r > 0.0)) return {};
-  const double d = nearest_vertex_distance(mesh, centre);
-  if (d >= r) return {};
+/// Why source i of `magnets` may not sit at (centre, axis) (it overlaps the anatomy), or empty.
+std::string overlap_problem(const anatomy::TriangleMesh& mesh, const magnetics::FieldModel& magnets, std::size_t i,
+                            const Vec3& centre, const Vec3& axis) {
+  const std::optional<MagnetBody> body = magnet_body(magnets, i);
+  if (!body) return {};
+  double depth = 0.0;
+  if (vertices_inside(mesh, *body, centre, axis.normalized(), &depth) == 0) return {};
   std::ostringstream why;
   why.precision(3);
-  why << "the magnet would overlap the anatomy (its centre is " << 1e3 * d << " mm from the airway wall, its "
-      << "bounding sphere " << 1e3 * r << " mm): an EPM stays outside the patient";
+  why << "the magnet would overlap the anatomy (the airway wall reaches " << 1e3 * depth
+      << " mm into it, 2 mm clearance included): an EPM stays outside the patient";
   return why.str();
 }
 
@@ -187,17 +210,113 @@ MagnetKeyframe navigate(const Navigator& nav, const anatomy::AirwayGraph& graph,
 }
 
 /// The navigator's pose kept clear of the anatomy: moved out along its line from the tip, 5 mm at a time up to
-/// max_distance, while its bounding sphere (radius r) would overlap the airway mesh. Returns whether it is clear.
-bool keep_clear(const Navigator& nav, const anatomy::TriangleMesh& mesh, double r, const Vec3& tip, MagnetKeyframe& k) {
+/// max_distance, while the magnet (body, if any) would overlap the airway mesh. Returns whether it is clear.
+bool keep_clear(const Navigator& nav, const anatomy::TriangleMesh& mesh, const std::optional<MagnetBody>& body,
+                const Vec3& tip, MagnetKeyframe& k) {
+  if (!body) return true;
   const Vec3 u = k.axis;
   double d = (k.position - tip).dot(u);
-  while (nearest_vertex_distance(mesh, k.position) < r) {
+  while (vertices_inside(mesh, *body, k.position, u) > 0) {
     if (d >= nav.max_distance) return false;
     const double next = std::min(nav.max_distance, d + 5e-3);
     k.position += (next - d) * u;
     d = next;
   }
   return true;
+}
+
+/// control.commands, the gamepad script (experiment.hpp), turned into keyframes: each command ramps its channel
+/// (a magnet's pose, the pressure, the tether) linearly from its value at `time` to the new one over `over` seconds.
+void parse_commands(const YamlMap& control, ExperimentScene& scene, double unit, double stress_unit) {
+  const YAML::Node list = control.node("commands");
+  if (!list.IsSequence() || list.size() == 0) control.fail("commands", "must be a list of {time, ...} commands");
+  const bool pressure_keys = !scene.pressure.times.empty();
+  const bool tether_keys = scene.tether.has_value();
+  Schedule pressure;
+  pressure.times = {0.0};
+  pressure.values = {scene.vine.pressure};
+  Schedule tether;
+  tether.times = {0.0};
+  tether.values = {scene.vine.length};
+  bool grows = false;
+  std::vector<std::vector<MagnetKeyframe>> poses;
+  if (scene.magnets) poses.resize(scene.magnets->size());
+  double last_time = 0.0;
+  for (std::size_t i = 0; i < list.size(); ++i) {
+    const YamlMap c(list[i], control.file(), control.key_path("commands[" + std::to_string(i) + "]"));
+    c.allow_only({"time", "over", "magnet", "move", "rotate", "pressure", "grow"});
+    const double t = c.number("time");
+    if (t < 0.0) c.fail("time", "must be >= 0");
+    if (t < last_time) c.fail("time", "commands must be in time order");
+    last_time = t;
+    const double over = c.has("over") ? c.positive("over") : 0.5;
+    const int actions = static_cast<int>(c.has("move")) + static_cast<int>(c.has("rotate")) +
+                        static_cast<int>(c.has("pressure")) + static_cast<int>(c.has("grow"));
+    if (actions != 1) c.fail("time", "each command does exactly one of move, rotate, pressure, grow");
+    // Appends the ramp (t, from) → (t + over, to) to a schedule; the channel must be idle by t.
+    const auto ramp = [&](Schedule& sch, double to, const std::string& key) {
+      if (t < sch.times.back()) c.fail(key, "starts before the previous command on this channel ends");
+      const double from = sch.values.back();
+      if (t > sch.times.back()) {
+        sch.times.push_back(t);
+        sch.values.push_back(from);
+      }
+      sch.times.push_back(t + over);
+      sch.values.push_back(to);
+    };
+    if (c.has("pressure")) {
+      if (pressure_keys) c.fail("pressure", "the pressure has keyframes in control.pressure already");
+      const double to = pressure.values.back() + c.number("pressure") * stress_unit;
+      if (to < 0.0) c.fail("pressure", "would take the pressure below 0");
+      ramp(pressure, to, "pressure");
+      continue;
+    }
+    if (c.has("grow")) {
+      if (tether_keys) c.fail("grow", "the tether has keyframes in control.tether already");
+      const double to = tether.values.back() + c.number("grow") * unit;
+      if (to < 0.0) c.fail("grow", "would pull the tether back beyond the base");
+      ramp(tether, to, "grow");
+      grows = true;
+      continue;
+    }
+    // move or rotate a magnet
+    if (!scene.magnets) c.fail(c.has("move") ? "move" : "rotate", "moves a magnet, but the scene has no magnets: list");
+    const double index = c.has("magnet") ? c.number("magnet") : 0.0;
+    if (index != std::floor(index) || index < 0 || index >= static_cast<double>(scene.magnets->size())) {
+      c.fail("magnet", "must be the index of an entry of magnets:");
+    }
+    const auto m = static_cast<std::size_t>(index);
+    if (!scene.magnet_keyframes[m].empty()) c.fail("magnet", "this magnet has keyframes in control.magnets already");
+    auto& keys = poses[m];
+    if (keys.empty()) {
+      const magnetics::Pose& rest = scene.magnets->rest_poses[m];
+      keys.push_back({0.0, rest.position, rest.rotation.col(2)});
+    }
+    const std::string key = c.has("move") ? "move" : "rotate";
+    if (t < keys.back().time) c.fail(key, "starts before the previous command on this magnet ends");
+    MagnetKeyframe next = keys.back();
+    if (t > keys.back().time) {
+      next.time = t;
+      keys.push_back(next);
+    }
+    next.time = t + over;
+    if (c.has("move")) {
+      next.position += c.vec3("move") * unit;
+    } else {
+      const YamlMap r = c.map("rotate");
+      r.allow_only({"axis", "angle"});
+      const Vec3 axis = r.nonzero_vec3("axis").normalized();
+      next.axis = Eigen::AngleAxisd(r.number("angle") * kDegToRad, axis) * next.axis;
+    }
+    const std::string why = overlap_problem(scene.mesh, *scene.magnets, m, next.position, next.axis);
+    if (!why.empty()) c.fail(key, why);
+    keys.push_back(next);
+  }
+  if (pressure.times.size() > 1) scene.pressure = pressure;
+  if (grows) scene.tether = tether;
+  for (std::size_t m = 0; m < poses.size(); ++m) {
+    if (!poses[m].empty()) scene.magnet_keyframes[m] = std::move(poses[m]);
+  }
 }
 
 /// The whole-run figures of metrics.json, also the trials' outcomes.
@@ -376,8 +495,8 @@ ExperimentScene parse_experiment_scene(const std::string& text, const std::strin
     scene.magnets = parse_magnet_list(top, unit);
     const YAML::Node list = top.node("magnets");
     for (std::size_t i = 0; i < scene.magnets->size(); ++i) {
-      const std::string why =
-          overlap_problem(scene.mesh, scene.magnets->rest_poses[i].position, bounding_radius(*scene.magnets, i));
+      const magnetics::Pose& pose = scene.magnets->rest_poses[i];
+      const std::string why = overlap_problem(scene.mesh, *scene.magnets, i, pose.position, pose.rotation.col(2));
       if (!why.empty()) top.fail_at(list[i], "magnets[" + std::to_string(i) + "].position", why);
     }
   }
@@ -395,8 +514,8 @@ ExperimentScene parse_experiment_scene(const std::string& text, const std::strin
   if (sim.has("gravity")) scene.growth.gravity = sim.vec3("gravity");
 
   const YamlMap control = top.map("control");
-  control.allow_only({"pressure", "tether", "magnets", "navigator"});
-  scene.pressure = schedule_of(control, "pressure", stress_unit, true);
+  control.allow_only({"pressure", "tether", "magnets", "navigator", "commands"});
+  if (control.has("pressure")) scene.pressure = schedule_of(control, "pressure", stress_unit, true);
   if (control.has("tether")) scene.tether = schedule_of(control, "tether", unit, true);
   if (scene.magnets) scene.magnet_keyframes.resize(scene.magnets->size());
   if (control.has("magnets")) {
@@ -425,11 +544,17 @@ ExperimentScene parse_experiment_scene(const std::string& text, const std::strin
         key.position = f.vec3("position") * unit;
         key.axis = f.nonzero_vec3("axis").normalized();
         const std::string why =
-            overlap_problem(scene.mesh, key.position, bounding_radius(*scene.magnets, static_cast<std::size_t>(index)));
+            overlap_problem(scene.mesh, *scene.magnets, static_cast<std::size_t>(index), key.position, key.axis);
         if (!why.empty()) f.fail("position", why);
         keys.push_back(key);
       }
     }
+  }
+
+  if (control.has("commands")) parse_commands(control, scene, unit, stress_unit);
+  if (scene.pressure.times.empty()) {  // neither keyframes nor commands: held at robot.pressure
+    scene.pressure.times = {0.0};
+    scene.pressure.values = {scene.vine.pressure};
   }
 
   if (control.has("navigator")) {
@@ -516,8 +641,8 @@ ExperimentResult run_experiment(const ExperimentScene& scene, const std::functio
   double next_navigation = 0.0;
   std::optional<MagnetKeyframe> steered;  // the navigator's current pose for its magnet
   if (scene.navigator) plan = anatomy::path_from_root(*scene.graph, scene.navigator->target_branch);
-  const double steered_radius =
-      scene.navigator ? bounding_radius(*scene.magnets, static_cast<std::size_t>(scene.navigator->magnet)) : 0.0;
+  const std::optional<MagnetBody> steered_body =
+      scene.navigator ? magnet_body(*scene.magnets, static_cast<std::size_t>(scene.navigator->magnet)) : std::nullopt;
   bool workspace_warned = false;
   std::vector<robot::GrowthEvent> workspace_events;  // the navigator's, merged with the growth's at the end
   std::vector<magnetics::Pose> poses;
@@ -545,7 +670,7 @@ ExperimentResult run_experiment(const ExperimentScene& scene, const std::functio
     // The first pose from the straight body's tip, before the vine is built.
     const Vec3 tip0 = scene.base_position + scene.vine.length * scene.base_frame.col(0);
     steered = navigate(*scene.navigator, *scene.graph, plan, tip0, 0.0, scene.navigator_offset);
-    keep_clear(*scene.navigator, scene.mesh, steered_radius, tip0, *steered);
+    keep_clear(*scene.navigator, scene.mesh, steered_body, tip0, *steered);
     next_navigation = scene.navigator->interval;
   }
   if (scene.magnets) {
@@ -575,7 +700,7 @@ ExperimentResult run_experiment(const ExperimentScene& scene, const std::functio
     const double dt = t - growth.time();
     if (scene.navigator && t >= next_navigation - 1e-12) {
       steered = navigate(*scene.navigator, *scene.graph, plan, growth.state().tip(), t, scene.navigator_offset);
-      if (!keep_clear(*scene.navigator, scene.mesh, steered_radius, growth.state().tip(), *steered) &&
+      if (!keep_clear(*scene.navigator, scene.mesh, steered_body, growth.state().tip(), *steered) &&
           !workspace_warned) {
         workspace_warned = true;
         workspace_events.push_back({t, growth.length(), "workspace",

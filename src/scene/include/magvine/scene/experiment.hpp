@@ -24,11 +24,17 @@
 /// magnets:                                  # optional, as in the magnets file; poses at t = 0
 ///   - {kind: cylinder, diameter: 101.6, length: 101.6, polarisation: 1.48, position: [60, -150, 0], axis: [0, 1, 0]}
 /// control:
-///   pressure: [[0, 35], [20, 35]]           # keyframes [time, pressure]: linear between, held beyond the ends
+///   pressure: [[0, 35], [20, 35]]           # keyframes [time, pressure]: linear between, held beyond the ends;
+///                                           # none: robot.pressure (or the pressure commands)
 ///   tether: [[0, 5], [20, 105]]             # optional keyframes [time, released length]; none: free growth
 ///   magnets:                                # optional, per magnet (index in magnets:), poses at times
 ///     - {magnet: 0, keyframes: [{time: 0, position: [60, -150, 0], axis: [0, 1, 0]}, {time: 10, ...}]}
 ///   # navigator: {target: "0-1", magnet: 0, distance: 110}   # or: steer a magnet automatically (below)
+///   # commands:                             # or a gamepad script (like the thesis's), in time order; each does one
+///   #   - {time: 2, move: [0, 20, 0]}       # thing, ramped over `over` seconds [0.5]: move a magnet (index
+///   #   - {time: 3, rotate: {axis: [0, 0, 1], angle: 90}}   # `magnet` [0]) by a vector, turn its axis about a
+///   #   - {time: 4, pressure: -6}           # world axis [degrees], step the pressure up/down (from
+///   #   - {time: 5, over: 4, grow: 20}      # robot.pressure), release the tether (from the initial length)
 /// simulation: {duration: 20, dt: 0.02, gravity: [0, 0, -9.81]}   # duration and step [s]; gravity [m/s²];
 ///                                                                  # stop_at_target: true (default) ends the run
 ///                                                                  # when the target is reached
