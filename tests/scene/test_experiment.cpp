@@ -210,6 +210,29 @@ TEST(Experiment, OutputsCarryTheContractKeys) {
   // The magnet moves 140 mm towards the axis and 20 mm back along it in the first second, in a straight line: in
   // half a second, half that path.
   EXPECT_NEAR(m["magnet_travel_m"].get<double>() * 1e3, 0.5 * std::hypot(20.0, 140.0), 1e-6);
+  EXPECT_FALSE(std::filesystem::exists(dir / "shapes.csv"));  // opt-in
+  std::filesystem::remove_all(dir);
+
+  // outputs.shape_interval: the body at the first step at or past each multiple of 0.1 s (steps of 0.02 s: t = 0.02,
+  // 0.1, 0.2, 0.3, 0.4, 0.5), the last one the final shape.
+  ExperimentScene shaped = short_run;
+  shaped.shape_interval = 0.1;
+  const ExperimentResult rs = run_experiment(shaped);
+  write_experiment_outputs(shaped, rs, dir);
+  std::ifstream shapes(dir / "shapes.csv");
+  std::string line;
+  std::getline(shapes, line);
+  EXPECT_EQ(line, "t_s,node,x_m,y_m,z_m");
+  std::vector<std::string> rows;
+  while (std::getline(shapes, line)) rows.push_back(line);
+  ASSERT_EQ(rs.shapes.size(), 6u);
+  std::size_t expected_rows = 0;
+  for (const ShapeSample& sample : rs.shapes) expected_rows += sample.nodes.size();
+  EXPECT_EQ(rows.size(), expected_rows);
+  EXPECT_NEAR(rs.shapes.front().time, 0.02, 1e-12);
+  EXPECT_NEAR(rs.shapes[1].time, 0.1, 1e-9);
+  EXPECT_NEAR(rs.shapes[4].time, 0.4, 1e-9);
+  EXPECT_EQ(rs.shapes.back().nodes.back(), rs.final_state.tip());
   std::filesystem::remove_all(dir);
 }
 

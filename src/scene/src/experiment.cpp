@@ -383,7 +383,8 @@ ExperimentScene parse_experiment_scene(const std::string& text, const std::strin
   if (!root || root.IsNull()) throw InputError(file_label, 0, "", "empty scene file");
   const YamlMap top(root, file_label, "");
   top.allow_only(
-      {"units", "seed", "anatomy", "robot", "growth", "magnets", "control", "simulation", "target", "trials"});
+      {"units", "seed", "anatomy", "robot", "growth", "magnets", "control", "simulation", "target", "trials",
+       "outputs"});
   const FileUnits units = file_units(top);
   const double unit = units.metres;
   const double stress_unit = units.pascals;
@@ -501,6 +502,11 @@ ExperimentScene parse_experiment_scene(const std::string& text, const std::strin
     }
   }
 
+  if (top.has("outputs")) {
+    const YamlMap o = top.map("outputs");
+    o.allow_only({"shape_interval"});
+    if (o.has("shape_interval")) scene.shape_interval = o.positive("shape_interval");
+  }
   const YamlMap sim = top.map("simulation");
   sim.allow_only({"duration", "dt", "gravity", "stop_at_target"});
   if (sim.has("stop_at_target")) {
@@ -644,6 +650,7 @@ ExperimentResult run_experiment(const ExperimentScene& scene, const std::functio
   const std::optional<MagnetBody> steered_body =
       scene.navigator ? magnet_body(*scene.magnets, static_cast<std::size_t>(scene.navigator->magnet)) : std::nullopt;
   bool workspace_warned = false;
+  double next_shape = 0.0;  // outputs.shape_interval
   std::vector<robot::GrowthEvent> workspace_events;  // the navigator's, merged with the growth's at the end
   std::vector<magnetics::Pose> poses;
   const auto poses_at = [&](double t) {
@@ -739,6 +746,10 @@ ExperimentResult run_experiment(const ExperimentScene& scene, const std::functio
     s.total_shear = growth.wall_forces().total_shear;
     if (scene.graph) s.branch = nearest_branch(*scene.graph, s.tip);
     out.samples.push_back(s);
+    if (scene.shape_interval > 0.0 && t >= next_shape - 1e-9) {
+      out.shapes.push_back({t, growth.state().x});
+      next_shape += scene.shape_interval;
+    }
     if (scene.target && out.time_to_target < 0.0 && (s.tip - *scene.target).norm() <= scene.target_tolerance) {
       out.time_to_target = t;
       out.success = true;
@@ -964,6 +975,18 @@ void write_experiment_outputs(const ExperimentScene& scene, const ExperimentResu
   create_output_directory(dir);
   write_file_atomically(dir / "tip_trajectory.csv", tips.str());
   write_file_atomically(dir / "shape.csv", shape.str());
+  if (scene.shape_interval > 0.0) {
+    std::ostringstream shapes;
+    shapes.precision(10);
+    shapes << "t_s,node,x_m,y_m,z_m\n";
+    for (const ShapeSample& sample : result.shapes) {
+      for (std::size_t i = 0; i < sample.nodes.size(); ++i) {
+        const Vec3& x = sample.nodes[i];
+        shapes << sample.time << ',' << i << ',' << x.x() << ',' << x.y() << ',' << x.z() << '\n';
+      }
+    }
+    write_file_atomically(dir / "shapes.csv", shapes.str());
+  }
   write_file_atomically(dir / "events.json", events.dump(2) + "\n");
   if (scene.graph) anatomy::write_graph(dir / "graph.json", *scene.graph);
   if (scene.magnets) {

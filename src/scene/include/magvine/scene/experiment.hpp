@@ -39,6 +39,7 @@
 ///                                                                  # stop_at_target: true (default) ends the run
 ///                                                                  # when the target is reached
 /// target: {position: [100, -20, 0], tolerance: 5}                 # optional: success when the tip is within it
+/// outputs: {shape_interval: 0.5}          # optional: the body's nodes every 0.5 s in shapes.csv (off by default)
 /// ```
 /// Magnet poses between keyframes: positions linear, axes turned along the great circle (slerp); held beyond the
 /// ends.
@@ -129,6 +130,7 @@ struct ExperimentScene {
   TrialPerturbation perturbation;   ///< for `magvine trials`
   Vec3 navigator_offset = Vec3::Zero();  ///< a trial's placement error added to the navigator's poses [m]
   std::uint64_t seed = 0;
+  double shape_interval = 0.0;      ///< outputs.shape_interval [s]: the body every so often in shapes.csv; 0: off
   bool closed_anatomy = false;      ///< the mesh is closed (generated, or watertight): inside/outside is defined
   int target_line = 0;              ///< lines of target: and robot.base: in the file (for messages)
   int base_line = 0;
@@ -162,8 +164,15 @@ struct MagnetSample {
   Vec3 axis = Vec3::UnitZ();
 };
 
+/// The body's nodes at a time (outputs.shape_interval).
+struct ShapeSample {
+  double time = 0.0;         ///< [s]
+  std::vector<Vec3> nodes;   ///< clamp first, tip last [m]
+};
+
 struct ExperimentResult {
   std::vector<ExperimentSample> samples;
+  std::vector<ShapeSample> shapes;  ///< every outputs.shape_interval (opt-in)
   std::vector<MagnetSample> magnet_samples;  ///< at every step where a keyframed magnet moved, and at t = 0
   std::vector<robot::GrowthEvent> events;
   robot::RodState final_state;
@@ -211,7 +220,8 @@ std::vector<TrialOutcome> run_trials(const ExperimentScene& scene, const std::ve
 void write_trial_outputs(const std::vector<TrialOutcome>& outcomes, const std::filesystem::path& dir);
 
 /// Writes, atomically, into `dir` (created): metrics.json, tip_trajectory.csv, magnet_trajectory.csv (when the
-/// scene has magnets), events.json, shape.csv (the final body) and, for a generated phantom, graph.json (its
+/// scene has magnets), events.json, shape.csv (the final body), shapes.csv (t_s,node,x_m,y_m,z_m; with
+/// outputs.shape_interval) and, for a generated phantom, graph.json (its
 /// centreline graph, anatomy/airway_graph.hpp). metrics.json keys: success, time_to_target_s,
 /// final_tip_error_m (null without a target), tip_position_m, everted_length_m, tip_path_length_m, branches_reached
 /// (graph names in order, generated phantoms), max_wall_normal_N, mean_wall_normal_N (time average of the total),
