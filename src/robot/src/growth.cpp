@@ -114,8 +114,12 @@ double VineGrowth::node_radius(const Vec3& x, const Mat3& frame, Vec3* across) c
   double width = lumen_width(x, frame, &line);
   if (width < 4.0 * m_radius) {  // near a narrowing: the sphere's front and back too
     for (const double side : {1.0, -1.0}) {
+      // Where the sphere's front is already past a wall (the tip against a carina's ridge), the rays would measure
+      // the tissue between two branches, not a gap: the wall ahead is a contact, not a constriction.
+      const Vec3 probe = x + side * m_radius * t;
+      if (!m_world->contains(probe)) continue;
       Vec3 u = line;
-      const double w = lumen_width(x + side * m_radius * t, frame, &u);
+      const double w = lumen_width(probe, frame, &u);
       if (w < width) line = u;
       width = std::min(width, w);
     }
