@@ -86,7 +86,7 @@ execute_process(COMMAND ${PYTHON} -c "
 import csv, json
 m = json.load(open('${WORK}/experiment/metrics.json'))
 assert m['success'] is True, m
-assert m['branches_reached'][-1] == '0-1', m['branches_reached']
+assert m['branches_reached'][-1] == '0-0', m['branches_reached']
 rows = list(csv.reader(open('${WORK}/experiment/tip_trajectory.csv')))
 assert rows[0][:4] == ['t_s', 'x_m', 'y_m', 'z_m'], rows[0]
 assert len(rows) == round(m['simulated_s'] / 0.02) + 1, (len(rows), m['simulated_s'])

@@ -38,14 +38,23 @@ std::string replaced(std::string text, const std::string& from, const std::strin
 
 TEST(Experiment, DemoSceneSteersIntoTheDaughterAndReachesTheTargetButNotWithoutTheMagnet) {
   // The Y phantom's daughters leave the junction at ±35°; the fluid vine on the table grows along the parent's
-  // axis. With the EPM swept in beside daughter 0-1 it turns into that daughter and reaches the target near its
-  // end; with the magnet left 250 mm away (the same scene, no keyframes) it does not.
+  // axis. With the EPM swept in beside daughter 0-0 it turns into that daughter and reaches the target near its
+  // end; with the magnet left 250 mm away (the same scene, no keyframes) it does not get there (it stops on the
+  // carina's ridge, which it meets at ~57°: its contacts there do not settle, a "solver" event); with the sweep
+  // mirrored to the −y side (and the target) it turns into 0-1.
   const ExperimentScene scene = load_experiment_scene(kDemo);
   const ExperimentResult steered = run_experiment(scene);
   ASSERT_TRUE(steered.converged) << steered.failure;
   ExperimentScene far = scene;
   far.magnet_keyframes.assign(far.magnet_keyframes.size(), {});
   const ExperimentResult unsteered = run_experiment(far);
+  ExperimentScene mirrored = scene;
+  for (MagnetKeyframe& k : mirrored.magnet_keyframes[0]) {
+    k.position.y() = -k.position.y();
+    k.axis.y() = -k.axis.y();
+  }
+  mirrored.target->y() = -mirrored.target->y();
+  const ExperimentResult other = run_experiment(mirrored);
   const auto describe = [](const char* what, const ExperimentResult& r) {
     const Eigen::Vector3d tip = 1e3 * r.final_state.tip();
     std::printf("  %s: tip (%.1f, %.1f, %.1f) mm, %.1f mm everted, target %s", what, tip.x(), tip.y(), tip.z(),
@@ -54,13 +63,16 @@ TEST(Experiment, DemoSceneSteersIntoTheDaughterAndReachesTheTargetButNotWithoutT
     for (const auto& e : r.events) std::printf("; %s: %s", e.kind.c_str(), e.detail.c_str());
     std::printf("\n");
   };
-  describe("EPM swept in", steered);
+  describe("EPM swept in beside 0-0", steered);
   describe("EPM left away", unsteered);
+  describe("EPM swept in beside 0-1", other);
   EXPECT_TRUE(steered.success);
-  EXPECT_EQ(steered.samples.back().branch, 2);  // branch 2 = "0-1", the −y daughter
+  EXPECT_EQ(steered.samples.back().branch, 1);  // branch 1 = "0-0", the +y daughter
+  EXPECT_GT(steered.final_state.tip().y(), 20e-3);
   EXPECT_FALSE(unsteered.success);
-  EXPECT_LT(steered.final_state.tip().y(), -20e-3);
-  EXPECT_GT(unsteered.final_state.tip().y(), -10e-3);
+  EXPECT_LT(unsteered.final_state.tip().y(), 10e-3);  // not in 0-0
+  EXPECT_TRUE(other.success);
+  EXPECT_EQ(other.samples.back().branch, 2);  // "0-1"
 }
 
 /// The result of the scene `file` with the navigator's target replaced.
@@ -101,10 +113,10 @@ TEST(Experiment, NavigatorSteersIntoEitherDaughterOfTheYAndToGenerationTwoOfTheT
   const std::filesystem::path dir = std::filesystem::path(MAGVINE_SOURCE_DIR) / "assets/scenes";
   std::ifstream in(kDemo);
   std::string y(std::istreambuf_iterator<char>(in), {});
-  y = replaced(y, "  magnets:\n    - {magnet: 0, keyframes: [{time: 0, position: [90, -250, 0], axis: [0, 1, 0]},\n"
-                  "                              {time: 1, position: [70, -110, 0], axis: [0, 1, 0]}]}",
+  y = replaced(y, "  magnets:\n    - {magnet: 0, keyframes: [{time: 0, position: [90, 250, 0], axis: [0, -1, 0]},\n"
+                  "                              {time: 1, position: [70, 110, 0], axis: [0, -1, 0]}]}",
                "  navigator: {target: \"0-1\", magnet: 0, distance: 110}");
-  y = replaced(y, "target: {position: [100, -24, 0], tolerance: 6}\n", "");
+  y = replaced(y, "target: {position: [100, 24, 0], tolerance: 6}\n", "");
   const std::filesystem::path y_file = std::filesystem::temp_directory_path() / "magvine_y_navigator.yaml";
   std::ofstream(y_file) << y;
   for (const char* daughter : {"0-0", "0-1"}) {
@@ -125,10 +137,10 @@ TEST(Experiment, TrialsPerturbEachRunAndGiveTheSameOutcomesOnOneThreadOrTwo) {
   // outcomes in the same order (each trial's perturbation is drawn from its own seed); every trial reaches its
   // daughter (the placement is off by ~2 mm, the pressure by ~0.5 kPa: far inside what the steering tolerates).
   std::string y = demo_text();
-  y = replaced(y, "  magnets:\n    - {magnet: 0, keyframes: [{time: 0, position: [90, -250, 0], axis: [0, 1, 0]},\n"
-                  "                              {time: 1, position: [70, -110, 0], axis: [0, 1, 0]}]}",
+  y = replaced(y, "  magnets:\n    - {magnet: 0, keyframes: [{time: 0, position: [90, 250, 0], axis: [0, -1, 0]},\n"
+                  "                              {time: 1, position: [70, 110, 0], axis: [0, -1, 0]}]}",
                "  navigator: {target: \"0-1\", magnet: 0, distance: 110}");
-  y = replaced(y, "target: {position: [100, -24, 0], tolerance: 6}\n", "");
+  y = replaced(y, "target: {position: [100, 24, 0], tolerance: 6}\n", "");
   const ExperimentScene scene = parse_experiment_scene(y, "y.yaml", MAGVINE_SOURCE_DIR);
   const ExperimentScene a = perturbed(scene, 1);
   const ExperimentScene b = perturbed(scene, 2);
@@ -275,22 +287,22 @@ TEST(Experiment, BadScenesNameTheFileAndKey) {
       replaced(text, "  pressure: [[0, 35]]\n", "  pressure: [[0, 35]]\n  navigator: {target: \"0-7\"}\n");
   expect_error(navigated, "control.navigator.target: no branch '0-7'");  // (and magnet 0 is also keyframed)
   // A magnet inside the body: its rest pose or a keyframe with the Ø101.6 mm EPM on the phantom.
-  expect_error(replaced(text, "position: [90, -250, 0], axis: [0, 1, 0]}\n", "position: [60, -30, 0], axis: [0, 1, 0]}\n"),
+  expect_error(replaced(text, "position: [90, 250, 0], axis: [0, -1, 0]}\n", "position: [60, 30, 0], axis: [0, -1, 0]}\n"),
                "magnets[0].position: the magnet would overlap the anatomy");
-  expect_error(replaced(text, "{time: 1, position: [70, -110, 0]", "{time: 1, position: [70, -40, 0]"),
+  expect_error(replaced(text, "{time: 1, position: [70, 110, 0]", "{time: 1, position: [70, 40, 0]"),
                "control.magnets[0].keyframes[1].position: the magnet would overlap the anatomy");
 }
 
 TEST(Experiment, GamepadCommandsBecomeTheSameKeyframesAsWrittenOut) {
-  // control.commands: the demo's magnet sweep written as one gamepad move (from the rest pose by (−20, 140, 0) mm
+  // control.commands: the demo's magnet sweep written as one gamepad move (from the rest pose by (−20, −140, 0) mm
   // over 1 s) gives the demo's keyframes, so the same run; pressure steps ramp over `over` (0.5 s
   // default) and grow commands release the tether from the initial length.
   const std::string text = demo_text();
   const std::string scripted =
       replaced(text,
-               "  magnets:\n    - {magnet: 0, keyframes: [{time: 0, position: [90, -250, 0], axis: [0, 1, 0]},\n"
-               "                              {time: 1, position: [70, -110, 0], axis: [0, 1, 0]}]}",
-               "  commands:\n    - {time: 0, over: 1, move: [-20, 140, 0]}");
+               "  magnets:\n    - {magnet: 0, keyframes: [{time: 0, position: [90, 250, 0], axis: [0, -1, 0]},\n"
+               "                              {time: 1, position: [70, 110, 0], axis: [0, -1, 0]}]}",
+               "  commands:\n    - {time: 0, over: 1, move: [-20, -140, 0]}");
   const ExperimentScene a = parse_experiment_scene(text, "a.yaml", MAGVINE_SOURCE_DIR);
   const ExperimentScene b = parse_experiment_scene(scripted, "b.yaml", MAGVINE_SOURCE_DIR);
   ASSERT_EQ(b.magnet_keyframes[0].size(), 2u);
@@ -305,8 +317,8 @@ TEST(Experiment, GamepadCommandsBecomeTheSameKeyframesAsWrittenOut) {
   EXPECT_LT((ra.final_state.tip() - rb.final_state.tip()).norm(), 1e-9);
 
   std::string more = replaced(scripted, "  pressure: [[0, 35]]\n", "");
-  more = replaced(more, "move: [-20, 140, 0]}",
-                  "move: [-20, 140, 0]}\n    - {time: 2, pressure: -5}\n    - {time: 3, over: 2, grow: 20}\n"
+  more = replaced(more, "move: [-20, -140, 0]}",
+                  "move: [-20, -140, 0]}\n    - {time: 2, pressure: -5}\n    - {time: 3, over: 2, grow: 20}\n"
                   "    - {time: 4, rotate: {axis: [0, 0, 1], angle: 90}}");
   const ExperimentScene c = parse_experiment_scene(more, "c.yaml", MAGVINE_SOURCE_DIR);
   EXPECT_DOUBLE_EQ(c.pressure.at(1.0), 35e3);      // robot.pressure until the command
@@ -318,7 +330,7 @@ TEST(Experiment, GamepadCommandsBecomeTheSameKeyframesAsWrittenOut) {
   EXPECT_DOUBLE_EQ(c.tether->at(6.0), 25e-3);
   const MagnetKeyframe turned = c.magnet_keyframes[0].back();
   EXPECT_DOUBLE_EQ(turned.time, 4.5);
-  EXPECT_LT((turned.axis - Vec3(-1.0, 0.0, 0.0)).norm(), 1e-12);  // +y turned 90° about +z
+  EXPECT_LT((turned.axis - Vec3(1.0, 0.0, 0.0)).norm(), 1e-12);  // −y turned 90° about +z
 
   const auto error_of = [](const std::string& scene) -> std::string {
     try {
@@ -336,7 +348,7 @@ TEST(Experiment, GamepadCommandsBecomeTheSameKeyframesAsWrittenOut) {
             std::string::npos);
   EXPECT_NE(error_of(replaced(more, "{time: 2, pressure: -5}", "{time: 2, pressure: -50}")).find("below 0"),
             std::string::npos);
-  EXPECT_NE(error_of(replaced(more, "{time: 2, pressure: -5}", "{time: 2, move: [0, 180, 0]}"))
+  EXPECT_NE(error_of(replaced(more, "{time: 2, pressure: -5}", "{time: 2, move: [0, -180, 0]}"))
                 .find("control.commands[1].move: the magnet would overlap the anatomy"),
             std::string::npos);
 }
@@ -375,9 +387,9 @@ TEST(Experiment, ATargetOrABaseOutsideTheLumenIsRefusedBeforeTheRun) {
     return "no error";
   };
   const std::string text = demo_text();
-  const std::string target = error_of(replaced(text, "position: [100, -24, 0], tolerance", "position: [100, -60, 0], tolerance"));
+  const std::string target = error_of(replaced(text, "position: [100, 24, 0], tolerance", "position: [100, 60, 0], tolerance"));
   EXPECT_NE(target.find("bad.yaml:"), std::string::npos) << target;
-  EXPECT_NE(target.find("target.position: (100, -60, 0) mm is outside the lumen"), std::string::npos) << target;
+  EXPECT_NE(target.find("target.position: (100, 60, 0) mm is outside the lumen"), std::string::npos) << target;
   const std::string base = error_of(replaced(text, "position: [2, 0, -0.5]", "position: [2, 0, -9]"));
   EXPECT_NE(base.find("robot.base.position: (2, 0, -9) mm is outside the lumen"), std::string::npos) << base;
 }

@@ -112,6 +112,9 @@ double VineGrowth::node_radius(const Vec3& x, const Mat3& frame, Vec3* across) c
   const Vec3 t = frame.col(0);
   Vec3 line = frame.col(1);
   double width = lumen_width(x, frame, &line);
+  // A centre pressed past the wall (a new tip placed into a carina's ridge before the solve pushes it out) sees the
+  // tissue, not a gap: only the probes inside the lumen count then.
+  if (width < 4.0 * m_radius && !m_world->contains(x)) width = 4.0 * m_radius;
   if (width < 4.0 * m_radius) {  // near a narrowing: the sphere's front and back too
     for (const double side : {1.0, -1.0}) {
       // Where the sphere's front is already past a wall (the tip against a carina's ridge), the rays would measure
@@ -147,6 +150,8 @@ VineGrowth::VineGrowth(const VineParameters& vine, const GrowthOptions& options,
   check(options.contact_stiffness >= 0.0, "contact_stiffness must be >= 0");
   check(options.edge_length >= 0.0 && std::isfinite(options.edge_length), "edge_length must be >= 0");
   check(options.max_contact_passes >= 1, "max_contact_passes must be >= 1");
+  check(options.max_incidence >= 0.0 && options.max_incidence < 0.5 * kPi, "max_incidence must be in [0, 90) degrees");
+  m_max_incidence = options.max_incidence > 0.0 ? options.max_incidence : std::atan2(1.0, options.friction);
   check(!options.magnetorheology || vine.fill == FillKind::kMagneticFluid,
         "magnetorheology needs a magnetic-fluid fill");
   check(std::isfinite(options.retraction_pressure), "retraction_pressure must be finite");
@@ -600,7 +605,7 @@ GrowthStepReport VineGrowth::advance(double dt, const GrowthControl& control) {
         const Vec3 t = frame.col(0);
         const Vec3 n = found[0].normal;
         // Only a shallow meeting slides (a steeper one is left for the blocked test below).
-        if (t.dot(n) >= 0.0 || -t.dot(n) > std::sin(m_options.max_incidence)) break;
+        if (t.dot(n) >= 0.0 || -t.dot(n) > std::sin(m_max_incidence)) break;
         const Vec3 slid = (t - t.dot(n) * n).normalized();
         if (!slid.allFinite()) break;
         frame = Eigen::Quaterniond::FromTwoVectors(t, slid).toRotationMatrix() * frame;
@@ -628,7 +633,7 @@ GrowthStepReport VineGrowth::advance(double dt, const GrowthControl& control) {
         incidence = std::max(incidence, std::asin(std::clamp(-found[q].normal.dot(tangent), -1.0, 1.0)));
       }
     }
-    const bool steep = squeezed_out || incidence > m_options.max_incidence;
+    const bool steep = squeezed_out || incidence > m_max_incidence;
     const double old_energy = m_energy;
     const bool solved = !steep && solve_with_wall(report);
     // Blocked after solving: growing by h stores more energy in the body, its contacts and its loads (bending the
@@ -662,7 +667,7 @@ GrowthStepReport VineGrowth::advance(double dt, const GrowthControl& control) {
         if (!m_blocked) {
           m_blocked = true;
           add_event("blocked", format("the tip meets the wall at %.1f deg, steeper than max_incidence %.1f deg",
-                                      incidence / kDegToRad, m_options.max_incidence / kDegToRad));
+                                      incidence / kDegToRad, m_max_incidence / kDegToRad));
         }
       } else if (!solved) {
         if (!m_blocked) {

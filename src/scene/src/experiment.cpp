@@ -444,7 +444,7 @@ ExperimentScene parse_experiment_scene(const std::string& text, const std::strin
   if (top.has("growth")) {
     const YamlMap g = top.map("growth");
     g.allow_only({"mode", "yield_pressure", "length_yield", "turning_yield", "extensibility", "friction",
-                  "edge_length", "catheter", "magnetorheology", "retraction_pressure"});
+                  "edge_length", "catheter", "magnetorheology", "retraction_pressure", "max_incidence"});
     robot::GrowthOptions& o = scene.growth;
     if (g.has("mode")) {
       const std::string mode = g.text("mode");
@@ -467,6 +467,11 @@ ExperimentScene parse_experiment_scene(const std::string& text, const std::strin
     if (g.has("extensibility")) o.law.extensibility = non_negative("extensibility") * 1e-6;
     if (g.has("friction")) o.friction = non_negative("friction");
     if (g.has("edge_length")) o.edge_length = g.positive("edge_length") * unit;
+    if (g.has("max_incidence")) {
+      const double degrees = g.number("max_incidence");
+      if (!(degrees > 0.0 && degrees < 90.0)) g.fail("max_incidence", "must be an angle in degrees between 0 and 90");
+      o.max_incidence = degrees * kDegToRad;
+    }
     if (g.has("catheter")) {
       if (o.mode != robot::InsertionMode::kPushed) g.fail("catheter", "a catheter tube is pushed: set mode: pushed");
       const YamlMap c = g.map("catheter");

@@ -104,8 +104,11 @@ struct GrowthOptions {
   double friction = 0.3;           ///< Coulomb μ between the body and the wall
   /// The steepest angle between the tip's tangent and a wall it meets at which the tip still slides along the wall
   /// (Greer et al. 2020: shallow incidence deflects, steep incidence stops the tip); steeper: "blocked" [rad].
-  /// An assumption, not a thesis number.
-  double max_incidence = 45.0 * kDegToRad;
+  /// 0: automatic, from Coulomb's law with `friction`: the growth force F along the tangent presses the wall with
+  /// F sin α and drives the tip along it with F cos α, which beats the friction μF sin α for α < atan(1/μ) (73.3° at
+  /// μ = 0.3). Whatever gets past this test must still pass the energy test of a step (VineGrowth::advance). Not a
+  /// thesis number.
+  double max_incidence = 0.0;
   double contact_stiffness = 0.0;  ///< wall penalty k [N/m]; 0: automatic (the growth force at 2 % R depth)
   double max_length = std::numeric_limits<double>::infinity();  ///< the vine's made length [m]
   int max_contact_passes = 10;     ///< solves per step while the contact set settles
@@ -228,6 +231,7 @@ class VineGrowth {
   Vec3 m_base_position;
   Mat3 m_base_frame;
   double m_h = 0.0;
+  double m_max_incidence = 0.0;  ///< GrowthOptions::max_incidence, resolved [rad]
   double m_radius = 0.0;
   double m_pressure = 0.0;
   double m_stiffness = 0.0;
