@@ -168,6 +168,21 @@ TEST(Experiment, TrialsPerturbEachRunAndGiveTheSameOutcomesOnOneThreadOrTwo) {
   EXPECT_NE(table.find("| 2/2 |"), std::string::npos);
   std::filesystem::remove_all(dir);
   EXPECT_THROW(run_trials(scene, {"0-9"}, 1, 1), InputError);
+
+  // A failure carries its reason: cut to 1 s the runs cannot reach the daughter's end (~100 mm at ~30 mm/s).
+  ExperimentScene short_scene = scene;
+  short_scene.duration = 1.0;
+  const std::vector<TrialOutcome> cut = run_trials(short_scene, {"0-1"}, 1, 1);
+  ASSERT_EQ(cut.size(), 1u);
+  EXPECT_FALSE(cut[0].success);
+  std::printf("  reason: %s\n", cut[0].reason.c_str());
+  EXPECT_EQ(cut[0].reason.rfind("the time ran out, last in branch 0", 0), 0u) << cut[0].reason;
+  EXPECT_NE(cut[0].reason.find("mm from the target"), std::string::npos);
+  write_trial_outputs(cut, dir);
+  std::ifstream failed(dir / "summary.md");
+  const std::string listed(std::istreambuf_iterator<char>(failed), {});
+  EXPECT_NE(listed.find("Failures:\n\n- 0-1, repeat 0 (seed "), std::string::npos) << listed;
+  std::filesystem::remove_all(dir);
 }
 
 TEST(Experiment, EveryBundledSceneLoads) {

@@ -319,6 +319,9 @@ void parse_commands(const YamlMap& control, ExperimentScene& scene, double unit,
   }
 }
 
+struct RunFigures;
+std::string failure_reason(const ExperimentResult& result, const RunFigures& figures);
+
 /// The whole-run figures of metrics.json, also the trials' outcomes.
 struct RunFigures {
   double everted_length = 0.0;       ///< at the end [m]
@@ -349,6 +352,27 @@ RunFigures figures_of(const ExperimentScene& scene, const ExperimentResult& resu
     }
   }
   return f;
+}
+
+/// Why a run did not reach its target, in one line: the last event that stopped the tip (stall, blocked, squeeze,
+/// burst, solver), where the tip was, or that the time ran out while it was still moving.
+std::string failure_reason(const ExperimentResult& result, const RunFigures& figures) {
+  std::ostringstream why;
+  why.precision(3);
+  const robot::GrowthEvent* last = nullptr;
+  for (const robot::GrowthEvent& e : result.events) {
+    if (e.kind != "resume") last = &e;
+  }
+  const std::string branch =
+      figures.branches.empty() ? std::string() : ", last in branch " + figures.branches.back();
+  if (last != nullptr) {
+    why << last->kind << " at " << last->time << " s, " << 1e3 * last->length << " mm everted: " << last->detail;
+  } else {
+    why << "the time ran out";
+  }
+  why << branch;
+  if (figures.final_error) why << ", " << 1e3 * *figures.final_error << " mm from the target";
+  return why.str();
 }
 
 /// Aims the scene's navigator at `branch`: the plan's last branch, and its end (within 1.5 lumen radii) the target.
@@ -594,6 +618,7 @@ ExperimentScene parse_experiment_scene(const std::string& text, const std::strin
     nav.distance = n.has("distance") ? n.positive("distance") * unit : nav.min_distance;
     if (n.has("lead")) nav.lead = n.positive("lead") * unit;
     if (n.has("interval")) nav.interval = n.positive("interval");
+
     scene.navigator = nav;
   }
 
@@ -851,6 +876,7 @@ std::vector<TrialOutcome> run_trials(const ExperimentScene& scene, const std::ve
         o.max_normal = f.max_normal;
         for (const robot::GrowthEvent& e : res.events) o.burst = o.burst || e.kind == "burst";
         o.runtime_s = res.runtime_s;
+        if (!o.success) o.reason = failure_reason(res, f);
       } catch (...) {
         const std::lock_guard lock(report);
         if (!failure) failure = std::current_exception();
@@ -871,13 +897,19 @@ std::vector<TrialOutcome> run_trials(const ExperimentScene& scene, const std::ve
 }
 
 void write_trial_outputs(const std::vector<TrialOutcome>& outcomes, const std::filesystem::path& dir) {
+  const auto quoted = [](const std::string& text) {
+    std::string q = "\"";
+    for (const char c : text) q += c == '"' ? std::string("\"\"") : std::string(1, c);
+    return q + "\"";
+  };
   std::ostringstream all;
   all.precision(10);
-  all << "target,repeat,seed,success,burst,time_to_target_s,everted_length_m,final_error_m,max_normal_N,runtime_s\n";
+  all << "target,repeat,seed,success,burst,time_to_target_s,everted_length_m,final_error_m,max_normal_N,runtime_s,"
+         "reason\n";
   for (const TrialOutcome& o : outcomes) {
     all << o.target << ',' << o.repeat << ',' << o.seed << ',' << (o.success ? 1 : 0) << ',' << (o.burst ? 1 : 0) << ','
         << (o.success ? std::to_string(o.time_to_target) : std::string()) << ',' << o.everted_length << ','
-        << o.final_error << ',' << o.max_normal << ',' << o.runtime_s << '\n';
+        << o.final_error << ',' << o.max_normal << ',' << o.runtime_s << ',' << quoted(o.reason) << '\n';
   }
   std::ostringstream csv;
   std::ostringstream md;
@@ -911,6 +943,13 @@ void write_trial_outputs(const std::vector<TrialOutcome>& outcomes, const std::f
     csv << line;
     std::snprintf(line, sizeof line, "| %s | %.0f | %d/%d | %.1f | %.1f |\n", target.c_str(), length, ok, n, mean, sd);
     md << line;
+  }
+  bool failures = false;
+  for (const TrialOutcome& o : outcomes) {
+    if (o.success) continue;
+    if (!failures) md << "\nFailures:\n\n";
+    failures = true;
+    md << "- " << o.target << ", repeat " << o.repeat << " (seed " << o.seed << "): " << o.reason << "\n";
   }
   create_output_directory(dir);
   write_file_atomically(dir / "trials.csv", all.str());

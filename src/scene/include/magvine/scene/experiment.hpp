@@ -207,6 +207,9 @@ struct TrialOutcome {
   double final_error = 0.0;      ///< tip to target [m]
   double max_normal = 0.0;       ///< [N]
   double runtime_s = 0.0;
+  /// Why a failed trial failed, one line: the last event that stopped the tip (with its numbers), the branch it was
+  /// in and how far from the target it ended; empty on success.
+  std::string reason;
 };
 
 /// Runs `repeats` perturbed trials towards each target (branch names; empty: the scene's own target) on `jobs`
@@ -214,9 +217,10 @@ struct TrialOutcome {
 std::vector<TrialOutcome> run_trials(const ExperimentScene& scene, const std::vector<std::string>& targets,
                                      int repeats, int jobs, const std::function<void(int, int)>& progress = nullptr);
 
-/// trials.csv (every trial) and summary.csv + summary.md in the form of thesis table 5.2 (target, path length =
-/// the everted length at the target [mm], success rate, mean time to target and its SD [s], over the successes),
-/// atomically into `dir`.
+/// trials.csv (every trial, with the reason of each failure) and summary.csv + summary.md in the form of thesis
+/// table 5.2 (target, path length = the everted length at the target [mm], success rate, mean time to target and its
+/// SD [s], over the successes; summary.md lists the failures with their reasons below the table), atomically into
+/// `dir`.
 void write_trial_outputs(const std::vector<TrialOutcome>& outcomes, const std::filesystem::path& dir);
 
 /// Writes, atomically, into `dir` (created): metrics.json, tip_trajectory.csv, magnet_trajectory.csv (when the
