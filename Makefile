@@ -37,7 +37,7 @@ phantoms: build
 demo: build
 	$(BUILD)/src/cli/magvine run assets/scenes/y_bifurcation_fluid_vine.yaml --out $(DEMO_OUT)/y_bifurcation
 	$(PYTHON) tools/plot_experiment.py $(DEMO_OUT)/y_bifurcation --out $(DEMO_OUT)/y_bifurcation.png \
-	    --title "Ø5 mm magnetic-fluid vine steered into daughter 0-1 by the EPM (35 kPa)"
+	    --title "Ø5 mm magnetic-fluid vine steered into daughter 0-0 by the EPM (35 kPa)"
 	$(BUILD)/src/cli/magvine field-map --magnets assets/magnets/epm_n52.yaml --plane xz \
 	    --extent 300 --units mm --resolution 241 --out $(DEMO_OUT)
 	$(PYTHON) tools/plot_field_map.py $(DEMO_OUT)/field_map.csv --out $(DEMO_OUT)/field_map.png \
