@@ -124,20 +124,6 @@ int nearest_branch(const anatomy::AirwayGraph& graph, const Vec3& x) {
   return best;
 }
 
-/// The point `lead` along the centreline of `branch` from its start (its end if shorter).
-Vec3 along(const anatomy::AirwayGraph& graph, int branch, double lead) {
-  const anatomy::AirwayBranch& b = graph.branches[static_cast<std::size_t>(branch)];
-  double left = lead;
-  for (std::size_t k = 0; k + 1 < b.nodes.size(); ++k) {
-    const Vec3& p = graph.nodes[b.nodes[k]].position;
-    const Vec3& q = graph.nodes[b.nodes[k + 1]].position;
-    const double l = (q - p).norm();
-    if (l >= left) return p + (left / l) * (q - p);
-    left -= l;
-  }
-  return graph.nodes[b.nodes.back()].position;
-}
-
 /// The navigator's magnet pose for the tip at `tip`: on the line from the tip through the aim point.
 /// The magnet body of source i for the placement checks: a cylinder's radius and half length [m]; none for a dipole
 /// or a uniform field (points and fields do not collide).
@@ -190,13 +176,38 @@ std::string overlap_problem(const anatomy::TriangleMesh& mesh, const magnetics::
 
 MagnetKeyframe navigate(const Navigator& nav, const anatomy::AirwayGraph& graph, const std::vector<int>& plan,
                         const Vec3& tip, double time, const Vec3& offset) {
-  const int here = nearest_branch(graph, tip);
-  const auto at = std::find(plan.begin(), plan.end(), here);
-  Vec3 aim;
-  if (at == plan.end() || *at == plan.back()) {
-    aim = graph.nodes[graph.branches[static_cast<std::size_t>(plan.back())].nodes.back()].position;
-  } else {
-    aim = along(graph, *(at + 1), nav.lead);
+  // The planned path as one polyline (the branches' centrelines joined); the aim point lies `lead` along it past the
+  // tip's nearest point on it, so a short branch does not hide the turn after it.
+  std::vector<Vec3> path;
+  for (const int b : plan) {
+    const anatomy::AirwayBranch& branch = graph.branches[static_cast<std::size_t>(b)];
+    for (std::size_t k = path.empty() ? 0 : 1; k < branch.nodes.size(); ++k) {
+      path.push_back(graph.nodes[branch.nodes[k]].position);
+    }
+  }
+  double best = std::numeric_limits<double>::infinity();
+  double at = 0.0;  // arc length of the tip's nearest point [m]
+  double run = 0.0;
+  for (std::size_t k = 0; k + 1 < path.size(); ++k) {
+    const Vec3 d = path[k + 1] - path[k];
+    const double l = d.norm();
+    const double f = l > 0.0 ? std::clamp((tip - path[k]).dot(d) / (l * l), 0.0, 1.0) : 0.0;
+    const double d2 = (path[k] + f * d - tip).squaredNorm();
+    if (d2 < best) {
+      best = d2;
+      at = run + f * l;
+    }
+    run += l;
+  }
+  Vec3 aim = path.back();
+  double left = at + nav.lead;
+  for (std::size_t k = 0; k + 1 < path.size(); ++k) {
+    const double l = (path[k + 1] - path[k]).norm();
+    if (l >= left) {
+      aim = path[k] + (left / l) * (path[k + 1] - path[k]);
+      break;
+    }
+    left -= l;
   }
   Vec3 u = aim - tip;
   if (u.norm() < 1e-9) u = graph.nodes[graph.branches[static_cast<std::size_t>(plan.back())].nodes.back()].position - tip;

@@ -45,9 +45,9 @@
 /// ends.
 ///
 /// Navigator (`control.navigator`, generated phantoms: it plans on their airway graph): the path of branches from the
-/// root to `target` (a branch name); every `interval` seconds (default 0.1) the tip's nearest branch on that path
-/// gives the branch to enter next, and the aim point `lead` (default 15 mm) along the centreline past its start (the
-/// target's end once the tip is in it). The magnet is placed on the line from the tip through the aim point,
+/// root to `target` (a branch name), its centrelines joined into one polyline; every `interval` seconds (default 0.1)
+/// the aim point is `lead` (default 15 mm) along that polyline past the tip's nearest point on it (the target's end
+/// at most), so the turn after a short branch is aimed at before the tip gets there. The magnet is placed on the line from the tip through the aim point,
 /// `distance` from the tip (clamped to min_distance–max_distance, default 100–300 mm: the EPM stays outside the
 /// patient; moved further out along that line while it would overlap the airway mesh), its axis along that line: the tip then sits on the magnet's axis, where a magnetic-fluid fill is pulled
 /// hardest towards it (gradient pull; torque steering of skin vines is not automated yet). Its success: the tip within
