@@ -174,6 +174,30 @@ std::string overlap_problem(const anatomy::TriangleMesh& mesh, const magnetics::
   return why.str();
 }
 
+/// overlap_problem along the move from keyframe a to b (as interpolate moves it), sampled every 2 mm and 2°, the
+/// end b included; the problem names where on the way.
+std::string path_overlap_problem(const anatomy::TriangleMesh& mesh, const magnetics::FieldModel& magnets,
+                                 std::size_t i, const MagnetKeyframe& a, const MagnetKeyframe& b) {
+  if (!magnet_body(magnets, i)) return {};
+  const double turn = std::acos(std::clamp(a.axis.normalized().dot(b.axis.normalized()), -1.0, 1.0));
+  const int samples =
+      std::max(1, static_cast<int>(std::ceil(std::max((b.position - a.position).norm() / 2e-3, turn / (2.0 * kDegToRad)))));
+  for (int k = 1; k <= samples; ++k) {
+    const double t = a.time + (b.time - a.time) * k / samples;
+    const MagnetKeyframe at = interpolate({a, b}, t);
+    std::string why = overlap_problem(mesh, magnets, i, at.position, at.axis);
+    if (why.empty()) continue;
+    if (k < samples) {
+      std::ostringstream where;
+      where.precision(4);
+      where << "on its way there, at " << t << " s: ";
+      why = where.str() + why;
+    }
+    return why;
+  }
+  return {};
+}
+
 MagnetKeyframe navigate(const Navigator& nav, const anatomy::AirwayGraph& graph, const std::vector<int>& plan,
                         const Vec3& tip, double time, const Vec3& offset) {
   // The planned path as one polyline (the branches' centrelines joined); the aim point lies `lead` along it past the
@@ -319,7 +343,7 @@ void parse_commands(const YamlMap& control, ExperimentScene& scene, double unit,
       const Vec3 axis = r.nonzero_vec3("axis").normalized();
       next.axis = Eigen::AngleAxisd(r.number("angle") * kDegToRad, axis) * next.axis;
     }
-    const std::string why = overlap_problem(scene.mesh, *scene.magnets, m, next.position, next.axis);
+    const std::string why = path_overlap_problem(scene.mesh, *scene.magnets, m, keys.back(), next);
     if (!why.empty()) c.fail(key, why);
     keys.push_back(next);
   }
@@ -590,7 +614,9 @@ ExperimentScene parse_experiment_scene(const std::string& text, const std::strin
         key.position = f.vec3("position") * unit;
         key.axis = f.nonzero_vec3("axis").normalized();
         const std::string why =
-            overlap_problem(scene.mesh, *scene.magnets, static_cast<std::size_t>(index), key.position, key.axis);
+            keys.empty()
+                ? overlap_problem(scene.mesh, *scene.magnets, static_cast<std::size_t>(index), key.position, key.axis)
+                : path_overlap_problem(scene.mesh, *scene.magnets, static_cast<std::size_t>(index), keys.back(), key);
         if (!why.empty()) f.fail("position", why);
         keys.push_back(key);
       }
