@@ -199,7 +199,8 @@ std::string path_overlap_problem(const anatomy::TriangleMesh& mesh, const magnet
 }
 
 MagnetKeyframe navigate(const Navigator& nav, const anatomy::AirwayGraph& graph, const std::vector<int>& plan,
-                        const Vec3& tip, double time, const Vec3& offset) {
+                        const Vec3& tip, const Mat3& tip_frame, const std::optional<Vec3>& skin, double time,
+                        const Vec3& offset, Vec3& line) {
   // The planned path as one polyline (the branches' centrelines joined); the aim point lies `lead` along it past the
   // tip's nearest point on it, so a short branch does not hide the turn after it.
   std::vector<Vec3> path;
@@ -234,6 +235,12 @@ MagnetKeyframe navigate(const Navigator& nav, const anatomy::AirwayGraph& graph,
     left -= l;
   }
   Vec3 u = aim - tip;
+  if (nav.lateral > 0.0) {
+    // Only the pull across the tip bends it (growth carries it forward): take away that share of the component
+    // along the tip's tangent, unless the aim lies nearly straight ahead.
+    const Vec3 t = tip_frame.col(0);
+    if ((u - u.dot(t) * t).norm() > 0.1 * u.norm()) u -= nav.lateral * u.dot(t) * t;
+  }
   if (u.norm() < 1e-9) u = graph.nodes[graph.branches[static_cast<std::size_t>(plan.back())].nodes.back()].position - tip;
   if (u.norm() < 1e-9) u = Vec3::UnitX();
   u.normalize();
@@ -241,17 +248,26 @@ MagnetKeyframe navigate(const Navigator& nav, const anatomy::AirwayGraph& graph,
   k.time = time;
   k.position = tip + std::clamp(nav.distance, nav.min_distance, nav.max_distance) * u + offset;
   k.axis = u;
+  line = u;
+  if (skin) {
+    // Gradient mode for a magnetic skin (thesis 4.7.1): the field at the tip along the skin's moment m, so the skin
+    // is pulled towards the magnet without a torque. A dipole's field at r̂ (magnet to tip) is ∝ (3r̂r̂ᵀ − I)m_e,
+    // whose inverse gives m_e ∝ (3/2)(m·r̂)r̂ − m.
+    const Vec3 m = (tip_frame * *skin).normalized();
+    const Vec3 r = -u;
+    const Vec3 axis = 1.5 * m.dot(r) * r - m;
+    if (axis.norm() > 1e-9) k.axis = axis.normalized();
+  }
   return k;
 }
 
 /// The navigator's pose kept clear of the anatomy: moved out along its line from the tip, 5 mm at a time up to
 /// max_distance, while the magnet (body, if any) would overlap the airway mesh. Returns whether it is clear.
 bool keep_clear(const Navigator& nav, const anatomy::TriangleMesh& mesh, const std::optional<MagnetBody>& body,
-                const Vec3& tip, MagnetKeyframe& k) {
+                const Vec3& tip, const Vec3& u, MagnetKeyframe& k) {
   if (!body) return true;
-  const Vec3 u = k.axis;
   double d = (k.position - tip).dot(u);
-  while (vertices_inside(mesh, *body, k.position, u) > 0) {
+  while (vertices_inside(mesh, *body, k.position, k.axis) > 0) {
     if (d >= nav.max_distance) return false;
     const double next = std::min(nav.max_distance, d + 5e-3);
     k.position += (next - d) * u;
@@ -631,7 +647,8 @@ ExperimentScene parse_experiment_scene(const std::string& text, const std::strin
 
   if (control.has("navigator")) {
     const YamlMap n = control.map("navigator");
-    n.allow_only({"target", "magnet", "distance", "min_distance", "max_distance", "lead", "interval"});
+    n.allow_only({"target", "magnet", "distance", "min_distance", "max_distance", "lead", "interval",
+                  "deflate_pressure", "deflate_time", "junction_distance", "lateral"});
     if (!scene.graph) n.fail("target", "the navigator plans on a generated phantom's airway graph (anatomy.phantom)");
     if (!scene.magnets) n.fail("magnet", "the navigator moves a magnet, but the scene has no magnets: list");
     Navigator nav;
@@ -655,6 +672,13 @@ ExperimentScene parse_experiment_scene(const std::string& text, const std::strin
     nav.distance = n.has("distance") ? n.positive("distance") * unit : nav.min_distance;
     if (n.has("lead")) nav.lead = n.positive("lead") * unit;
     if (n.has("interval")) nav.interval = n.positive("interval");
+    if (n.has("lateral")) {
+      nav.lateral = n.number("lateral");
+      if (!(nav.lateral >= 0.0 && nav.lateral <= 1.0)) n.fail("lateral", "must be from 0 to 1");
+    }
+    if (n.has("deflate_pressure")) nav.deflate_pressure = n.positive("deflate_pressure") * stress_unit;
+    if (n.has("deflate_time")) nav.deflate_time = n.positive("deflate_time");
+    if (n.has("junction_distance")) nav.junction_distance = n.positive("junction_distance") * unit;
 
     scene.navigator = nav;
   }
@@ -713,10 +737,18 @@ ExperimentResult run_experiment(const ExperimentScene& scene, const std::functio
   std::vector<int> plan;
   double next_navigation = 0.0;
   std::optional<MagnetKeyframe> steered;  // the navigator's current pose for its magnet
+  Vec3 steered_line = Vec3::UnitX();      // and the line from the tip it was placed on
   if (scene.navigator) plan = anatomy::path_from_root(*scene.graph, scene.navigator->target_branch);
   const std::optional<MagnetBody> steered_body =
       scene.navigator ? magnet_body(*scene.magnets, static_cast<std::size_t>(scene.navigator->magnet)) : std::nullopt;
   bool workspace_warned = false;
+  // A magnetic skin's moment direction in the body frame (the navigator's gradient mode); none for a fill.
+  const std::optional<Vec3> skin = scene.vine.skin.thickness > 0.0 && scene.vine.skin_remanence != 0.0
+                                       ? std::optional<Vec3>(std::copysign(1.0, scene.vine.skin_remanence) *
+                                                             scene.vine.skin_direction.normalized())
+                                       : std::nullopt;
+  std::vector<int> deflated_at;  // branches whose end junction the navigator has deflated the vine for
+  double deflate_until = -1.0;
   double next_shape = 0.0;  // outputs.shape_interval
   std::vector<robot::GrowthEvent> workspace_events;  // the navigator's, merged with the growth's at the end
   std::vector<magnetics::Pose> poses;
@@ -743,8 +775,9 @@ ExperimentResult run_experiment(const ExperimentScene& scene, const std::functio
   if (scene.navigator) {
     // The first pose from the straight body's tip, before the vine is built.
     const Vec3 tip0 = scene.base_position + scene.vine.length * scene.base_frame.col(0);
-    steered = navigate(*scene.navigator, *scene.graph, plan, tip0, 0.0, scene.navigator_offset);
-    keep_clear(*scene.navigator, scene.mesh, steered_body, tip0, *steered);
+    steered = navigate(*scene.navigator, *scene.graph, plan, tip0, scene.base_frame, skin, 0.0, scene.navigator_offset,
+                       steered_line);
+    keep_clear(*scene.navigator, scene.mesh, steered_body, tip0, steered_line, *steered);
     next_navigation = scene.navigator->interval;
   }
   if (scene.magnets) {
@@ -773,8 +806,9 @@ ExperimentResult run_experiment(const ExperimentScene& scene, const std::functio
     const double t = std::min(scene.duration, static_cast<double>(k) * scene.dt);
     const double dt = t - growth.time();
     if (scene.navigator && t >= next_navigation - 1e-12) {
-      steered = navigate(*scene.navigator, *scene.graph, plan, growth.state().tip(), t, scene.navigator_offset);
-      if (!keep_clear(*scene.navigator, scene.mesh, steered_body, growth.state().tip(), *steered) &&
+      steered = navigate(*scene.navigator, *scene.graph, plan, growth.state().tip(), growth.state().frames.back(), skin,
+                         t, scene.navigator_offset, steered_line);
+      if (!keep_clear(*scene.navigator, scene.mesh, steered_body, growth.state().tip(), steered_line, *steered) &&
           !workspace_warned) {
         workspace_warned = true;
         workspace_events.push_back({t, growth.length(), "workspace",
@@ -797,6 +831,21 @@ ExperimentResult run_experiment(const ExperimentScene& scene, const std::functio
     }
     robot::GrowthControl control;
     control.pressure = scene.pressure.at(t);
+    if (scene.navigator && scene.navigator->deflate_pressure > 0.0) {
+      // Pressure regulation (thesis 4.7.3): once per junction on the path, deflate for deflate_time while the magnet
+      // bends the body towards the next branch, then back to the schedule (the next branch's walls hold the turn).
+      const Vec3 tip = growth.state().tip();
+      const int here = nearest_branch(*scene.graph, tip);
+      const auto at = std::find(plan.begin(), plan.end(), here);
+      if (at != plan.end() && *at != plan.back() &&
+          std::find(deflated_at.begin(), deflated_at.end(), here) == deflated_at.end() &&
+          (tip - scene.graph->nodes[scene.graph->branches[static_cast<std::size_t>(here)].nodes.back()].position)
+                  .norm() <= scene.navigator->junction_distance) {
+        deflated_at.push_back(here);
+        deflate_until = t + scene.navigator->deflate_time;
+      }
+      if (t < deflate_until) control.pressure = std::min(control.pressure, scene.navigator->deflate_pressure);
+    }
     if (scene.tether) control.tether_length = scene.tether->at(t);
     const robot::GrowthStepReport r = growth.advance(dt, control);
     out.converged = r.converged;

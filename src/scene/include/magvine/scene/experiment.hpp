@@ -49,7 +49,8 @@
 /// the aim point is `lead` (default 15 mm) along that polyline past the tip's nearest point on it (the target's end
 /// at most), so the turn after a short branch is aimed at before the tip gets there. The magnet is placed on the line from the tip through the aim point,
 /// `distance` from the tip (clamped to min_distance–max_distance, default 100–300 mm: the EPM stays outside the
-/// patient; moved further out along that line while it would overlap the airway mesh), its axis along that line: the tip then sits on the magnet's axis, where a magnetic-fluid fill is pulled
+/// patient; moved further out along that line while it would overlap the airway mesh), its axis along that line (for a magnetic skin, turned so that the field at the tip runs along the skin's moment:
+/// gradient mode, thesis 4.7.1): the tip then sits on the magnet's axis, where a magnetic-fluid fill is pulled
 /// hardest towards it (gradient pull; torque steering of skin vines is not automated yet). Its success: the tip within
 /// 1.5 lumen radii of the target branch's end (unless `target:` gives a point). Placement checks (InputError): a
 /// magnet overlapping the anatomy at rest or at a keyframe (at load); a base or target outside the lumen of closed
@@ -95,6 +96,16 @@ struct Navigator {
   double max_distance = 0.30;     ///< [m]
   double lead = 0.015;            ///< [m]
   double interval = 0.1;          ///< [s]
+  /// Pressure regulation for skin vines (thesis 4.7.3): when the tip comes within junction_distance of a junction on
+  /// the path (each once), the pressure is held at most deflate_pressure [Pa] for deflate_time [s] while the magnet
+  /// bends the body towards the next branch. 0: off.
+  double deflate_pressure = 0.0;
+  /// How much of the aim direction's component along the tip's tangent the magnet's line leaves out: 0 the line
+  /// through the aim point (a fluid's pull), 1 straight across the tip towards the aim's side (what creases a
+  /// deflated skin vine towards the next branch).
+  double lateral = 0.0;
+  double deflate_time = 2.0;        ///< [s]
+  double junction_distance = 0.01;  ///< [m]
 };
 
 /// Seeded perturbations of `magvine trials` (the scene's optional `trials:` section; each trial draws its own
