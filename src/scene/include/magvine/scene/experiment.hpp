@@ -51,7 +51,7 @@
 /// `distance` from the tip (clamped to min_distance–max_distance, default 100–300 mm: the EPM stays outside the
 /// patient; moved further out along that line while it would overlap the airway mesh), its axis along that line (for a magnetic skin, turned so that the field at the tip runs along the skin's moment:
 /// gradient mode, thesis 4.7.1): the tip then sits on the magnet's axis, where a magnetic-fluid fill is pulled
-/// hardest towards it (gradient pull; torque steering of skin vines is not automated yet). Its success: the tip within
+/// hardest towards it (gradient pull; skins get gradient mode, below; torque mode is not automated). Its success: the tip within
 /// 1.5 lumen radii of the target branch's end (unless `target:` gives a point). Placement checks (InputError): a
 /// magnet overlapping the anatomy at rest or at a keyframe (at load); a base or target outside the lumen of closed
 /// anatomy (when the run starts). Unknown keys are errors naming the closest valid one (exit 2), and every problem names the file, line and
