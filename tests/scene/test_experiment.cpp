@@ -29,6 +29,17 @@ std::string demo_text() {
   return std::string(std::istreambuf_iterator<char>(in), {});
 }
 
+/// The InputError a scene text (as "bad.yaml") gives when it is loaded, or "no error"; with `run`, when it is run.
+std::string error_of(const std::string& scene, bool run = false) {
+  try {
+    const ExperimentScene parsed = parse_experiment_scene(scene, "bad.yaml", MAGVINE_SOURCE_DIR);
+    if (run) (void)run_experiment(parsed);
+  } catch (const InputError& e) {
+    return e.what();
+  }
+  return "no error";
+}
+
 std::string replaced(std::string text, const std::string& from, const std::string& to) {
   const auto at = text.find(from);
   EXPECT_NE(at, std::string::npos) << from;
@@ -274,14 +285,6 @@ TEST(Experiment, SchedulesAreLinearBetweenKeyframesAndHeldBeyond) {
 
 TEST(Experiment, BadScenesNameTheFileAndKey) {
   const std::string text = demo_text();
-  const auto error_of = [](const std::string& scene) -> std::string {
-    try {
-      (void)parse_experiment_scene(scene, "bad.yaml", MAGVINE_SOURCE_DIR);
-    } catch (const InputError& e) {
-      return e.what();
-    }
-    return "no error";
-  };
   const auto expect_error = [&](const std::string& scene, const std::string& part) {
     const std::string what = error_of(scene);
     EXPECT_NE(what.find("bad.yaml"), std::string::npos) << what;
@@ -347,14 +350,6 @@ TEST(Experiment, GamepadCommandsBecomeTheSameKeyframesAsWrittenOut) {
   EXPECT_DOUBLE_EQ(turned.time, 4.5);
   EXPECT_LT((turned.axis - Vec3(1.0, 0.0, 0.0)).norm(), 1e-12);  // −y turned 90° about +z
 
-  const auto error_of = [](const std::string& scene) -> std::string {
-    try {
-      (void)parse_experiment_scene(scene, "bad.yaml", MAGVINE_SOURCE_DIR);
-    } catch (const InputError& e) {
-      return e.what();
-    }
-    return "no error";
-  };
   EXPECT_NE(error_of(replaced(more, "{time: 2, pressure: -5}", "{time: 0.5, move: [0, 10, 0]}"))
                 .find("control.commands[1].move: starts before the previous command on this magnet ends"),
             std::string::npos);
@@ -459,19 +454,12 @@ TEST(Experiment, TheNavigatorDeflatesTheSkinVineAtTheCarinaAndSteersItIntoAMainB
 
 TEST(Experiment, ATargetOrABaseOutsideTheLumenIsRefusedBeforeTheRun) {
   // Checked by the collision world's ray parity when the run starts, before any step or output.
-  const auto error_of = [](const std::string& scene) -> std::string {
-    try {
-      (void)run_experiment(parse_experiment_scene(scene, "bad.yaml", MAGVINE_SOURCE_DIR));
-    } catch (const InputError& e) {
-      return e.what();
-    }
-    return "no error";
-  };
   const std::string text = demo_text();
-  const std::string target = error_of(replaced(text, "position: [100, 24, 0], tolerance", "position: [100, 60, 0], tolerance"));
+  const std::string target =
+      error_of(replaced(text, "position: [100, 24, 0], tolerance", "position: [100, 60, 0], tolerance"), true);
   EXPECT_NE(target.find("bad.yaml:"), std::string::npos) << target;
   EXPECT_NE(target.find("target.position: (100, 60, 0) mm is outside the lumen"), std::string::npos) << target;
-  const std::string base = error_of(replaced(text, "position: [2, 0, -0.5]", "position: [2, 0, -9]"));
+  const std::string base = error_of(replaced(text, "position: [2, 0, -0.5]", "position: [2, 0, -9]"), true);
   EXPECT_NE(base.find("robot.base.position: (2, 0, -9) mm is outside the lumen"), std::string::npos) << base;
 }
 
