@@ -1,12 +1,12 @@
 #include "magvine/robot/growth.hpp"
 
 #include <algorithm>
-#include <optional>
 #include <array>
 #include <cmath>
 #include <cstdio>
 #include <limits>
 #include <numeric>
+#include <optional>
 #include <string>
 #include <utility>
 
