@@ -21,6 +21,7 @@
 ///   extensibility: 2                        # K [2 µm/(s·Pa)], in µm/(s·Pa)
 ///   friction: 0.3                           # Coulomb μ against the wall
 ///   edge_length: 2.5                        # h [the radius], length units
+///   max_incidence: 73.3                     # steepest wall the tip slides along [atan(1/friction)], degrees
 /// magnets:                                  # optional, as in the magnets file; poses at t = 0
 ///   - {kind: cylinder, diameter: 101.6, length: 101.6, polarisation: 1.48, position: [60, -150, 0], axis: [0, 1, 0]}
 /// control:
