@@ -297,6 +297,8 @@ TEST(Experiment, BadScenesNameTheFileAndKey) {
   expect_error(replaced(text, "phantom: {kind: y_bifurcation}", "mesh: no_such_airway.stl"), "no_such_airway.stl");
   expect_error(replaced(text, "duration: 8, ", ""), "simulation.duration");
   expect_error(replaced(text, "kind: vine", "kind: rod"), "robot.kind");
+  expect_error(replaced(text, "growth: {yield_pressure: 20}", "growth: {yield_pressure: 20, max_incidence: 95}"),
+               "growth.max_incidence: must be an angle in degrees between 0 and 90");
   expect_error(replaced(text, "growth: {yield_pressure: 20}",
                         "growth: {yield_pressure: 20, catheter: {outer_diameter: 4, inner_diameter: 3, "
                         "youngs_modulus: 26000}}"),
