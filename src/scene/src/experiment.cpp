@@ -198,11 +198,8 @@ std::string path_overlap_problem(const anatomy::TriangleMesh& mesh, const magnet
   return {};
 }
 
-MagnetKeyframe navigate(const Navigator& nav, const anatomy::AirwayGraph& graph, const std::vector<int>& plan,
-                        const Vec3& tip, const Mat3& tip_frame, const std::optional<Vec3>& skin, double time,
-                        const Vec3& offset, Vec3& line) {
-  // The planned path as one polyline (the branches' centrelines joined); the aim point lies `lead` along it past the
-  // tip's nearest point on it, so a short branch does not hide the turn after it.
+/// The planned path as one polyline: the centrelines of `plan`'s branches joined.
+std::vector<Vec3> planned_path(const anatomy::AirwayGraph& graph, const std::vector<int>& plan) {
   std::vector<Vec3> path;
   for (const int b : plan) {
     const anatomy::AirwayBranch& branch = graph.branches[static_cast<std::size_t>(b)];
@@ -210,6 +207,13 @@ MagnetKeyframe navigate(const Navigator& nav, const anatomy::AirwayGraph& graph,
       path.push_back(graph.nodes[branch.nodes[k]].position);
     }
   }
+  return path;
+}
+
+/// `path`: planned_path. The aim point lies `lead` along it past the tip's nearest point on it, so a short branch
+/// does not hide the turn after it.
+MagnetKeyframe navigate(const Navigator& nav, const std::vector<Vec3>& path, const Vec3& tip, const Mat3& tip_frame,
+                        const std::optional<Vec3>& skin, double time, const Vec3& offset, Vec3& line) {
   double best = std::numeric_limits<double>::infinity();
   double at = 0.0;  // arc length of the tip's nearest point [m]
   double run = 0.0;
@@ -241,7 +245,7 @@ MagnetKeyframe navigate(const Navigator& nav, const anatomy::AirwayGraph& graph,
     const Vec3 t = tip_frame.col(0);
     if ((u - u.dot(t) * t).norm() > 0.1 * u.norm()) u -= nav.lateral * u.dot(t) * t;
   }
-  if (u.norm() < 1e-9) u = graph.nodes[graph.branches[static_cast<std::size_t>(plan.back())].nodes.back()].position - tip;
+  if (u.norm() < 1e-9) u = path.back() - tip;
   if (u.norm() < 1e-9) u = Vec3::UnitX();
   u.normalize();
   MagnetKeyframe k;
@@ -369,9 +373,6 @@ void parse_commands(const YamlMap& control, ExperimentScene& scene, double unit,
     if (!poses[m].empty()) scene.magnet_keyframes[m] = std::move(poses[m]);
   }
 }
-
-struct RunFigures;
-std::string failure_reason(const ExperimentResult& result, const RunFigures& figures);
 
 /// The whole-run figures of metrics.json, also the trials' outcomes.
 struct RunFigures {
@@ -739,6 +740,7 @@ ExperimentResult run_experiment(const ExperimentScene& scene, const std::functio
   std::optional<MagnetKeyframe> steered;  // the navigator's current pose for its magnet
   Vec3 steered_line = Vec3::UnitX();      // and the line from the tip it was placed on
   if (scene.navigator) plan = anatomy::path_from_root(*scene.graph, scene.navigator->target_branch);
+  const std::vector<Vec3> path = scene.navigator ? planned_path(*scene.graph, plan) : std::vector<Vec3>{};
   const std::optional<MagnetBody> steered_body =
       scene.navigator ? magnet_body(*scene.magnets, static_cast<std::size_t>(scene.navigator->magnet)) : std::nullopt;
   bool workspace_warned = false;
@@ -775,8 +777,7 @@ ExperimentResult run_experiment(const ExperimentScene& scene, const std::functio
   if (scene.navigator) {
     // The first pose from the straight body's tip, before the vine is built.
     const Vec3 tip0 = scene.base_position + scene.vine.length * scene.base_frame.col(0);
-    steered = navigate(*scene.navigator, *scene.graph, plan, tip0, scene.base_frame, skin, 0.0, scene.navigator_offset,
-                       steered_line);
+    steered = navigate(*scene.navigator, path, tip0, scene.base_frame, skin, 0.0, scene.navigator_offset, steered_line);
     keep_clear(*scene.navigator, scene.mesh, steered_body, tip0, steered_line, *steered);
     next_navigation = scene.navigator->interval;
   }
@@ -806,8 +807,8 @@ ExperimentResult run_experiment(const ExperimentScene& scene, const std::functio
     const double t = std::min(scene.duration, static_cast<double>(k) * scene.dt);
     const double dt = t - growth.time();
     if (scene.navigator && t >= next_navigation - 1e-12) {
-      steered = navigate(*scene.navigator, *scene.graph, plan, growth.state().tip(), growth.state().frames.back(), skin,
-                         t, scene.navigator_offset, steered_line);
+      steered = navigate(*scene.navigator, path, growth.state().tip(), growth.state().frames.back(), skin, t,
+                         scene.navigator_offset, steered_line);
       if (!keep_clear(*scene.navigator, scene.mesh, steered_body, growth.state().tip(), steered_line, *steered) &&
           !workspace_warned) {
         workspace_warned = true;
@@ -834,8 +835,8 @@ ExperimentResult run_experiment(const ExperimentScene& scene, const std::functio
     if (scene.navigator && scene.navigator->deflate_pressure > 0.0) {
       // Pressure regulation (thesis 4.7.3): once per junction on the path, deflate for deflate_time while the magnet
       // bends the body towards the next branch, then back to the schedule (the next branch's walls hold the turn).
-      const Vec3 tip = growth.state().tip();
-      const int here = nearest_branch(*scene.graph, tip);
+      const Vec3 tip = growth.state().tip();  // the last sample's, whose branch is known
+      const int here = out.samples.empty() ? nearest_branch(*scene.graph, tip) : out.samples.back().branch;
       const auto at = std::find(plan.begin(), plan.end(), here);
       if (at != plan.end() && *at != plan.back() &&
           std::find(deflated_at.begin(), deflated_at.end(), here) == deflated_at.end() &&
