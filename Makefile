@@ -1,6 +1,7 @@
 # magvine: the two commands of the README quick start, and a few more.
-#   make demo   installs dependencies, builds, grows the magnetic-fluid vine into the Y phantom with the EPM
-#               (assets/scenes/y_bifurcation_fluid_vine.yaml), plots it, writes the EPM's field map
+#   make demo   installs dependencies, builds, lets the navigator steer the magnetic-fluid vine through the
+#               generated bronchial tree with the EPM (assets/scenes/bronchial_tree_navigator.yaml), films its tip
+#               camera and an overview, plots it, writes the EPM's field map
 #   make test   installs dependencies, builds (warnings are errors), runs the whole ctest suite
 # Other targets: build, minimal (core-only configuration + its tests), bench, figures, phantoms (the standard
 # generated phantoms' meshes into phantoms/), format, lint (naming), clean.
@@ -35,27 +36,30 @@ phantoms: build
 	phantoms/generate.sh $(BUILD)/src/cli/magvine phantoms
 
 demo: build
-	$(BUILD)/src/cli/magvine run assets/scenes/y_bifurcation_fluid_vine.yaml --out $(DEMO_OUT)/y_bifurcation
-	$(PYTHON) tools/plot_experiment.py $(DEMO_OUT)/y_bifurcation --out $(DEMO_OUT)/y_bifurcation.png \
-	    --title "Ø5 mm magnetic-fluid vine steered into daughter 0-0 by the EPM (35 kPa)"
+	$(BUILD)/src/cli/magvine run assets/scenes/bronchial_tree_navigator.yaml --out $(DEMO_OUT)/bronchial_tree
+	$(PYTHON) tools/plot_experiment.py $(DEMO_OUT)/bronchial_tree --out $(DEMO_OUT)/bronchial_tree.png \
+	    --title "Ø5 mm magnetic-fluid vine, navigator to branch 0-0-1 of the generated bronchial tree (35 kPa)"
 	$(BUILD)/src/cli/magvine field-map --magnets assets/magnets/epm_n52.yaml --plane xz \
 	    --extent 300 --units mm --resolution 241 --out $(DEMO_OUT)
 	$(PYTHON) tools/plot_field_map.py $(DEMO_OUT)/field_map.csv --out $(DEMO_OUT)/field_map.png \
 	    --title "N52 EPM, Ø101.6 × 101.6 mm, J = 1.48 T (exact cylinder)"
 	@echo
 	@echo "demo outputs:"
-	@echo "  $(DEMO_OUT)/y_bifurcation.png  the vine grown into the Y phantom: path, body, magnet, wall forces"
-	@echo "  $(DEMO_OUT)/y_bifurcation/     metrics.json, tip_trajectory.csv, magnet_trajectory.csv, events.json"
-	@echo "  $(DEMO_OUT)/field_map.png      |B| and |grad B| of the default EPM in the xz plane"
+	@echo "  $(DEMO_OUT)/bronchial_tree/tip.mp4       the tip camera's view (fisheye 120°) as the vine grows"
+	@echo "  $(DEMO_OUT)/bronchial_tree/overview.mp4  the run from outside: airway, vine, EPM, target, planned path"
+	@echo "  $(DEMO_OUT)/bronchial_tree.png           tip path, body, magnet path, wall forces"
+	@echo "  $(DEMO_OUT)/bronchial_tree/              metrics.json, tip/magnet trajectories, events.json, graph.json"
+	@echo "  $(DEMO_OUT)/field_map.png                |B| and |grad B| of the default EPM in the xz plane"
 
 bench: deps
 	cmake -S . -B $(BUILD) -DCMAKE_BUILD_TYPE=Release -DMAGVINE_BUILD_BENCHMARKS=ON $(CMAKE_FLAGS)
-	cmake --build $(BUILD) -j $(JOBS) --target bench_fields bench_mesh_import bench_contacts bench_distance bench_rod
+	cmake --build $(BUILD) -j $(JOBS) --target bench_fields bench_mesh_import bench_contacts bench_distance bench_rod bench_render
 	$(BUILD)/tests/bench/bench_fields --benchmark_min_time=0.5
 	$(BUILD)/tests/bench/bench_mesh_import
 	$(BUILD)/tests/bench/bench_contacts --benchmark_min_time=0.5
 	$(BUILD)/tests/bench/bench_distance --benchmark_filter='point/aabb/mean|capsule/aabb/mean|build/aabb/mean'
 	$(BUILD)/tests/bench/bench_rod
+	$(BUILD)/tests/bench/bench_render
 
 # Regenerates the README figures in docs/figures (field-model and phantom-meshing error against runtime, the robot
 # mechanics validation; ~3 min).

@@ -23,6 +23,7 @@ find_package(embree 3 REQUIRED CONFIG)
 
 if(MAGVINE_WITH_RENDER)
   find_package(OpenCV 4 REQUIRED COMPONENTS core imgproc imgcodecs videoio)
+  find_package(Threads REQUIRED)
 endif()
 
 if(MAGVINE_BUILD_TESTS)

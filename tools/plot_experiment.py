@@ -1,13 +1,14 @@
 #!/usr/bin/python3
 """Plot a growth experiment written by `magvine run` (a scene with anatomy:).
 
-Left: top view (x-y, mm) of the phantom's centreline graph drawn at its lumen
-width (when graph.json is there), the final body, the tip's path coloured by
+Left: a view (mm) on the plane of the run's two widest extents, or the one
+--plane names, of the phantom's centreline graph drawn at its lumen width
+(when graph.json is there), the final body, the tip's path coloured by
 time, the magnets' path and the target. Right: everted length, and the wall's
 largest normal force and total shear, against time. A missing or malformed
 input gives one line on stderr, exit status 2 and no PNG.
 
-    /usr/bin/python3 tools/plot_experiment.py RUN_DIR --out PNG [--title T]
+    /usr/bin/python3 tools/plot_experiment.py RUN_DIR --out PNG [--title T] [--plane xy|xz|yz]
 """
 import argparse
 import csv
@@ -51,14 +52,22 @@ def read_csv(path, needed):
     return cols
 
 
-def draw_graph(ax, path):
-    """The phantom's lumen as overlapping discs of its radius along the centreline, and the branch names."""
+def read_graph(path):
     try:
         with open(path, encoding="utf-8") as f:
             graph = json.load(f)
+        return graph, np.asarray([n["position"] for n in graph["nodes"]], float)
+    except (OSError, KeyError, ValueError, TypeError, IndexError) as e:
+        fail(path, getattr(e, "strerror", None) or f"malformed graph ({e})")
+
+
+def draw_graph(ax, path, graph, axes):
+    """The phantom's lumen as overlapping discs of its radius along the centreline, and the branch names, on the
+    plane of coordinates `axes` (a pair of 0, 1, 2)."""
+    try:
         nodes = graph["nodes"]
         for b in graph["branches"]:
-            pts = np.asarray([nodes[i]["position"] for i in b["nodes"]], float)
+            pts = np.asarray([nodes[i]["position"] for i in b["nodes"]], float)[:, list(axes)]
             radii = [nodes[i]["radius"] for i in b["nodes"]]
             for k in range(len(pts) - 1):  # discs every quarter radius along each segment
                 n = max(2, int(np.hypot(*(pts[k + 1, :2] - pts[k, :2])) / (0.25 * radii[k])))
@@ -77,6 +86,8 @@ def main():
     p.add_argument("run_dir")
     p.add_argument("--out", required=True)
     p.add_argument("--title", default="")
+    p.add_argument("--plane", choices=("xy", "xz", "yz"), default=None,
+                   help="the view's plane (default: the run's two widest extents)")
     a = p.parse_args()
     tip = read_csv(os.path.join(a.run_dir, "tip_trajectory.csv"),
                    ("t_s", "x_m", "y_m", "z_m", "length_m", "max_normal_N", "total_shear_N"))
@@ -89,19 +100,28 @@ def main():
         fail(metrics_path, getattr(e, "strerror", None) or str(e))
 
     fig, (ax, ax2) = plt.subplots(1, 2, figsize=(12, 5.2), gridspec_kw={"width_ratios": [1.3, 1]})
-    graph = os.path.join(a.run_dir, "graph.json")
-    if os.path.exists(graph):
-        draw_graph(ax, graph)
-    ax.plot(1e3 * shape["x_m"], 1e3 * shape["y_m"], "-", color="tab:orange", lw=3, label="vine (final)", zorder=3)
-    sc = ax.scatter(1e3 * tip["x_m"], 1e3 * tip["y_m"], c=tip["t_s"], s=4, cmap="viridis", zorder=4,
+    graph_path = os.path.join(a.run_dir, "graph.json")
+    graph = read_graph(graph_path) if os.path.exists(graph_path) else None
+    if a.plane:
+        axes = tuple("xyz".index(c) for c in a.plane)
+    else:
+        pts = np.column_stack([tip["x_m"], tip["y_m"], tip["z_m"]])
+        if graph is not None:
+            pts = np.vstack([pts, graph[1]])
+        axes = tuple(sorted(np.argsort(np.ptp(pts, axis=0))[1:]))
+    u, v = ("xyz"[axes[0]] + "_m", "xyz"[axes[1]] + "_m")
+    if graph is not None:
+        draw_graph(ax, graph_path, graph[0], axes)
+    ax.plot(1e3 * shape[u], 1e3 * shape[v], "-", color="tab:orange", lw=3, label="vine (final)", zorder=3)
+    sc = ax.scatter(1e3 * tip[u], 1e3 * tip[v], c=tip["t_s"], s=4, cmap="viridis", zorder=4,
                     label="tip path")
     fig.colorbar(sc, ax=ax, label="time [s]", shrink=0.8)
     magnets = os.path.join(a.run_dir, "magnet_trajectory.csv")
     if os.path.exists(magnets):
-        m = read_csv(magnets, ("t_s", "magnet", "x_m", "y_m"))
+        m = read_csv(magnets, ("t_s", "magnet", "x_m", "y_m", "z_m"))
         for k in np.unique(m["magnet"]):
             sel = m["magnet"] == k
-            x, y = 1e3 * m["x_m"][sel], 1e3 * m["y_m"][sel]
+            x, y = 1e3 * m[u][sel], 1e3 * m[v][sel]
             ax.plot(x, y, "--", color="tab:red", lw=1.2, label="magnet centre (path)" if k == 0 else None, zorder=3)
             ax.plot(x[-1:], y[-1:], "s", color="tab:red", ms=7, zorder=3)
     target = metrics.get("tip_position_m")
@@ -109,8 +129,8 @@ def main():
         ax.set_title(("target reached at %.2f s" % metrics["time_to_target_s"]) if metrics.get("success")
                      else "target not reached (final error %.1f mm)" % (1e3 * metrics["final_tip_error_m"]),
                      fontsize=10)
-    ax.set_xlabel("x [mm]")
-    ax.set_ylabel("y [mm]")
+    ax.set_xlabel(u[0] + " [mm]")
+    ax.set_ylabel(v[0] + " [mm]")
     ax.set_aspect("equal", adjustable="datalim")
     ax.legend(loc="best", fontsize=8)
     ax.grid(alpha=0.3)

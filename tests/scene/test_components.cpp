@@ -1,7 +1,7 @@
 // Components are built only when a scene uses them (issue 6, DESIGN.md): core/usage.hpp counts what a run built.
 // A free-space scene builds no collision world; a uniform field builds no gradient evaluation; an experiment builds
 // one collision world and no FCL distance model (no distance metric asks for one); magnets with gradients build
-// a gradient field only when the scene has them.
+// a gradient field only when the scene has them, and no renderer without outputs.video.
 
 #include <gtest/gtest.h>
 
@@ -44,6 +44,7 @@ TEST(Components, AnExperimentBuildsOneWorldAndNoDistanceModelAndAGradientOnlyWit
   EXPECT_EQ(usage::count(Component::kCollisionWorld), 1u);
   EXPECT_EQ(usage::count(Component::kDistanceModel), 0u);
   EXPECT_GE(usage::count(Component::kGradientField), 1u);  // one per magnet pose (it moves every step)
+  EXPECT_EQ(usage::count(Component::kRenderer), 0u);       // no outputs.video (test_video_outputs: one with it)
   scene.magnets.reset();
   scene.magnet_keyframes.clear();
   usage::reset();

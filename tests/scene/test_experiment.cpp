@@ -17,6 +17,7 @@
 #include "magvine/anatomy/collision_world.hpp"
 #include "magvine/core/error.hpp"
 #include "magvine/scene/experiment.hpp"
+#include "magvine/config.hpp"
 #include "magvine/scene/free_space.hpp"
 
 namespace magvine::scene {
@@ -311,6 +312,9 @@ TEST(Experiment, BadScenesNameTheFileAndKey) {
                "magnets[0].position: the magnet would overlap the anatomy");
   expect_error(replaced(text, "{time: 1, position: [70, 110, 0]", "{time: 1, position: [70, 40, 0]"),
                "control.magnets[0].keyframes[1].position: on its way there");
+  if (!config::kWithRender) {  // the render module's own scene checks: test_video_outputs
+    expect_error(text + "outputs: {video: {camera: tip}}\n", "outputs.video: this magvine was built without");
+  }
 }
 
 TEST(Experiment, GamepadCommandsBecomeTheSameKeyframesAsWrittenOut) {

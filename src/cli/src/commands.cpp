@@ -131,6 +131,10 @@ int run_experiment_scene(const RunArgs& args, const std::filesystem::path& out) 
               << std::string(static_cast<std::size_t>(10 - shown), '.') << "] " << percent << " %" << std::flush;
   });
   std::cerr << '\n';
+  if (!sc.videos.empty()) {
+    std::cerr << "magvine run: rendering " << sc.videos.size() << (sc.videos.size() == 1 ? " video" : " videos")
+              << " of " << result.frames.size() << " frames\n";
+  }
   scene::write_experiment_outputs(sc, result, out);
   const Vec3 tip = result.final_state.tip() / kMmToM;
   std::cerr << "magvine run: " << result.samples.back().length / kMmToM << " mm everted, tip at (" << tip.x() << ", "
@@ -139,7 +143,8 @@ int run_experiment_scene(const RunArgs& args, const std::filesystem::path& out) 
                                             : std::string(", target not reached"))
                           : std::string())
             << "; " << result.runtime_s << " s of computing -> " << out.string() << "/{metrics.json,tip_trajectory.csv,"
-            << (sc.magnets ? "magnet_trajectory.csv," : "") << "events.json,shape.csv}\n";
+            << (sc.magnets ? "magnet_trajectory.csv," : "") << "events.json,shape.csv"
+            << (sc.videos.empty() ? "" : ",videos (metrics.json: videos)") << "}\n";
   if (!result.converged) {
     std::cerr << "magvine: numerical failure: " << result.failure << '\n';
     return static_cast<int>(ExitCode::kNumericalFailure);

@@ -21,8 +21,12 @@
 #include "magvine/core/stopwatch.hpp"
 #include "magvine/core/units.hpp"
 #include "magvine/robot/elastica.hpp"
+#include "magvine/config.hpp"
 #include "robot_entries.hpp"
 #include "yaml_reader.hpp"
+#if MAGVINE_WITH_RENDER
+#include "video_outputs.hpp"
+#endif
 
 namespace magvine::scene {
 namespace {
@@ -453,6 +457,75 @@ bool is_experiment_scene(const std::filesystem::path& file) {
   return root && root.IsMap() && static_cast<bool>(root["anatomy"]);
 }
 
+/// One outputs.video entry (experiment.hpp). `unit`: the file's length unit [m].
+VideoOutput video_of(const YamlMap& v, double unit) {
+  v.allow_only({"camera", "size", "fov", "lens", "fps", "speed", "frames", "depth", "depth_range", "noise", "from",
+                "up"});
+  VideoOutput out;
+  const std::string camera = v.text("camera");
+  if (camera == "overview") {
+    out.view = VideoOutput::View::kOverview;
+    out.width = 640;
+    out.height = 480;
+    out.fov = 40.0 * kDegToRad;
+    out.fisheye = false;
+  } else if (camera != "tip") {
+    v.fail("camera", "must be tip or overview, not '" + camera + "'");
+  }
+  const auto flag = [&](const std::string& key) {
+    const std::string t = v.text(key);
+    if (t != "true" && t != "false") v.fail(key, "must be true or false");
+    return t == "true";
+  };
+  if (v.has("size")) {
+    const YAML::Node n = v.node("size");
+    const auto whole = [&](const YAML::Node& e) {
+      double x = 0.0;
+      try {
+        x = e.as<double>();
+      } catch (const YAML::Exception&) {
+        v.fail("size", "must be [width, height] in pixels");
+      }
+      if (!(x == std::floor(x) && x >= 16 && x <= 4096)) v.fail("size", "each side must be a whole 16 to 4096 px");
+      return static_cast<int>(x);
+    };
+    if (!n.IsSequence() || n.size() != 2) v.fail("size", "must be [width, height] in pixels");
+    out.width = whole(n[0]);
+    out.height = whole(n[1]);
+    if (out.width % 2 != 0 || out.height % 2 != 0) v.fail("size", "video codecs need even sides");
+  }
+  if (v.has("lens")) {
+    const std::string lens = v.text("lens");
+    if (lens != "fisheye" && lens != "pinhole") v.fail("lens", "must be fisheye or pinhole, not '" + lens + "'");
+    out.fisheye = lens == "fisheye";
+  }
+  if (v.has("fov")) out.fov = v.positive("fov") * kDegToRad;
+  if (out.fov >= (out.fisheye ? 2.0 * kPi : kPi) - 1e-9) {
+    v.fail("fov", out.fisheye ? "a fisheye's field of view must be below 360 degrees"
+                              : "a pinhole's field of view must be below 180 degrees");
+  }
+  if (v.has("fps")) out.fps = v.positive("fps");
+  if (out.fps > 240.0) v.fail("fps", "at most 240 frames per second");
+  if (v.has("speed")) out.speed = v.positive("speed");
+  if (v.has("frames")) out.frames = flag("frames");
+  if (v.has("depth")) {
+    out.depth = flag("depth");
+    if (out.depth && out.view != VideoOutput::View::kTip) v.fail("depth", "depth maps are the tip camera's");
+  }
+  if (v.has("depth_range")) out.depth_range = v.positive("depth_range") * unit;
+  if (v.has("noise")) {
+    out.noise = v.number("noise");
+    if (!(out.noise >= 0.0 && out.noise <= 50.0)) v.fail("noise", "must lie in [0, 50] grey levels");
+  }
+  for (const char* key : {"from", "up"}) {
+    if (!v.has(key)) continue;
+    if (out.view != VideoOutput::View::kOverview) v.fail(key, "only the overview camera takes a viewing direction");
+    (std::string(key) == "from" ? out.from : out.up) = v.nonzero_vec3(key).normalized();
+  }
+  if (out.from && out.up && out.from->cross(*out.up).norm() < 1e-6) v.fail("up", "must not be parallel to from");
+  return out;
+}
+
 ExperimentScene parse_experiment_scene(const std::string& text, const std::string& file_label,
                                        const std::filesystem::path& directory) {
   const YAML::Node root = parse_yaml(text, file_label);
@@ -585,8 +658,28 @@ ExperimentScene parse_experiment_scene(const std::string& text, const std::strin
 
   if (top.has("outputs")) {
     const YamlMap o = top.map("outputs");
-    o.allow_only({"shape_interval"});
+    o.allow_only({"shape_interval", "video"});
     if (o.has("shape_interval")) scene.shape_interval = o.positive("shape_interval");
+    if (o.has("video")) {
+      if (!config::kWithRender) {
+        o.fail("video", "this magvine was built without the render module (cmake -DMAGVINE_WITH_RENDER=ON)");
+      }
+      const YAML::Node list = o.node("video");
+      if (list.IsSequence()) {
+        for (std::size_t i = 0; i < list.size(); ++i) {
+          scene.videos.push_back(video_of(YamlMap(list[i], o.file(), o.key_path("video") + "[" + std::to_string(i) + "]"), unit));
+        }
+      } else {
+        scene.videos.push_back(video_of(o.map("video"), unit));
+      }
+      for (std::size_t i = 0; i < scene.videos.size(); ++i) {
+        for (std::size_t k = 0; k < i; ++k) {
+          if (scene.videos[k].view == scene.videos[i].view) {
+            o.fail("video", "two " + scene.videos[i].name() + " videos would write the same file");
+          }
+        }
+      }
+    }
   }
   const YamlMap sim = top.map("simulation");
   sim.allow_only({"duration", "dt", "gravity", "stop_at_target"});
@@ -752,6 +845,9 @@ ExperimentResult run_experiment(const ExperimentScene& scene, const std::functio
   std::vector<int> deflated_at;  // branches whose end junction the navigator has deflated the vine for
   double deflate_until = -1.0;
   double next_shape = 0.0;  // outputs.shape_interval
+  double next_frame = 0.0;  // outputs.video: one record per frame of the most frequent video
+  double frame_interval = std::numeric_limits<double>::infinity();
+  for (const VideoOutput& v : scene.videos) frame_interval = std::min(frame_interval, v.speed / v.fps);
   std::vector<robot::GrowthEvent> workspace_events;  // the navigator's, merged with the growth's at the end
   std::vector<magnetics::Pose> poses;
   const auto poses_at = [&](double t) {
@@ -799,6 +895,23 @@ ExperimentResult run_experiment(const ExperimentScene& scene, const std::functio
     built.emplace(vine, scene.growth, &world, field, scene.base_position, scene.base_frame);
   }
   robot::VineGrowth& growth = *built;
+  const auto record_frame = [&](double t) {
+    if (scene.videos.empty() || t < next_frame - 1e-9) return;
+    // One record per frame time passed (a step longer than a frame repeats the state: the video keeps time).
+    FrameSample f;
+    f.nodes = growth.state().x;
+    f.tip_frame = growth.state().frames.back();
+    for (const magnetics::Pose& pose : poses) {
+      f.magnet_positions.push_back(pose.position);
+      f.magnet_axes.push_back(pose.rotation.col(2));
+    }
+    while (next_frame <= t + 1e-9) {
+      f.time = next_frame;
+      out.frames.push_back(f);
+      next_frame += frame_interval;
+    }
+  };
+  record_frame(0.0);
   const auto steps = static_cast<long>(std::ceil(scene.duration / scene.dt - 1e-9));
   const bool moving = scene.navigator || std::any_of(scene.magnet_keyframes.begin(), scene.magnet_keyframes.end(),
                                                      [](const auto& k) { return k.size() > 1; });
@@ -863,6 +976,7 @@ ExperimentResult run_experiment(const ExperimentScene& scene, const std::functio
     s.total_shear = growth.wall_forces().total_shear;
     if (scene.graph) s.branch = nearest_branch(*scene.graph, s.tip);
     out.samples.push_back(s);
+    record_frame(t);
     if (scene.shape_interval > 0.0 && t >= next_shape - 1e-9) {
       out.shapes.push_back({t, growth.state().x});
       next_shape += scene.shape_interval;
@@ -1130,6 +1244,20 @@ void write_experiment_outputs(const ExperimentScene& scene, const ExperimentResu
     }
     write_file_atomically(dir / "magnet_trajectory.csv", mags.str());
   }
+#if MAGVINE_WITH_RENDER
+  if (!scene.videos.empty()) {
+    VideoInputs in;
+    if (scene.navigator) {
+      in.planned_path = planned_path(*scene.graph, anatomy::path_from_root(*scene.graph, scene.navigator->target_branch));
+    }
+    for (std::size_t i = 0; scene.magnets && i < scene.magnets->size(); ++i) {
+      const std::optional<MagnetBody> body = magnet_body(*scene.magnets, i);
+      in.magnet_diameters.push_back(body ? 2.0 * body->radius : 0.0);
+      in.magnet_lengths.push_back(body ? 2.0 * body->half_length : 0.0);
+    }
+    j["videos"] = write_videos(scene, result, in, dir);
+  }
+#endif
   write_file_atomically(dir / "metrics.json", j.dump(2) + "\n");
 }
 

@@ -40,8 +40,23 @@
 ///                                                                  # stop_at_target: true (default) ends the run
 ///                                                                  # when the target is reached
 /// target: {position: [100, -20, 0], tolerance: 5}                 # optional: success when the tip is within it
-/// outputs: {shape_interval: 0.5}          # optional: the body's nodes every 0.5 s in shapes.csv (off by default)
+/// outputs:                                 # optional
+///   shape_interval: 0.5                     #   the body's nodes every 0.5 s in shapes.csv (off by default)
+///   video: {camera: tip}                    #   a video of the run (render module), or a list of them; below
 /// ```
+/// Videos (`outputs.video`, one map or a list; needs the render module, else exit 2): `camera: tip` films the
+/// endoscope view from the tip along its tangent (image up: the tip's first director), `camera: overview` a
+/// third-person view of the semi-transparent anatomy with the body, the magnets (north half red, an arrow along
+/// the magnetisation), the target and the planned path. Keys, defaults in brackets: `size` [[320, 320] tip,
+/// [640, 480] overview] px; `fov` [110 tip, 40 overview] degrees across the width; `lens` [fisheye tip, pinhole
+/// overview] fisheye | pinhole; `fps` [30] frames per second of video; `speed` [1] simulated seconds per second of
+/// video (a frame every speed/fps simulated seconds, the first at t = 0); `frames` [false] also every frame as
+/// PNG; `depth` [false] (tip) the z-depth of every frame as a 16-bit PNG, level = depth / depth_range · 65535
+/// (`depth_range` [100] length units; C3VD's scale); `noise` [0] sensor noise σ in grey levels, seeded by `seed`;
+/// `from`, `up` (overview) the viewing direction towards the camera and the image's up [along the anatomy's
+/// thinnest extent]. Files: tip.mp4 (or tip.avi where OpenCV has no MP4 writer), overview.mp4, tip_frames/,
+/// tip_depth/ (with depth.json giving the scale); listed in metrics.json under "videos".
+///
 /// Magnet poses between keyframes: positions linear, axes turned along the great circle (slerp); held beyond the
 /// ends.
 ///
@@ -120,6 +135,25 @@ struct TrialPerturbation {
   double material_spread = 0.05;     ///< relative
 };
 
+/// One outputs.video entry (above). Angles [rad], lengths [m].
+struct VideoOutput {
+  enum class View { kTip, kOverview };
+  View view = View::kTip;
+  int width = 320;
+  int height = 320;
+  double fov = 1.9198621771937625;  ///< 110°
+  bool fisheye = true;
+  double fps = 30.0;
+  double speed = 1.0;        ///< simulated seconds per second of video
+  bool frames = false;       ///< PNG of every frame
+  bool depth = false;        ///< tip: 16-bit depth PNGs
+  double depth_range = 0.1;  ///< [m] at level 65535
+  double noise = 0.0;        ///< grey levels
+  std::optional<Vec3> from;  ///< overview: towards the camera
+  std::optional<Vec3> up;    ///< overview: image up
+  std::string name() const { return view == View::kTip ? "tip" : "overview"; }
+};
+
 struct ExperimentScene {
   std::string file;                 ///< the scene file (for messages)
   std::string anatomy_label;        ///< "phantom y_bifurcation" or the mesh path
@@ -143,6 +177,7 @@ struct ExperimentScene {
   Vec3 navigator_offset = Vec3::Zero();  ///< a trial's placement error added to the navigator's poses [m]
   std::uint64_t seed = 0;
   double shape_interval = 0.0;      ///< outputs.shape_interval [s]: the body every so often in shapes.csv; 0: off
+  std::vector<VideoOutput> videos;  ///< outputs.video
   bool closed_anatomy = false;      ///< the mesh is closed (generated, or watertight): inside/outside is defined
   int target_line = 0;              ///< lines of target: and robot.base: in the file (for messages)
   int base_line = 0;
@@ -182,9 +217,19 @@ struct ShapeSample {
   std::vector<Vec3> nodes;   ///< clamp first, tip last [m]
 };
 
+/// What a video frame needs of the run at one time (recorded when the scene has outputs.video).
+struct FrameSample {
+  double time = 0.0;               ///< [s]
+  std::vector<Vec3> nodes;         ///< the body, clamp first [m]
+  Mat3 tip_frame = Mat3::Identity();  ///< the tip's directors (column 0: tangent)
+  std::vector<Vec3> magnet_positions;  ///< [m]
+  std::vector<Vec3> magnet_axes;
+};
+
 struct ExperimentResult {
   std::vector<ExperimentSample> samples;
   std::vector<ShapeSample> shapes;  ///< every outputs.shape_interval (opt-in)
+  std::vector<FrameSample> frames;  ///< every video frame's time (outputs.video)
   std::vector<MagnetSample> magnet_samples;  ///< at every step where a keyframed magnet moved, and at t = 0
   std::vector<robot::GrowthEvent> events;
   robot::RodState final_state;
@@ -242,7 +287,8 @@ void write_trial_outputs(const std::vector<TrialOutcome>& outcomes, const std::f
 /// final_tip_error_m (null without a target), tip_position_m, everted_length_m, tip_path_length_m, branches_reached
 /// (graph names in order, generated phantoms), max_wall_normal_N, mean_wall_normal_N (time average of the total),
 /// max_wall_shear_N (largest total over the steps), stalls, blocked, events, magnet_travel_m, simulated_s,
-/// runtime_s, real_time_factor, converged (the last step), failed_steps, failure, seed.
+/// runtime_s, real_time_factor, converged (the last step), failed_steps, failure, seed, and with outputs.video the
+/// videos (tip.mp4 / overview.mp4, or .avi) and "videos": [{camera, file, codec, frames, fps, size}].
 void write_experiment_outputs(const ExperimentScene& scene, const ExperimentResult& result,
                               const std::filesystem::path& dir);
 

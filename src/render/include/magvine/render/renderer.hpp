@@ -1,0 +1,110 @@
+#pragma once
+/// CPU ray-cast rendering of an airway (Embree; Wald et al., ACM TOG 33(4) 143, 2014): the endoscope's view from a
+/// tip camera, with its depth as ground truth, and a third-person overview of the anatomy with the robot, the
+/// magnets, the target and the planned path.
+///
+/// Endoscope shading (../shared/reference/render-and-vine-physics.md A1; the light sits at the lens, so the light
+/// and view directions coincide): for a ray d hitting the wall at range t with normal n,
+///   cos_i = |n·d|,  E = spot(ψ) / (t² + t0²),  spot(ψ) = cos^μ ψ (ψ: the ray's angle to the optical axis),
+///   radiance = E (ρ cos_i / π + k_s cos_i^s)        (Lambert + a tight specular glint of wet mucosa)
+///   pixel = (gain · (1 − a r²) · radiance)^(1/γ)     (r: distance from the image centre over half the diagonal)
+/// The gain is fixed or set by auto-exposure (the 95th percentile of luminance maps to `exposure_target`, eased
+/// from frame to frame as a bronchoscope's exposure loop does). Optional Gaussian sensor noise, seeded.
+
+#include <cstdint>
+#include <memory>
+#include <optional>
+#include <vector>
+
+#include <opencv2/core/mat.hpp>
+
+#include "magvine/anatomy/triangle_mesh.hpp"
+#include "magvine/render/camera.hpp"
+
+namespace magvine::render {
+
+/// How the endoscope sees the wall (defaults: pink-red mucosa under a tip LED).
+struct EndoscopeLook {
+  Vec3 albedo{0.80, 0.45, 0.40};  ///< ρ, linear RGB
+  double specular = 0.35;         ///< k_s
+  double shininess = 40.0;        ///< s: tighter glints when larger
+  double spot_exponent = 2.0;     ///< μ of the light's cos^μ profile
+  double light_softening = 1e-3;  ///< t0 [m]: keeps a wall touching the lens finite
+  double vignetting = 0.35;       ///< a: the corners get 1 − a of the centre's light
+  double gamma = 2.2;
+  double exposure = 0.0;          ///< fixed gain; 0: auto-exposure
+  double exposure_target = 0.85;  ///< auto-exposure puts the 95th percentile of luminance here (before gamma)
+  double texture = 0.12;          ///< relative amplitude of the mucosa's procedural mottling (0: plain)
+  double noise = 0.0;             ///< sensor noise σ in 8-bit grey levels (0: none)
+  std::uint64_t seed = 0;         ///< noise seed (with the frame number)
+};
+
+/// Auto-exposure state carried from frame to frame of a video.
+struct AutoExposure {
+  double gain = 0.0;       ///< the last frame's gain; 0: none yet (the first frame takes its own at once)
+  double easing = 0.5;     ///< fraction of the way (in log gain) to the new frame's ideal gain
+};
+
+/// One endoscope frame.
+struct EndoscopeFrame {
+  cv::Mat color;  ///< CV_8UC3, BGR (OpenCV's order)
+  cv::Mat depth;  ///< CV_32F, z-depth along the optical axis [m]; 0 where the ray hits nothing
+  double gain = 0.0;  ///< the exposure gain used
+};
+
+/// What the overview shows besides the anatomy.
+struct OverviewMagnet {
+  Vec3 position = Vec3::Zero();  ///< centre [m]
+  Vec3 axis = Vec3::UnitZ();     ///< magnetisation (north) direction
+  double diameter = 0.0;         ///< [m]; 0 (a point dipole): drawn as a 20 mm ball
+  double length = 0.0;           ///< [m]
+};
+
+struct OverviewContent {
+  std::vector<Vec3> body;        ///< the robot's centreline, base first [m]
+  double body_radius = 2.5e-3;   ///< [m]
+  std::vector<OverviewMagnet> magnets;
+  std::optional<Vec3> target;    ///< [m]
+  double target_radius = 2e-3;   ///< [m]
+  std::vector<Vec3> path;        ///< the planned path [m]
+};
+
+struct OverviewLook {
+  double anatomy_opacity = 0.3;  ///< per wall layer the ray crosses
+  int max_layers = 4;            ///< wall layers composited before the rest counts as hidden
+  cv::Vec3b background{250, 250, 250};  ///< BGR
+};
+
+/// Renders one anatomy mesh from any camera. Building it builds Embree's BVH of the mesh (once); rendering is
+/// read-only, so one renderer serves any number of frames. `threads` ≥ 1 share each frame's rows.
+class AirwayRenderer {
+ public:
+  explicit AirwayRenderer(const anatomy::TriangleMesh& mesh, int threads = 1);
+  ~AirwayRenderer();
+  AirwayRenderer(const AirwayRenderer&) = delete;
+  AirwayRenderer& operator=(const AirwayRenderer&) = delete;
+
+  /// The endoscope's view. `frame_index` seeds the noise with look.seed; `exposure` (optional) carries the
+  /// auto-exposure from frame to frame. InputError for a bad camera or look.
+  EndoscopeFrame render_endoscope(const Camera& camera, const EndoscopeLook& look, std::uint64_t frame_index = 0,
+                                  AutoExposure* exposure = nullptr) const;
+
+  /// Third-person view: the anatomy's walls semi-transparent (each crossing composited at look.anatomy_opacity), the
+  /// robot's body (light blue), each magnet (north half red, south half blue, an arrow along its axis), the target
+  /// (green ball) and the planned path (yellow). Headlight shading. CV_8UC3, BGR.
+  cv::Mat render_overview(const Camera& camera, const OverviewContent& content,
+                          const OverviewLook& look = OverviewLook{}) const;
+
+  std::size_t triangle_count() const;
+  int threads() const;
+
+ private:
+  struct Impl;
+  std::unique_ptr<Impl> m_impl;
+};
+
+/// A camera that frames `box` (grown by 5 %) seen from direction `from` (towards the camera), up `up`.
+Camera framing_camera(const anatomy::Aabb& box, const Vec3& from, const Vec3& up, Lens lens, double fov, int width,
+                      int height);
+
+}  // namespace magvine::render

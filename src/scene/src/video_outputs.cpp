@@ -1,0 +1,182 @@
+#include "video_outputs.hpp"
+
+#include <unistd.h>
+
+#include <algorithm>
+#include <cmath>
+#include <cstdio>
+#include <string>
+#include <system_error>
+#include <thread>
+
+#include "magvine/core/atomic_file.hpp"
+#include "magvine/core/error.hpp"
+#include "magvine/render/renderer.hpp"
+#include "magvine/render/video.hpp"
+
+namespace magvine::scene {
+namespace {
+
+namespace fs = std::filesystem;
+
+/// A folder of PNGs written under a temporary name and renamed into place when complete.
+class FrameFolder {
+ public:
+  FrameFolder(const fs::path& dir, const std::string& name)
+      : m_final(dir / name), m_temp(dir / ("." + name + ".partial-" + std::to_string(::getpid()))) {
+    std::error_code ec;
+    fs::remove_all(m_temp, ec);
+    create_output_directory(m_temp);
+  }
+  FrameFolder(const FrameFolder&) = delete;
+  FrameFolder& operator=(const FrameFolder&) = delete;
+  ~FrameFolder() {
+    if (m_done) return;
+    std::error_code ec;
+    fs::remove_all(m_temp, ec);
+  }
+  fs::path file(int k) const {
+    char name[32];
+    std::snprintf(name, sizeof name, "%06d.png", k);
+    return m_temp / name;
+  }
+  const fs::path& temp() const { return m_temp; }
+  void commit() {
+    std::error_code ec;
+    fs::remove_all(m_final, ec);
+    fs::rename(m_temp, m_final, ec);
+    if (ec) throw InputError(m_final.string(), 0, "", "cannot move the finished frames into place: " + ec.message());
+    m_done = true;
+  }
+
+ private:
+  fs::path m_final;
+  fs::path m_temp;
+  bool m_done = false;
+};
+
+/// The overview's default viewing direction: along the anatomy's thinnest extent (a phantom lying in a plane is
+/// seen face on), image up along z unless that is the thinnest, then y. The caller picks the side.
+std::pair<Vec3, Vec3> default_view(const anatomy::Aabb& box) {
+  const Vec3 size = box.max - box.min;
+  int thin = 0;
+  for (int k = 1; k < 3; ++k) {
+    if (size[k] < size[thin]) thin = k;
+  }
+  return {Vec3::Unit(thin), thin == 2 ? Vec3(Vec3::UnitY()) : Vec3(Vec3::UnitZ())};
+}
+
+render::Camera tip_camera(const VideoOutput& v, const FrameSample& f) {
+  render::Camera c;
+  c.position = f.nodes.back();
+  c.forward = f.tip_frame.col(0);
+  c.up = f.tip_frame.col(1);
+  c.lens = v.fisheye ? render::Lens::kFisheye : render::Lens::kPinhole;
+  c.fov = v.fov;
+  c.width = v.width;
+  c.height = v.height;
+  return c;
+}
+
+}  // namespace
+
+nlohmann::json write_videos(const ExperimentScene& scene, const ExperimentResult& result, const VideoInputs& in,
+                            const fs::path& dir) {
+  nlohmann::json entries = nlohmann::json::array();
+  if (scene.videos.empty() || result.frames.empty()) return entries;
+  const int threads = static_cast<int>(std::clamp(std::thread::hardware_concurrency(), 1u, 8u));
+  const render::AirwayRenderer renderer(scene.mesh, threads);
+  create_output_directory(dir);
+  const double last = result.frames.back().time;
+
+  for (const VideoOutput& v : scene.videos) {
+    const bool tip = v.view == VideoOutput::View::kTip;
+    render::Camera overview;
+    if (!tip) {
+      // One camera for the whole video, framing the anatomy and the body wherever it went (a magnet 10 cm out
+      // would shrink the airway to a few pixels; it enters the picture where it comes close), from the side away
+      // from the magnets so that they stay behind the body.
+      const anatomy::Aabb anatomy_box = anatomy::bounding_box(scene.mesh);
+      anatomy::Aabb box = anatomy_box;
+      Vec3 magnets_mean = Vec3::Zero();
+      double count = 0.0;
+      for (const FrameSample& f : result.frames) {
+        for (const Vec3& x : f.nodes) {
+          box.min = box.min.cwiseMin(x - Vec3::Constant(scene.vine.radius));
+          box.max = box.max.cwiseMax(x + Vec3::Constant(scene.vine.radius));
+        }
+        for (const Vec3& m : f.magnet_positions) {
+          magnets_mean += m;
+          count += 1.0;
+        }
+      }
+      auto [from, up] = default_view(anatomy_box);
+      if (count > 0.0 && (magnets_mean / count - 0.5 * (anatomy_box.min + anatomy_box.max)).dot(from) > 0.0) {
+        from = -from;
+      }
+      overview = render::framing_camera(box, v.from.value_or(from), v.up.value_or(up),
+                                        v.fisheye ? render::Lens::kFisheye : render::Lens::kPinhole, v.fov, v.width,
+                                        v.height);
+    }
+    render::VideoFile video(dir / v.name(), v.fps, v.width, v.height);
+    std::optional<FrameFolder> pngs;
+    std::optional<FrameFolder> depths;
+    if (v.frames) pngs.emplace(dir, v.name() + "_frames");
+    if (v.depth) depths.emplace(dir, v.name() + "_depth");
+    render::EndoscopeLook look;
+    look.noise = v.noise;
+    look.seed = scene.seed;
+    render::AutoExposure exposure;
+    const double interval = v.speed / v.fps;
+    std::size_t j = 0;
+    for (int k = 0;; ++k) {
+      const double t = k * interval;
+      if (t > last + 1e-9) break;
+      while (j + 1 < result.frames.size() && result.frames[j].time < t - 1e-9) ++j;
+      const FrameSample& f = result.frames[j];
+      cv::Mat image;
+      if (tip) {
+        const render::EndoscopeFrame e =
+            renderer.render_endoscope(tip_camera(v, f), look, static_cast<std::uint64_t>(k), &exposure);
+        image = e.color;
+        if (depths) render::write_png(depths->file(k), render::depth_to_u16(e.depth, v.depth_range));
+      } else {
+        render::OverviewContent content;
+        content.body = f.nodes;
+        content.body_radius = scene.vine.radius;
+        content.target = scene.target;
+        content.target_radius = std::max(scene.target_tolerance, 1e-3);
+        content.path = in.planned_path;
+        for (std::size_t i = 0; i < f.magnet_positions.size(); ++i) {
+          content.magnets.push_back({f.magnet_positions[i], f.magnet_axes[i],
+                                     i < in.magnet_diameters.size() ? in.magnet_diameters[i] : 0.0,
+                                     i < in.magnet_lengths.size() ? in.magnet_lengths[i] : 0.0});
+        }
+        image = renderer.render_overview(overview, content);
+      }
+      video.write(image);
+      if (pngs) render::write_png(pngs->file(k), image);
+    }
+    const fs::path file = video.finish();
+    if (pngs) pngs->commit();
+    if (depths) {
+      nlohmann::json scale = {{"units", "z-depth along the optical axis; level = depth / range * 65535, 0 = no hit"},
+                              {"range_m", v.depth_range},
+                              {"metres_per_level", v.depth_range / 65535.0}};
+      write_file_atomically(depths->temp() / "depth.json", scale.dump(2) + "\n");
+      depths->commit();
+    }
+    nlohmann::json e = {{"camera", v.name()},
+                        {"file", file.filename().string()},
+                        {"codec", video.codec()},
+                        {"frames", video.frames()},
+                        {"fps", v.fps},
+                        {"size", {v.width, v.height}}};
+    if (v.frames) e["frames_dir"] = v.name() + "_frames";
+    if (v.depth) e["depth_dir"] = v.name() + "_depth";
+    entries.push_back(e);
+  }
+  return entries;
+}
+
+}  // namespace magvine::scene

@@ -1,0 +1,401 @@
+// Render module: lens geometry against closed forms, the endoscope's view of a straight tube against the tube's
+// analytic depth and symmetry, video and image files read back, the bronchial phantom's exposure, determinism.
+#include <gtest/gtest.h>
+
+#include <cmath>
+#include <filesystem>
+#include <vector>
+
+#include <opencv2/imgcodecs.hpp>
+#include <opencv2/imgproc.hpp>
+#include <opencv2/videoio.hpp>
+
+#include "magvine/anatomy/phantom.hpp"
+#include "magvine/anatomy/primitives.hpp"
+#include "magvine/core/error.hpp"
+#include "magvine/core/units.hpp"
+#include "magvine/render/camera.hpp"
+#include "magvine/render/renderer.hpp"
+#include "magvine/render/video.hpp"
+
+namespace magvine::render {
+namespace {
+
+namespace fs = std::filesystem;
+
+fs::path scratch(const std::string& name) {
+  const fs::path dir = fs::temp_directory_path() / ("magvine_test_render_" + name);
+  fs::remove_all(dir);
+  fs::create_directories(dir);
+  return dir;
+}
+
+/// A UV sphere of radius r at c, outward normals.
+anatomy::TriangleMesh ball(const Vec3& c, double r, int n = 24) {
+  anatomy::TriangleMesh m;
+  for (int i = 0; i <= n; ++i) {
+    const double th = kPi * i / n;
+    for (int j = 0; j < 2 * n; ++j) {
+      const double ph = kPi * j / n;
+      m.vertices.push_back(c + r * Vec3(std::sin(th) * std::cos(ph), std::sin(th) * std::sin(ph), std::cos(th)));
+    }
+  }
+  const auto at = [n](int i, int j) { return static_cast<std::uint32_t>(i * 2 * n + (j % (2 * n))); };
+  for (int i = 0; i < n; ++i) {
+    for (int j = 0; j < 2 * n; ++j) {
+      m.triangles.push_back({at(i, j), at(i + 1, j), at(i + 1, j + 1)});
+      m.triangles.push_back({at(i, j), at(i + 1, j + 1), at(i, j + 1)});
+    }
+  }
+  return m;
+}
+
+double grey(const cv::Mat& img, double x, double y) {  // mean of a 3 × 3 patch, all channels
+  double s = 0.0;
+  for (int dy = -1; dy <= 1; ++dy) {
+    for (int dx = -1; dx <= 1; ++dx) {
+      const cv::Vec3b p = img.at<cv::Vec3b>(static_cast<int>(y) + dy, static_cast<int>(x) + dx);
+      s += (p[0] + p[1] + p[2]) / 3.0;
+    }
+  }
+  return s / 9.0;
+}
+
+TEST(Camera, FisheyeMapsAKnownDirectionToItsPixel) {
+  // Equidistant lens: r = f θ with f = (W/2)/(fov/2). 120° over 320 px: f = 160/(π/3) = 152.789 px.
+  Camera cam;
+  cam.lens = Lens::kFisheye;
+  cam.fov = 120.0 * kDegToRad;
+  cam.forward = Vec3::UnitX();
+  cam.up = Vec3::UnitZ();
+  const double f = 160.0 / (kPi / 3.0);
+  EXPECT_NEAR(focal_pixels(cam), f, 1e-12);
+  // 45° to the right (−y when looking along +x with z up): x = 160 + f π/4, y = 160.
+  const auto right = project_direction(cam, Vec3(1.0, -1.0, 0.0));
+  ASSERT_TRUE(right);
+  EXPECT_NEAR(right->x(), 160.0 + f * kPi / 4.0, 1e-9);
+  EXPECT_NEAR(right->y(), 160.0, 1e-9);
+  // 30° up and 100° off-axis (beyond a pinhole's reach) land at r = f θ along their azimuth.
+  const auto up = project_direction(cam, Vec3(std::cos(0.5236), 0.0, std::sin(0.5236)));
+  ASSERT_TRUE(up);
+  EXPECT_NEAR(up->y(), 160.0 - f * 0.5236, 1e-9);
+  const double th = 100.0 * kDegToRad;
+  const auto wide = project_direction(cam, Vec3(std::cos(th), 0.0, -std::sin(th)));
+  ASSERT_TRUE(wide);
+  EXPECT_NEAR(wide->y(), 160.0 + f * th, 1e-9);
+  // The ray through that pixel is the direction again.
+  const Vec3 back = camera_frame(cam) * camera_ray(cam, f, wide->x(), wide->y());
+  EXPECT_LT((back - Vec3(std::cos(th), 0.0, -std::sin(th))).norm(), 1e-12);
+}
+
+TEST(Camera, PinholeProjectsByTheTangent) {
+  Camera cam;
+  cam.lens = Lens::kPinhole;
+  cam.fov = 90.0 * kDegToRad;
+  cam.width = 400;
+  cam.height = 300;
+  const double f = 200.0;  // (W/2) / tan 45°
+  EXPECT_NEAR(focal_pixels(cam), f, 1e-9);
+  const auto p = project_direction(cam, Vec3(1.0, -0.3, 0.2));
+  ASSERT_TRUE(p);
+  EXPECT_NEAR(p->x(), 200.0 + f * 0.3, 1e-9);
+  EXPECT_NEAR(p->y(), 150.0 - f * 0.2, 1e-9);
+  EXPECT_FALSE(project_direction(cam, Vec3(-1.0, 0.0, 0.0)));
+  cam.fov = kPi;
+  EXPECT_THROW(focal_pixels(cam), InputError);
+}
+
+TEST(Endoscope, ARenderedBallLandsWhereTheLensModelPutsIt) {
+  // A 1 mm ball 50 mm away, 45° right and 20° up of the axis: the centroid of its hit pixels is the projection of
+  // its centre. The silhouette of a ball is symmetric about its centre's ray to first order; the residue at this
+  // size (the ball spans ~3 px) is well under half a pixel.
+  const double az = 45.0 * kDegToRad;
+  const double el = 20.0 * kDegToRad;
+  const Vec3 dir(std::cos(el) * std::cos(az), -std::cos(el) * std::sin(az), std::sin(el));
+  const AirwayRenderer renderer(ball(0.05 * dir, 1e-3));
+  for (const Lens lens : {Lens::kFisheye, Lens::kPinhole}) {
+    Camera cam;
+    cam.lens = lens;
+    cam.fov = 130.0 * kDegToRad;
+    const EndoscopeFrame f = renderer.render_endoscope(cam, EndoscopeLook{});
+    double sx = 0.0, sy = 0.0, n = 0.0;
+    for (int y = 0; y < f.depth.rows; ++y) {
+      for (int x = 0; x < f.depth.cols; ++x) {
+        if (f.depth.at<float>(y, x) > 0.0f) {
+          sx += x + 0.5;
+          sy += y + 0.5;
+          n += 1.0;
+        }
+      }
+    }
+    ASSERT_GT(n, 3.0);
+    const auto expected = project_direction(cam, dir);
+    ASSERT_TRUE(expected);
+    EXPECT_NEAR(sx / n, expected->x(), 0.5) << (lens == Lens::kFisheye ? "fisheye" : "pinhole");
+    EXPECT_NEAR(sy / n, expected->y(), 0.5) << (lens == Lens::kFisheye ? "fisheye" : "pinhole");
+  }
+}
+
+class TubeView : public ::testing::Test {
+ protected:
+  // A Ø10 mm tube along +z, 100 mm long, capped; the camera on its axis 10 mm in, looking down it.
+  static constexpr double kRadius = 5e-3;
+  static constexpr int kSegments = 256;
+  static void SetUpTestSuite() {
+    anatomy::TubeSpec spec;
+    spec.radius = kRadius;
+    spec.length = 0.1;
+    spec.segments = kSegments;
+    renderer = new AirwayRenderer(anatomy::make_tube(spec));
+    camera.position = Vec3(0.0, 0.0, 0.01);
+    camera.forward = Vec3::UnitZ();
+    camera.up = Vec3::UnitY();
+    camera.lens = Lens::kFisheye;
+    camera.fov = 120.0 * kDegToRad;
+  }
+  static void TearDownTestSuite() { delete renderer; }
+  static inline AirwayRenderer* renderer = nullptr;
+  static inline Camera camera;
+};
+
+TEST_F(TubeView, SeenFromItsAxisItIsRadiallySymmetricBrightWallDarkCentre) {
+  EndoscopeLook look;
+  look.texture = 0.0;  // the mottling is not symmetric, by design
+  const EndoscopeFrame f = renderer->render_endoscope(camera, look);
+  const double focal = focal_pixels(camera);
+  // Rings at 20°, 40° and 55° off-axis: brightness the same all round. The residue is the wall's 256-gon and the
+  // 3 × 3 sampling on the pixel grid; 2 % of the ring's mean allows both.
+  std::vector<double> ring_means;
+  for (const double deg : {20.0, 40.0, 55.0}) {
+    const double r = focal * deg * kDegToRad;
+    std::vector<double> g;
+    for (int k = 0; k < 72; ++k) {
+      const double phi = 2.0 * kPi * k / 72.0;
+      g.push_back(grey(f.color, 160.0 + r * std::cos(phi), 160.0 + r * std::sin(phi)));
+    }
+    double mean = 0.0;
+    for (double v : g) mean += v / static_cast<double>(g.size());
+    double worst = 0.0;
+    for (double v : g) worst = std::max(worst, std::fabs(v - mean));
+    EXPECT_LT(worst, 0.02 * mean) << "ring at " << deg << "°: mean " << mean << ", worst deviation " << worst;
+    ring_means.push_back(mean);
+  }
+  const double centre = grey(f.color, 160.0, 160.0);
+  std::cout << "[ tube view ] grey at the centre " << centre << ", rings at 20/40/55°: " << ring_means[0] << " / "
+            << ring_means[1] << " / " << ring_means[2] << "\n";
+  // Bright wall, dark centre: the far end cap (90 mm away) against the near wall.
+  EXPECT_LT(centre, 0.5 * ring_means[2]);
+  EXPECT_LT(ring_means[0], ring_means[1]);
+
+  // Every pixel against the shading model evaluated on the exact cylinder (the renderer's only inputs from the
+  // frame are its exposure gain): the ray at θ meets the wall at range R / sin θ with cos i = sin θ, or the cap at
+  // range 90 mm / cos θ with cos i = cos θ. The 256-gon moves the wall by ≤ 7.5e-5 relative and tilts its
+  // interpolated normal by < 0.01°; the 8-bit rounding and the gamma table add < 1 level. 1 grey level is the bound.
+  const Mat3 frame = camera_frame(camera);
+  const double half_diag2 = 0.25 * (320.0 * 320.0 + 320.0 * 320.0);
+  int worst = 0, checked = 0;
+  for (int y = 1; y < 320; y += 5) {
+    for (int x = 2; x < 320; x += 5) {
+      const Vec3 dc = camera_ray(camera, focal, x + 0.5, y + 0.5);
+      const Vec3 d = frame * dc;
+      if (d.z() <= 0.0) continue;
+      const double rho = std::hypot(d.x(), d.y());
+      const bool wall = kRadius / rho < 0.09 / d.z();
+      const double t = wall ? kRadius / rho : 0.09 / d.z();
+      const double cos_i = wall ? rho : d.z();
+      const double dx = x + 0.5 - 160.0, dy = y + 0.5 - 160.0;
+      const double weight = std::pow(dc.z(), look.spot_exponent) * (1.0 - look.vignetting * (dx * dx + dy * dy) / half_diag2);
+      const double e = weight / (t * t + look.light_softening * look.light_softening);
+      const cv::Vec3b px = f.color.at<cv::Vec3b>(y, x);
+      for (int c = 0; c < 3; ++c) {
+        const double radiance = e * (look.albedo[c] / kPi * cos_i + look.specular * std::pow(cos_i, look.shininess));
+        const double expected = 255.0 * std::pow(std::min(1.0, f.gain * radiance), 1.0 / look.gamma);
+        worst = std::max(worst, static_cast<int>(std::ceil(std::fabs(px[2 - c] - expected) - 0.5)));
+      }
+      ++checked;
+    }
+  }
+  std::cout << "[ tube view ] " << checked << " pixels against the closed form: worst " << worst << " grey levels\n";
+  EXPECT_GT(checked, 3000);
+  EXPECT_LE(worst, 1);
+}
+
+TEST_F(TubeView, DepthAlongTheAxisAndAtTheWallIsTheTubesOwn) {
+  const EndoscopeFrame f = renderer->render_endoscope(camera, EndoscopeLook{});
+  const double focal = focal_pixels(camera);
+  const Mat3 frame = camera_frame(camera);
+  // Rays that reach the end cap (z = 100 mm) have z-depth 90 mm whatever their angle; a ray at θ to the axis meets
+  // the wall at z-depth R / tan θ. The wall is a 256-gon inside the circle: its distance from the axis dips by up to
+  // 1 − cos(π/256) = 7.5e-5 relative; Embree's single-precision hit adds ~1e-6. 2e-4 relative covers both.
+  int cap = 0, wall = 0;
+  double worst_cap = 0.0, worst_wall = 0.0;
+  for (int y = 0; y < f.depth.rows; y += 3) {
+    for (int x = 0; x < f.depth.cols; x += 3) {
+      const Vec3 d = frame * camera_ray(camera, focal, x + 0.5, y + 0.5);
+      const double z = f.depth.at<float>(y, x);
+      const double to_cap = 0.09 / d.z();
+      const double to_wall = kRadius / std::hypot(d.x(), d.y());
+      if (d.z() <= 0.0) continue;
+      if (to_cap < to_wall * 0.999) {
+        worst_cap = std::max(worst_cap, std::fabs(z - 0.09) / 0.09);
+        ++cap;
+      } else if (to_wall < to_cap * 0.999) {
+        const double expected = kRadius * d.z() / std::hypot(d.x(), d.y());
+        worst_wall = std::max(worst_wall, std::fabs(z - expected) / expected);
+        ++wall;
+      }
+    }
+  }
+  std::cout << "[ tube depth ] " << cap << " cap pixels, worst " << worst_cap << "; " << wall
+            << " wall pixels, worst " << worst_wall << " (relative)\n";
+  EXPECT_GT(cap, 10);
+  EXPECT_GT(wall, 1000);
+  EXPECT_LT(worst_cap, 2e-4);
+  EXPECT_LT(worst_wall, 2e-4);
+  EXPECT_NEAR(f.depth.at<float>(160, 160), 0.09, 0.09 * 2e-4);
+}
+
+TEST_F(TubeView, SameSeedSamePixelsAndThreadsDoNotChangeThem) {
+  EndoscopeLook look;
+  look.noise = 3.0;
+  look.seed = 7;
+  const cv::Mat a = renderer->render_endoscope(camera, look, 5).color;
+  const cv::Mat b = renderer->render_endoscope(camera, look, 5).color;
+  EXPECT_EQ(cv::norm(a, b, cv::NORM_INF), 0.0);
+  anatomy::TubeSpec spec;
+  spec.radius = kRadius;
+  spec.length = 0.1;
+  spec.segments = kSegments;
+  const AirwayRenderer two(anatomy::make_tube(spec), 2);
+  EXPECT_EQ(cv::norm(a, two.render_endoscope(camera, look, 5).color, cv::NORM_INF), 0.0);
+  look.seed = 8;
+  const cv::Mat c = renderer->render_endoscope(camera, look, 5).color;
+  EXPECT_GT(cv::norm(a, c, cv::NORM_L1), 0.0);
+  EXPECT_GT(cv::norm(a, renderer->render_endoscope(camera, look, 6).color, cv::NORM_L1), 0.0);
+}
+
+TEST_F(TubeView, AutoExposureEasesFromFrameToFrame) {
+  AutoExposure ae;
+  EndoscopeLook look;
+  const EndoscopeFrame first = renderer->render_endoscope(camera, look, 0, &ae);
+  EXPECT_EQ(ae.gain, first.gain);
+  Camera closer = camera;
+  closer.position.x() = 3e-3;  // near the wall: brighter, so the ideal gain drops
+  const double ideal = renderer->render_endoscope(closer, look).gain;
+  const EndoscopeFrame next = renderer->render_endoscope(closer, look, 1, &ae);
+  EXPECT_LT(ideal, first.gain);
+  EXPECT_NEAR(std::log(next.gain), 0.5 * (std::log(first.gain) + std::log(ideal)), 1e-9);
+}
+
+TEST(Endoscope, ABronchialPhantomFrameIsNeitherBlackNorSaturated) {
+  anatomy::BronchialTreeParams p;
+  p.max_generation = 3;
+  const anatomy::Phantom tree = anatomy::make_bronchial_tree(p);
+  const AirwayRenderer renderer(tree.mesh);
+  // Down the trachea from a quarter of its length, towards the carina.
+  const auto& trachea = tree.graph.branches.front();
+  const Vec3 a = tree.graph.nodes[trachea.nodes.front()].position;
+  const Vec3 b = tree.graph.nodes[trachea.nodes.back()].position;
+  Camera cam;
+  cam.position = a + 0.25 * (b - a);
+  cam.forward = b - a;
+  cam.up = (b - a).unitOrthogonal();
+  const EndoscopeFrame f = renderer.render_endoscope(cam, EndoscopeLook{});
+  cv::Mat g;
+  cv::cvtColor(f.color, g, cv::COLOR_BGR2GRAY);
+  const double mean = cv::mean(g)[0];
+  const double saturated = cv::countNonZero(g >= 254) / static_cast<double>(g.total());
+  const double black = cv::countNonZero(g <= 5) / static_cast<double>(g.total());
+  std::cout << "[ phantom frame ] mean grey " << mean << ", saturated " << 100 * saturated << " %, black "
+            << 100 * black << " %\n";
+  EXPECT_GT(mean, 30.0);
+  EXPECT_LT(mean, 200.0);
+  EXPECT_LT(saturated, 0.05);  // auto-exposure puts the 95th percentile below white
+  EXPECT_LT(black, 0.25);      // the carina, 10 cm of airway deep, still gets light
+}
+
+TEST(Files, AVideoReadsBackWithItsFrameCountAndSize) {
+  const fs::path dir = scratch("video");
+  VideoFile v(dir / "clip", 30.0, 96, 64);
+  EXPECT_FALSE(fs::exists(v.path()));  // nothing under the final name while writing
+  for (int k = 0; k < 12; ++k) v.write(cv::Mat(64, 96, CV_8UC3, cv::Scalar(10 * k, 100, 200 - 10 * k)));
+  const fs::path out = v.finish();
+  ASSERT_TRUE(fs::exists(out));
+  std::cout << "[ video ] " << out.filename() << " codec " << v.codec() << "\n";
+  cv::VideoCapture in(out.string());
+  ASSERT_TRUE(in.isOpened());
+  int frames = 0;
+  cv::Mat m;
+  while (in.read(m)) {
+    EXPECT_EQ(m.cols, 96);
+    EXPECT_EQ(m.rows, 64);
+    ++frames;
+  }
+  EXPECT_EQ(frames, 12);
+  EXPECT_EQ(std::distance(fs::directory_iterator(dir), fs::directory_iterator{}), 1);  // no partial file left
+  EXPECT_THROW(v.write(m), InputError);
+}
+
+TEST(Files, AnAbandonedVideoLeavesNothing) {
+  const fs::path dir = scratch("abandoned");
+  {
+    VideoFile v(dir / "clip", 30.0, 32, 32);
+    v.write(cv::Mat(32, 32, CV_8UC3, cv::Scalar(1, 2, 3)));
+    EXPECT_THROW(v.write(cv::Mat(16, 32, CV_8UC3)), InputError);
+  }
+  EXPECT_TRUE(fs::is_empty(dir));
+}
+
+TEST(Files, DepthPngHoldsMillimetresOnTheC3vdScale) {
+  const fs::path dir = scratch("depth");
+  cv::Mat d(2, 2, CV_32F);
+  d.at<float>(0, 0) = 0.0f;      // no hit
+  d.at<float>(0, 1) = 0.05f;     // 50 mm: half the 100 mm range
+  d.at<float>(1, 0) = 0.2f;      // beyond the range: clamped
+  d.at<float>(1, 1) = 1e-9f;     // a hit at the lens still reads as a hit
+  write_png(dir / "d.png", depth_to_u16(d, 0.1));
+  const cv::Mat back = cv::imread((dir / "d.png").string(), cv::IMREAD_UNCHANGED);
+  ASSERT_EQ(back.type(), CV_16U);
+  EXPECT_EQ(back.at<std::uint16_t>(0, 0), 0);
+  EXPECT_EQ(back.at<std::uint16_t>(0, 1), 32768);  // round(0.5 · 65535)
+  EXPECT_EQ(back.at<std::uint16_t>(1, 0), 65535);
+  EXPECT_EQ(back.at<std::uint16_t>(1, 1), 1);
+}
+
+TEST(Overview, ShowsTheBodyInsideTheSemiTransparentAirwayAndTheMagnetsPoles) {
+  anatomy::TubeSpec spec;
+  spec.radius = 6e-3;
+  spec.length = 0.1;
+  const AirwayRenderer renderer(anatomy::make_tube(spec));
+  OverviewContent content;
+  for (int i = 0; i <= 10; ++i) content.body.push_back(Vec3(0.0, 0.0, 0.005 + 0.006 * i));
+  content.body_radius = 2.5e-3;
+  content.magnets.push_back({Vec3(0.06, 0.0, 0.05), Vec3::UnitZ(), 0.03, 0.03});
+  content.target = Vec3(0.0, 0.0, 0.09);
+  Camera cam;
+  cam.lens = Lens::kPinhole;
+  cam.fov = 60.0 * kDegToRad;
+  cam.width = 320;
+  cam.height = 240;
+  cam.position = Vec3(0.03, -0.25, 0.05);
+  cam.forward = Vec3(0.0, 1.0, 0.0);
+  cam.up = Vec3::UnitZ();
+  const cv::Mat img = renderer.render_overview(cam, content);
+  const auto pixel = [&](const Vec3& p) {
+    const auto q = project_direction(cam, p - cam.position);
+    return img.at<cv::Vec3b>(static_cast<int>(q->y()), static_cast<int>(q->x()));
+  };
+  const cv::Vec3b body = pixel(Vec3(0.0, 0.0, 0.03));     // BGR: blue above red (seen through the wall)
+  const cv::Vec3b north = pixel(Vec3(0.06, 0.0, 0.058));  // red
+  const cv::Vec3b south = pixel(Vec3(0.06, 0.0, 0.042));  // blue
+  const cv::Vec3b target = pixel(Vec3(0.0, 0.0, 0.09));   // green
+  const cv::Vec3b wall = pixel(Vec3(0.0045, 0.0, 0.07));   // pink: beside the body, through both walls
+  EXPECT_GT(body[0], body[2]);
+  EXPECT_GT(north[2], north[0] + 60);
+  EXPECT_GT(south[0], south[2] + 60);
+  EXPECT_GT(target[1], target[2]);
+  EXPECT_GT(wall[2], wall[0]);
+}
+
+}  // namespace
+}  // namespace magvine::render
