@@ -139,6 +139,19 @@ s = list(csv.DictReader(open('${WORK}/trials/summary.csv')))
 assert [r['success_rate'] for r in s] == ['1.000', '1.000'], s
 " RESULT_VARIABLE rc ERROR_VARIABLE err)
 expect_rc(${rc} 0 "trials outputs: ${err}")
+# Its plot (tools/plot_trials.py): a PNG; a folder without the tables exits 2 with one line and no PNG.
+execute_process(COMMAND ${PYTHON} ${SRC}/tools/plot_trials.py ${WORK}/trials --out ${WORK}/trials.png
+                RESULT_VARIABLE rc ERROR_VARIABLE err)
+expect_rc(${rc} 0 "plot_trials: ${err}")
+if(NOT EXISTS ${WORK}/trials.png)
+  message(FATAL_ERROR "plot_trials wrote no PNG")
+endif()
+execute_process(COMMAND ${PYTHON} ${SRC}/tools/plot_trials.py ${WORK}/rod --out ${WORK}/trials_none.png
+                RESULT_VARIABLE rc ERROR_VARIABLE err)
+expect_rc(${rc} 2 "plot_trials on a folder without trials: ${err}")
+if(EXISTS ${WORK}/trials_none.png)
+  message(FATAL_ERROR "plot_trials wrote a PNG for a folder without trials")
+endif()
 execute_process(COMMAND ${MAGVINE} trials ${SRC}/assets/scenes/bronchial_tree_navigator.yaml --targets 0-9
                         --out ${WORK}/trials_bad RESULT_VARIABLE rc ERROR_VARIABLE err)
 expect_rc(${rc} 2 "trials towards an unknown branch: ${err}")

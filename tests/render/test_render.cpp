@@ -336,6 +336,24 @@ TEST(Files, AVideoReadsBackWithItsFrameCountAndSize) {
   EXPECT_THROW(v.write(m), InputError);
 }
 
+TEST(Files, WithoutAnMp4WriterTheVideoIsAnMjpgAvi) {
+  const fs::path dir = scratch("avi");
+  VideoFile v(dir / "clip", 25.0, 64, 48, VideoFile::Container::kAvi);
+  EXPECT_EQ(v.codec(), "MJPG");
+  for (int k = 0; k < 7; ++k) v.write(cv::Mat(48, 64, CV_8UC3, cv::Scalar(30 * k, 60, 90)));
+  const fs::path out = v.finish();
+  EXPECT_EQ(out.filename(), "clip.avi");
+  cv::VideoCapture in(out.string());
+  ASSERT_TRUE(in.isOpened());
+  int frames = 0;
+  cv::Mat m;
+  while (in.read(m)) {
+    EXPECT_EQ(m.size(), cv::Size(64, 48));
+    ++frames;
+  }
+  EXPECT_EQ(frames, 7);
+}
+
 TEST(Files, AnAbandonedVideoLeavesNothing) {
   const fs::path dir = scratch("abandoned");
   {

@@ -10,6 +10,7 @@
 
 #include "magvine/anatomy/mesh_io.hpp"
 #include "magvine/anatomy/mesh_report.hpp"
+#include "magvine/config.hpp"
 #include "magvine/core/atomic_file.hpp"
 #include "magvine/core/error.hpp"
 #include "magvine/core/units.hpp"
@@ -122,6 +123,10 @@ int run_experiment_scene(const RunArgs& args, const std::filesystem::path& out) 
   const scene::ExperimentScene sc = scene::load_experiment_scene(args.scene);
   std::cerr << "magvine run: growing a vine in " << sc.anatomy_label << " for " << sc.duration << " s (" << sc.mesh.triangles.size()
             << " triangles)\n";
+  if (!config::kWithRender && !sc.videos.empty()) {
+    std::cerr << "magvine run: warning: " << args.scene
+              << ": outputs.video skipped: this magvine was built without the render module\n";
+  }
   int shown = -1;
   const scene::ExperimentResult result = scene::run_experiment(sc, [&](double done) {
     const int percent = static_cast<int>(100.0 * done);

@@ -8,6 +8,9 @@
 #include "phantom_command.hpp"
 #include "magvine/config.hpp"
 #include "magvine/core/error.hpp"
+#if MAGVINE_WITH_RENDER
+#include "render_command.hpp"
+#endif
 
 namespace {
 
@@ -92,6 +95,10 @@ int main(int argc, char** argv) {
 
   magvine::cli::PhantomCommand phantom;
   phantom.attach(app);
+#if MAGVINE_WITH_RENDER
+  magvine::cli::RenderCommand render_cmd;
+  render_cmd.attach(app);
+#endif
 
   try {
     app.parse(argc, argv);
@@ -113,6 +120,9 @@ int main(int argc, char** argv) {
     if (study_meshing->parsed()) return magvine::cli::run_study_phantom_meshing(meshing_out);
     if (mesh_check_cmd->parsed()) return magvine::cli::run_mesh_check(mesh_check);
     if (phantom.parsed()) return phantom.run();
+#if MAGVINE_WITH_RENDER
+    if (render_cmd.parsed()) return render_cmd.run();
+#endif
     if (run_cmd->parsed()) return magvine::cli::run_scene(run);
     if (validate_cmd->parsed()) return magvine::cli::run_validate(validate_out);
     if (trials_cmd->parsed()) return magvine::cli::run_trials(trials);

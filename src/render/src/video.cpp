@@ -3,6 +3,7 @@
 #include <unistd.h>
 
 #include <atomic>
+#include <string_view>
 #include <cmath>
 #include <system_error>
 #include <vector>
@@ -38,16 +39,18 @@ struct VideoFile::Writer {
   cv::VideoWriter writer;
 };
 
-VideoFile::VideoFile(const std::filesystem::path& stem, double fps, int width, int height)
-    : m_writer(new Writer), m_width(width), m_height(height) {
+VideoFile::VideoFile(const std::filesystem::path& stem, double fps, int width, int height, Container container)
+    : m_width(width), m_height(height) {
   const std::string who = stem.string() + ".mp4";
   if (!(fps > 0.0 && std::isfinite(fps))) throw InputError(who, 0, "fps", "must be > 0");
   if (width < 2 || height < 2) throw InputError(who, 0, "size", "a video needs at least 2 × 2 px");
+  m_writer = new Writer;
   struct Choice {
     const char* ext;
     const char* codec;
   };
   for (const Choice c : {Choice{".mp4", "mp4v"}, Choice{".avi", "MJPG"}}) {
+    if (container == Container::kAvi && std::string_view(c.ext) == ".mp4") continue;
     std::filesystem::path target = stem;
     target += c.ext;
     const std::filesystem::path temp = partial_name(target);

@@ -13,9 +13,12 @@ namespace magvine::render {
 /// writes without any codec library. The file appears under its final name only at finish().
 class VideoFile {
  public:
+  /// Which containers to try: MP4 then AVI, or AVI only (what a machine without an MP4 writer gets).
+  enum class Container { kMp4OrAvi, kAvi };
   /// `stem`: the target without extension (".mp4" or ".avi" is appended). InputError when neither can be opened,
   /// or for a non-positive fps or size.
-  VideoFile(const std::filesystem::path& stem, double fps, int width, int height);
+  VideoFile(const std::filesystem::path& stem, double fps, int width, int height,
+            Container container = Container::kMp4OrAvi);
   VideoFile(const VideoFile&) = delete;
   VideoFile& operator=(const VideoFile&) = delete;
   /// Removes the partial file unless finish() succeeded.

@@ -44,7 +44,8 @@
 ///   shape_interval: 0.5                     #   the body's nodes every 0.5 s in shapes.csv (off by default)
 ///   video: {camera: tip}                    #   a video of the run (render module), or a list of them; below
 /// ```
-/// Videos (`outputs.video`, one map or a list; needs the render module, else exit 2): `camera: tip` films the
+/// Videos (`outputs.video`, one map or a list; a build without the render module checks the keys, warns and
+/// writes everything else, with "videos_skipped" in metrics.json): `camera: tip` films the
 /// endoscope view from the tip along its tangent (image up: the tip's first director), `camera: overview` a
 /// third-person view of the semi-transparent anatomy with the body, the magnets (north half red, an arrow along
 /// the magnetisation), the target and the planned path. Keys, defaults in brackets: `size` [[320, 320] tip,

@@ -1,0 +1,83 @@
+# End-to-end test of the render verbs (issue 7, render module only): `magvine render` on a generated tube (the
+# endoscope's image and depth, the overview), its bad inputs (exit 2, one line, nothing written), and a short run
+# with a tip video and PNG frames drawn into a strip by tools/plot_frames.py.
+# Run by CTest with -DMAGVINE=... -DWORK=... -DSRC=... -DPYTHON=...
+include(${CMAKE_CURRENT_LIST_DIR}/cli_common.cmake)
+
+execute_process(COMMAND ${MAGVINE} phantom tube --out ${WORK}/tube.stl RESULT_VARIABLE rc ERROR_VARIABLE err)
+expect_rc(${rc} 0 "phantom tube: ${err}")
+
+# 1. The endoscope inside the tube (Ø12 mm along +x, 120 mm long): every ray hits the wall; the 16-bit depth map
+#    holds the far end cap at 110 mm ahead, beyond the 100 mm range, so the centre reads 65535 (clamped).
+execute_process(COMMAND ${MAGVINE} render ${WORK}/tube.stl --eye 10,0,0 --look 50,0,0 --out ${WORK}/view.png
+                        --depth ${WORK}/depth.png RESULT_VARIABLE rc ERROR_VARIABLE err)
+expect_rc(${rc} 0 "render endoscope: ${err}")
+string(FIND "${err}" "100 % of the rays hit the wall" pos)
+if(pos EQUAL -1)
+  message(FATAL_ERROR "render from inside the tube: want every ray on the wall, got '${err}'")
+endif()
+execute_process(COMMAND ${PYTHON} -c "
+import struct, zlib
+def png(path):
+    data = open(path, 'rb').read()
+    assert data[:8] == b'\\x89PNG\\r\\n\\x1a\\n', path
+    w, h, depth, colour = struct.unpack('>IIBB', data[16:26])
+    return w, h, depth, colour
+assert png('${WORK}/view.png') == (320, 320, 8, 2), png('${WORK}/view.png')
+assert png('${WORK}/depth.png') == (320, 320, 16, 0), png('${WORK}/depth.png')
+" RESULT_VARIABLE rc ERROR_VARIABLE err)
+expect_rc(${rc} 0 "render outputs: ${err}")
+execute_process(COMMAND ${MAGVINE} render ${WORK}/tube.stl --eye 60,-150,0 --look 60,0,0 --view overview
+                        --out ${WORK}/overview.png RESULT_VARIABLE rc ERROR_VARIABLE err)
+expect_rc(${rc} 0 "render overview: ${err}")
+if(NOT EXISTS ${WORK}/overview.png)
+  message(FATAL_ERROR "render --view overview wrote no PNG")
+endif()
+
+# 2. Bad inputs: exit 2, one line naming the option, nothing written.
+foreach(bad "--look;10,0,0;the viewing direction is zero"
+            "--out;${WORK}/bad.jpg;is not a .png path"
+            "--fov;400;field of view"
+            "--size;8,8;between 16 and 8192")
+  list(GET bad 0 option)
+  list(GET bad 1 value)
+  list(GET bad 2 message)
+  set(args ${WORK}/tube.stl --eye 10,0,0 --look 50,0,0 --out ${WORK}/bad.png)
+  if(option STREQUAL "--look")
+    set(args ${WORK}/tube.stl --eye 10,0,0 --look ${value} --out ${WORK}/bad.png)
+  elseif(option STREQUAL "--out")
+    set(args ${WORK}/tube.stl --eye 10,0,0 --look 50,0,0 --out ${value})
+  else()
+    list(APPEND args ${option} ${value})
+  endif()
+  execute_process(COMMAND ${MAGVINE} render ${args} RESULT_VARIABLE rc ERROR_VARIABLE err)
+  expect_rc(${rc} 2 "render ${option} ${value}: ${err}")
+  string(FIND "${err}" "${message}" pos)
+  string(REGEX MATCHALL "\n" lines "${err}")
+  list(LENGTH lines n)
+  if(pos EQUAL -1 OR NOT n EQUAL 1 OR EXISTS ${WORK}/bad.png OR EXISTS ${WORK}/bad.jpg)
+    message(FATAL_ERROR "render ${option} ${value}: want one line with '${message}' and no file, got '${err}'")
+  endif()
+endforeach()
+
+# 3. A 0.4 s run of the Y-bifurcation scene with a 64 × 64 tip video and its frames; then a strip of two frames.
+file(READ ${SRC}/assets/scenes/y_bifurcation_fluid_vine.yaml scene)
+string(REPLACE "duration: 8," "duration: 0.4," scene "${scene}")
+string(APPEND scene "outputs: {video: {camera: tip, size: [64, 64], fps: 10, frames: true}}\n")
+file(WRITE ${WORK}/filmed.yaml "${scene}")
+execute_process(COMMAND ${MAGVINE} run ${WORK}/filmed.yaml --out ${WORK}/filmed RESULT_VARIABLE rc ERROR_VARIABLE err)
+expect_rc(${rc} 0 "run with a video: ${err}")
+foreach(f tip.mp4 tip_frames/000000.png tip_frames/000004.png)
+  if(NOT EXISTS ${WORK}/filmed/${f})
+    message(FATAL_ERROR "run with a video wrote no ${f}")
+  endif()
+endforeach()
+execute_process(COMMAND ${PYTHON} ${SRC}/tools/plot_frames.py ${WORK}/filmed --camera tip --frames 0,4
+                        --out ${WORK}/strip.png RESULT_VARIABLE rc ERROR_VARIABLE err)
+expect_rc(${rc} 0 "plot_frames: ${err}")
+execute_process(COMMAND ${PYTHON} ${SRC}/tools/plot_frames.py ${WORK}/filmed --camera tip --frames 0,99
+                        --out ${WORK}/strip_bad.png RESULT_VARIABLE rc ERROR_VARIABLE err)
+expect_rc(${rc} 2 "plot_frames with a missing frame: ${err}")
+if(NOT EXISTS ${WORK}/strip.png OR EXISTS ${WORK}/strip_bad.png)
+  message(FATAL_ERROR "plot_frames: want strip.png and no strip_bad.png")
+endif()
