@@ -53,13 +53,14 @@ demo: build
 
 bench: deps
 	cmake -S . -B $(BUILD) -DCMAKE_BUILD_TYPE=Release -DMAGVINE_BUILD_BENCHMARKS=ON $(CMAKE_FLAGS)
-	cmake --build $(BUILD) -j $(JOBS) --target bench_fields bench_mesh_import bench_contacts bench_distance bench_rod bench_render
+	cmake --build $(BUILD) -j $(JOBS) --target bench_fields bench_mesh_import bench_contacts bench_distance bench_rod bench_render bench_centerline
 	$(BUILD)/tests/bench/bench_fields --benchmark_min_time=0.5
 	$(BUILD)/tests/bench/bench_mesh_import
 	$(BUILD)/tests/bench/bench_contacts --benchmark_min_time=0.5
 	$(BUILD)/tests/bench/bench_distance --benchmark_filter='point/aabb/mean|capsule/aabb/mean|build/aabb/mean'
 	$(BUILD)/tests/bench/bench_rod
 	$(BUILD)/tests/bench/bench_render
+	$(BUILD)/tests/bench/bench_centerline
 
 # Regenerates the README figures in docs/figures (field-model and phantom-meshing error against runtime, the robot
 # mechanics validation; ~3 min).
@@ -68,6 +69,8 @@ figures: build
 	$(PYTHON) tools/plot_field_models.py docs/figures --out docs/figures/field_models.png
 	$(BUILD)/src/cli/magvine study phantom-meshing --out docs/figures
 	$(PYTHON) tools/plot_meshing_study.py docs/figures --out docs/figures/meshing_study.png
+	$(BUILD)/src/cli/magvine study centerline --out docs/figures
+	$(PYTHON) tools/plot_centerline_study.py docs/figures
 	$(BUILD)/src/cli/magvine validate --out docs/figures
 	$(PYTHON) tools/plot_mechanics.py docs/figures
 	sed 's/speed: 0.5}/speed: 0.5, frames: true}/' assets/scenes/bronchial_tree_navigator.yaml \

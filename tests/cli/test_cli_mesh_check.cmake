@@ -83,3 +83,27 @@ foreach(case "empty.stl|file is empty" "lines.obj|no triangles" "nan.obj|non-fin
 endforeach()
 execute_process(COMMAND ${MAGVINE} mesh check ${WORK}/cube.obj --units inch RESULT_VARIABLE rc ERROR_VARIABLE err)
 expect_rc(${rc} 2 "--units inch")
+
+# `magvine mesh graph` (issue 8): the generated Y bifurcation's centreline graph from its mesh alone: three
+# branches named from the root (0, 0-0, 0-1), written as graph JSON; a bad --out exits 2 and writes nothing.
+execute_process(COMMAND ${MAGVINE} phantom y_bifurcation --out ${WORK}/y.stl RESULT_VARIABLE rc ERROR_VARIABLE err)
+expect_rc(${rc} 0 "phantom y_bifurcation: ${err}")
+execute_process(COMMAND ${MAGVINE} mesh graph ${WORK}/y.stl --out ${WORK}/y_extracted.json
+                RESULT_VARIABLE rc OUTPUT_VARIABLE out ERROR_VARIABLE err)
+expect_rc(${rc} 0 "mesh graph: ${err}")
+execute_process(COMMAND ${PYTHON} -c "
+import json
+g = json.load(open('${WORK}/y_extracted.json'))
+assert g['format'] == 'magvine-airway-graph' and g['units'] == 'mm', g.get('format')
+names = sorted(b['name'] for b in g['branches'])
+assert names == ['0', '0-0', '0-1'], names
+gens = {b['name']: b['generation'] for b in g['branches']}
+assert gens == {'0': 0, '0-0': 1, '0-1': 1}, gens
+" RESULT_VARIABLE rc ERROR_VARIABLE err)
+expect_rc(${rc} 0 "mesh graph output: ${err}")
+execute_process(COMMAND ${MAGVINE} mesh graph ${WORK}/y.stl --out ${WORK}/y_extracted.txt
+                RESULT_VARIABLE rc ERROR_VARIABLE err)
+expect_rc(${rc} 2 "mesh graph --out .txt: ${err}")
+if(EXISTS ${WORK}/y_extracted.txt)
+  message(FATAL_ERROR "mesh graph wrote a graph under a bad --out")
+endif()

@@ -81,3 +81,11 @@ expect_rc(${rc} 2 "plot_frames with a missing frame: ${err}")
 if(NOT EXISTS ${WORK}/strip.png OR EXISTS ${WORK}/strip_bad.png)
   message(FATAL_ERROR "plot_frames: want strip.png and no strip_bad.png")
 endif()
+
+# 4. `magvine mesh graph --png`: the extracted graph drawn over the mesh.
+execute_process(COMMAND ${MAGVINE} mesh graph ${WORK}/tube.stl --out ${WORK}/tube_graph.json --png ${WORK}/tube_graph.png
+                RESULT_VARIABLE rc ERROR_VARIABLE err)
+expect_rc(${rc} 0 "mesh graph --png: ${err}")
+if(NOT EXISTS ${WORK}/tube_graph.png OR NOT EXISTS ${WORK}/tube_graph.json)
+  message(FATAL_ERROR "mesh graph --png wrote no picture or no graph")
+endif()

@@ -36,7 +36,7 @@ constexpr int kRefineIterations = 4;
 class RayScene {
  public:
   explicit RayScene(const TriangleMesh& mesh) {
-    m_device = rtcNewDevice(nullptr);
+    m_device = rtcNewDevice("threads=1");  // one core, like the rest of the extraction
     if (m_device == nullptr) throw NumericalError("centreline: Embree could not create a device");
     m_scene = rtcNewScene(m_device);
     rtcSetSceneFlags(m_scene, RTC_SCENE_FLAG_ROBUST);
@@ -762,6 +762,65 @@ AirwayGraph extract_airway_graph(const TriangleMesh& mesh, const CenterlineOptio
   report.seconds = std::chrono::duration<double>(std::chrono::steady_clock::now() - started).count();
   if (report_out != nullptr) *report_out = report;
   return graph;
+}
+
+namespace {
+
+std::string shape_of(const AirwayGraph& g, int b) {
+  std::vector<std::string> kids;
+  for (const int c : g.branches[static_cast<std::size_t>(b)].children) kids.push_back(shape_of(g, c));
+  std::sort(kids.begin(), kids.end());
+  std::string s = "(";
+  for (const auto& k : kids) s += k;
+  return s + ")";
+}
+
+}  // namespace
+
+std::string graph_shape(const AirwayGraph& graph) {
+  std::vector<std::string> roots;
+  for (const AirwayBranch& b : graph.branches) {
+    if (b.parent < 0) roots.push_back(shape_of(graph, b.id));
+  }
+  std::sort(roots.begin(), roots.end());
+  std::string s;
+  for (const auto& r : roots) s += r;
+  return s;
+}
+
+GraphComparison compare_graphs(const AirwayGraph& extracted, const AirwayGraph& reference) {
+  GraphComparison c;
+  c.same_topology = graph_shape(extracted) == graph_shape(reference);
+  c.branches = extracted.branches.size();
+  c.reference_branches = reference.branches.size();
+  std::vector<double> radius_errors;
+  for (const AirwayNode& n : extracted.nodes) {
+    double best = std::numeric_limits<double>::infinity();
+    double radius = 0.0;
+    for (const AirwayBranch& b : reference.branches) {
+      for (std::size_t i = 0; i + 1 < b.nodes.size(); ++i) {
+        const AirwayNode& p = reference.nodes[b.nodes[i]];
+        const AirwayNode& q = reference.nodes[b.nodes[i + 1]];
+        const Vec3 d = q.position - p.position;
+        const double u = std::clamp((n.position - p.position).dot(d) / std::max(d.squaredNorm(), 1e-30), 0.0, 1.0);
+        const double dist = (n.position - (p.position + u * d)).norm();
+        if (dist < best) {
+          best = dist;
+          radius = (1.0 - u) * p.radius + u * q.radius;
+        }
+      }
+    }
+    c.mean_distance += best / radius;
+    radius_errors.push_back(std::fabs(n.radius - radius) / radius);
+    c.mean_radius_error += radius_errors.back();
+  }
+  if (!radius_errors.empty()) {
+    c.mean_distance /= static_cast<double>(radius_errors.size());
+    c.mean_radius_error /= static_cast<double>(radius_errors.size());
+    std::sort(radius_errors.begin(), radius_errors.end());
+    c.p95_radius_error = radius_errors[static_cast<std::size_t>(0.95 * static_cast<double>(radius_errors.size() - 1))];
+  }
+  return c;
 }
 
 }  // namespace magvine::anatomy

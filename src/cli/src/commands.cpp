@@ -8,13 +8,19 @@
 #include <sstream>
 #include <thread>
 
+#include "magvine/anatomy/centerline.hpp"
 #include "magvine/anatomy/mesh_io.hpp"
 #include "magvine/anatomy/mesh_report.hpp"
 #include "magvine/config.hpp"
+#if MAGVINE_WITH_RENDER
+#include "magvine/render/renderer.hpp"
+#include "magvine/render/video.hpp"
+#endif
 #include "magvine/core/atomic_file.hpp"
 #include "magvine/core/error.hpp"
 #include "magvine/core/units.hpp"
 #include "magvine/magnetics/field_model.hpp"
+#include "magvine/scene/centerline_study.hpp"
 #include "magvine/scene/field_map.hpp"
 #include "magvine/scene/field_study.hpp"
 #include "magvine/scene/experiment.hpp"
@@ -103,6 +109,13 @@ int run_study_phantom_meshing(const std::string& out_dir) {
   return 0;
 }
 
+int run_study_centerline(const std::string& out_dir) {
+  create_output_directory(out_dir);
+  scene::run_centerline_study(out_dir);
+  std::cerr << "magvine study centerline: " << out_dir << "/centerline_study.csv\n";
+  return 0;
+}
+
 LengthUnit parse_units_option(const std::string& text) {
   const auto unit = parse_length_unit(text);
   if (!unit) throw InputError("--units", 0, "", "must be mm, cm or m (got '" + text + "')");
@@ -116,6 +129,63 @@ int run_mesh_check(const MeshCheckArgs& args) {
   const std::string json = anatomy::report_json(args.file, imported, report, units);
   if (!args.out.empty()) write_file_atomically(args.out, json);
   std::cout << (args.json ? json : anatomy::report_summary(args.file, imported, report));
+  return 0;
+}
+
+int run_mesh_graph(const MeshGraphArgs& args) {
+  const LengthUnit units = parse_units_option(args.units);
+  const double unit = metres_per(units);
+  if (std::filesystem::path(args.out).extension() != ".json") {
+    throw InputError("--out", 0, "", args.out + " is not a .json path");
+  }
+  if (!args.png.empty()) {
+    if (std::filesystem::path(args.png).extension() != ".png") {
+      throw InputError("--png", 0, "", args.png + " is not a .png path");
+    }
+    if (!config::kWithRender) {
+      throw InputError("--png", 0, "", "this magvine was built without the render module (cmake -DMAGVINE_WITH_RENDER=ON)");
+    }
+  }
+  if (!(args.voxel >= 0.0 && std::isfinite(args.voxel))) throw InputError("--voxel", 0, "", "must be a length > 0");
+  anatomy::CenterlineOptions options;
+  options.voxel = args.voxel * unit;
+  if (!args.root.empty()) options.root = Vec3(args.root[0], args.root[1], args.root[2]) * unit;
+  const anatomy::ImportedMesh imported = anatomy::import_mesh(args.file, {.units = units});
+  anatomy::CenterlineReport report;
+  const anatomy::AirwayGraph graph = anatomy::extract_airway_graph(imported.mesh, options, &report);
+#if MAGVINE_WITH_RENDER
+  cv::Mat picture;
+  if (!args.png.empty()) {
+    const anatomy::Aabb box = anatomy::bounding_box(imported.mesh);
+    const Vec3 size = box.max - box.min;
+    int thin = 0;
+    for (int k = 1; k < 3; ++k) {
+      if (size[k] < size[thin]) thin = k;
+    }
+    const render::Camera cam = render::framing_camera(box, -Vec3::Unit(thin), thin == 2 ? Vec3(Vec3::UnitY()) : Vec3(Vec3::UnitZ()),
+                                                      render::Lens::kPinhole, 40.0 * kDegToRad, 800, 800);
+    render::OverviewContent content;
+    for (const anatomy::AirwayBranch& b : graph.branches) {
+      std::vector<Vec3> line;
+      for (const std::uint32_t n : b.nodes) line.push_back(graph.nodes[n].position);
+      content.lines.push_back(std::move(line));
+    }
+    content.line_radius = 0.0015 * size.maxCoeff();
+    picture = render::AirwayRenderer(imported.mesh, 2).render_overview(cam, content);
+  }
+#endif
+  anatomy::write_graph(args.out, graph);
+#if MAGVINE_WITH_RENDER
+  if (!args.png.empty()) render::write_png(args.png, picture);
+#endif
+  int deepest = 0;
+  for (const auto& b : graph.branches) deepest = std::max(deepest, b.generation);
+  std::cout << args.file << ": " << graph.branches.size() << " branches, " << anatomy::leaves(graph).size()
+            << " leaves, generations 0-" << deepest << "; voxel " << report.voxel / unit << " " << args.units << " ("
+            << report.dims[0] << " x " << report.dims[1] << " x " << report.dims[2] << ", " << report.inside_voxels
+            << " in the lumen, " << report.components << (report.components == 1 ? " component" : " components, the largest kept")
+            << "), " << report.spurs_pruned << " spurs pruned, " << report.seconds << " s -> " << args.out
+            << (args.png.empty() ? "" : " + " + args.png) << "\n";
   return 0;
 }
 

@@ -46,6 +46,17 @@ struct MeshCheckArgs {
 };
 int run_mesh_check(const MeshCheckArgs& args);
 
+struct MeshGraphArgs {
+  std::string file;
+  std::string units = "mm";
+  double voxel = 0.0;          // in --units; 0: auto
+  std::vector<double> root;    // X,Y,Z in --units; empty: the widest end
+  std::string out;             // graph.json
+  std::string png;             // the graph over the mesh (render module)
+};
+int run_mesh_graph(const MeshGraphArgs& args);
+int run_study_centerline(const std::string& out_dir);
+
 struct RunArgs {
   std::string scene;
   std::string out;  // empty: runs/<scene stem>

@@ -55,6 +55,10 @@ int main(int argc, char** argv) {
   auto* study_meshing = study_cmd->add_subcommand(
       "phantom-meshing", "phantom meshing spacing: capsule vs closed form, bronchial tree vs finest (CSV)");
   study_meshing->add_option("--out", meshing_out, "output folder")->required();
+  std::string centerline_out;
+  auto* study_centerline = study_cmd->add_subcommand(
+      "centerline", "airway-graph voxel size: the generated tree's extracted graph vs its ground truth (CSV)");
+  study_centerline->add_option("--out", centerline_out, "output folder")->required();
 
   magvine::cli::MeshCheckArgs mesh_check;
   auto* mesh_cmd = app.add_subcommand("mesh", "anatomy mesh tools");
@@ -65,6 +69,17 @@ int main(int argc, char** argv) {
   mesh_check_cmd->add_option("--units", mesh_check.units, "unit of the file's coordinates: mm | cm | m")
       ->capture_default_str();
   mesh_check_cmd->add_flag("--json", mesh_check.json, "print the JSON report instead of the summary");
+  magvine::cli::MeshGraphArgs mesh_graph;
+  auto* mesh_graph_cmd = mesh_cmd->add_subcommand(
+      "graph", "centreline graph of a closed airway mesh: branches named from the root, generations, radii (JSON)");
+  mesh_graph_cmd->add_option("file", mesh_graph.file, "mesh file (STL, OBJ, PLY, glTF/GLB, OFF, ...)")->required();
+  mesh_graph_cmd->add_option("--units", mesh_graph.units, "unit of the file's coordinates, --voxel and --root: "
+                                                          "mm | cm | m")->capture_default_str();
+  mesh_graph_cmd->add_option("--voxel", mesh_graph.voxel, "voxel edge (default: auto, about 2 M lumen voxels)");
+  mesh_graph_cmd->add_option("--root", mesh_graph.root, "X,Y,Z near the trachea's end (default: the widest end)")
+      ->delimiter(',')->expected(3);
+  mesh_graph_cmd->add_option("--out", mesh_graph.out, "the graph (.json)")->required();
+  mesh_graph_cmd->add_option("--png", mesh_graph.png, "also a picture of the graph over the mesh (.png)");
   mesh_check_cmd->add_option("--out", mesh_check.out, "also write the JSON report to this file");
 
   magvine::cli::RunArgs run;
@@ -118,7 +133,9 @@ int main(int argc, char** argv) {
     if (map_cmd->parsed()) return magvine::cli::run_field_map(map);
     if (study_fields->parsed()) return magvine::cli::run_study_field_models(study);
     if (study_meshing->parsed()) return magvine::cli::run_study_phantom_meshing(meshing_out);
+    if (study_centerline->parsed()) return magvine::cli::run_study_centerline(centerline_out);
     if (mesh_check_cmd->parsed()) return magvine::cli::run_mesh_check(mesh_check);
+    if (mesh_graph_cmd->parsed()) return magvine::cli::run_mesh_graph(mesh_graph);
     if (phantom.parsed()) return phantom.run();
 #if MAGVINE_WITH_RENDER
     if (render_cmd.parsed()) return render_cmd.run();

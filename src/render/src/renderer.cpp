@@ -490,6 +490,7 @@ cv::Mat AirwayRenderer::render_overview(const Camera& camera, const OverviewCont
   scene.add_anatomy(s.scene);
   scene.add_curve(content.body, content.body_radius, {0.55f, 0.80f, 1.0f});
   scene.add_curve(content.path, 0.35 * content.body_radius, {1.0f, 0.85f, 0.1f});
+  for (const auto& line : content.lines) scene.add_curve(line, content.line_radius, {0.85f, 0.35f, 0.05f});
   if (content.target) scene.add_ball(*content.target, content.target_radius, {0.1f, 0.8f, 0.2f});
   for (const OverviewMagnet& m : content.magnets) {
     const Vec3 n = m.axis.normalized();

@@ -28,6 +28,7 @@
 #include <array>
 #include <cstddef>
 #include <optional>
+#include <string>
 
 #include "magvine/anatomy/airway_graph.hpp"
 #include "magvine/anatomy/triangle_mesh.hpp"
@@ -58,5 +59,20 @@ struct CenterlineReport {
 /// voxel so fine that the grid exceeds max_cells, or a lumen with no inside voxel (an open or inside-out mesh).
 AirwayGraph extract_airway_graph(const TriangleMesh& mesh, const CenterlineOptions& options = {},
                                  CenterlineReport* report = nullptr);
+
+/// An extracted graph against a reference (ground truth or another method's centrelines).
+struct GraphComparison {
+  bool same_topology = false;     ///< the rooted trees have the same shape (children unordered)
+  std::size_t branches = 0;       ///< in the extracted graph
+  std::size_t reference_branches = 0;
+  double mean_distance = 0.0;     ///< extracted node to the reference centreline / the reference radius there, mean
+  double mean_radius_error = 0.0; ///< |r − r_ref| / r_ref at the nearest reference point, mean over the nodes
+  double p95_radius_error = 0.0;  ///< its 95th percentile (junctions: the inscribed circle there is wider)
+};
+
+/// The rooted tree's shape with children unordered: "(" + the children's shapes, sorted + ")" per root.
+std::string graph_shape(const AirwayGraph& graph);
+
+GraphComparison compare_graphs(const AirwayGraph& extracted, const AirwayGraph& reference);
 
 }  // namespace magvine::anatomy

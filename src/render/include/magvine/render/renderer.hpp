@@ -67,6 +67,8 @@ struct OverviewContent {
   std::optional<Vec3> target;    ///< [m]
   double target_radius = 2e-3;   ///< [m]
   std::vector<Vec3> path;        ///< the planned path [m]
+  std::vector<std::vector<Vec3>> lines;  ///< more polylines [m] (an airway graph's branches), dark orange
+  double line_radius = 0.5e-3;   ///< [m]
 };
 
 struct OverviewLook {
