@@ -12,6 +12,7 @@
 #include <thread>
 
 #include "magnet_entries.hpp"
+#include "magvine/anatomy/centerline.hpp"
 #include "magvine/anatomy/collision_world.hpp"
 #include "magvine/anatomy/mesh_io.hpp"
 #include "magvine/anatomy/mesh_report.hpp"
@@ -548,7 +549,7 @@ ExperimentScene parse_experiment_scene(const std::string& text, const std::strin
 
   // Anatomy: a generated phantom or a mesh file.
   const YamlMap anatomy_entry = top.map("anatomy");
-  anatomy_entry.allow_only({"phantom", "mesh", "mesh_units"});
+  anatomy_entry.allow_only({"phantom", "mesh", "mesh_units", "graph", "graph_root"});
   if (anatomy_entry.has("phantom") == anatomy_entry.has("mesh")) {
     anatomy_entry.fail("phantom", "give exactly one of phantom: {kind: ...} or mesh: FILE");
   }
@@ -572,6 +573,23 @@ ExperimentScene parse_experiment_scene(const std::string& text, const std::strin
       scene.closed_anatomy = anatomy::analyse_mesh(scene.mesh).watertight;
     } catch (const InputError& e) {
       anatomy_entry.fail("mesh", e.what());
+    }
+    // The airway graph of an imported mesh: extracted from it (anatomy/centerline.hpp), or read from a graph file.
+    if (anatomy_entry.has("graph")) {
+      const std::string g = anatomy_entry.text("graph");
+      try {
+        if (g == "extract") {
+          anatomy::CenterlineOptions options;
+          if (anatomy_entry.has("graph_root")) options.root = anatomy_entry.vec3("graph_root") * unit;
+          scene.graph = anatomy::extract_airway_graph(scene.mesh, options);
+        } else {
+          scene.graph = anatomy::read_graph(directory / g);
+        }
+      } catch (const InputError& e) {
+        anatomy_entry.fail("graph", e.what());
+      }
+    } else if (anatomy_entry.has("graph_root")) {
+      anatomy_entry.fail("graph_root", "only with graph: extract");
     }
   }
 
@@ -740,7 +758,10 @@ ExperimentScene parse_experiment_scene(const std::string& text, const std::strin
     const YamlMap n = control.map("navigator");
     n.allow_only({"target", "magnet", "distance", "min_distance", "max_distance", "lead", "interval",
                   "deflate_pressure", "deflate_time", "junction_distance", "lateral"});
-    if (!scene.graph) n.fail("target", "the navigator plans on a generated phantom's airway graph (anatomy.phantom)");
+    if (!scene.graph) {
+      n.fail("target", "the navigator plans on an airway graph: a generated phantom's, or anatomy.graph (extract | "
+                       "FILE.json) for a mesh");
+    }
     if (!scene.magnets) n.fail("magnet", "the navigator moves a magnet, but the scene has no magnets: list");
     Navigator nav;
     nav.target = n.text("target");
