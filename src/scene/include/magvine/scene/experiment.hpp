@@ -10,6 +10,9 @@
 ///                                           #   max_generation
 ///   # mesh: airway.stl                      #   or a mesh file (any format assimp reads), relative to this file,
 ///   # mesh_units: mm                        #   in mm | cm | m (default: units.length)
+///   # graph: extract                        #   its airway graph (navigator, branch metrics): extracted from the
+///   # graph_root: [0, 20, 30]               #   mesh (anatomy/centerline.hpp; root near this point, default the
+///                                           #   widest end), or a graph JSON file (anatomy/airway_graph.hpp)
 /// robot:                                    # a vine as in free_space.hpp; length = the everted length at t = 0
 ///   kind: vine
 ///   ...
@@ -61,7 +64,7 @@
 /// Magnet poses between keyframes: positions linear, axes turned along the great circle (slerp); held beyond the
 /// ends.
 ///
-/// Navigator (`control.navigator`, generated phantoms: it plans on their airway graph): the path of branches from the
+/// Navigator (`control.navigator`; it plans on the airway graph: a generated phantom's, or anatomy.graph's): the path of branches from the
 /// root to `target` (a branch name), its centrelines joined into one polyline; every `interval` seconds (default 0.1)
 /// the aim point is `lead` (default 15 mm) along that polyline past the tip's nearest point on it (the target's end
 /// at most), so the turn after a short branch is aimed at before the tip gets there. The magnet is placed on the line from the tip through the aim point,
