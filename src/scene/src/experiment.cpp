@@ -109,25 +109,35 @@ MagnetKeyframe interpolate(const std::vector<MagnetKeyframe>& keys, double time)
   return out;
 }
 
-/// The nearest branch of `graph` to x (by distance to its polyline segments).
-int nearest_branch(const anatomy::AirwayGraph& graph, const Vec3& x) {
-  int best = -1;
-  double best_d2 = std::numeric_limits<double>::infinity();
+/// The nearest point of `graph`'s centrelines to x: its branch, position, radius (interpolated), distance and arc
+/// length from the branch's start.
+struct GraphPoint {
+  int branch = -1;
+  Vec3 position = Vec3::Zero();
+  double radius = 0.0;
+  double distance = std::numeric_limits<double>::infinity();
+  double along = 0.0;
+};
+GraphPoint nearest_on_graph(const anatomy::AirwayGraph& graph, const Vec3& x) {
+  GraphPoint best;
   for (const anatomy::AirwayBranch& b : graph.branches) {
+    double along = 0.0;
     for (std::size_t k = 0; k + 1 < b.nodes.size(); ++k) {
-      const Vec3& p = graph.nodes[b.nodes[k]].position;
-      const Vec3& q = graph.nodes[b.nodes[k + 1]].position;
-      const Vec3 d = q - p;
-      const double t = std::clamp((x - p).dot(d) / std::max(d.squaredNorm(), 1e-30), 0.0, 1.0);
-      const double d2 = (p + t * d - x).squaredNorm();
-      if (d2 < best_d2) {
-        best_d2 = d2;
-        best = b.id;
-      }
+      const anatomy::AirwayNode& p = graph.nodes[b.nodes[k]];
+      const anatomy::AirwayNode& q = graph.nodes[b.nodes[k + 1]];
+      const Vec3 d = q.position - p.position;
+      const double t = std::clamp((x - p.position).dot(d) / std::max(d.squaredNorm(), 1e-30), 0.0, 1.0);
+      const Vec3 at = p.position + t * d;
+      const double dist = (at - x).norm();
+      if (dist < best.distance) best = {b.id, at, (1.0 - t) * p.radius + t * q.radius, dist, along + t * d.norm()};
+      along += d.norm();
     }
   }
   return best;
 }
+
+/// The nearest branch of `graph` to x (by distance to its polyline segments).
+int nearest_branch(const anatomy::AirwayGraph& graph, const Vec3& x) { return nearest_on_graph(graph, x).branch; }
 
 /// The navigator's magnet pose for the tip at `tip`: on the line from the tip through the aim point.
 /// The magnet body of source i for the placement checks: a cylinder's radius and half length [m]; none for a dipole
@@ -388,6 +398,10 @@ struct RunFigures {
   double mean_normal = 0.0;          ///< time average of the total [N]
   double max_shear = 0.0;            ///< largest total shear [N]
   std::vector<std::string> branches; ///< graph branches the tip passed through, in order
+  int generation = -1;               ///< the deepest generation among them (−1 without a graph)
+  std::optional<double> centreline;       ///< tip to the nearest centreline at the end [m] (with a graph)
+  std::optional<double> mean_centreline;  ///< its time average [m]
+  std::optional<double> progress;    ///< how far along the navigator's planned path the tip got, 0–1
 };
 
 RunFigures figures_of(const ExperimentScene& scene, const ExperimentResult& result) {
@@ -405,8 +419,35 @@ RunFigures figures_of(const ExperimentScene& scene, const ExperimentResult& resu
     f.max_shear = std::max(f.max_shear, s.total_shear);
     if (scene.graph && s.branch >= 0 && s.branch != last_branch) {
       f.branches.push_back(scene.graph->branches[static_cast<std::size_t>(s.branch)].name);
+      f.generation = std::max(f.generation, scene.graph->branches[static_cast<std::size_t>(s.branch)].generation);
       last_branch = s.branch;
     }
+  }
+  if (scene.graph) {
+    f.centreline = nearest_on_graph(*scene.graph, tip).distance;
+    double sum = 0.0;
+    for (const ExperimentSample& s : result.samples) sum += nearest_on_graph(*scene.graph, s.tip).distance;
+    f.mean_centreline = result.samples.empty() ? *f.centreline : sum / static_cast<double>(result.samples.size());
+  }
+  if (scene.navigator && scene.target) {
+    // Arc length along the planned path of the tip's and the target's nearest points on it.
+    const std::vector<Vec3> path = planned_path(*scene.graph, anatomy::path_from_root(*scene.graph, scene.navigator->target_branch));
+    const auto arc = [&path](const Vec3& x) {
+      double best = std::numeric_limits<double>::infinity(), at = 0.0, along = 0.0;
+      for (std::size_t k = 0; k + 1 < path.size(); ++k) {
+        const Vec3 d = path[k + 1] - path[k];
+        const double t = std::clamp((x - path[k]).dot(d) / std::max(d.squaredNorm(), 1e-30), 0.0, 1.0);
+        const double dist = (path[k] + t * d - x).norm();
+        if (dist < best) {
+          best = dist;
+          at = along + t * d.norm();
+        }
+        along += d.norm();
+      }
+      return at;
+    };
+    const double goal = arc(*scene.target);
+    f.progress = goal > 0.0 ? std::clamp(arc(tip) / goal, 0.0, 1.0) : 1.0;
   }
   return f;
 }
@@ -764,10 +805,20 @@ ExperimentScene parse_experiment_scene(const std::string& text, const std::strin
     }
     if (!scene.magnets) n.fail("magnet", "the navigator moves a magnet, but the scene has no magnets: list");
     Navigator nav;
-    nav.target = n.text("target");
-    const auto branch = anatomy::find_branch(*scene.graph, nav.target);
-    if (!branch) n.fail("target", "no branch '" + nav.target + "' in the phantom's graph (names like 0-1-0)");
-    nav.target_branch = *branch;
+    if (n.node("target").IsSequence()) {
+      // A point: snapped to the nearest centreline; success within 1.5 lumen radii of the snapped point.
+      const GraphPoint at = nearest_on_graph(*scene.graph, n.vec3("target") * unit);
+      nav.target_branch = at.branch;
+      nav.target = scene.graph->branches[static_cast<std::size_t>(at.branch)].name;
+      scene.target = at.position;
+      scene.target_tolerance = 1.5 * at.radius;
+      scene.target_line = line_of(n.node("target"));
+    } else {
+      nav.target = n.text("target");
+      const auto branch = anatomy::find_branch(*scene.graph, nav.target);
+      if (!branch) n.fail("target", "no branch '" + nav.target + "' in the airway graph (names like 0-1-0)");
+      nav.target_branch = *branch;
+    }
     if (n.has("magnet")) {
       const double index = n.number("magnet");
       if (index != std::floor(index) || index < 0 || index >= static_cast<double>(scene.magnets->size())) {
@@ -1192,6 +1243,11 @@ void write_experiment_outputs(const ExperimentScene& scene, const ExperimentResu
   j["everted_length_m"] = f.everted_length;
   j["tip_path_length_m"] = f.path;
   j["branches_reached"] = f.branches;
+  const auto optional = [](const std::optional<double>& v) { return v ? nlohmann::json(*v) : nlohmann::json(); };
+  j["generation_reached"] = f.generation >= 0 ? nlohmann::json(f.generation) : nlohmann::json();
+  j["tip_to_centreline_m"] = optional(f.centreline);
+  j["mean_tip_to_centreline_m"] = optional(f.mean_centreline);
+  j["path_progress"] = optional(f.progress);
   j["max_wall_normal_N"] = f.max_normal;
   j["mean_wall_normal_N"] = f.mean_normal;
   j["max_wall_shear_N"] = f.max_shear;

@@ -65,7 +65,8 @@
 /// ends.
 ///
 /// Navigator (`control.navigator`; it plans on the airway graph: a generated phantom's, or anatomy.graph's): the path of branches from the
-/// root to `target` (a branch name), its centrelines joined into one polyline; every `interval` seconds (default 0.1)
+/// root to `target` (a branch name, or a point [x, y, z] snapped to the nearest centreline: its branch, and success
+/// within 1.5 lumen radii of the snapped point), its centrelines joined into one polyline; every `interval` seconds (default 0.1)
 /// the aim point is `lead` (default 15 mm) along that polyline past the tip's nearest point on it (the target's end
 /// at most), so the turn after a short branch is aimed at before the tip gets there. The magnet is placed on the line from the tip through the aim point,
 /// `distance` from the tip (clamped to min_distance–max_distance, default 100–300 mm: the EPM stays outside the
@@ -286,10 +287,11 @@ void write_trial_outputs(const std::vector<TrialOutcome>& outcomes, const std::f
 
 /// Writes, atomically, into `dir` (created): metrics.json, tip_trajectory.csv, magnet_trajectory.csv (when the
 /// scene has magnets), events.json, shape.csv (the final body), shapes.csv (t_s,node,x_m,y_m,z_m; with
-/// outputs.shape_interval) and, for a generated phantom, graph.json (its
+/// outputs.shape_interval) and, with an airway graph (a generated phantom's or anatomy.graph), graph.json (the
 /// centreline graph, anatomy/airway_graph.hpp). metrics.json keys: success, time_to_target_s,
 /// final_tip_error_m (null without a target), tip_position_m, everted_length_m, tip_path_length_m, branches_reached
-/// (graph names in order, generated phantoms), max_wall_normal_N, mean_wall_normal_N (time average of the total),
+/// (graph names in order, with a graph), generation_reached, tip_to_centreline_m (at the end) and
+/// mean_tip_to_centreline_m (time average), path_progress (0–1 along the navigator's planned path to its target), max_wall_normal_N, mean_wall_normal_N (time average of the total),
 /// max_wall_shear_N (largest total over the steps), stalls, blocked, events, magnet_travel_m, simulated_s,
 /// runtime_s, real_time_factor, converged (the last step), failed_steps, failure, seed, and with outputs.video the
 /// videos (tip.mp4 / overview.mp4, or .avi) and "videos": [{camera, file, codec, frames, fps, size}].
