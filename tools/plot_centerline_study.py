@@ -2,7 +2,7 @@
 """Plot the airway-graph voxel study written by `magvine study centerline --out DIR`.
 
 Left: error against extraction time (mean centreline distance and mean radius error relative to the
-reference radius, and the radii's 95th percentile, which the junctions set); hollow markers where the
+reference radius, and the radii's 95th percentile, which the junctions set, also without them); hollow markers where the
 topology is not exact. Right: the same against the voxel edge. A missing or malformed input gives one line
 on stderr, exit status 2 and no PNG.
 
@@ -18,7 +18,8 @@ import matplotlib
 matplotlib.use("Agg")
 import matplotlib.pyplot as plt  # noqa: E402
 
-COLUMNS = ("voxel_m", "seconds", "same_topology", "mean_distance_rel", "mean_radius_err", "p95_radius_err")
+COLUMNS = ("voxel_m", "seconds", "same_topology", "mean_distance_rel", "mean_radius_err", "p95_radius_err",
+           "p95_radius_err_away")
 
 
 def fail(path, problem):
@@ -46,7 +47,8 @@ def main():
     fig, (ax, ax2) = plt.subplots(1, 2, figsize=(11, 4.2))
     series = (("mean_distance_rel", "centreline distance (mean)", "tab:blue"),
               ("mean_radius_err", "radius error (mean)", "tab:orange"),
-              ("p95_radius_err", "radius error (95th percentile)", "tab:red"))
+              ("p95_radius_err", "radius error (95th percentile)", "tab:red"),
+              ("p95_radius_err_away", "radius error (95th percentile, away from junctions and ends)", "tab:purple"))
     for key, label, colour in series:
         y = [100 * v for v in data[key]]
         for axis, x in ((ax, data["seconds"]), (ax2, [1e3 * v for v in data["voxel_m"]])):

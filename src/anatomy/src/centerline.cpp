@@ -793,7 +793,12 @@ GraphComparison compare_graphs(const AirwayGraph& extracted, const AirwayGraph& 
   c.same_topology = graph_shape(extracted) == graph_shape(reference);
   c.branches = extracted.branches.size();
   c.reference_branches = reference.branches.size();
-  std::vector<double> radius_errors;
+  std::vector<double> radius_errors, away;
+  std::vector<const AirwayNode*> ends;  // the reference's bifurcations and blind ends
+  for (const AirwayBranch& b : reference.branches) {
+    ends.push_back(&reference.nodes[b.nodes.front()]);
+    ends.push_back(&reference.nodes[b.nodes.back()]);
+  }
   for (const AirwayNode& n : extracted.nodes) {
     double best = std::numeric_limits<double>::infinity();
     double radius = 0.0;
@@ -813,6 +818,14 @@ GraphComparison compare_graphs(const AirwayGraph& extracted, const AirwayGraph& 
     c.mean_distance += best / radius;
     radius_errors.push_back(std::fabs(n.radius - radius) / radius);
     c.mean_radius_error += radius_errors.back();
+    const bool clear = std::all_of(ends.begin(), ends.end(), [&](const AirwayNode* e) {
+      return (e->position - n.position).norm() > 2.0 * e->radius;
+    });
+    if (clear) away.push_back(radius_errors.back());
+  }
+  if (!away.empty()) {
+    std::sort(away.begin(), away.end());
+    c.p95_radius_error_away = away[static_cast<std::size_t>(0.95 * static_cast<double>(away.size() - 1))];
   }
   if (!radius_errors.empty()) {
     c.mean_distance /= static_cast<double>(radius_errors.size());

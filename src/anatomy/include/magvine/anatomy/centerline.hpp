@@ -68,6 +68,9 @@ struct GraphComparison {
   double mean_distance = 0.0;     ///< extracted node to the reference centreline / the reference radius there, mean
   double mean_radius_error = 0.0; ///< |r − r_ref| / r_ref at the nearest reference point, mean over the nodes
   double p95_radius_error = 0.0;  ///< its 95th percentile (junctions: the inscribed circle there is wider)
+  /// The 95th percentile over the nodes farther than two reference radii from every reference bifurcation and end
+  /// (where a branch's radius is defined without ambiguity).
+  double p95_radius_error_away = 0.0;
 };
 
 /// The rooted tree's shape with children unordered: "(" + the children's shapes, sorted + ")" per root.

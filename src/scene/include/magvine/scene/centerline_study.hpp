@@ -9,7 +9,8 @@ namespace magvine::scene {
 
 /// Writes `dir/centerline_study.csv` with columns
 /// voxel_m,seconds,lumen_voxels,branches,reference_branches,same_topology,mean_distance_rel,mean_radius_err,
-/// p95_radius_err (distances and radius errors relative to the reference radius), atomically. Progress on stderr.
+/// p95_radius_err,p95_radius_err_away (distances and radius errors relative to the reference radius; the last away
+/// from junctions and ends), atomically. Progress on stderr.
 void run_centerline_study(const std::filesystem::path& dir);
 
 }  // namespace magvine::scene
