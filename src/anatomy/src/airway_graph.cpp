@@ -1,5 +1,6 @@
 #include "magvine/anatomy/airway_graph.hpp"
 
+#include <algorithm>
 #include <cmath>
 #include <fstream>
 #include <sstream>
@@ -94,6 +95,24 @@ std::vector<int> path_from_root(const AirwayGraph& graph, int branch) {
     path.push_back(b);
   }
   return {path.rbegin(), path.rend()};
+}
+
+CentrelinePoint nearest_centreline_point(const AirwayGraph& graph, const Vec3& x) {
+  CentrelinePoint best;
+  for (const AirwayBranch& b : graph.branches) {
+    double along = 0.0;
+    for (std::size_t k = 0; k + 1 < b.nodes.size(); ++k) {
+      const AirwayNode& p = graph.nodes[b.nodes[k]];
+      const AirwayNode& q = graph.nodes[b.nodes[k + 1]];
+      const Vec3 d = q.position - p.position;
+      const double t = std::clamp((x - p.position).dot(d) / std::max(d.squaredNorm(), 1e-30), 0.0, 1.0);
+      const Vec3 at = p.position + t * d;
+      const double dist = (at - x).norm();
+      if (dist < best.distance) best = {b.id, at, (1.0 - t) * p.radius + t * q.radius, dist, along + t * d.norm()};
+      along += d.norm();
+    }
+  }
+  return best;
 }
 
 double branch_length(const AirwayGraph& graph, int branch) {

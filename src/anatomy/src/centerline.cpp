@@ -206,8 +206,16 @@ Grid choose_grid(const TriangleMesh& mesh, const CenterlineOptions& o) {
   Grid g;
   g.h = h;
   g.origin = box.min - Vec3::Constant(1.5 * h);
-  for (int a = 0; a < 3; ++a) g.n[static_cast<std::size_t>(a)] = static_cast<int>(std::ceil(extent[a] / h + 3.0));
-  if (static_cast<double>(g.n[0]) * g.n[1] * g.n[2] > static_cast<double>(o.max_cells)) {
+  const auto size_grid = [&] {
+    for (int a = 0; a < 3; ++a) g.n[static_cast<std::size_t>(a)] = static_cast<int>(std::ceil(extent[a] / g.h + 3.0));
+    return static_cast<double>(g.n[0]) * g.n[1] * g.n[2];
+  };
+  while (o.voxel <= 0.0 && size_grid() > static_cast<double>(o.max_cells)) {  // auto: coarsen into the budget
+    g.h *= 1.05;
+    h = g.h;
+    g.origin = box.min - Vec3::Constant(1.5 * h);
+  }
+  if (size_grid() > static_cast<double>(o.max_cells)) {
     throw InputError("centreline", 0, "voxel",
                      std::to_string(1e3 * h) + " mm gives " + std::to_string(g.n[0]) + " x " + std::to_string(g.n[1]) +
                          " x " + std::to_string(g.n[2]) + " cells, over the budget of " + std::to_string(o.max_cells));
@@ -705,6 +713,12 @@ AirwayGraph extract_airway_graph(const TriangleMesh& mesh, const CenterlineOptio
     if (c.parent < 0 && adjacent[c.voxels.front()].size() == 1) trim(c.voxels, false);
   }
 
+  if (chains.empty()) {
+    throw InputError("centreline", 0, "voxel",
+                     "the skeleton is a single voxel: the voxel (" + std::to_string(1e3 * grid.h) +
+                         " mm) is too coarse for this lumen");
+  }
+
   // Polylines [m], ordered children, refined nodes.
   AirwayGraph graph;
   std::vector<std::vector<Vec3>> lines(chains.size());
@@ -800,22 +814,9 @@ GraphComparison compare_graphs(const AirwayGraph& extracted, const AirwayGraph& 
     ends.push_back(&reference.nodes[b.nodes.back()]);
   }
   for (const AirwayNode& n : extracted.nodes) {
-    double best = std::numeric_limits<double>::infinity();
-    double radius = 0.0;
-    for (const AirwayBranch& b : reference.branches) {
-      for (std::size_t i = 0; i + 1 < b.nodes.size(); ++i) {
-        const AirwayNode& p = reference.nodes[b.nodes[i]];
-        const AirwayNode& q = reference.nodes[b.nodes[i + 1]];
-        const Vec3 d = q.position - p.position;
-        const double u = std::clamp((n.position - p.position).dot(d) / std::max(d.squaredNorm(), 1e-30), 0.0, 1.0);
-        const double dist = (n.position - (p.position + u * d)).norm();
-        if (dist < best) {
-          best = dist;
-          radius = (1.0 - u) * p.radius + u * q.radius;
-        }
-      }
-    }
-    c.mean_distance += best / radius;
+    const CentrelinePoint near = nearest_centreline_point(reference, n.position);
+    const double radius = near.radius;
+    c.mean_distance += near.distance / radius;
     radius_errors.push_back(std::fabs(n.radius - radius) / radius);
     c.mean_radius_error += radius_errors.back();
     const bool clear = std::all_of(ends.begin(), ends.end(), [&](const AirwayNode* e) {

@@ -109,35 +109,10 @@ MagnetKeyframe interpolate(const std::vector<MagnetKeyframe>& keys, double time)
   return out;
 }
 
-/// The nearest point of `graph`'s centrelines to x: its branch, position, radius (interpolated), distance and arc
-/// length from the branch's start.
-struct GraphPoint {
-  int branch = -1;
-  Vec3 position = Vec3::Zero();
-  double radius = 0.0;
-  double distance = std::numeric_limits<double>::infinity();
-  double along = 0.0;
-};
-GraphPoint nearest_on_graph(const anatomy::AirwayGraph& graph, const Vec3& x) {
-  GraphPoint best;
-  for (const anatomy::AirwayBranch& b : graph.branches) {
-    double along = 0.0;
-    for (std::size_t k = 0; k + 1 < b.nodes.size(); ++k) {
-      const anatomy::AirwayNode& p = graph.nodes[b.nodes[k]];
-      const anatomy::AirwayNode& q = graph.nodes[b.nodes[k + 1]];
-      const Vec3 d = q.position - p.position;
-      const double t = std::clamp((x - p.position).dot(d) / std::max(d.squaredNorm(), 1e-30), 0.0, 1.0);
-      const Vec3 at = p.position + t * d;
-      const double dist = (at - x).norm();
-      if (dist < best.distance) best = {b.id, at, (1.0 - t) * p.radius + t * q.radius, dist, along + t * d.norm()};
-      along += d.norm();
-    }
-  }
-  return best;
-}
-
 /// The nearest branch of `graph` to x (by distance to its polyline segments).
-int nearest_branch(const anatomy::AirwayGraph& graph, const Vec3& x) { return nearest_on_graph(graph, x).branch; }
+int nearest_branch(const anatomy::AirwayGraph& graph, const Vec3& x) {
+  return anatomy::nearest_centreline_point(graph, x).branch;
+}
 
 /// The navigator's magnet pose for the tip at `tip`: on the line from the tip through the aim point.
 /// The magnet body of source i for the placement checks: a cylinder's radius and half length [m]; none for a dipole
@@ -213,6 +188,25 @@ std::string path_overlap_problem(const anatomy::TriangleMesh& mesh, const magnet
   return {};
 }
 
+/// Arc length [m] along a polyline of its nearest point to x.
+double arc_length_of_nearest(const std::vector<Vec3>& path, const Vec3& x) {
+  double best = std::numeric_limits<double>::infinity();
+  double at = 0.0;
+  double run = 0.0;
+  for (std::size_t k = 0; k + 1 < path.size(); ++k) {
+    const Vec3 d = path[k + 1] - path[k];
+    const double l = d.norm();
+    const double f = l > 0.0 ? std::clamp((x - path[k]).dot(d) / (l * l), 0.0, 1.0) : 0.0;
+    const double d2 = (path[k] + f * d - x).squaredNorm();
+    if (d2 < best) {
+      best = d2;
+      at = run + f * l;
+    }
+    run += l;
+  }
+  return at;
+}
+
 /// The planned path as one polyline: the centrelines of `plan`'s branches joined.
 std::vector<Vec3> planned_path(const anatomy::AirwayGraph& graph, const std::vector<int>& plan) {
   std::vector<Vec3> path;
@@ -229,20 +223,7 @@ std::vector<Vec3> planned_path(const anatomy::AirwayGraph& graph, const std::vec
 /// does not hide the turn after it.
 MagnetKeyframe navigate(const Navigator& nav, const std::vector<Vec3>& path, const Vec3& tip, const Mat3& tip_frame,
                         const std::optional<Vec3>& skin, double time, const Vec3& offset, Vec3& line) {
-  double best = std::numeric_limits<double>::infinity();
-  double at = 0.0;  // arc length of the tip's nearest point [m]
-  double run = 0.0;
-  for (std::size_t k = 0; k + 1 < path.size(); ++k) {
-    const Vec3 d = path[k + 1] - path[k];
-    const double l = d.norm();
-    const double f = l > 0.0 ? std::clamp((tip - path[k]).dot(d) / (l * l), 0.0, 1.0) : 0.0;
-    const double d2 = (path[k] + f * d - tip).squaredNorm();
-    if (d2 < best) {
-      best = d2;
-      at = run + f * l;
-    }
-    run += l;
-  }
+  const double at = arc_length_of_nearest(path, tip);
   Vec3 aim = path.back();
   double left = at + nav.lead;
   for (std::size_t k = 0; k + 1 < path.size(); ++k) {
@@ -424,30 +405,16 @@ RunFigures figures_of(const ExperimentScene& scene, const ExperimentResult& resu
     }
   }
   if (scene.graph) {
-    f.centreline = nearest_on_graph(*scene.graph, tip).distance;
+    f.centreline = anatomy::nearest_centreline_point(*scene.graph, tip).distance;
     double sum = 0.0;
-    for (const ExperimentSample& s : result.samples) sum += nearest_on_graph(*scene.graph, s.tip).distance;
+    for (const ExperimentSample& s : result.samples) sum += anatomy::nearest_centreline_point(*scene.graph, s.tip).distance;
     f.mean_centreline = result.samples.empty() ? *f.centreline : sum / static_cast<double>(result.samples.size());
   }
   if (scene.navigator && scene.target) {
     // Arc length along the planned path of the tip's and the target's nearest points on it.
     const std::vector<Vec3> path = planned_path(*scene.graph, anatomy::path_from_root(*scene.graph, scene.navigator->target_branch));
-    const auto arc = [&path](const Vec3& x) {
-      double best = std::numeric_limits<double>::infinity(), at = 0.0, along = 0.0;
-      for (std::size_t k = 0; k + 1 < path.size(); ++k) {
-        const Vec3 d = path[k + 1] - path[k];
-        const double t = std::clamp((x - path[k]).dot(d) / std::max(d.squaredNorm(), 1e-30), 0.0, 1.0);
-        const double dist = (path[k] + t * d - x).norm();
-        if (dist < best) {
-          best = dist;
-          at = along + t * d.norm();
-        }
-        along += d.norm();
-      }
-      return at;
-    };
-    const double goal = arc(*scene.target);
-    f.progress = goal > 0.0 ? std::clamp(arc(tip) / goal, 0.0, 1.0) : 1.0;
+    const double goal = arc_length_of_nearest(path, *scene.target);
+    f.progress = goal > 0.0 ? std::clamp(arc_length_of_nearest(path, tip) / goal, 0.0, 1.0) : 1.0;
   }
   return f;
 }
@@ -807,7 +774,7 @@ ExperimentScene parse_experiment_scene(const std::string& text, const std::strin
     Navigator nav;
     if (n.node("target").IsSequence()) {
       // A point: snapped to the nearest centreline; success within 1.5 lumen radii of the snapped point.
-      const GraphPoint at = nearest_on_graph(*scene.graph, n.vec3("target") * unit);
+      const anatomy::CentrelinePoint at = anatomy::nearest_centreline_point(*scene.graph, n.vec3("target") * unit);
       nav.target_branch = at.branch;
       nav.target = scene.graph->branches[static_cast<std::size_t>(at.branch)].name;
       scene.target = at.position;

@@ -11,6 +11,7 @@
 
 #include <cstdint>
 #include <filesystem>
+#include <limits>
 #include <optional>
 #include <string>
 #include <vector>
@@ -58,6 +59,18 @@ std::optional<int> find_branch(const AirwayGraph& graph, const std::string& name
 
 /// Branch ids from the root down to `branch` (inclusive), root first.
 std::vector<int> path_from_root(const AirwayGraph& graph, int branch);
+
+/// The nearest point of a graph's centrelines to a point.
+struct CentrelinePoint {
+  int branch = -1;                ///< its branch (−1: an empty graph)
+  Vec3 position = Vec3::Zero();   ///< [m]
+  double radius = 0.0;            ///< interpolated between the segment's nodes [m]
+  double distance = std::numeric_limits<double>::infinity();  ///< from the query point [m]
+  double along = 0.0;             ///< arc length from the branch's start [m]
+};
+
+/// The point of `graph`'s branch polylines nearest to x (ties: the lower branch id and segment).
+CentrelinePoint nearest_centreline_point(const AirwayGraph& graph, const Vec3& x);
 
 /// Length of the branch's polyline [m].
 double branch_length(const AirwayGraph& graph, int branch);
