@@ -609,15 +609,42 @@ AirwayGraph extract_airway_graph(const TriangleMesh& mesh, const CenterlineOptio
   // The skeleton as an undirected tree.
   std::vector<std::vector<std::uint32_t>> adjacent(n);
   for (std::uint32_t v = 0; v < n; ++v) {
-    if (skeleton[v] == 0) continue;
-    ++report.skeleton_voxels;
-    if (v == end) continue;
+    if (skeleton[v] == 0 || v == end) continue;
     adjacent[v].push_back(skeleton_parent[v]);
     adjacent[skeleton_parent[v]].push_back(v);
   }
+  // Terminal stubs: a leaf's chain shorter than (1 + spur_factor) × the lumen radius at its junction ends inside
+  // the junction's own lumen (the corners of a wide flat end, where TEASAR's first path starts): pruned, repeatedly.
+  for (bool pruned = true; pruned;) {
+    pruned = false;
+    for (std::uint32_t v = 0; v < n; ++v) {
+      if (skeleton[v] == 0 || adjacent[v].size() != 1) continue;
+      std::vector<std::uint32_t> chain{v};
+      std::uint32_t prev = v, cur = adjacent[v][0];
+      double length = L.separation(prev, cur);
+      while (adjacent[cur].size() == 2) {
+        const std::uint32_t next = adjacent[cur][0] == prev ? adjacent[cur][1] : adjacent[cur][0];
+        chain.push_back(cur);
+        length += L.separation(cur, next);
+        prev = cur;
+        cur = next;
+      }
+      if (adjacent[cur].size() < 3 || length >= (1.0 + options.spur_factor) * L.dbf[cur]) continue;
+      for (const std::uint32_t c : chain) {
+        skeleton[c] = 0;
+        adjacent[c].clear();
+      }
+      auto& at = adjacent[cur];
+      at.erase(std::find(at.begin(), at.end(), prev));
+      ++report.spurs_pruned;
+      pruned = true;
+    }
+  }
+  report.skeleton_voxels = static_cast<std::size_t>(std::count(skeleton.begin(), skeleton.end(), std::uint8_t{1}));
+
   // The root: the leaf nearest the given point, else the end of the widest terminal branch.
-  std::uint32_t root = end;
-  double best = -1.0;
+  std::uint32_t root = kNone;
+  double best = -std::numeric_limits<double>::infinity();
   for (std::uint32_t v = 0; v < n; ++v) {
     if (skeleton[v] == 0 || adjacent[v].size() != 1) continue;
     double score = 0.0;
@@ -652,6 +679,11 @@ AirwayGraph extract_airway_graph(const TriangleMesh& mesh, const CenterlineOptio
     std::vector<std::uint32_t> prefix;  ///< voxels from the parent's end up to `from`
     std::uint32_t from, next;
   };
+  if (root == kNone) {
+    throw InputError("centreline", 0, "voxel",
+                     "the skeleton has no end: the voxel (" + std::to_string(1e3 * grid.h) + " mm) is too coarse for "
+                     "this lumen");
+  }
   std::vector<Todo> todo{{-1, {}, root, adjacent[root].empty() ? root : adjacent[root][0]}};
   while (!todo.empty()) {
     Todo t = std::move(todo.back());

@@ -17,6 +17,8 @@
 ///     less than spur_factor × its own radius beyond the wall of the lumen it leaves is a spur of the voxel
 ///     staircase: covered, not kept. The skeleton is a tree by construction, so branches that touch (handles,
 ///     genus > 0) do not make loops.
+///     Then a leaf's chain shorter than (1 + spur_factor) × the lumen radius at its junction is pruned (it ends
+///     inside the junction's own lumen: the corners of a wide flat end such as a capped trachea).
 ///  5. Root the tree at the widest end (largest radius along its terminal branch: the trachea) unless a root
 ///     point is given; split it into branches at the bifurcations; smooth each branch; then refine every node on
 ///     the mesh itself: rays in the plane across the branch find the wall, the node moves to the middle of the
