@@ -26,10 +26,12 @@ namespace {
 
 const std::filesystem::path kDemo = std::filesystem::path(MAGVINE_SOURCE_DIR) / "assets/scenes/y_bifurcation_fluid_vine.yaml";
 
-std::string demo_text() {
-  std::ifstream in(kDemo);
+std::string text_of(const std::filesystem::path& file) {
+  std::ifstream in(file);
   return std::string(std::istreambuf_iterator<char>(in), {});
 }
+
+std::string demo_text() { return text_of(kDemo); }
 
 /// The InputError a scene text (as "bad.yaml") gives when it is loaded, or "no error"; with `run`, when it is run.
 std::string error_of(const std::string& scene, bool run = false) {
@@ -476,48 +478,46 @@ TEST(Experiment, ATargetOrABaseOutsideTheLumenIsRefusedBeforeTheRun) {
   EXPECT_NE(base.find("robot.base.position: (2, 0, -9) mm is outside the lumen"), std::string::npos) << base;
 }
 
-}  // namespace
-}  // namespace magvine::scene
-
-namespace magvine::scene {
-namespace {
+/// Runs `scene` aimed at `target` (a branch of generation ≥ 4 of its extracted graph) and expects success.
+void expect_reaches(const ExperimentScene& scene, const std::string& target, const std::string& label) {
+  const auto branch = anatomy::find_branch(*scene.graph, target);
+  ASSERT_TRUE(branch) << target;
+  EXPECT_GE(scene.graph->branches[static_cast<std::size_t>(*branch)].generation, 4);
+  const ExperimentResult r = run_experiment(with_target(scene, target));
+  std::cout << "[ " << label << " ] " << target << ": " << (r.success ? "reached" : "NOT reached") << " at "
+            << r.time_to_target << " s, " << 1e3 * r.samples.back().length << " mm everted, " << r.events.size()
+            << " events, " << r.runtime_s << " s of computing\n";
+  EXPECT_TRUE(r.success) << target;
+}
 
 TEST(Experiment, TheNavigatorReachesGenerationFourInARealPhantomWithTheExtractedGraph) {
   // Issue 8: a real airway (the silicone phantom siliconmodel3, from ../shared/airways) with no graph of its own:
   // the scene extracts it, and the navigator steers the Ø4 mm fluid vine to two generation-4 branches, one per main
   // bronchus.
-  const std::filesystem::path file = kDemo.parent_path() / "ct_phantom_navigator.yaml";
   if (!std::filesystem::exists(kDemo.parent_path() / "../../../shared/airways/siliconmodel3_airway.stl")) {
     GTEST_SKIP() << "../shared/airways (siliconmodel3) is absent";
   }
-  const ExperimentScene scene = load_experiment_scene(file);
+  const ExperimentScene scene = load_experiment_scene(kDemo.parent_path() / "ct_phantom_navigator.yaml");
   ASSERT_TRUE(scene.graph);
   EXPECT_EQ(anatomy::leaves(*scene.graph).size(), 60u);  // the phantom's 60 leaves (VMTK's count)
-  for (const std::string target : {"0-0-0-1-1", "0-1-0-0-0"}) {
-    const ExperimentScene aimed = with_target(scene, target);
-    const auto branch = anatomy::find_branch(*scene.graph, target);
-    ASSERT_TRUE(branch);
-    EXPECT_GE(scene.graph->branches[static_cast<std::size_t>(*branch)].generation, 4);
-    const ExperimentResult r = run_experiment(aimed);
-    std::cout << "[ ct phantom ] " << target << ": " << (r.success ? "reached" : "NOT reached") << " at "
-              << r.time_to_target << " s, " << 1e3 * r.samples.back().length << " mm everted, "
-              << r.events.size() << " events, " << r.runtime_s << " s of computing\n";
-    EXPECT_TRUE(r.success) << target;
-  }
+  for (const std::string target : {"0-0-0-1-1", "0-1-0-0-0"}) expect_reaches(scene, target, "ct phantom");
 }
 
-}  // namespace
-}  // namespace magvine::scene
-
-namespace magvine::scene {
-namespace {
+TEST(Experiment, TheNavigatorReachesGenerationFourInAPatientsCtAirwayWithTheExtractedGraph) {
+  // Issue 8 in a patient's airway: LIDC-IDRI-0525's marching-cubes mesh (../shared/airways), graph extracted.
+  if (!std::filesystem::exists(kDemo.parent_path() / "../../../shared/airways/lidc0525_medmpd_p5_airway_mc.stl")) {
+    GTEST_SKIP() << "../shared/airways (lidc0525) is absent";
+  }
+  const ExperimentScene scene = load_experiment_scene(kDemo.parent_path() / "ct_patient_navigator.yaml");
+  ASSERT_TRUE(scene.graph && scene.navigator);
+  expect_reaches(scene, scene.navigator->target, "ct patient");
+}
 
 TEST(Experiment, ANavigatorTargetGivenAsAPointSnapsToTheNearestBranchAndTheMetricsUseTheGraph) {
   // Issue 8: a target by point. 3 mm off the centreline of branch 0-0-1 of the tree: the navigator plans to 0-0-1
   // and succeeds within 1.5 radii of the snapped point; metrics.json then carries the graph's metrics.
   const std::filesystem::path file = kDemo.parent_path() / "bronchial_tree_navigator.yaml";
-  std::ifstream in(file);
-  std::string text(std::istreambuf_iterator<char>(in), {});
+  const std::string text = text_of(file);
   const ExperimentScene by_name = load_experiment_scene(file);
   const auto b = anatomy::find_branch(*by_name.graph, "0-0-1");
   ASSERT_TRUE(b);
@@ -551,28 +551,6 @@ TEST(Experiment, ANavigatorTargetGivenAsAPointSnapsToTheNearestBranchAndTheMetri
   // The tip stays inside the lumen: its distance to the centreline is below the lumen radius (≤ 9 mm, trachea).
   EXPECT_LT(m["tip_to_centreline_m"].get<double>(), 9e-3);
   EXPECT_LT(m["mean_tip_to_centreline_m"].get<double>(), 9e-3);
-}
-
-}  // namespace
-}  // namespace magvine::scene
-
-namespace magvine::scene {
-namespace {
-
-TEST(Experiment, TheNavigatorReachesGenerationFourInAPatientsCtAirwayWithTheExtractedGraph) {
-  // Issue 8 in a patient's airway: LIDC-IDRI-0525's marching-cubes mesh (../shared/airways), graph extracted.
-  const std::filesystem::path file = kDemo.parent_path() / "ct_patient_navigator.yaml";
-  if (!std::filesystem::exists(kDemo.parent_path() / "../../../shared/airways/lidc0525_medmpd_p5_airway_mc.stl")) {
-    GTEST_SKIP() << "../shared/airways (lidc0525) is absent";
-  }
-  const ExperimentScene scene = load_experiment_scene(file);
-  ASSERT_TRUE(scene.graph && scene.navigator);
-  EXPECT_EQ(scene.graph->branches[static_cast<std::size_t>(scene.navigator->target_branch)].generation, 4);
-  const ExperimentResult r = run_experiment(scene);
-  std::cout << "[ ct patient ] " << scene.navigator->target << ": " << (r.success ? "reached" : "NOT reached")
-            << " at " << r.time_to_target << " s, " << 1e3 * r.samples.back().length << " mm everted, "
-            << r.events.size() << " events, " << r.runtime_s << " s of computing\n";
-  EXPECT_TRUE(r.success);
 }
 
 }  // namespace

@@ -158,12 +158,9 @@ int run_mesh_graph(const MeshGraphArgs& args) {
   if (!args.png.empty()) {
     const anatomy::Aabb box = anatomy::bounding_box(imported.mesh);
     const Vec3 size = box.max - box.min;
-    int thin = 0;
-    for (int k = 1; k < 3; ++k) {
-      if (size[k] < size[thin]) thin = k;
-    }
-    const render::Camera cam = render::framing_camera(box, -Vec3::Unit(thin), thin == 2 ? Vec3(Vec3::UnitY()) : Vec3(Vec3::UnitZ()),
-                                                      render::Lens::kPinhole, 40.0 * kDegToRad, 800, 800);
+    const auto [axis, up] = render::face_on_view(box);
+    const render::Camera cam =
+        render::framing_camera(box, -axis, up, render::Lens::kPinhole, 40.0 * kDegToRad, 800, 800);
     render::OverviewContent content;
     for (const anatomy::AirwayBranch& b : graph.branches) {
       std::vector<Vec3> line;

@@ -571,6 +571,15 @@ cv::Mat AirwayRenderer::render_overview(const Camera& camera, const OverviewCont
   return image;
 }
 
+std::pair<Vec3, Vec3> face_on_view(const anatomy::Aabb& box) {
+  const Vec3 size = box.max - box.min;
+  int thin = 0;
+  for (int k = 1; k < 3; ++k) {
+    if (size[k] < size[thin]) thin = k;
+  }
+  return {Vec3::Unit(thin), thin == 2 ? Vec3(Vec3::UnitY()) : Vec3(Vec3::UnitZ())};
+}
+
 Camera framing_camera(const anatomy::Aabb& box, const Vec3& from, const Vec3& up, Lens lens, double fov, int width,
                       int height) {
   Camera c;

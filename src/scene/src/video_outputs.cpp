@@ -55,17 +55,6 @@ class FrameFolder {
   bool m_done = false;
 };
 
-/// The overview's default viewing direction: along the anatomy's thinnest extent (a phantom lying in a plane is
-/// seen face on), image up along z unless that is the thinnest, then y. The caller picks the side.
-std::pair<Vec3, Vec3> default_view(const anatomy::Aabb& box) {
-  const Vec3 size = box.max - box.min;
-  int thin = 0;
-  for (int k = 1; k < 3; ++k) {
-    if (size[k] < size[thin]) thin = k;
-  }
-  return {Vec3::Unit(thin), thin == 2 ? Vec3(Vec3::UnitY()) : Vec3(Vec3::UnitZ())};
-}
-
 render::Camera tip_camera(const VideoOutput& v, const FrameSample& f) {
   render::Camera c;
   c.position = f.nodes.back();
@@ -110,7 +99,7 @@ nlohmann::json write_videos(const ExperimentScene& scene, const ExperimentResult
           count += 1.0;
         }
       }
-      auto [from, up] = default_view(anatomy_box);
+      auto [from, up] = render::face_on_view(anatomy_box);
       if (count > 0.0 && (magnets_mean / count - 0.5 * (anatomy_box.min + anatomy_box.max)).dot(from) > 0.0) {
         from = -from;
       }

@@ -14,6 +14,7 @@
 #include <cstdint>
 #include <memory>
 #include <optional>
+#include <utility>
 #include <vector>
 
 #include <opencv2/core/mat.hpp>
@@ -104,6 +105,10 @@ class AirwayRenderer {
   struct Impl;
   std::unique_ptr<Impl> m_impl;
 };
+
+/// The overview's default viewing axis for anatomy in `box`: its thinnest extent (a tree lying in a plane is seen
+/// face on), as {axis towards the camera (+ side; the caller may flip it), image up: z, or y when z is the thinnest}.
+std::pair<Vec3, Vec3> face_on_view(const anatomy::Aabb& box);
 
 /// A camera that frames `box` (grown by 5 %) seen from direction `from` (towards the camera), up `up`.
 Camera framing_camera(const anatomy::Aabb& box, const Vec3& from, const Vec3& up, Lens lens, double fov, int width,
