@@ -26,6 +26,10 @@ if(MAGVINE_WITH_RENDER)
   find_package(Threads REQUIRED)
 endif()
 
+if(MAGVINE_WITH_MPM)
+  find_package(OpenMP REQUIRED COMPONENTS CXX)  # GCC's libgomp: the MPM solver's loops over particles and nodes
+endif()
+
 if(MAGVINE_BUILD_TESTS)
   find_package(GTest REQUIRED)
 endif()

@@ -1,0 +1,165 @@
+#pragma once
+/// Magnetic MLS-MPM for hard-magnetic soft bodies (thesis chapter 3; PHYSICS.md §5), in 2D (plane strain, per metre
+/// of depth) and 3D.
+///
+/// One explicit step, after Hu et al. 2018 (MLS-MPM, quadratic B-splines, D⁻¹ = 4/δx²):
+///  - P2G: per particle, P = P_el(F) + P_mag and the affine momentum  A = m C − Δt V0 D⁻¹ P Fᵀ  (eq 3.1–3.9);
+///    node mass m_i = Σ w m_p, momentum Σ w (m v_p + A (x_i − x_p)), and, in a non-uniform field, the node moment
+///    m_i = Σ w V0 F Br / μ0 (eq 3.15).
+///  - Grid: v_i = p_i/m_i, + Δt (∇B_iᵀ m_i / m_i + g) (eq 3.16–3.19), damping v /= 1 + cΔt (the thesis's −c p,
+///    taken implicitly so that it never overshoots), then the fixed nodes, the domain walls and the obstacles.
+///  - G2P: v_p = Σ w v_i, C_p = D⁻¹ Σ w v_i (x_i − x_p)ᵀ, F ← (I + Δt C) F, x ← x + Δt v.
+///
+/// Stress: compressible Neo-Hookean with the isochoric split (eq 3.10),
+///   P_el = G J^(−2/3) (F − (I1/3) F⁻ᵀ) + K J (J − 1) F⁻ᵀ,  K = 20 G by default;
+/// in 2D the same law for the plane-strain F = diag(F2, 1) (I1 = tr F2ᵀF2 + 1, J = det F2), so that the rest state
+/// is stress free (the public reference code applies the 3D formula to a 2×2 F, which leaves a stress G/3 at rest).
+/// Hard-magnetic stress (Zhao et al. 2019, eq 3.13): P_mag = −(1/μ0) B ⊗ B̃r, B̃r the referential remanence.
+///
+/// The grid is a dense box around the particles, rebuilt each step (never the whole domain), so memory follows the
+/// body, not the domain. P2G runs in parallel (OpenMP) over slabs four cells thick along the longest axis: even
+/// slabs, then odd ones, so no two threads write one node and the sums do not depend on the thread count.
+
+#include <cstdint>
+#include <functional>
+#include <string>
+#include <utility>
+#include <vector>
+
+#include "magvine/core/eigen_types.hpp"
+#include "magvine/magnetics/field_sample.hpp"
+
+namespace magvine::mpm {
+
+template <int D>
+using VecD = Eigen::Matrix<double, D, 1>;
+template <int D>
+using MatD = Eigen::Matrix<double, D, D>;
+
+/// An isotropic hyperelastic material.
+struct Material {
+  double shear_modulus = 0.0;  ///< G [Pa], > 0
+  double bulk_modulus = 0.0;   ///< K [Pa], > 0 (the thesis uses 20 G)
+  double density = 0.0;        ///< ρ [kg/m³], > 0
+};
+
+/// Longitudinal (P-wave) speed sqrt((K + 4G/3)/ρ) [m/s]: the fastest signal the explicit step must resolve.
+double wave_speed(const Material& m);
+
+/// What happens at a wall or obstacle to grid velocity that points into it (eq 3.21 is `kSticky`).
+enum class Boundary {
+  kSticky,    ///< the whole velocity is zeroed
+  kSlip,      ///< the normal part is removed, the tangential part kept
+  kFriction,  ///< the normal part is removed and the tangential part reduced by μ |v_n| (Coulomb), to zero at most
+};
+
+/// A rigid, fixed obstacle given by a signed distance (negative inside) [m].
+struct Obstacle {
+  enum class Shape { kBox, kSphere, kHalfSpace, kCylinder };
+  Shape shape = Shape::kBox;
+  Vec3 a = Vec3::Zero();  ///< box: min corner; sphere: centre; half-space: a point on the plane; cylinder: axis start
+  Vec3 b = Vec3::Zero();  ///< box: max corner; half-space: outward normal (unit); cylinder: axis end
+  double radius = 0.0;    ///< sphere and cylinder radius [m]
+  Boundary boundary = Boundary::kSticky;
+  double friction = 0.0;  ///< μ for kFriction
+  std::string name;
+
+  /// Signed distance [m] and outward normal at x (x in 3D; a 2D solver passes z = 0).
+  double distance(const Vec3& x, Vec3* normal) const;
+};
+
+/// Immutable description of one MPM body set: particles' rest data, materials, grid, boundaries.
+template <int D>
+struct MpmModel {
+  double cell = 0.0;                        ///< grid spacing δx [m]
+  VecD<D> domain_min = VecD<D>::Zero();     ///< the domain's walls [m]
+  VecD<D> domain_max = VecD<D>::Zero();
+  Boundary walls = Boundary::kSticky;       ///< condition at the domain walls
+  double wall_friction = 0.0;               ///< μ for kFriction walls
+  VecD<D> gravity = VecD<D>::Zero();        ///< g [m/s²]
+  double damping = 0.0;                     ///< c [1/s] (eq 3.17)
+  std::vector<Material> materials;
+  std::vector<Obstacle> obstacles;
+  /// Clamps: grid nodes inside any of these boxes [min, max] are held at rest (the body is fixed there).
+  std::vector<std::pair<VecD<D>, VecD<D>>> clamps;
+
+  // Per particle (all the same length N).
+  std::vector<double> volume;            ///< V0 [m³; m² per metre of depth in 2D]
+  std::vector<double> mass;              ///< ρ V0 [kg]
+  std::vector<VecD<D>> remanence;        ///< B̃r, referential [T]
+  std::vector<std::uint16_t> material;   ///< index into materials
+  std::vector<std::uint16_t> section;    ///< the section a particle was sampled in (for outputs)
+
+  std::size_t size() const { return volume.size(); }
+  /// The largest stable step for this model: courant · δx / max wave speed [s].
+  double stable_step(double courant) const;
+};
+
+/// Everything that changes in time.
+template <int D>
+struct MpmState {
+  double time = 0.0;                 ///< [s]
+  std::vector<VecD<D>> x;            ///< positions [m]
+  std::vector<VecD<D>> v;            ///< velocities [m/s]
+  std::vector<MatD<D>> c;            ///< affine velocity field C (APIC/MLS) [1/s]
+  std::vector<MatD<D>> f;            ///< deformation gradient F
+};
+
+/// A rest state: particles at `positions`, at rest, undeformed.
+template <int D>
+MpmState<D> rest_state(const std::vector<VecD<D>>& positions);
+
+/// The applied field for one step. A 2D solver uses the x–y parts of B and G at z = 0.
+struct AppliedField {
+  enum class Kind { kNone, kUniform, kGeneral };
+  Kind kind = Kind::kNone;
+  Vec3 uniform = Vec3::Zero();  ///< B [T] for kUniform
+  /// kGeneral: B and ∇B at a world point. Called only for grid nodes, and again only after `version` changes.
+  std::function<magnetics::FieldSample(const Vec3&)> sample;
+  std::uint64_t version = 0;  ///< change it whenever the general field changes (moving magnets)
+};
+
+/// Preallocated scratch (grid box, node field cache, slab buckets). Reused across steps; grows, never shrinks.
+template <int D>
+struct MpmWorkspace {
+  Eigen::Matrix<std::int64_t, D, 1> lo, n;  // the grid box: first node index and node counts per axis
+  std::vector<double> node_mass;
+  std::vector<VecD<D>> node_momentum;  // momentum, then velocity
+  std::vector<VecD<D>> node_moment;    // magnetic moment [A·m²] (non-uniform fields only)
+  // Field at the nodes of a box that only grows, evaluated once per field version.
+  Eigen::Matrix<std::int64_t, D, 1> field_lo, field_n;
+  std::vector<VecD<D>> field_b;
+  std::vector<MatD<D>> field_g;
+  std::uint64_t field_version = ~std::uint64_t{0};
+  bool field_valid = false;
+  std::vector<std::uint32_t> slab_start, slab_order, slab_count;
+};
+
+/// What a step found. `ok` is false when the state must not be used (the cause says why).
+struct StepStatus {
+  bool ok = true;
+  std::string cause;  ///< e.g. "particle 12 left the domain", "NaN velocity", "J = -0.2 (inverted element)"
+};
+
+/// One explicit MLS-MPM step of length dt [s]. On failure the state holds the failed step and status names the cause
+/// (non-finite values, an inverted or exploded element, a particle leaving the domain, or moving more than a cell).
+template <int D>
+StepStatus step(const MpmModel<D>& model, const AppliedField& field, MpmState<D>& state, MpmWorkspace<D>& ws,
+                double dt);
+
+/// Kinetic energy Σ ½ m v² [J; J per metre of depth in 2D].
+template <int D>
+double kinetic_energy(const MpmModel<D>& model, const MpmState<D>& state);
+
+/// First Piola–Kirchhoff stress of the elastic part (exposed for tests) [Pa].
+template <int D>
+MatD<D> elastic_stress(const Material& m, const MatD<D>& f);
+
+/// Strain energy density of the elastic part [J/m³] (its derivative is elastic_stress).
+template <int D>
+double strain_energy_density(const Material& m, const MatD<D>& f);
+
+extern template struct MpmModel<2>;
+extern template struct MpmModel<3>;
+
+}  // namespace magvine::mpm

@@ -1,0 +1,410 @@
+#include "magvine/mpm/mpm.hpp"
+
+#include <omp.h>
+
+#include <algorithm>
+#include <array>
+#include <atomic>
+#include <cmath>
+#include <limits>
+
+#include "magvine/core/units.hpp"
+
+namespace magvine::mpm {
+namespace {
+
+constexpr int kSlabCells = 4;           // a particle writes 3 nodes along an axis: slabs 4 cells apart never share one
+constexpr double kMaxJ = 100.0;         // |det F| beyond this is an explosion, not a deformation
+constexpr double kMaxCellsPerStep = 1;  // a particle moving a whole cell in one step has broken the CFL bound
+constexpr std::int64_t kParallelMin = 4096;  // below this many items a loop runs on one thread (fork cost)
+
+template <int D>
+using Index = Eigen::Matrix<std::int64_t, D, 1>;
+
+/// Quadratic B-spline weights and the base node of a particle (eq 3.2).
+template <int D>
+struct Stencil {
+  Index<D> base;
+  VecD<D> fx;                      // x/δx − base, in [0.5, 1.5)
+  std::array<std::array<double, 3>, D> w;
+
+  Stencil(const VecD<D>& x, double inv_dx) {
+    for (int a = 0; a < D; ++a) {
+      const double s = x[a] * inv_dx;
+      base[a] = static_cast<std::int64_t>(std::floor(s - 0.5));
+      fx[a] = s - static_cast<double>(base[a]);
+      w[a][0] = 0.5 * (1.5 - fx[a]) * (1.5 - fx[a]);
+      w[a][1] = 0.75 - (fx[a] - 1.0) * (fx[a] - 1.0);
+      w[a][2] = 0.5 * (fx[a] - 0.5) * (fx[a] - 0.5);
+    }
+  }
+};
+
+template <int D>
+std::int64_t linear(const Index<D>& i, const Index<D>& lo, const Index<D>& n) {
+  std::int64_t k = 0;
+  for (int a = 0; a < D; ++a) k = k * n[a] + (i[a] - lo[a]);
+  return k;
+}
+
+/// Visits the 3^D stencil nodes with their weight and offset (0..2 per axis), the last axis fastest.
+template <int D, typename Fn>
+void for_stencil(const Stencil<D>& s, Fn&& fn) {
+  if constexpr (D == 2) {
+    for (int i = 0; i < 3; ++i)
+      for (int j = 0; j < 3; ++j) fn(s.w[0][i] * s.w[1][j], Index<D>(i, j));
+  } else {
+    for (int i = 0; i < 3; ++i)
+      for (int j = 0; j < 3; ++j) {
+        const double wij = s.w[0][i] * s.w[1][j];
+        for (int k = 0; k < 3; ++k) fn(wij * s.w[2][k], Index<D>(i, j, k));
+      }
+  }
+}
+
+template <int D>
+Vec3 to3(const VecD<D>& x) {
+  if constexpr (D == 2) return Vec3(x[0], x[1], 0.0);
+  else return x;
+}
+
+template <int D>
+VecD<D> from3(const Vec3& x) {
+  if constexpr (D == 2) return VecD<D>(x[0], x[1]);
+  else return x;
+}
+
+/// Applies a wall/obstacle condition to v for an outward normal n (pointing away from the solid, into the body).
+template <int D>
+void apply_boundary(VecD<D>& v, const VecD<D>& n, Boundary kind, double mu) {
+  const double vn = v.dot(n);
+  if (vn >= 0.0) return;  // separating: free (eq 3.21)
+  if (kind == Boundary::kSticky) {
+    v.setZero();
+    return;
+  }
+  VecD<D> vt = v - vn * n;
+  if (kind == Boundary::kFriction) {
+    const double t = vt.norm();
+    const double keep = t > 0.0 ? std::max(0.0, 1.0 - mu * (-vn) / t) : 0.0;
+    vt *= keep;
+  }
+  v = vt;
+}
+
+/// Ensures the field box covers the grid box and matches the field's version; evaluates new nodes in parallel.
+template <int D>
+void refresh_field(const AppliedField& field, double dx, MpmWorkspace<D>& ws) {
+  bool covers = ws.field_valid && ws.field_version == field.version;
+  for (int a = 0; covers && a < D; ++a) {
+    covers = ws.lo[a] >= ws.field_lo[a] && ws.lo[a] + ws.n[a] <= ws.field_lo[a] + ws.field_n[a];
+  }
+  if (covers) return;
+  constexpr std::int64_t kMargin = 8;  // cells of slack so a moving body does not re-evaluate every step
+  ws.field_lo = ws.lo.array() - kMargin;
+  ws.field_n = ws.n.array() + 2 * kMargin;
+  const std::int64_t total = ws.field_n.prod();
+  ws.field_b.resize(static_cast<std::size_t>(total));
+  ws.field_g.resize(static_cast<std::size_t>(total));
+#pragma omp parallel for schedule(static) if (total > kParallelMin)
+  for (std::int64_t k = 0; k < total; ++k) {
+    Index<D> i;
+    std::int64_t r = k;
+    for (int a = D - 1; a >= 0; --a) {
+      i[a] = ws.field_lo[a] + r % ws.field_n[a];
+      r /= ws.field_n[a];
+    }
+    const VecD<D> x = i.template cast<double>() * dx;
+    const magnetics::FieldSample s = field.sample(to3<D>(x));
+    ws.field_b[static_cast<std::size_t>(k)] = from3<D>(s.b);
+    ws.field_g[static_cast<std::size_t>(k)] = s.g.template topLeftCorner<D, D>();
+  }
+  ws.field_version = field.version;
+  ws.field_valid = true;
+}
+
+}  // namespace
+
+double wave_speed(const Material& m) {
+  return std::sqrt((m.bulk_modulus + 4.0 / 3.0 * m.shear_modulus) / m.density);
+}
+
+double Obstacle::distance(const Vec3& x, Vec3* normal) const {
+  switch (shape) {
+    case Shape::kHalfSpace: {
+      *normal = b;
+      return (x - a).dot(b);
+    }
+    case Shape::kSphere: {
+      const Vec3 d = x - a;
+      const double r = d.norm();
+      *normal = r > 0.0 ? Vec3(d / r) : Vec3::UnitZ();
+      return r - radius;
+    }
+    case Shape::kCylinder: {
+      const Vec3 axis = (b - a).normalized();
+      const Vec3 d = x - a;
+      const Vec3 radial = d - d.dot(axis) * axis;
+      const double r = radial.norm();
+      const double along = d.dot(axis);
+      const double len = (b - a).norm();
+      const double dr = r - radius;
+      const double da = std::max(-along, along - len);
+      if (dr > 0.0 || da > 0.0) {  // outside: distance to the solid, normal along the nearest offset
+        const Vec3 off = (dr > 0.0 ? Vec3(radial / r * dr) : Vec3::Zero()) +
+                         (da > 0.0 ? Vec3((along < 0.0 ? -1.0 : 1.0) * da * axis) : Vec3::Zero());
+        *normal = off.normalized();
+        return off.norm();
+      }
+      if (dr > da) {
+        *normal = r > 0.0 ? Vec3(radial / r) : Vec3::UnitX();
+        return dr;
+      }
+      *normal = (along < 0.5 * len ? -1.0 : 1.0) * axis;
+      return da;
+    }
+    case Shape::kBox:
+    default: {
+      const Vec3 c = 0.5 * (a + b);
+      const Vec3 h = 0.5 * (b - a);
+      const Vec3 q = (x - c).cwiseAbs() - h;
+      const Vec3 sign = (x - c).cwiseSign();
+      if ((q.array() > 0.0).any()) {
+        const Vec3 out = q.cwiseMax(0.0).cwiseProduct(sign);
+        *normal = out.normalized();
+        return out.norm();
+      }
+      int axis = 0;
+      q.maxCoeff(&axis);
+      *normal = Vec3::Zero();
+      (*normal)[axis] = sign[axis] == 0.0 ? 1.0 : sign[axis];
+      return q[axis];
+    }
+  }
+}
+
+template <int D>
+double MpmModel<D>::stable_step(double courant) const {
+  double c = 0.0;
+  for (const Material& m : materials) c = std::max(c, wave_speed(m));
+  return c > 0.0 ? courant * cell / c : std::numeric_limits<double>::infinity();
+}
+
+template <int D>
+MpmState<D> rest_state(const std::vector<VecD<D>>& positions) {
+  MpmState<D> s;
+  s.x = positions;
+  s.v.assign(positions.size(), VecD<D>::Zero());
+  s.c.assign(positions.size(), MatD<D>::Zero());
+  s.f.assign(positions.size(), MatD<D>::Identity());
+  return s;
+}
+
+template <int D>
+MatD<D> elastic_stress(const Material& m, const MatD<D>& f) {
+  const double j = f.determinant();
+  const MatD<D> f_inv_t = f.inverse().transpose();
+  const double i1 = f.squaredNorm() + (D == 2 ? 1.0 : 0.0);  // plane strain: F33 = 1
+  const double j23 = 1.0 / std::cbrt(j * j);                   // J^(−2/3)
+  return m.shear_modulus * j23 * (f - (i1 / 3.0) * f_inv_t) + m.bulk_modulus * j * (j - 1.0) * f_inv_t;
+}
+
+template <int D>
+double strain_energy_density(const Material& m, const MatD<D>& f) {
+  const double j = f.determinant();
+  const double i1 = f.squaredNorm() + (D == 2 ? 1.0 : 0.0);
+  return 0.5 * m.shear_modulus * (i1 / std::cbrt(j * j) - 3.0) + 0.5 * m.bulk_modulus * (j - 1.0) * (j - 1.0);
+}
+
+template <int D>
+double kinetic_energy(const MpmModel<D>& model, const MpmState<D>& state) {
+  double e = 0.0;
+  for (std::size_t p = 0; p < model.size(); ++p) e += 0.5 * model.mass[p] * state.v[p].squaredNorm();
+  return e;
+}
+
+template <int D>
+StepStatus step(const MpmModel<D>& model, const AppliedField& field, MpmState<D>& state, MpmWorkspace<D>& ws,
+                double dt) {
+  const std::size_t np = model.size();
+  const double dx = model.cell;
+  const double inv_dx = 1.0 / dx;
+  const double d_inv = 4.0 * inv_dx * inv_dx;  // D⁻¹ of the quadratic B-spline
+  const bool general = field.kind == AppliedField::Kind::kGeneral;
+  const bool uniform = field.kind == AppliedField::Kind::kUniform;
+  const VecD<D> b_uniform = from3<D>(field.uniform);
+
+  // The grid box: every node some particle's stencil touches.
+  Index<D> lo = Index<D>::Constant(std::numeric_limits<std::int64_t>::max());
+  Index<D> hi = Index<D>::Constant(std::numeric_limits<std::int64_t>::min());
+  for (std::size_t p = 0; p < np; ++p) {
+    for (int a = 0; a < D; ++a) {
+      const double s = state.x[p][a] * inv_dx - 0.5;
+      if (!std::isfinite(s)) return {false, "particle " + std::to_string(p) + " has a non-finite position"};
+      const auto b = static_cast<std::int64_t>(std::floor(s));
+      lo[a] = std::min(lo[a], b);
+      hi[a] = std::max(hi[a], b + 2);
+    }
+  }
+  ws.lo = lo;
+  ws.n = hi - lo + Index<D>::Ones();
+  const auto nodes = static_cast<std::size_t>(ws.n.prod());
+  ws.node_mass.assign(nodes, 0.0);
+  ws.node_momentum.assign(nodes, VecD<D>::Zero());
+  if (general) {
+    ws.node_moment.assign(nodes, VecD<D>::Zero());
+    refresh_field(field, dx, ws);
+  }
+
+  // Slabs along the longest axis, particles bucketed by slab (counting sort, stable: deterministic order).
+  int axis = 0;
+  ws.n.maxCoeff(&axis);
+  const auto slabs = static_cast<std::size_t>((ws.n[axis] + kSlabCells - 1) / kSlabCells);
+  ws.slab_count.assign(slabs + 1, 0);
+  ws.slab_order.resize(np);
+  auto slab_of = [&](std::size_t p) {
+    const auto b = static_cast<std::int64_t>(std::floor(state.x[p][axis] * inv_dx - 0.5));
+    return static_cast<std::size_t>((b - lo[axis]) / kSlabCells);
+  };
+  for (std::size_t p = 0; p < np; ++p) ++ws.slab_count[slab_of(p) + 1];
+  for (std::size_t s = 0; s < slabs; ++s) ws.slab_count[s + 1] += ws.slab_count[s];
+  ws.slab_start.assign(ws.slab_count.begin(), ws.slab_count.end());
+  for (std::size_t p = 0; p < np; ++p) ws.slab_order[ws.slab_start[slab_of(p)]++] = static_cast<std::uint32_t>(p);
+
+  // P2G.
+  auto scatter = [&](std::size_t p) {
+    const Stencil<D> st(state.x[p], inv_dx);
+    const MatD<D>& f = state.f[p];
+    MatD<D> stress = elastic_stress<D>(model.materials[model.material[p]], f);
+    const VecD<D>& br = model.remanence[p];
+    const bool magnetic = (uniform || general) && br.squaredNorm() > 0.0;
+    if (magnetic) {
+      VecD<D> b = b_uniform;
+      if (general) {
+        b.setZero();
+        for_stencil<D>(st, [&](double w, const Index<D>& o) {
+          b += w * ws.field_b[static_cast<std::size_t>(linear<D>(st.base + o, ws.field_lo, ws.field_n))];
+        });
+      }
+      stress.noalias() -= (1.0 / kMu0) * b * br.transpose();  // eq 3.13
+    }
+    const double m = model.mass[p];
+    const MatD<D> affine = -dt * model.volume[p] * d_inv * stress * f.transpose() + m * state.c[p];
+    const VecD<D> mv = m * state.v[p];
+    const VecD<D> moment = (general && magnetic) ? VecD<D>(model.volume[p] / kMu0 * (f * br)) : VecD<D>::Zero();
+    for_stencil<D>(st, [&](double w, const Index<D>& o) {
+      const auto k = static_cast<std::size_t>(linear<D>(st.base + o, lo, ws.n));
+      const VecD<D> dpos = (o.template cast<double>() - st.fx) * dx;
+      ws.node_momentum[k] += w * (mv + affine * dpos);
+      ws.node_mass[k] += w * m;
+      if (general && magnetic) ws.node_moment[k] += w * moment;
+    });
+  };
+  for (std::size_t colour = 0; colour < 2; ++colour) {
+#pragma omp parallel for schedule(dynamic, 1) if (static_cast<std::int64_t>(np) > kParallelMin)
+    for (std::size_t s = colour; s < slabs; s += 2) {
+      for (std::uint32_t i = ws.slab_count[s]; i < ws.slab_count[s + 1]; ++i) scatter(ws.slab_order[i]);
+    }
+  }
+
+  // Grid: velocities, forces, damping, boundaries.
+  const double damp = 1.0 / (1.0 + model.damping * dt);
+  const auto total = static_cast<std::int64_t>(nodes);
+#pragma omp parallel for schedule(static) if (total > kParallelMin)
+  for (std::int64_t kk = 0; kk < total; ++kk) {
+    const auto k = static_cast<std::size_t>(kk);
+    const double m = ws.node_mass[k];
+    if (m <= 0.0) continue;
+    Index<D> i;
+    std::int64_t r = kk;
+    for (int a = D - 1; a >= 0; --a) {
+      i[a] = lo[a] + r % ws.n[a];
+      r /= ws.n[a];
+    }
+    const VecD<D> xi = i.template cast<double>() * dx;
+    const bool clamped = std::any_of(model.clamps.begin(), model.clamps.end(), [&](const auto& box) {
+      return (xi.array() >= box.first.array()).all() && (xi.array() <= box.second.array()).all();
+    });
+    if (clamped) {
+      ws.node_momentum[k].setZero();
+      continue;
+    }
+    VecD<D> v = ws.node_momentum[k] / m;
+    if (general) {  // eq 3.16: f_i = ∇B_iᵀ m_i
+      const auto fk = static_cast<std::size_t>(linear<D>(i, ws.field_lo, ws.field_n));
+      v += dt / m * (ws.field_g[fk].transpose() * ws.node_moment[k]);
+    }
+    v += dt * model.gravity;
+    v *= damp;
+    for (int a = 0; a < D; ++a) {  // domain walls: the nodes within a cell of a wall
+      if (xi[a] <= model.domain_min[a] + dx) apply_boundary<D>(v, VecD<D>::Unit(a), model.walls, model.wall_friction);
+      if (xi[a] >= model.domain_max[a] - dx) apply_boundary<D>(v, -VecD<D>::Unit(a), model.walls, model.wall_friction);
+    }
+    for (const Obstacle& ob : model.obstacles) {
+      Vec3 n3;
+      if (ob.distance(to3<D>(xi), &n3) <= 0.0) apply_boundary<D>(v, from3<D>(n3), ob.boundary, ob.friction);
+    }
+    ws.node_momentum[k] = v;  // now the velocity
+  }
+
+  // G2P, with the failure checks.
+  std::atomic<std::int64_t> bad{std::numeric_limits<std::int64_t>::max()};
+  const auto n_particles = static_cast<std::int64_t>(np);
+#pragma omp parallel for schedule(static) if (n_particles > kParallelMin)
+  for (std::int64_t pp = 0; pp < n_particles; ++pp) {
+    const auto p = static_cast<std::size_t>(pp);
+    const Stencil<D> st(state.x[p], inv_dx);
+    VecD<D> v = VecD<D>::Zero();
+    MatD<D> b = MatD<D>::Zero();
+    for_stencil<D>(st, [&](double w, const Index<D>& o) {
+      const VecD<D>& vi = ws.node_momentum[static_cast<std::size_t>(linear<D>(st.base + o, lo, ws.n))];
+      v += w * vi;
+      b.noalias() += (w * vi) * ((o.template cast<double>() - st.fx) * dx).transpose();
+    });
+    state.v[p] = v;
+    state.c[p] = d_inv * b;
+    state.f[p] = (MatD<D>::Identity() + dt * state.c[p]) * state.f[p];
+    state.x[p] += dt * v;
+    const double j = state.f[p].determinant();
+    const bool broken = !(j > 0.0 && j < kMaxJ) || !state.x[p].allFinite() || !v.allFinite() ||
+                        v.norm() * dt > kMaxCellsPerStep * dx ||
+                        (state.x[p].array() < model.domain_min.array()).any() ||
+                        (state.x[p].array() > model.domain_max.array()).any();
+    if (broken) {
+      std::int64_t cur = bad.load();
+      while (pp < cur && !bad.compare_exchange_weak(cur, pp)) {
+      }
+    }
+  }
+  state.time += dt;
+  if (bad.load() == std::numeric_limits<std::int64_t>::max()) return {};
+
+  // Name the first failing particle's cause.
+  const auto p = static_cast<std::size_t>(bad.load());
+  const double j = state.f[p].determinant();
+  std::string what;
+  if (!state.x[p].allFinite() || !state.v[p].allFinite()) what = "non-finite position or velocity";
+  else if (!(j > 0.0)) what = "inverted (det F = " + std::to_string(j) + ")";
+  else if (!(j < kMaxJ)) what = "exploded (det F = " + std::to_string(j) + ")";
+  else if (state.v[p].norm() * dt > kMaxCellsPerStep * dx) {
+    what = "moves more than a cell per step (|v| = " + std::to_string(state.v[p].norm()) + " m/s)";
+  } else {
+    what = "left the domain";
+  }
+  return {false, "particle " + std::to_string(p) + " " + what + " at t = " + std::to_string(state.time) + " s"};
+}
+
+template struct MpmModel<2>;
+template struct MpmModel<3>;
+template MpmState<2> rest_state<2>(const std::vector<VecD<2>>&);
+template MpmState<3> rest_state<3>(const std::vector<VecD<3>>&);
+template MatD<2> elastic_stress<2>(const Material&, const MatD<2>&);
+template MatD<3> elastic_stress<3>(const Material&, const MatD<3>&);
+template double strain_energy_density<2>(const Material&, const MatD<2>&);
+template double strain_energy_density<3>(const Material&, const MatD<3>&);
+template double kinetic_energy<2>(const MpmModel<2>&, const MpmState<2>&);
+template double kinetic_energy<3>(const MpmModel<3>&, const MpmState<3>&);
+template StepStatus step<2>(const MpmModel<2>&, const AppliedField&, MpmState<2>&, MpmWorkspace<2>&, double);
+template StepStatus step<3>(const MpmModel<3>&, const AppliedField&, MpmState<3>&, MpmWorkspace<3>&, double);
+
+}  // namespace magvine::mpm
