@@ -5,7 +5,10 @@
 #include <gtest/gtest.h>
 
 #include <algorithm>
+#include <array>
+#include <cmath>
 #include <random>
+#include <utility>
 #include <vector>
 
 #include "magvine/anatomy/mesh_io.hpp"
@@ -113,6 +116,61 @@ TEST(TriangleBvh, WalksVisitEveryTriangleTheBruteForceBoxesReach) {
   check_walks(make_tube({.radius = 5e-3, .length = 40e-3, .segments = 48, .rings = 60, .capped = true}), 1.5e-3, 60);
 }
 
+/// The leaves a walk reaches, in order, as (first slot, count).
+template <class Test>
+std::vector<std::pair<std::uint32_t, std::uint32_t>> leaves(const TriangleBvh& bvh, Test&& test) {
+  std::vector<std::pair<std::uint32_t, std::uint32_t>> out;
+  bvh.walk(test, [&](std::uint32_t first, std::uint32_t count) { out.emplace_back(first, count); });
+  return out;
+}
+
+/// The single-precision node tests (SphereBoxTest, BoxBoxTest) reach exactly the leaves of the double ones
+/// (sphere_mask, box_mask), in the same order: random queries, and queries whose radius or box face sits exactly
+/// on a leaf's box (and one float step either side), where only the exact fallback can decide.
+void check_float_tests(const TriangleMesh& mesh, double radius, int queries) {
+  const TriangleBvh bvh(mesh.vertices, mesh.triangles);
+  std::mt19937_64 rng(11);
+  std::uniform_real_distribution<double> u(0.0, 1.0);
+  const auto nodes = bvh.nodes();
+  std::size_t reached = 0;
+  for (int q = 0; q < queries; ++q) {
+    const Triangle& tri = mesh.triangles[rng() % mesh.triangles.size()];
+    const Vec3 c = (mesh.vertices[tri[0]] + mesh.vertices[tri[1]] + mesh.vertices[tri[2]]) / 3.0 +
+                   radius * Vec3(u(rng) - 0.5, u(rng) - 0.5, u(rng) - 0.5);
+    // A leaf child of a random node: the exact distance to its box (sphere_mask's arithmetic) as a radius.
+    const TriangleBvh::Node& node = nodes[rng() % nodes.size()];
+    const std::size_t k = rng() % 4;
+    const double dx = std::max({0.0, node.lo_x[k] - c.x(), c.x() - node.hi_x[k]});
+    const double dy = std::max({0.0, node.lo_y[k] - c.y(), c.y() - node.hi_y[k]});
+    const double dz = std::max({0.0, node.lo_z[k] - c.z(), c.z() - node.hi_z[k]});
+    const double edge = std::sqrt(dx * dx + dy * dy + dz * dz);
+    for (const double r :
+         {radius * (0.2 + u(rng)), edge, std::nextafter(edge, 0.0), std::nextafter(edge, 1.0), 1e-12}) {
+      if (!(r > 0.0)) continue;
+      const auto exact = leaves(bvh, [&](const TriangleBvh::Node& n) { return sphere_mask(n, c, r * r); });
+      EXPECT_EQ(leaves(bvh, SphereBoxTest(c, r)), exact) << "sphere at query " << q << ", r = " << r;
+      reached += exact.size();
+    }
+    // Boxes: a random one, and ones whose upper x face is exactly a leaf box's lower x face or one double below
+    // it (which rounds up onto it in float).
+    const Vec3 lo = c - radius * Vec3(u(rng), u(rng), u(rng));
+    const double face = node.lo_x[k];
+    const std::array<Vec3, 3> highs = {Vec3(c + radius * Vec3(u(rng), u(rng), u(rng))),
+                                       Vec3(face, c.y() + radius, c.z() + radius),
+                                       Vec3(std::nextafter(face, -1.0), c.y() + radius, c.z() + radius)};
+    for (const Vec3& hi : highs) {
+      const auto exact = leaves(bvh, [&](const TriangleBvh::Node& n) { return box_mask(n, lo, hi); });
+      EXPECT_EQ(leaves(bvh, BoxBoxTest(lo, hi)), exact) << "box at query " << q;
+    }
+  }
+  EXPECT_GT(reached, static_cast<std::size_t>(queries));
+}
+
+TEST(TriangleBvh, FloatNodeTestsReachTheExactLeaves) {
+  check_float_tests(make_tube({.radius = 5e-3, .length = 40e-3, .segments = 48, .rings = 60, .capped = true}), 1.5e-3,
+                    400);
+}
+
 TEST(TriangleBvh, SingleTriangleMeshHasARootLeaf) {
   TriangleMesh mesh;
   mesh.vertices = {Vec3(0, 0, 0), Vec3(1e-3, 0, 0), Vec3(0, 1e-3, 0)};
@@ -131,6 +189,7 @@ TEST(TriangleBvh, RealAirwayWalksAreComplete) {
   const auto path = test::airway_file("siliconmodel3_airway.stl");
   if (!path) GTEST_SKIP() << "../shared/airways absent";
   check_walks(import_mesh(*path).mesh, 1.5e-3, 20);
+  check_float_tests(import_mesh(*path).mesh, 1.5e-3, 200);
 }
 
 }  // namespace

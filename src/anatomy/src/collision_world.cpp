@@ -41,9 +41,9 @@ constexpr std::uint8_t kDegenerate = 0x8;
 /// Bit 4 + k: edge k is a boundary edge (no neighbour), so nothing beyond it reports contacts of its own.
 constexpr unsigned kBoundaryShift = 4;
 
-/// What every query reads per triangle: one cache line, stored in the BVH's leaf order (slots) with the corners
-/// renumbered in order of first use, so that a query (~90 triangles on a 200 k-triangle airway) reads its leaves'
-/// records and their shared corners in short sequential runs.
+/// What the exact tests read per triangle (those the slot screen passes): one cache line, stored in the BVH's leaf
+/// order (slots) with the corners renumbered in order of first use, so that a query reads its leaves' records and
+/// their shared corners in short sequential runs.
 struct alignas(64) TriangleData {
   Vec3 normal = Vec3::Zero();  ///< unit normal pointing to the free side (zero when degenerate)
   /// normal·corner 0 [m], so the signed plane distance of x is normal·x − offset; +∞ for a degenerate triangle,
@@ -71,13 +71,41 @@ struct EdgeArcs {
   std::array<float, 3> valley_margin{};
 };
 
+/// Four floats in one SSE register (GCC/Clang vector extension; elementwise operators, scalars broadcast).
+using Float4 = float __attribute__((vector_size(16)));
+
+/// A conservative single-precision screen of one slot, read before anything else about its triangle. The three
+/// edge functions g_k = (n × e_k)·(x − v_k) (n the outward normal, e_k edge k, v_k its start; ≥ 0 when x lies on
+/// the triangle's side of the edge's line) and the free-side plane distance s of an axis point x are one affine map
+/// of p = x − Tables::screen_origin, evaluated in four lanes (g0, g1, g2, s) as
+///   col[0]·p.x + col[1]·p.y + col[2]·p.z + col[3].
+/// The slacks bound the float rounding (16 unit roundoffs of the summed magnitudes, for |p|∞ ≤ Tables::screen_reach)
+/// plus the face inclusion tolerance, so a slot the screen rejects is one whose exact double test (SphereQuery,
+/// CapsuleQuery) would neither add a contact nor report a candidate: its plane is out of reach, or the axis lies
+/// outside the (widened) prism and no emitting edge's line is crossed. The slots the screen passes take the exact
+/// path unchanged, in the same order, so contacts are bit-identical to testing every visited triangle exactly. On
+/// a raw marching-cubes airway it passes ~23 of the ~100 triangles a sphere query visits.
+struct alignas(16) SlotScreen {
+  std::array<Float4, 4> col{};  ///< rows g0, g1, g2 [m²] and s [m]; a degenerate triangle has s = +∞
+  float slack_g = 0.0F;         ///< bound on the float error of g_k plus the face tolerance, doubled [m²]
+  float slack_s = 0.0F;         ///< bound on the float error of s, doubled [m]
+  float valley = 0.0F;          ///< largest valley margin of the three edges, rounded up [m]
+  std::uint32_t emits = 0;      ///< bit k: edge k gives contacts of its own (TriangleData::flags & kEdgeMask)
+};
+static_assert(sizeof(SlotScreen) == 80, "four lanes of four floats and the slacks");
+
 /// Geometry tables shared by the queries; spans point into the owning Impl's mesh copy.
 struct Tables {
   std::span<const Vec3> vertices;
   std::span<const Triangle> triangles;
-  std::vector<TriangleData> data;  ///< per slot of the BVH (leaf order)
-  std::vector<EdgeArcs> arcs;      ///< per slot
-  std::vector<Vec3> points;        ///< the corners in order of first use by the slots [m]
+  std::vector<TriangleData> data;   ///< per slot of the BVH (leaf order)
+  std::vector<EdgeArcs> arcs;       ///< per slot
+  std::vector<SlotScreen> screens;  ///< per slot
+  std::vector<Vec3> points;         ///< the corners in order of first use by the slots [m]
+  /// The screens' coordinate origin (the mesh's box centre) and the largest |x − origin|∞ their error bounds hold
+  /// for [m]; a query axis point farther out skips the screens (exact tests only).
+  Vec3 screen_origin = Vec3::Zero();
+  double screen_reach = 0.0;
 
   std::array<const Vec3*, 3> corners(const TriangleData& d) const {
     return {&points[d.corner[0]], &points[d.corner[1]], &points[d.corner[2]]};
@@ -245,13 +273,41 @@ double distance_to_edges(const Vec3& p0, const Vec3& u, const std::array<const V
   return best;
 }
 
+/// x − Tables::screen_origin in float, for the slot screens; false when x lies beyond their reach.
+bool screen_point(const Tables& w, const Vec3& x, std::array<float, 3>& p) {
+  const Vec3 d = x - w.screen_origin;
+  p = {static_cast<float>(d.x()), static_cast<float>(d.y()), static_cast<float>(d.z())};
+  return d.cwiseAbs().maxCoeff() <= w.screen_reach;
+}
+
+/// The lanes (g0, g1, g2, s) of a slot screen at p (see SlotScreen).
+Float4 screen_lanes(const SlotScreen& f, const std::array<float, 3>& p) {
+  return f.col[0] * p[0] + f.col[1] * p[1] + f.col[2] * p[2] + f.col[3];
+}
+
+/// Bit k (k < 3) set where edge lane k of `g` is at most `bound`.
+unsigned edge_lanes_at_most(const Float4& g, float bound) {
+  return (g[0] <= bound ? 1u : 0u) | (g[1] <= bound ? 2u : 0u) | (g[2] <= bound ? 4u : 0u);
+}
+
+/// The radius a screened plane distance must stay below: r rounded up to float, with room for that rounding.
+float screen_radius(double r) {
+  return static_cast<float>(r) * (1.0F + 1e-6F);
+}
+
 /// Sphere against the triangles the BVH reports.
 class SphereQuery {
  public:
   SphereQuery(const Tables& w, const Vec3& centre, double radius, ContactSink& sink)
-      : m_w(w), m_c(centre), m_r(radius), m_sink(sink) {}
+      : m_w(w),
+        m_c(centre),
+        m_r(radius),
+        m_sink(sink),
+        m_screen(screen_point(w, centre, m_p)),
+        m_r_screen(screen_radius(radius)) {}
 
   void process(std::uint32_t slot) {
+    if (m_screen && !may_touch(m_w.screens[slot])) return;
     const TriangleData& d = m_w.data[slot];
     const double reach = m_r + d.bound_radius;
     if ((m_c - m_w.centroid(d)).squaredNorm() >= reach * reach) return;
@@ -294,19 +350,43 @@ class SphereQuery {
   }
 
  private:
+  /// The screen's verdict (SlotScreen): false only when the exact test above would do nothing. The bounds below
+  /// are the exact test's (|s| < r; g_k ≥ −tol − behind·valley_margin_k for the face; g_k ≤ tol for an emitting
+  /// edge) widened by the slacks.
+  bool may_touch(const SlotScreen& f) const {
+    const Float4 g = screen_lanes(f, m_p);
+    const float s = g[3];
+    const float reach = m_r_screen + f.slack_s;
+    if (!(s < reach && s > -reach)) return false;
+    const float lowest = -f.slack_g - std::max(0.0F, -s) * f.valley;
+    if (g[0] >= lowest && g[1] >= lowest && g[2] >= lowest) return true;
+    return (edge_lanes_at_most(g, f.slack_g) & f.emits) != 0;
+  }
+
   const Tables& m_w;
   Vec3 m_c;
   double m_r;
   ContactSink& m_sink;
+  std::array<float, 3> m_p{};
+  bool m_screen;
+  float m_r_screen;
 };
 
 /// Capsule (segment a + τ·ab, τ ∈ [0, 1]) against the triangles the BVH reports.
 class CapsuleQuery {
  public:
   CapsuleQuery(const Tables& w, const Vec3& a, const Vec3& b, double radius, ContactSink& sink)
-      : m_w(w), m_a(a), m_ab(b - a), m_inv_ab2(1.0 / (b - a).squaredNorm()), m_r(radius), m_sink(sink) {}
+      : m_w(w),
+        m_a(a),
+        m_ab(b - a),
+        m_inv_ab2(1.0 / (b - a).squaredNorm()),
+        m_r(radius),
+        m_sink(sink),
+        m_screen(screen_point(w, a, m_pa) && screen_point(w, b, m_pb)),
+        m_r_screen(screen_radius(radius)) {}
 
   void process(std::uint32_t slot) {
+    if (m_screen && !may_touch(m_w.screens[slot])) return;
     const TriangleData& d = m_w.data[slot];
     const double reach = m_r + d.bound_radius;
     const Vec3 centroid = m_w.centroid(d);
@@ -389,12 +469,33 @@ class CapsuleQuery {
   }
 
  private:
+  /// The screen's verdict, as for spheres with the lanes at both ends. The plane distance and the edge functions
+  /// are linear along the segment, so the exact test's conditions (min s < r and max s > −r; every edge function,
+  /// widened, ≥ 0 somewhere on the segment; an emitting edge's function ≤ tol at an end) are checked at the ends.
+  bool may_touch(const SlotScreen& f) const {
+    const Float4 ga = screen_lanes(f, m_pa);
+    const Float4 gb = screen_lanes(f, m_pb);
+    const float s_lo = std::min(ga[3], gb[3]);
+    const float s_hi = std::max(ga[3], gb[3]);
+    const float reach = m_r_screen + f.slack_s;
+    if (!(s_lo < reach && s_hi > -reach)) return false;
+    const float lowest = -f.slack_g - std::max(0.0F, -s_lo) * f.valley;
+    const Float4 g = (ga > gb) ? ga : gb;  // the larger end per lane
+    if (g[0] >= lowest && g[1] >= lowest && g[2] >= lowest) return true;
+    const Float4 h = (ga < gb) ? ga : gb;  // the smaller end per lane
+    return (edge_lanes_at_most(h, f.slack_g) & f.emits) != 0;
+  }
+
   const Tables& m_w;
   Vec3 m_a;
   Vec3 m_ab;
   double m_inv_ab2;
   double m_r;
   ContactSink& m_sink;
+  std::array<float, 3> m_pa{};
+  std::array<float, 3> m_pb{};
+  bool m_screen;
+  float m_r_screen;
 };
 
 /// Ray o + s·dir against triangle t (Möller–Trumbore): distance s and barycentrics (b0, b1, b2) of the plane
@@ -602,6 +703,54 @@ void fill_edges(Tables& w, const std::vector<std::array<EdgeBend, 3>>& bends, Fr
   }
 }
 
+/// The slot screens (SlotScreen), from the records and edge classes already filled.
+void fill_screens(Tables& w) {
+  constexpr double kUnitRoundoff = 0x1p-24;  // float
+  constexpr double kRoundoffs = 16.0;        // per summed magnitude: a 3-term dot product, its constant, the inputs
+  w.screen_origin = 0.5 * (w.box_min + w.box_max);
+  // Bodies reach the wall from at most their radius away; beyond a box half-diagonal past the box the exact tests
+  // alone decide (the bounds grow with the reach).
+  w.screen_reach = (w.box_max - w.box_min).norm();
+  const double reach = w.screen_reach;
+  const auto lanes = [](double g0, double g1, double g2, double s) {
+    return Float4{static_cast<float>(g0), static_cast<float>(g1), static_cast<float>(g2), static_cast<float>(s)};
+  };
+  w.screens.resize(w.data.size());
+  for (std::size_t slot = 0; slot < w.data.size(); ++slot) {
+    const TriangleData& d = w.data[slot];
+    SlotScreen& f = w.screens[slot];
+    if ((d.flags & kDegenerate) != 0) {
+      f.col[3] = lanes(0.0, 0.0, 0.0, std::numeric_limits<double>::infinity());  // s = +∞: out of every reach
+      continue;
+    }
+    const std::array<const Vec3*, 3> v = w.corners(d);
+    const Vec3 outward = w.side * d.normal;
+    std::array<Vec3, 4> rows;
+    std::array<double, 4> constant{};
+    for (std::size_t k = 0; k < 3; ++k) {
+      rows[k] = outward.cross(*v[(k + 1) % 3] - *v[k]);
+      constant[k] = -rows[k].dot(*v[k] - w.screen_origin);
+    }
+    rows[3] = d.normal;
+    constant[3] = d.normal.dot(w.screen_origin) - d.offset;
+    std::array<double, 4> error{};
+    for (std::size_t k = 0; k < 4; ++k) {
+      error[k] = kRoundoffs * kUnitRoundoff * (rows[k].cwiseAbs().sum() * reach + std::abs(constant[k]));
+    }
+    for (int axis = 0; axis < 3; ++axis) {
+      f.col[static_cast<std::size_t>(axis)] = lanes(rows[0][axis], rows[1][axis], rows[2][axis], rows[3][axis]);
+    }
+    f.col[3] = lanes(constant[0], constant[1], constant[2], constant[3]);
+    const EdgeArcs& arcs = w.arcs[slot];
+    const double valley =
+        std::max({arcs.valley_margin[0], arcs.valley_margin[1], arcs.valley_margin[2]}) * (1.0 + 1e-6);
+    f.valley = static_cast<float>(valley);
+    f.slack_s = static_cast<float>(2.0 * error[3]);
+    f.slack_g = static_cast<float>(2.0 * (d.face_tol() + std::max({error[0], error[1], error[2]}) + error[3] * valley));
+    f.emits = d.flags & kEdgeMask;
+  }
+}
+
 }  // namespace
 
 struct CollisionWorld::Impl {
@@ -629,6 +778,7 @@ CollisionWorld::Impl::Impl(const TriangleMesh& source, const CollisionWorldOptio
   bvh.emplace(mesh.vertices, mesh.triangles);
   fill_geometry(w, bvh->order());  // records in the BVH's leaf order
   fill_edges(w, edge_bends(mesh, w.incidence), options.free_side, stats);
+  fill_screens(w);
   std::vector<Vec3>().swap(w.incidence.normals);  // the queries read only the incidence lists
 
   stats.triangles = mesh.triangles.size();
@@ -648,9 +798,7 @@ std::size_t CollisionWorld::sphere_contacts(const Vec3& centre, double radius, s
   const Tables& w = m_impl->tables;
   ContactSink sink(out, w.merge_cos);
   SphereQuery query(w, centre, radius, sink);
-  const double r2 = radius * radius;
-  m_impl->bvh->visit_slots([&](const detail::TriangleBvh::Node& node) { return detail::sphere_mask(node, centre, r2); },
-                           [&](std::uint32_t slot) { query.process(slot); });
+  m_impl->bvh->visit_slots(detail::SphereBoxTest(centre, radius), [&](std::uint32_t slot) { query.process(slot); });
   return sink.finish();
 }
 
@@ -665,8 +813,7 @@ std::size_t CollisionWorld::capsule_contacts(const Vec3& a, const Vec3& b, doubl
   const Vec3 pad = Vec3::Constant(radius);
   const Vec3 lo = a.cwiseMin(b) - pad;
   const Vec3 hi = a.cwiseMax(b) + pad;
-  m_impl->bvh->visit_slots([&](const detail::TriangleBvh::Node& node) { return detail::box_mask(node, lo, hi); },
-                           [&](std::uint32_t slot) { query.process(slot); });
+  m_impl->bvh->visit_slots(detail::BoxBoxTest(lo, hi), [&](std::uint32_t slot) { query.process(slot); });
   return sink.finish();
 }
 

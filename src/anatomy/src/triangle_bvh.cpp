@@ -133,15 +133,6 @@ class Flattener {
   std::vector<std::uint32_t>& m_order;
 };
 
-float down(double x) {
-  const auto f = static_cast<float>(x);
-  return static_cast<double>(f) <= x ? f : std::nextafter(f, -std::numeric_limits<float>::infinity());
-}
-float up(double x) {
-  const auto f = static_cast<float>(x);
-  return static_cast<double>(f) >= x ? f : std::nextafter(f, std::numeric_limits<float>::infinity());
-}
-
 }  // namespace
 
 TriangleBvh::TriangleBvh(std::span<const Vec3> vertices, std::span<const Triangle> triangles) {
@@ -166,12 +157,12 @@ TriangleBvh::TriangleBvh(std::span<const Vec3> vertices, std::span<const Triangl
     const Vec3 a = vertices[t[0]].cwiseMin(vertices[t[1]]).cwiseMin(vertices[t[2]]).array() - pad;
     const Vec3 b = vertices[t[0]].cwiseMax(vertices[t[1]]).cwiseMax(vertices[t[2]]).array() + pad;
     RTCBuildPrimitive& p = primitives[i];
-    p.lower_x = down(a.x());
-    p.lower_y = down(a.y());
-    p.lower_z = down(a.z());
-    p.upper_x = up(b.x());
-    p.upper_y = up(b.y());
-    p.upper_z = up(b.z());
+    p.lower_x = float_down(a.x());
+    p.lower_y = float_down(a.y());
+    p.lower_z = float_down(a.z());
+    p.upper_x = float_up(b.x());
+    p.upper_y = float_up(b.y());
+    p.upper_z = float_up(b.z());
     p.geomID = 0;
     p.primID = static_cast<unsigned>(i);
   }
@@ -202,12 +193,12 @@ TriangleBvh::TriangleBvh(std::span<const Vec3> vertices, std::span<const Triangl
   Flattener flatten(m_nodes, m_order);
   if (static_cast<const BuildItem*>(root)->leaf) {
     RTCBounds all{};
-    all.lower_x = down(lo.x() - pad);
-    all.lower_y = down(lo.y() - pad);
-    all.lower_z = down(lo.z() - pad);
-    all.upper_x = up(hi.x() + pad);
-    all.upper_y = up(hi.y() + pad);
-    all.upper_z = up(hi.z() + pad);
+    all.lower_x = float_down(lo.x() - pad);
+    all.lower_y = float_down(lo.y() - pad);
+    all.lower_z = float_down(lo.z() - pad);
+    all.upper_x = float_up(hi.x() + pad);
+    all.upper_y = float_up(hi.y() + pad);
+    all.upper_z = float_up(hi.z() + pad);
     flatten.root_leaf(*static_cast<const BuildLeaf*>(root), all);
   } else {
     flatten.node(*static_cast<const BuildNode*>(root));

@@ -15,6 +15,8 @@
 #include <array>
 #include <cmath>
 #include <cstdint>
+#include <cstring>
+#include <limits>
 #include <span>
 #include <utility>
 #include <vector>
@@ -33,7 +35,8 @@ class TriangleBvh {
   /// Four child boxes [mesh units] in SoA form, and what each child is: bit 31 set is a leaf of `count` slots from
   /// `first` (bits 0..3 count, bits 4..30 first), clear is an inner node index. Unused children have empty boxes
   /// (lo = +∞, hi = −∞) that every test rejects, and are empty leaves.
-  struct Node {
+  /// Aligned to a cache line (112 bytes padded to 128), so a node is always two lines.
+  struct alignas(64) Node {
     std::array<float, 4> lo_x, lo_y, lo_z, hi_x, hi_y, hi_z;
     std::array<std::uint32_t, 4> child;
   };
@@ -64,6 +67,10 @@ class TriangleBvh {
         if ((c & kLeafBit) != 0) {
           visit((c & ~kLeafBit) >> 4, c & 0xFu);
         } else {
+          // Fetch both lines of the node now: on a tree far larger than the caches the walk would otherwise wait
+          // for each node in turn when it pops it.
+          __builtin_prefetch(&m_nodes[c]);
+          __builtin_prefetch(reinterpret_cast<const char*>(&m_nodes[c]) + 64);
           stack[top++] = c;
         }
       }
@@ -105,6 +112,119 @@ inline unsigned box_mask(const TriangleBvh::Node& node, const Vec3& lo, const Ve
   }
   return mask;
 }
+
+/// Four floats in one SSE register (GCC/Clang vector extension; elementwise operators, scalars broadcast).
+using Float4 = float __attribute__((vector_size(16)));
+using Int4 = std::int32_t __attribute__((vector_size(16)));
+
+/// Bit k set where lane k of a vector comparison is true.
+inline unsigned lane_mask(const Int4& m) {
+  return (m[0] != 0 ? 1u : 0u) | (m[1] != 0 ? 2u : 0u) | (m[2] != 0 ? 4u : 0u) | (m[3] != 0 ? 8u : 0u);
+}
+
+inline Float4 load4(const std::array<float, 4>& a) {
+  Float4 v;
+  std::memcpy(&v, a.data(), sizeof v);
+  return v;
+}
+
+/// The nearest float at or below (`down`) / above (`up`) a double.
+inline float float_down(double x) {
+  const auto f = static_cast<float>(x);
+  return static_cast<double>(f) <= x ? f : std::nextafter(f, -std::numeric_limits<float>::infinity());
+}
+inline float float_up(double x) {
+  const auto f = static_cast<float>(x);
+  return static_cast<double>(f) >= x ? f : std::nextafter(f, std::numeric_limits<float>::infinity());
+}
+
+/// sphere_mask evaluated on four children at once in single precision. The float distances carry a rounding error
+/// far below `margin` (1e-6 of the coordinates' size), so children within r − margin are in and beyond r + margin
+/// are out; a leaf child in between gets the exact double test, an inner one is entered. The leaves reached are
+/// then exactly sphere_mask's, in the same order (entering an extra inner node only costs a test).
+class SphereBoxTest {
+ public:
+  SphereBoxTest(const Vec3& c, double r) : m_c(c), m_r2(r * r) {
+    const double margin = 1e-6 * (c.cwiseAbs().maxCoeff() + r);
+    m_x = static_cast<float>(c.x());
+    m_y = static_cast<float>(c.y());
+    m_z = static_cast<float>(c.z());
+    // Nothing is sure for a radius below the margin: every admitted leaf then gets the exact test.
+    m_in2 = r > margin ? float_down((r - margin) * (r - margin)) : -1.0F;
+    m_out2 = float_up((r + margin) * (r + margin));
+  }
+
+  unsigned operator()(const TriangleBvh::Node& node) const {
+    const Float4 zero = {0.0F, 0.0F, 0.0F, 0.0F};
+    const auto gap = [&](const std::array<float, 4>& lo, const std::array<float, 4>& hi, float x) {
+      const Float4 below = load4(lo) - x;
+      const Float4 above = x - load4(hi);
+      const Float4 d = below > above ? below : above;
+      return d > zero ? d : zero;
+    };
+    const Float4 dx = gap(node.lo_x, node.hi_x, m_x);
+    const Float4 dy = gap(node.lo_y, node.hi_y, m_y);
+    const Float4 dz = gap(node.lo_z, node.hi_z, m_z);
+    const Float4 d2 = dx * dx + dy * dy + dz * dz;
+    const unsigned maybe = lane_mask(d2 <= m_out2);
+    unsigned unsure = maybe & ~lane_mask(d2 <= m_in2);
+    unsigned mask = maybe;
+    while (unsure != 0) {
+      const int k = __builtin_ctz(unsure);
+      unsure &= unsure - 1;
+      if ((node.child[static_cast<std::size_t>(k)] & TriangleBvh::kLeafBit) != 0 &&
+          (sphere_mask(node, m_c, m_r2) & (1u << k)) == 0) {
+        mask &= ~(1u << k);
+      }
+    }
+    return mask;
+  }
+
+ private:
+  Vec3 m_c;
+  double m_r2;
+  float m_x, m_y, m_z;
+  float m_in2, m_out2;
+};
+
+/// box_mask evaluated on four children at once in single precision: the query box rounded outward to float
+/// admits every child box_mask admits, rounded inward only those it surely admits; a leaf child in between gets
+/// the exact test (as for SphereBoxTest).
+class BoxBoxTest {
+ public:
+  BoxBoxTest(const Vec3& lo, const Vec3& hi) : m_lo(lo), m_hi(hi) {
+    for (Eigen::Index a = 0; a < 3; ++a) {
+      const auto i = static_cast<std::size_t>(a);
+      m_outer_lo[i] = float_down(lo[a]);
+      m_outer_hi[i] = float_up(hi[a]);
+      m_inner_lo[i] = float_up(lo[a]);
+      m_inner_hi[i] = float_down(hi[a]);
+    }
+  }
+
+  unsigned operator()(const TriangleBvh::Node& node) const {
+    const auto overlap = [&](const std::array<float, 3>& lo, const std::array<float, 3>& hi) {
+      return lane_mask((load4(node.lo_x) <= hi[0]) & (load4(node.hi_x) >= lo[0]) & (load4(node.lo_y) <= hi[1]) &
+                       (load4(node.hi_y) >= lo[1]) & (load4(node.lo_z) <= hi[2]) & (load4(node.hi_z) >= lo[2]));
+    };
+    const unsigned maybe = overlap(m_outer_lo, m_outer_hi);
+    unsigned unsure = maybe & ~overlap(m_inner_lo, m_inner_hi);
+    unsigned mask = maybe;
+    while (unsure != 0) {
+      const int k = __builtin_ctz(unsure);
+      unsure &= unsure - 1;
+      if ((node.child[static_cast<std::size_t>(k)] & TriangleBvh::kLeafBit) != 0 &&
+          (box_mask(node, m_lo, m_hi) & (1u << k)) == 0) {
+        mask &= ~(1u << k);
+      }
+    }
+    return mask;
+  }
+
+ private:
+  Vec3 m_lo, m_hi;
+  std::array<float, 3> m_outer_lo{}, m_outer_hi{}, m_inner_lo{}, m_inner_hi{};
+};
 
 /// Children of `node` whose box the segment o + s·d, s ∈ [0, length], touches, as a walk mask (slab test; `inv`
 /// = 1/d per axis, ±∞ for a zero component). The near plane of each slab is chosen by the sign of `inv`, so an
