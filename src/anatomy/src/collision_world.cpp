@@ -470,8 +470,11 @@ class CapsuleQuery {
 
  private:
   /// The screen's verdict, as for spheres with the lanes at both ends. The plane distance and the edge functions
-  /// are linear along the segment, so the exact test's conditions (min s < r and max s > −r; every edge function,
-  /// widened, ≥ 0 somewhere on the segment; an emitting edge's function ≤ tol at an end) are checked at the ends.
+  /// are linear along the segment, so the exact test's conditions are: min s < r and max s > −r; some part of the
+  /// segment with every edge function ≥ −tol − behind·valley_margin_k (the face clip, done here in float on the
+  /// lanes: each lane's float line lies within its rounding bound of the exact one, which `lowest` covers, and the
+  /// float divisions move a clip parameter by a few roundoffs of its value, which 1e-6 covers on [0, 1]); or an
+  /// emitting edge's function ≤ tol at an end.
   bool may_touch(const SlotScreen& f) const {
     const Float4 ga = screen_lanes(f, m_pa);
     const Float4 gb = screen_lanes(f, m_pb);
@@ -480,8 +483,20 @@ class CapsuleQuery {
     const float reach = m_r_screen + f.slack_s;
     if (!(s_lo < reach && s_hi > -reach)) return false;
     const float lowest = -f.slack_g - std::max(0.0F, -s_lo) * f.valley;
-    const Float4 g = (ga > gb) ? ga : gb;  // the larger end per lane
-    if (g[0] >= lowest && g[1] >= lowest && g[2] >= lowest) return true;
+    const Float4 slope = gb - ga;
+    const Float4 cross = (lowest - ga) / slope;  // where each lane's line meets `lowest` (±∞ or NaN when flat)
+    float lo = 0.0F;
+    float hi = 1.0F;
+    for (int k = 0; k < 3; ++k) {
+      if (slope[k] > 0.0F) {
+        lo = std::max(lo, cross[k]);
+      } else if (slope[k] < 0.0F) {
+        hi = std::min(hi, cross[k]);
+      } else if (ga[k] < lowest) {
+        hi = -1.0F;
+      }
+    }
+    if (lo <= hi + 1e-6F) return true;
     const Float4 h = (ga < gb) ? ga : gb;  // the smaller end per lane
     return (edge_lanes_at_most(h, f.slack_g) & f.emits) != 0;
   }
