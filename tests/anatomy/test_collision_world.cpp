@@ -556,6 +556,38 @@ TEST(CollisionWorldInput, DegenerateTrianglesAreIgnored) {
   EXPECT_TRUE(close(out[0].normal, Vec3::UnitZ(), 0.0, kNormalTol));
 }
 
+TEST_F(TubeTest, CachedSphereContactsEqualTheUncached) {
+  // A cache too small to hold the neighbourhood is bypassed (every query walks the tree), a large one is used;
+  // both give the uncached contacts exactly (the same triangles, order and arithmetic), so == is the right test.
+  const CollisionWorld other(make_tube({.radius = kRadius, .length = kLength, .segments = 32}));
+  ContactCache small(0.5 * kMm, 4);
+  ContactCache large(0.5 * kMm);
+  std::array<Contact, 8> plain;
+  std::array<Contact, 8> cached;
+  int hits = 0;
+  for (int i = 0; i < 400; ++i) {
+    // A node sliding along the wall in 0.1 mm steps, 0.5–1.3 mm from it; every 50th query on another world.
+    const double phi = 0.002 * i;
+    const Vec3 c = (apothem() - 0.5 * kMm - 0.8 * kMm * std::sin(0.05 * i)) * radial(phi) + Vec3(0, 0, 20 * kMm);
+    const CollisionWorld& w = i % 50 == 49 ? other : world;
+    const std::size_t n = w.sphere_contacts(c, 1.5 * kMm, plain);
+    hits += n > 0 ? 1 : 0;
+    for (ContactCache* cache : {&small, &large}) {
+      const std::size_t m = w.sphere_contacts(c, 1.5 * kMm, cached, *cache);
+      ASSERT_EQ(m, n) << "query " << i;
+      for (std::size_t k = 0; k < n; ++k) {
+        EXPECT_TRUE(cached[k].point == plain[k].point && cached[k].normal == plain[k].normal &&
+                    cached[k].depth == plain[k].depth && cached[k].triangle == plain[k].triangle)
+            << "query " << i << ", contact " << k;
+      }
+    }
+  }
+  EXPECT_GT(hits, 200);
+  EXPECT_FALSE(small.filled());
+  EXPECT_TRUE(large.filled());
+  EXPECT_THROW(ContactCache(-1e-3), InputError);
+}
+
 TEST(CollisionWorldAllocation, QueriesDoNotAllocate) {
   const CollisionWorld world(make_tube({.radius = 5.0 * kMm, .length = 50.0 * kMm, .segments = 64}));
   std::array<Contact, 16> out;
@@ -565,9 +597,12 @@ TEST(CollisionWorldAllocation, QueriesDoNotAllocate) {
   for (Vec3& p : points) p = Vec3(4.5 * kMm * u(rng), 4.5 * kMm * u(rng), 25 * kMm + 24 * kMm * u(rng));
   std::size_t contacts = 0;
   int inside = 0;
+  ContactCache cache(0.3 * kMm);
   const auto run = [&] {
     for (std::size_t i = 0; i + 1 < points.size(); ++i) {
       contacts += world.sphere_contacts(points[i], 1.5 * kMm, out);
+      contacts += world.sphere_contacts(points[i], 1.5 * kMm, out, cache);                            // refill
+      contacts += world.sphere_contacts(points[i] + Vec3(0, 0, 0.1 * kMm), 1.5 * kMm, out, cache);  // cached
       contacts += world.capsule_contacts(points[i], points[i + 1], 1.0 * kMm, out);
       if (world.ray_cast(points[i], (points[i + 1] - points[i]).normalized(), 0.1).has_value()) ++inside;
       if (i % 8 == 0 && world.contains(points[i])) ++inside;

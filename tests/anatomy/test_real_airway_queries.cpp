@@ -14,6 +14,7 @@
 #include <cmath>
 #include <cstdio>
 #include <random>
+#include <span>
 #include <vector>
 
 #include "magvine/anatomy/collision_world.hpp"
@@ -70,6 +71,52 @@ class RealAirway : public ::testing::TestWithParam<const char*> {
   }
   TriangleMesh mesh;
 };
+
+/// Whether two contact lists are the same to the bit: a cached query tests the same triangles in the same order
+/// with the same arithmetic as the uncached one, so anything else is a bug, not rounding.
+bool identical(std::span<const Contact> a, std::span<const Contact> b) {
+  if (a.size() != b.size()) return false;
+  for (std::size_t i = 0; i < a.size(); ++i) {
+    if (a[i].point != b[i].point || a[i].normal != b[i].normal || a[i].depth != b[i].depth ||
+        a[i].triangle != b[i].triangle) {
+      return false;
+    }
+  }
+  return true;
+}
+
+TEST_P(RealAirway, CachedSphereContactsEqualTheUncached) {
+  const CollisionWorld world(mesh);
+  const double r = 1.5 * kMmToM;
+  const double margin = 0.3 * kMmToM;
+  // Steps of a node between queries: none, within the margin, about the margin, beyond it (a refill).
+  const std::array<double, 5> steps = {0.0, 0.05 * kMmToM, 0.2 * kMmToM, 0.299 * kMmToM, 0.45 * kMmToM};
+  std::mt19937 rng(21);
+  std::uniform_real_distribution<double> unit(-1.0, 1.0);
+  ContactCache cache(margin);
+  std::array<Contact, 8> plain;
+  std::array<Contact, 8> cached;
+  int mismatches = 0;
+  int queries = 0;
+  int with_contacts = 0;
+  for (const Vec3& start : points_near_wall(mesh, 150, 22)) {
+    Vec3 c = start;
+    for (int q = 0; q < 12; ++q) {
+      const Vec3 dir = Vec3(unit(rng), unit(rng), unit(rng)).normalized();
+      c += steps[static_cast<std::size_t>(q) % steps.size()] * dir;
+      // Mostly the fill radius, sometimes smaller (kept), sometimes larger (a refill).
+      const double radius = q % 4 == 3 ? 1.2 * kMmToM : q % 7 == 6 ? 1.8 * kMmToM : r;
+      const std::size_t n = world.sphere_contacts(c, radius, plain);
+      const std::size_t m = world.sphere_contacts(c, radius, cached, cache);
+      mismatches += identical({plain.data(), n}, {cached.data(), m}) ? 0 : 1;
+      ++queries;
+      with_contacts += n > 0 ? 1 : 0;
+    }
+  }
+  EXPECT_EQ(mismatches, 0) << "of " << queries << " queries";
+  EXPECT_GT(with_contacts, queries / 2);
+  EXPECT_TRUE(cache.filled());
+}
 
 TEST_P(RealAirway, ContainsAgreesWithTheWindingNumber) {
   const CollisionWorld world(mesh);

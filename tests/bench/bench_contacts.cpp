@@ -11,7 +11,10 @@
 // cycles through them: /random in random order (every query lands elsewhere in the tree; caches cold, since the
 // per-triangle tables far exceed L2), /sorted along a Morton curve (coherent sweeps), /hot over 16 of them only
 // (the working set stays in cache, so this is the compute cost); spheres also /body: 64-node chains walking along
-// the wall 1.5 mm apart, each chain queried 8 times in a row like a robot body over a solver step's iterations.
+// the wall 1.5 mm apart, each chain queried 8 times in a row like a robot body over a solver step's iterations,
+// and /moving: the same, each pass with every node displaced by its own random offset of up to 0.2 mm (a Newton
+// iteration's move). BM_SphereContactsCached runs /body and /moving with one ContactCache per chain node (64, margin
+// 0.45 mm, reused from chain to chain): the first pass over a chain refills them, the other seven use them.
 // Counters: `hit` = fraction of queries with ≥ 1 contact, `contacts` = contacts per query, `full` = fraction that
 // filled the 8-contact span (deepest kept), `triangles` = mesh size.
 //
@@ -171,6 +174,28 @@ const std::vector<Vec3>& body_centres() {
   return c;
 }
 
+/// body_centres() in the /body visiting order, each pass of a chain with every node moved by its own random offset
+/// of length up to kJitter (uniform in the ball).
+constexpr double kJitter = 0.2e-3;  // [m]
+
+const std::vector<Vec3>& moving_centres() {
+  static const std::vector<Vec3> c = [] {
+    WallSampler rng(17);
+    const std::vector<Vec3>& body = body_centres();
+    std::vector<Vec3> out;
+    out.reserve(kChains * kIterations * kChainNodes);
+    for (std::size_t chain = 0; chain < kChains; ++chain) {
+      for (std::size_t pass = 0; pass < kIterations; ++pass) {
+        for (std::size_t node = 0; node < kChainNodes; ++node) {
+          out.push_back(body[chain * kChainNodes + node] + kJitter * std::cbrt(rng.unit()) * rng.direction());
+        }
+      }
+    }
+    return out;
+  }();
+  return c;
+}
+
 const std::vector<Vec3>& sphere_centres() {
   static const std::vector<Vec3> c = [] {
     WallSampler rng(11);
@@ -265,6 +290,7 @@ enum class Order {
   kSorted,  ///< along a Morton curve: consecutive queries are neighbours (spatially coherent sweeps)
   kHot,     ///< kHotBodies of them cycled: the working set stays in cache, so this is the compute cost
   kBody,    ///< body_centres(): each chain kIterations times in a row, then the next chain
+  kMoving,  ///< moving_centres() in their order: as kBody, each pass moved a little
 };
 
 constexpr std::uint32_t kHotBodies = 16;  // ~6k triangles touched, ~1 MB: about L2
@@ -284,6 +310,11 @@ std::uint32_t morton(const Vec3& p, const Aabb& box) {
 
 /// Visiting order of bodies whose positions are `keys`.
 std::vector<std::uint32_t> visit_order(const std::vector<Vec3>& keys, Order order) {
+  if (order == Order::kMoving) {
+    std::vector<std::uint32_t> out(keys.size());
+    for (std::uint32_t k = 0; k < out.size(); ++k) out[k] = k;
+    return out;
+  }
   if (order == Order::kBody) {
     std::vector<std::uint32_t> out;
     for (std::size_t chain = 0; chain < keys.size() / kChainNodes; ++chain) {
@@ -318,14 +349,46 @@ double per_iteration(const benchmark::State& state, double total) {
   return state.iterations() > 0 ? total / static_cast<double>(state.iterations()) : 0.0;
 }
 
+const std::vector<Vec3>& centres_for(Order order) {
+  if (order == Order::kBody) return body_centres();
+  if (order == Order::kMoving) return moving_centres();
+  return sphere_centres();
+}
+
 void BM_SphereContacts(benchmark::State& state, Order order) {
   const CollisionWorld& w = world();
-  const std::vector<Vec3>& c = order == Order::kBody ? body_centres() : sphere_centres();
+  const std::vector<Vec3>& c = centres_for(order);
   const std::vector<std::uint32_t> o = visit_order(c, order);
   std::array<Contact, kMaxContacts> out{};
   std::size_t i = 0, hits = 0, contacts = 0, full = 0;
   for (auto _ : state) {
     const std::size_t n = w.sphere_contacts(c[o[i]], kRadius, out);
+    benchmark::DoNotOptimize(out.data());
+    contacts += n;
+    hits += n > 0 ? 1 : 0;
+    full += n == out.size() ? 1 : 0;
+    i = i + 1 == o.size() ? 0 : i + 1;
+  }
+  common_counters(state);
+  state.counters["hit"] = per_iteration(state, static_cast<double>(hits));
+  state.counters["contacts"] = per_iteration(state, static_cast<double>(contacts));
+  state.counters["full"] = per_iteration(state, static_cast<double>(full));
+}
+
+/// As BM_SphereContacts (/body or /moving), each chain node with its own ContactCache.
+constexpr double kCacheMargin = 0.45e-3;  // [m]: above 2·kJitter, the farthest two passes of a node lie apart
+constexpr std::size_t kCacheCapacity = 256;
+
+void BM_SphereContactsCached(benchmark::State& state, Order order) {
+  const CollisionWorld& w = world();
+  const std::vector<Vec3>& c = centres_for(order);
+  const std::vector<std::uint32_t> o = visit_order(c, order);
+  std::vector<ContactCache> caches;
+  for (std::size_t k = 0; k < kChainNodes; ++k) caches.emplace_back(kCacheMargin, kCacheCapacity);
+  std::array<Contact, kMaxContacts> out{};
+  std::size_t i = 0, hits = 0, contacts = 0, full = 0;
+  for (auto _ : state) {
+    const std::size_t n = w.sphere_contacts(c[o[i]], kRadius, out, caches[i % kChainNodes]);
     benchmark::DoNotOptimize(out.data());
     contacts += n;
     hits += n > 0 ? 1 : 0;
@@ -414,6 +477,9 @@ BENCHMARK_CAPTURE(BM_SphereContacts, random, Order::kRandom)->Unit(benchmark::kN
 BENCHMARK_CAPTURE(BM_SphereContacts, sorted, Order::kSorted)->Unit(benchmark::kNanosecond);
 BENCHMARK_CAPTURE(BM_SphereContacts, hot, Order::kHot)->Unit(benchmark::kNanosecond);
 BENCHMARK_CAPTURE(BM_SphereContacts, body, Order::kBody)->Unit(benchmark::kNanosecond);
+BENCHMARK_CAPTURE(BM_SphereContacts, moving, Order::kMoving)->Unit(benchmark::kNanosecond);
+BENCHMARK_CAPTURE(BM_SphereContactsCached, body, Order::kBody)->Unit(benchmark::kNanosecond);
+BENCHMARK_CAPTURE(BM_SphereContactsCached, moving, Order::kMoving)->Unit(benchmark::kNanosecond);
 BENCHMARK_CAPTURE(BM_CapsuleContacts, random, Order::kRandom)->Unit(benchmark::kNanosecond);
 BENCHMARK_CAPTURE(BM_CapsuleContacts, sorted, Order::kSorted)->Unit(benchmark::kNanosecond);
 BENCHMARK_CAPTURE(BM_CapsuleContacts, hot, Order::kHot)->Unit(benchmark::kNanosecond);

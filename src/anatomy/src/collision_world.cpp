@@ -306,6 +306,26 @@ class SphereQuery {
         m_screen(screen_point(w, centre, m_p)),
         m_r_screen(screen_radius(radius)) {}
 
+  /// Whether the slot may pass the screen for some centre within `margin` of this one and a radius no larger
+  /// (ContactCache): each lane moves by at most its gradient's norm times the margin (1e-5 more for the float
+  /// norms), so the screen's bounds below are widened by that move.
+  bool may_touch_within(std::uint32_t slot, float margin) const {
+    if (!m_screen) return true;
+    const SlotScreen& f = m_w.screens[slot];
+    const Float4 g = screen_lanes(f, m_p);
+    const Float4 norm2 = f.col[0] * f.col[0] + f.col[1] * f.col[1] + f.col[2] * f.col[2];
+    const float step = margin * (1.0F + 1e-5F);
+    const Float4 move = {std::sqrt(norm2[0]) * step, std::sqrt(norm2[1]) * step, std::sqrt(norm2[2]) * step,
+                         std::sqrt(norm2[3]) * step};
+    const float s = g[3];
+    const float reach = m_r_screen + f.slack_s + move[3];
+    if (!(s < reach && s > -reach)) return false;
+    const float lowest = -f.slack_g - (std::max(0.0F, -s) + move[3]) * f.valley;
+    const Float4 top = g + move;
+    if (top[0] >= lowest && top[1] >= lowest && top[2] >= lowest) return true;
+    return (edge_lanes_at_most(g - move, f.slack_g) & f.emits) != 0;
+  }
+
   void process(std::uint32_t slot) {
     if (m_screen && !may_touch(m_w.screens[slot])) return;
     const TriangleData& d = m_w.data[slot];
@@ -814,6 +834,133 @@ std::size_t CollisionWorld::sphere_contacts(const Vec3& centre, double radius, s
   ContactSink sink(out, w.merge_cos);
   SphereQuery query(w, centre, radius, sink);
   m_impl->bvh->visit_slots(detail::SphereBoxTest(centre, radius), [&](std::uint32_t slot) { query.process(slot); });
+  return sink.finish();
+}
+
+struct ContactCache::Storage {
+  /// The kept leaves in the walk's order, four to a group in the BVH's node layout (child k: kLeafBit | first << 4 |
+  /// count, `first` indexing `slots`; unused lanes empty), so the node test of the walk decides them.
+  std::vector<detail::TriangleBvh::Node> groups;
+  std::vector<std::uint32_t> slots;
+  std::size_t group_count = 0;
+  std::size_t leaf_count = 0;  ///< leaves in the groups
+  std::size_t slot_count = 0;
+  const void* world = nullptr;  ///< the tables that filled it; null when empty
+  Vec3 centre = Vec3::Zero();   ///< fill centre [m]
+  double radius = 0.0;          ///< fill radius [m]
+
+  /// Appends a leaf with its box and the kept slots [first, slot_count); false when full.
+  bool add_leaf(const detail::ChildBox& box, std::size_t first) {
+    const std::size_t lane = leaf_count % 4;
+    if (lane == 0) {
+      if (group_count == groups.size()) return false;
+      groups[group_count++] = empty_group();
+    }
+    detail::TriangleBvh::Node& g = groups[group_count - 1];
+    g.lo_x[lane] = box.lo[0];
+    g.lo_y[lane] = box.lo[1];
+    g.lo_z[lane] = box.lo[2];
+    g.hi_x[lane] = box.hi[0];
+    g.hi_y[lane] = box.hi[1];
+    g.hi_z[lane] = box.hi[2];
+    g.child[lane] = detail::TriangleBvh::kLeafBit | static_cast<std::uint32_t>(first << 4) |
+                    static_cast<std::uint32_t>(slot_count - first);
+    ++leaf_count;
+    return true;
+  }
+
+  static detail::TriangleBvh::Node empty_group() {
+    constexpr float kInf = std::numeric_limits<float>::infinity();
+    detail::TriangleBvh::Node n{};
+    n.lo_x.fill(kInf);
+    n.lo_y.fill(kInf);
+    n.lo_z.fill(kInf);
+    n.hi_x.fill(-kInf);
+    n.hi_y.fill(-kInf);
+    n.hi_z.fill(-kInf);
+    n.child.fill(detail::TriangleBvh::kLeafBit);  // empty leaves
+    return n;
+  }
+};
+
+ContactCache::ContactCache(double margin, std::size_t capacity) : m_margin(margin) {
+  if (!(margin >= 0.0 && std::isfinite(margin))) {
+    throw InputError("ContactCache: margin must be finite and >= 0 m (got " + std::to_string(margin) + ")");
+  }
+  // A leaf holds at least one kept slot, so `capacity` leaves always suffice; slot indices fit a leaf's 27 bits.
+  capacity = std::min<std::size_t>(capacity, std::size_t{1} << 26);
+  m_storage = std::make_unique<Storage>();
+  m_storage->groups.resize((capacity + 3) / 4);
+  m_storage->slots.resize(capacity);
+}
+ContactCache::~ContactCache() = default;
+ContactCache::ContactCache(ContactCache&&) noexcept = default;
+ContactCache& ContactCache::operator=(ContactCache&&) noexcept = default;
+
+void ContactCache::clear() {
+  m_storage->world = nullptr;
+}
+bool ContactCache::filled() const {
+  return m_storage->world != nullptr;
+}
+
+std::size_t CollisionWorld::sphere_contacts(const Vec3& centre, double radius, std::span<Contact> out,
+                                            ContactCache& cache) const {
+  MAGVINE_ASSERT(radius > 0.0 && centre.allFinite());
+  const Tables& w = m_impl->tables;
+  ContactCache::Storage& kept = *cache.m_storage;
+  ContactSink sink(out, w.merge_cos);
+  SphereQuery query(w, centre, radius, sink);
+  const double r2 = radius * radius;
+  // In the cache's reach: every leaf within r of the centre is within r + margin of the fill centre, where the
+  // fill kept every leaf (less 1e-12 of the coordinates for the rounding of the leaf tests; the fill centre itself
+  // always qualifies). The walk's node test then picks, of the kept leaves, exactly the walk's, in its order.
+  const double moved = (centre - kept.centre).norm();
+  const double room = 1e-12 * (centre.cwiseAbs().maxCoeff() + kept.radius);
+  if (kept.world == &w && radius <= kept.radius && (moved == 0.0 || moved + room <= cache.m_margin)) {
+    const detail::SphereBoxTest test(centre, radius);
+    for (std::size_t i = 0; i < kept.group_count; ++i) {
+      const detail::TriangleBvh::Node& group = kept.groups[i];
+      unsigned mask = test(group);
+      while (mask != 0) {
+        const int k = __builtin_ctz(mask);
+        mask &= mask - 1;
+        const std::uint32_t leaf = group.child[static_cast<std::size_t>(k)];
+        const std::uint32_t first = (leaf & ~detail::TriangleBvh::kLeafBit) >> 4;
+        for (std::uint32_t j = first; j < first + (leaf & 0xFu); ++j) query.process(kept.slots[j]);
+      }
+    }
+    return sink.finish();
+  }
+  // Refill: walk the leaves within r + margin, keep those triangles that may touch within the margin, and answer
+  // this query from the leaves within r (the plain walk's leaves, in its order).
+  kept.world = nullptr;
+  kept.group_count = 0;
+  kept.leaf_count = 0;
+  kept.slot_count = 0;
+  bool fits = true;
+  const auto margin = static_cast<float>(cache.m_margin);
+  m_impl->bvh->walk_leaves(
+      detail::SphereBoxTest(centre, radius + cache.m_margin), [&](const detail::TriangleBvh::Node& node, int k) {
+        const std::uint32_t child = node.child[static_cast<std::size_t>(k)];
+        const std::uint32_t first = (child & ~detail::TriangleBvh::kLeafBit) >> 4;
+        const std::uint32_t end = first + (child & 0xFu);
+        const detail::ChildBox box = detail::child_box(node, k);
+        const std::size_t start = kept.slot_count;
+        for (std::uint32_t slot = first; slot < end && fits; ++slot) {
+          if (!query.may_touch_within(slot, margin)) continue;
+          fits = kept.slot_count < kept.slots.size();
+          if (fits) kept.slots[kept.slot_count++] = slot;
+        }
+        if (fits && kept.slot_count > start) fits = kept.add_leaf(box, start);
+        if (!detail::sphere_touches(box, centre, r2)) return;
+        for (std::uint32_t slot = first; slot < end; ++slot) query.process(slot);
+      });
+  if (fits) {
+    kept.world = &w;
+    kept.centre = centre;
+    kept.radius = radius;
+  }
   return sink.finish();
 }
 

@@ -54,6 +54,15 @@ class TriangleBvh {
   /// children to enter (bit k: child k). `visit(first, count)` gets each leaf's slot range.
   template <class Test, class Visit>
   void walk(Test&& test, Visit&& visit) const {
+    walk_leaves(test, [&](const Node& node, int k) {
+      const std::uint32_t c = node.child[static_cast<std::size_t>(k)];
+      visit((c & ~kLeafBit) >> 4, c & 0xFu);
+    });
+  }
+
+  /// As walk, with `visit(node, k)` for each leaf reached: child k of `node` (its box and slot range).
+  template <class Test, class Visit>
+  void walk_leaves(Test&& test, Visit&& visit) const {
     std::array<std::uint32_t, kStackSize> stack;
     int top = 0;
     stack[top++] = 0;
@@ -65,7 +74,7 @@ class TriangleBvh {
         mask &= mask - 1;
         const std::uint32_t c = node.child[static_cast<std::size_t>(k)];
         if ((c & kLeafBit) != 0) {
-          visit((c & ~kLeafBit) >> 4, c & 0xFu);
+          visit(node, k);
         } else {
           // Fetch both lines of the node now: on a tree far larger than the caches the walk would otherwise wait
           // for each node in turn when it pops it.
@@ -90,15 +99,29 @@ class TriangleBvh {
   std::vector<std::uint32_t> m_order;
 };
 
+/// One child's box as plain floats [mesh units], kept by callers that re-test a leaf later.
+struct ChildBox {
+  std::array<float, 3> lo;
+  std::array<float, 3> hi;
+};
+
+inline ChildBox child_box(const TriangleBvh::Node& node, int k) {
+  const auto i = static_cast<std::size_t>(k);
+  return {{node.lo_x[i], node.lo_y[i], node.lo_z[i]}, {node.hi_x[i], node.hi_y[i], node.hi_z[i]}};
+}
+
+/// Whether the box lies within distance r of point c (squared distance ≤ r²): the one exact sphere–box test.
+inline bool sphere_touches(const ChildBox& b, const Vec3& c, double r2) {
+  const double dx = std::max({0.0, b.lo[0] - c.x(), c.x() - b.hi[0]});
+  const double dy = std::max({0.0, b.lo[1] - c.y(), c.y() - b.hi[1]});
+  const double dz = std::max({0.0, b.lo[2] - c.z(), c.z() - b.hi[2]});
+  return dx * dx + dy * dy + dz * dz <= r2;
+}
+
 /// Children of `node` whose box lies within distance r of point c (squared distance ≤ r²), as a walk mask.
 inline unsigned sphere_mask(const TriangleBvh::Node& node, const Vec3& c, double r2) {
   unsigned mask = 0;
-  for (std::size_t k = 0; k < 4; ++k) {
-    const double dx = std::max({0.0, node.lo_x[k] - c.x(), c.x() - node.hi_x[k]});
-    const double dy = std::max({0.0, node.lo_y[k] - c.y(), c.y() - node.hi_y[k]});
-    const double dz = std::max({0.0, node.lo_z[k] - c.z(), c.z() - node.hi_z[k]});
-    mask |= static_cast<unsigned>(dx * dx + dy * dy + dz * dz <= r2) << k;
-  }
+  for (int k = 0; k < 4; ++k) mask |= static_cast<unsigned>(sphere_touches(child_box(node, k), c, r2)) << k;
   return mask;
 }
 

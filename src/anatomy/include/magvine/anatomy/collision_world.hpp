@@ -96,6 +96,40 @@ struct CollisionWorldStats {
   double build_seconds = 0.0;            ///< wall time of BVH + edge bends + tables [s]
 };
 
+class CollisionWorld;
+
+/// The candidate triangles of one query sphere, kept across queries: a robot node queried again and again over a
+/// solver's iterations while it moves a little. Filled by a sphere query with the BVH leaves within radius + margin
+/// of the centre and, of their triangles, those that may touch a sphere of that radius centred anywhere within
+/// `margin` (the slot screen widened by the margin); a later query whose centre lies within the margin of the fill
+/// centre, with a radius no larger, tests only those, the same leaf tests deciding which, in the same order, so its
+/// contacts are exactly those of the query without a cache. Otherwise (moved out, larger radius, another world) the
+/// query walks the BVH again and refills the cache. One cache per body; not shared between threads. Storage is
+/// allocated once, at construction; a neighbourhood with more candidates than `capacity` is queried without it.
+class ContactCache {
+ public:
+  /// `margin` [m] ≥ 0: how far the centre may move before a refill; `capacity`: the most triangles kept (and
+  /// BVH leaves). Throws InputError for a negative or non-finite margin.
+  explicit ContactCache(double margin, std::size_t capacity = 1024);
+  ~ContactCache();
+  ContactCache(ContactCache&&) noexcept;
+  ContactCache& operator=(ContactCache&&) noexcept;
+  ContactCache(const ContactCache&) = delete;
+  ContactCache& operator=(const ContactCache&) = delete;
+
+  /// Forgets the candidates: the next query refills.
+  void clear();
+  double margin() const { return m_margin; }
+  /// Whether the last fill succeeded and the cache is in use.
+  bool filled() const;
+
+ private:
+  friend class CollisionWorld;
+  struct Storage;  ///< the kept leaves (boxes in groups of four, as the BVH's nodes) and triangles
+  double m_margin;
+  std::unique_ptr<Storage> m_storage;
+};
+
 /// Static collision geometry of one mesh [m]. Keeps its own copy of the mesh. Movable, not copyable.
 class CollisionWorld {
  public:
@@ -111,6 +145,10 @@ class CollisionWorld {
   /// Contacts of the sphere (centre [m], radius > 0 [m]) with the wall, written to `out` deepest first.
   /// Returns how many were written (≤ out.size()). Allocation-free.
   std::size_t sphere_contacts(const Vec3& centre, double radius, std::span<Contact> out) const;
+
+  /// As sphere_contacts, with the candidates kept in `cache` (see ContactCache): exactly the same contacts; a
+  /// query within the cache's margin skips the BVH walk and most triangle tests. Allocation-free.
+  std::size_t sphere_contacts(const Vec3& centre, double radius, std::span<Contact> out, ContactCache& cache) const;
 
   /// Contacts of the capsule around segment a–b [m] with radius > 0 [m]; a == b is a sphere. As sphere_contacts.
   std::size_t capsule_contacts(const Vec3& a, const Vec3& b, double radius, std::span<Contact> out) const;
