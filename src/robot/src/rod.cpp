@@ -52,6 +52,29 @@ struct System {
   }
 };
 
+/// The field at the edge midpoints of one state, sampled on first use: the gradient, the Hessian and the line
+/// search's accepted trial share one sample per midpoint instead of sampling it again (the field is a pure function
+/// of the point). Whoever moves the state resets it.
+struct FieldSamples {
+  std::vector<magnetics::FieldSample> value;
+  std::vector<unsigned char> known;
+
+  /// Forgets every sample (no allocation once sized).
+  void reset(std::size_t edges) {
+    value.resize(edges);
+    known.assign(edges, 0);
+  }
+
+  /// B and ∂B/∂x at the midpoint of edge j of `s`.
+  const magnetics::FieldSample& at(const RodField& field, const RodState& s, std::size_t j) {
+    if (known[j] == 0) {
+      value[j] = field(0.5 * (s.x[j] + s.x[j + 1]));
+      known[j] = 1;
+    }
+    return value[j];
+  }
+};
+
 /// Gradient of one strain element: `stress` = dW/ds, and ds = Σ P_k dq_k.
 template <std::size_t K>
 void add_stress(System* sys, const Vec3& stress, const std::array<Slot, K>& slots, const std::array<Mat3, K>& pieces) {
@@ -177,10 +200,11 @@ struct Inertia {
   double rotational = 0.0;   ///< J per edge [kg·m²]
 };
 
-/// Energy at load factor λ; adds its gradient to `sys` when given.
+/// Energy at load factor λ; adds its gradient to `sys` when given. `samples`, when given, holds (or receives) the
+/// field at this state's edge midpoints.
 double evaluate(const RodModel& m, const RodField& field, const RodState& s, double load, System* sys,
                 const Inertia* inertia = nullptr, const RodConstraints* constraints = nullptr,
-                const std::vector<magnetics::FieldSample>* samples = nullptr) {
+                FieldSamples* samples = nullptr) {
   const int n = m.edges;
   const double h = m.length / n;
   double energy = 0.0;
@@ -225,7 +249,8 @@ double evaluate(const RodModel& m, const RodField& field, const RodState& s, dou
       const Mat3& r = s.frames[ju];
       const Vec3 mj = hard ? Vec3(load * h * (r * m.moment_per_length[ju])) : Vec3::Zero();
       if (mj.isZero() && volume == 0.0) continue;
-      const magnetics::FieldSample f = samples != nullptr ? (*samples)[ju] : field(0.5 * (s.x[ju] + s.x[ju + 1]));
+      const magnetics::FieldSample f =
+          samples != nullptr ? samples->at(field, s, ju) : field(0.5 * (s.x[ju] + s.x[ju + 1]));
       energy -= mj.dot(f.b);
       Vec3 w = -mj;
       if (volume > 0.0) {
@@ -315,10 +340,11 @@ void finite_difference_hessian(const RodModel& m, const RodField& field, const R
   System minus(n, false);
   VecX delta(6 * n);
   // Rotation columns move no node: the field at the midpoints is the base state's, sampled once here.
-  std::vector<magnetics::FieldSample> samples;
-  if (field && (!m.moment_per_length.empty() || m.induced)) {
-    samples.reserve(static_cast<std::size_t>(n));
-    for (std::size_t j = 0; j < static_cast<std::size_t>(n); ++j) samples.push_back(field(0.5 * (s.x[j] + s.x[j + 1])));
+  FieldSamples samples;
+  const bool magnetic = field && (!m.moment_per_length.empty() || m.induced);
+  if (magnetic) {
+    samples.reset(static_cast<std::size_t>(n));
+    for (std::size_t j = 0; j < static_cast<std::size_t>(n); ++j) samples.at(field, s, j);
   }
   for (int colour = 0; colour < 3; ++colour) {
     for (int k = 0; k < 6; ++k) {
@@ -327,7 +353,7 @@ void finite_difference_hessian(const RodModel& m, const RodField& field, const R
       for (int j = colour; j < n; j += 3) delta[6 * j + k] = 1.0;
       plus.gradient.setZero();
       minus.gradient.setZero();
-      const std::vector<magnetics::FieldSample>* cached = k >= 3 && !samples.empty() ? &samples : nullptr;
+      FieldSamples* cached = k >= 3 && magnetic ? &samples : nullptr;
       evaluate(m, field, apply(s, delta, step), load, &plus, inertia, constraints, cached);
       evaluate(m, field, apply(s, delta, -step), load, &minus, inertia, constraints, cached);
       const VecX column = (plus.gradient - minus.gradient) / (2.0 * step);
@@ -442,8 +468,9 @@ Mat3 local_rotation_hessian(const Gradient& gradient) {
 ///     the last from forward differences of G (skipped when the field has no gradient at any midpoint: uniform);
 ///   inertia and the tip moment: central differences of their one-block gradients.
 /// Checked against finite_difference_hessian (central differences of the whole gradient) in test_rod.
+/// `cache`, when given, holds (or receives) the field at this state's edge midpoints.
 void analytic_hessian(const RodModel& m, const RodField& field, const RodState& s, double load, System& sys,
-                      const Inertia* inertia, const RodConstraints* constraints) {
+                      const Inertia* inertia, const RodConstraints* constraints, FieldSamples* cache = nullptr) {
   const int n = m.edges;
   const double h = m.length / n;
   for (Mat6& b : sys.diag) b.setZero();
@@ -487,11 +514,13 @@ void analytic_hessian(const RodModel& m, const RodField& field, const RodState& 
   const bool hard = !m.moment_per_length.empty();
   const double volume = m.induced ? load * m.induced->volume_per_length * h : 0.0;
   if (field && (hard || volume > 0.0)) {
-    std::vector<magnetics::FieldSample> samples(static_cast<std::size_t>(n));
+    FieldSamples local;
+    FieldSamples& samples = cache != nullptr ? *cache : local;
+    if (cache == nullptr) local.reset(static_cast<std::size_t>(n));
     bool uniform = true;
-    for (std::size_t j = 0; j < samples.size(); ++j) {
-      samples[j] = field(0.5 * (s.x[j] + s.x[j + 1]));
-      uniform = uniform && samples[j].g.isZero(0.0);
+    for (std::size_t j = 0; j < static_cast<std::size_t>(n); ++j) {
+      const bool flat = samples.at(field, s, j).g.isZero(0.0);  // sampled at every edge, even past the first gradient
+      uniform = uniform && flat;
     }
     // Forward differences of G: truncation ~step/d relative (d the distance to the magnet, ≫ L/1e6 here) and
     // round-off ~ε·d/step, both far below what Newton's convergence notices; half the field samples of central ones.
@@ -499,7 +528,7 @@ void analytic_hessian(const RodModel& m, const RodField& field, const RodState& 
     for (int j = 0; j < n; ++j) {
       const auto ju = static_cast<std::size_t>(j);
       const Mat3& r = s.frames[ju];
-      const magnetics::FieldSample& f = samples[ju];
+      const magnetics::FieldSample& f = samples.value[ju];
       Vec3 w = hard ? Vec3(-load * h * (r * m.moment_per_length[ju])) : Vec3::Zero();
       Mat3 p_world = Mat3::Zero();  // R P Rᵀ
       if (volume > 0.0) {
@@ -557,113 +586,136 @@ void analytic_hessian(const RodModel& m, const RodField& field, const RodState& 
   }
 }
 
-/// Block LDLᵀ (block Thomas) factorisation of H + μ|diag H| for the block-tridiagonal H of a System. Each pivot
-/// D_i = H_ii − H_i,i−1 D_{i−1}⁻¹ H_i,i−1ᵀ is checked positive definite by a Cholesky factorisation and kept as its
-/// inverse (cholesky_inverse), so both sweeps are fixed-size 6 × 6 products (Eigen's LLT solves took a third of the
-/// solver's time, measured with perf on bench_rod).
-/// The inverse of a symmetric 6 × 6 block through its Cholesky factor L (A⁻¹ = L⁻ᵀL⁻¹), in fixed-size loops (Eigen's
-/// LLT::solve with a matrix right-hand side goes through its dynamic-size kernels); false when A is not positive
-/// definite.
-bool cholesky_inverse(const Mat6& a, Mat6& inverse) {
-  Mat6 l = Mat6::Zero();
+/// The Cholesky factor L (A = LLᵀ) of a symmetric 6 × 6 block, read from its lower triangle, with L's diagonal stored
+/// as reciprocals (the substitutions multiply instead of divide); false when A is not positive definite.
+bool cholesky(const Mat6& a, Mat6& l) {
   for (int j = 0; j < 6; ++j) {
     double d = a(j, j);
     for (int k = 0; k < j; ++k) d -= l(j, k) * l(j, k);
     if (!(d > 0.0)) return false;
-    l(j, j) = std::sqrt(d);
+    const double inverse = 1.0 / std::sqrt(d);
+    l(j, j) = inverse;
     for (int i = j + 1; i < 6; ++i) {
       double v = a(i, j);
       for (int k = 0; k < j; ++k) v -= l(i, k) * l(j, k);
-      l(i, j) = v / l(j, j);
+      l(i, j) = v * inverse;
     }
   }
-  Mat6 li = Mat6::Zero();  // L⁻¹, lower triangular
-  for (int j = 0; j < 6; ++j) {
-    li(j, j) = 1.0 / l(j, j);
-    for (int i = j + 1; i < 6; ++i) {
-      double v = 0.0;
-      for (int k = j; k < i; ++k) v -= l(i, k) * li(k, j);
-      li(i, j) = v / l(i, i);
-    }
-  }
-  inverse.noalias() = li.transpose() * li;
   return true;
 }
 
+/// v ← A⁻¹v = L⁻ᵀL⁻¹v for the factor of `cholesky`: forward, then back substitution. The loops have constant bounds
+/// (the triangle selected inside) so that they unroll completely: 3× faster than loops bounded by j.
+void cholesky_solve(const Mat6& l, Vec6& v) {
+  for (int j = 0; j < 6; ++j) {
+    v[j] *= l(j, j);
+    for (int i = 0; i < 6; ++i) {
+      if (i > j) v[i] -= l(i, j) * v[j];
+    }
+  }
+  for (int j = 5; j >= 0; --j) {
+    double r = v[j];
+    for (int k = 0; k < 6; ++k) {
+      if (k > j) r -= l(k, j) * v[k];
+    }
+    v[j] = r * l(j, j);
+  }
+}
+
+/// Block Cholesky (block Thomas) factorisation of H + μ|diag H| for the block-tridiagonal H of a System: the pivots
+/// P_i = H_ii − H_i,i−1 P_{i−1}⁻¹ H_i,i−1ᵀ, each kept as its Cholesky factor L_i (which also checks that it is positive
+/// definite). P_{i−1}⁻¹ is never formed: with W = L_{i−1}⁻¹ H_i,i−1ᵀ (six forward substitutions) the update is
+/// P_i = H_ii − WᵀW, its lower triangle only. One 6 × 6 block per edge besides H (an explicit inverse and
+/// H_i,i−1 P_{i−1}⁻¹ per pivot took twice the memory and twice the arithmetic).
 class BlockFactor {
  public:
   /// False when a pivot block is not positive definite (H + μ|diag H| is not).
   bool factor(const System& sys, double mu) {
     m_sys = &sys;
     const auto n = sys.diag.size();
-    m_inverse.resize(n);
-    m_lower.resize(n);
+    m_factor.resize(n);
     for (std::size_t i = 0; i < n; ++i) {
       // Marquardt: damping in proportion to each unknown's own stiffness, so stiff stretch and soft bending are
       // damped alike (a multiple of I either stalls the bending or does nothing to the stretch).
-      Mat6 s = sys.diag[i];
-      if (mu > 0.0) s.diagonal() += mu * sys.diag[i].diagonal().cwiseAbs().cwiseMax(1e-300);
+      Mat6 p = sys.diag[i];
+      if (mu > 0.0) p.diagonal() += mu * sys.diag[i].diagonal().cwiseAbs().cwiseMax(1e-300);
       if (i > 0) {
-        m_lower[i].noalias() = sys.sub[i] * m_inverse[i - 1];
-        s.noalias() -= m_lower[i] * sys.sub[i].transpose();
+        const Mat6& l = m_factor[i - 1];
+        Mat6 w = sys.sub[i].transpose();
+        for (int j = 0; j < 6; ++j) {
+          for (int k = 0; k < j; ++k) w.row(j) -= l(j, k) * w.row(k);
+          w.row(j) *= l(j, j);
+        }
+        for (int b = 0; b < 6; ++b) {
+          for (int a = b; a < 6; ++a) p(a, b) -= w.col(a).dot(w.col(b));
+        }
       }
-      if (!cholesky_inverse(s, m_inverse[i])) return false;
+      if (!cholesky(p, m_factor[i])) return false;
     }
     return true;
   }
 
-  /// (H + μ|diag H|)⁻¹ rhs; false if not finite.
+  /// out = (H + μ|diag H|)⁻¹ rhs (out may be rhs); false if not finite. Forward: y_i = P_i⁻¹(rhs_i − H_i,i−1 y_{i−1});
+  /// back: out_i = y_i − P_i⁻¹ H_i+1,iᵀ out_{i+1}.
   bool solve(const VecX& rhs, VecX& out) const {
-    const auto n = m_inverse.size();
-    m_forward.resize(n);
-    for (std::size_t i = 0; i < n; ++i) {
-      m_forward[i] = rhs.segment<6>(static_cast<Eigen::Index>(6 * i));
-      if (i > 0) m_forward[i] -= m_lower[i] * m_forward[i - 1];
-    }
+    const auto n = m_factor.size();
     out.resize(static_cast<Eigen::Index>(6 * n));
-    for (std::size_t i = n; i-- > 0;) {
-      Vec6 r = m_forward[i];
-      if (i + 1 < n) r -= m_sys->sub[i + 1].transpose() * out.segment<6>(static_cast<Eigen::Index>(6 * (i + 1)));
-      out.segment<6>(static_cast<Eigen::Index>(6 * i)) = m_inverse[i] * r;
+    for (std::size_t i = 0; i < n; ++i) {
+      const auto at = static_cast<Eigen::Index>(6 * i);
+      Vec6 y = rhs.segment<6>(at);
+      if (i > 0) y.noalias() -= m_sys->sub[i] * out.segment<6>(at - 6);
+      cholesky_solve(m_factor[i], y);
+      out.segment<6>(at) = y;
+    }
+    for (std::size_t i = n - 1; i-- > 0;) {
+      const auto at = static_cast<Eigen::Index>(6 * i);
+      Vec6 r = m_sys->sub[i + 1].transpose() * out.segment<6>(at + 6);
+      cholesky_solve(m_factor[i], r);
+      out.segment<6>(at) -= r;
     }
     return out.allFinite();
   }
 
  private:
   const System* m_sys = nullptr;
-  std::vector<Mat6> m_inverse;
-  std::vector<Mat6> m_lower;  ///< H_i,i−1 D_{i−1}⁻¹
-  mutable std::vector<Vec6> m_forward;
+  std::vector<Mat6> m_factor;  ///< L_i of each pivot (reciprocal diagonal, see cholesky)
 };
 
-/// H·v for the block-tridiagonal H.
-VecX multiply(const System& sys, const VecX& v) {
-  VecX out = VecX::Zero(v.size());
+/// vᵀHv for the block-tridiagonal H.
+double quadratic_form(const System& sys, const VecX& v) {
+  double sum = 0.0;
   for (std::size_t i = 0; i < sys.diag.size(); ++i) {
     const auto at = static_cast<Eigen::Index>(6 * i);
-    out.segment<6>(at) += sys.diag[i] * v.segment<6>(at);
-    if (i > 0) {
-      out.segment<6>(at) += sys.sub[i] * v.segment<6>(at - 6);
-      out.segment<6>(at - 6) += sys.sub[i].transpose() * v.segment<6>(at);
-    }
+    sum += v.segment<6>(at).dot(sys.diag[i] * v.segment<6>(at));
+    if (i > 0) sum += 2.0 * v.segment<6>(at).dot(sys.sub[i] * v.segment<6>(at - 6));
   }
-  return out;
+  return sum;
+}
+
+/// out = the state s moved by t·δ (nodes linearly, frames by exp([t δφ_j])); out's storage is reused.
+void apply(const RodState& s, const VecX& delta, double t, RodState& out) {
+  out.x.resize(s.x.size());
+  out.frames.resize(s.frames.size());
+  out.x[0] = s.x[0];
+  for (std::size_t j = 0; j < s.frames.size(); ++j) {
+    out.x[j + 1] = s.x[j + 1] + t * delta.segment<3>(static_cast<Eigen::Index>(6 * j));
+    out.frames[j] = exp_rotation(t * delta.segment<3>(static_cast<Eigen::Index>(6 * j + 3))) * s.frames[j];
+  }
 }
 
 RodState apply(const RodState& s, const VecX& delta, double t) {
-  RodState out = s;
-  for (std::size_t j = 0; j < s.frames.size(); ++j) {
-    out.x[j + 1] += t * delta.segment<3>(static_cast<Eigen::Index>(6 * j));
-    out.frames[j] = exp_rotation(t * delta.segment<3>(static_cast<Eigen::Index>(6 * j + 3))) * s.frames[j];
-  }
+  RodState out;
+  apply(s, delta, t, out);
   return out;
 }
 
-/// The step t·δ from `s` with the nodes rebuilt from the clamp along the new frames: each edge gets the body-frame
-/// vector the step predicts to first order, R_jᵀe_j + t(R_jᵀ(δx_{j+1} − δx_j) + R_jᵀ[e_j]δφ_j), instead of the
-/// linearly moved nodes, whose edges a large rotation stretches.
-RodState rebuild_positions(const RodState& trial, const RodState& s, const VecX& delta, double t) {
-  RodState out = trial;
+/// The nodes `x` of the step t·δ from `s` rebuilt from the clamp along the new frames (those of `trial`, the step
+/// applied by `apply`): each edge gets the body-frame vector the step predicts to first order,
+/// R_jᵀe_j + t(R_jᵀ(δx_{j+1} − δx_j) + R_jᵀ[e_j]δφ_j), instead of the linearly moved nodes, whose edges a large
+/// rotation stretches.
+void rebuild_positions(const RodState& trial, const RodState& s, const VecX& delta, double t, std::vector<Vec3>& x) {
+  x.resize(trial.x.size());
+  x[0] = trial.x[0];
   const auto dx = [&](std::size_t node) {
     return node == 0 ? Vec3::Zero().eval() : Vec3(delta.segment<3>(static_cast<Eigen::Index>(6 * (node - 1))));
   };
@@ -672,9 +724,8 @@ RodState rebuild_positions(const RodState& trial, const RodState& s, const VecX&
     const Vec3 e = s.x[j + 1] - s.x[j];
     const Vec3 dphi = delta.segment<3>(static_cast<Eigen::Index>(6 * j + 3));
     const Vec3 local = r.transpose() * (e + t * (dx(j + 1) - dx(j) + e.cross(dphi)));
-    out.x[j + 1] = out.x[j] + trial.frames[j] * local;
+    x[j + 1] = x[j] + trial.frames[j] * local;
   }
-  return out;
 }
 
 /// The bending stiffness that sets the scale of forces (EI/L²) and torques (EI/L): EI for a rod; for a vine the
@@ -748,12 +799,34 @@ void validate(const RodModel& m) {
   }
 }
 
+/// The scratch of Newton's iterations, sized on first use: an iteration allocates nothing. States and field samples
+/// change hands by swapping their storage.
+struct NewtonScratch {
+  System sys{0};
+  System probe{0, false};  ///< the gradient at a step taken on the gradient's word (newton; rare)
+  BlockFactor factor;
+  VecX delta;      ///< the Newton step
+  VecX z;          ///< a direction of negative curvature (damped steps only)
+  RodState trial;  ///< a trial step, then the better of it and its rebuilt nodes
+  std::vector<Vec3> rebuilt;  ///< the trial's nodes rebuilt along its frames
+  RodState next;   ///< the Newton step's trial while one along z competes (rare)
+  FieldSamples current;  ///< at the state being iterated
+  FieldSamples trial_samples;
+  FieldSamples rebuilt_samples;
+  FieldSamples next_samples;
+
+  void size(int edges) {
+    if (sys.diag.size() != static_cast<std::size_t>(edges)) sys = System(edges);
+  }
+};
+
 }  // namespace
 
 struct RodWorkspace::Impl {
   int edges = -1;  ///< the Hessian below belongs to a rod of this many edges (−1: none yet)
   std::vector<Mat6> diag;
   std::vector<Mat6> sub;
+  NewtonScratch scratch;  ///< kept between solves
 };
 
 RodWorkspace::RodWorkspace() : impl(std::make_unique<Impl>()) {}
@@ -767,20 +840,24 @@ namespace {
 /// reuse its Hessian until one fails to cut the gradient by a fifth (or to factor, to descend, or to pass the line
 /// search); then it is recomputed.
 std::string newton(const RodModel& m, const RodField& field, RodState& s, double load, const RodSolveOptions& o,
-                   RodSolveReport& report, int max_iterations, const Inertia* inertia = nullptr,
+                   RodSolveReport& report, int max_iterations, NewtonScratch& w, const Inertia* inertia = nullptr,
                    RodWorkspace::Impl* ws = nullptr, const RodConstraints* constraints = nullptr) {
   bool fresh = ws == nullptr || ws->edges != m.edges;
   bool last_was_chord = false;
   double previous_norm = std::numeric_limits<double>::infinity();
-  System sys(m.edges);
-  BlockFactor factor;
+  const auto edges = static_cast<std::size_t>(m.edges);
+  w.size(m.edges);
+  w.current.reset(edges);
+  System& sys = w.sys;
+  BlockFactor& factor = w.factor;
+  VecX& delta = w.delta;
   double mu_hint = 0.0;  // the Levenberg damping the last damped step needed
   for (int it = 0; it < max_iterations; ++it) {
     if (report.iterations >= o.max_iterations) {
       return "iteration budget of " + std::to_string(o.max_iterations) + " Newton iterations exhausted";
     }
     sys.gradient.setZero();
-    const double energy = evaluate(m, field, s, load, &sys, inertia, constraints);
+    const double energy = evaluate(m, field, s, load, &sys, inertia, constraints, &w.current);
     if (!std::isfinite(energy) || !sys.gradient.allFinite()) return "NaN in the energy or its gradient";
     report.gradient_norm = scaled_norm(m, sys.gradient);
     if (report.gradient_norm <= std::max(o.tolerance, noise_floor(m))) return {};
@@ -789,7 +866,7 @@ std::string newton(const RodModel& m, const RodField& field, RodState& s, double
     ++report.iterations;
     bool chord = !fresh;
     const auto refresh = [&] {
-      analytic_hessian(m, field, s, load, sys, inertia, constraints);
+      analytic_hessian(m, field, s, load, sys, inertia, constraints, &w.current);
       ++report.hessians;
       chord = false;
       if (ws != nullptr) {
@@ -806,10 +883,10 @@ std::string newton(const RodModel& m, const RodField& field, RodState& s, double
     }
     // Levenberg damping only when the Hessian is not positive definite (near a snap, or a field against the
     // magnetisation) or the step is not a descent direction; a chord Hessian that needs it is recomputed first.
-    VecX delta;
     double mu = 0.0;
     for (;;) {
-      if (factor.factor(sys, mu) && factor.solve(-sys.gradient, delta) && sys.gradient.dot(delta) < 0.0) break;
+      // delta = H⁻¹g first, negated below: −H⁻¹g is a descent direction when g·H⁻¹g > 0.
+      if (factor.factor(sys, mu) && factor.solve(sys.gradient, delta) && sys.gradient.dot(delta) > 0.0) break;
       if (chord) {
         refresh();
         continue;
@@ -819,6 +896,7 @@ std::string newton(const RodModel& m, const RodField& field, RodState& s, double
       mu = mu == 0.0 ? std::max(1e-9, 0.25 * mu_hint) : 4.0 * mu;
       if (mu > 1e8) return "no descent direction";
     }
+    delta = -delta;
     mu_hint = mu > 0.0 ? mu : 0.25 * mu_hint;
     last_was_chord = chord;
     fresh = ws == nullptr;
@@ -837,11 +915,17 @@ std::string newton(const RodModel& m, const RodField& field, RodState& s, double
     // Past a limit point the state sits near a saddle of the energy, where the gradient along the unstable mode is
     // tiny and damped Newton steps crawl. A few inverse iterations with the damped factor find the most negative
     // curvature direction; a trust-sized step along it (downhill) competes with the Newton step below.
-    VecX descent;
+    // The step along it is w.z times descent_sign.
+    bool has_descent = false;
+    double descent_sign = 1.0;
     if (mu > 0.0) {
-      VecX z = delta / delta.norm();
+      VecX& z = w.z;
+      z = delta / delta.norm();
       for (int k = 0; k < 4 && factor.solve(z, z); ++k) z /= z.norm();
-      if (z.allFinite() && z.dot(multiply(sys, z)) < 0.0) descent = sys.gradient.dot(z) > 0.0 ? VecX(-z) : z;
+      if (z.allFinite() && quadratic_form(sys, z) < 0.0) {
+        has_descent = true;
+        descent_sign = sys.gradient.dot(z) > 0.0 ? -1.0 : 1.0;
+      }
     }
     const double slope = sys.gradient.dot(delta);
     // A trust bound on the rotation increments: frames turn exactly but positions move linearly, so a long step
@@ -857,40 +941,47 @@ std::string newton(const RodModel& m, const RodField& field, RodState& s, double
     // Positions move linearly but frames turn exactly, so a bending step also stretches the edges, which stalls a
     // slender (axially stiff) rod on tiny steps. Each trial is also offered with its nodes rebuilt along the new
     // frames at the strains the step predicts; the lower energy wins (test_rod's 12 large-deflection cases: 9–147
-    // Newton iterations with it; 1092–7196 without, and one case failed).
-    const auto trial_at = [&](const VecX& step, double scale, double& e) {
-      RodState trial = apply(s, step, scale);
-      e = evaluate(m, field, trial, load, nullptr, inertia, constraints);
-      RodState rebuilt = rebuild_positions(trial, s, step, scale);
-      const double e_rebuilt = evaluate(m, field, rebuilt, load, nullptr, inertia, constraints);
+    // Newton iterations with it; 1092–7196 without, and one case failed). The winner is left in w.trial, its field
+    // samples in w.trial_samples.
+    const auto trial_at = [&](const VecX& step, double scale) {
+      apply(s, step, scale, w.trial);
+      w.trial_samples.reset(edges);
+      const double e = evaluate(m, field, w.trial, load, nullptr, inertia, constraints, &w.trial_samples);
+      rebuild_positions(w.trial, s, step, scale, w.rebuilt);
+      std::swap(w.trial.x, w.rebuilt);  // w.trial is now the rebuilt state (the same frames)
+      w.rebuilt_samples.reset(edges);
+      const double e_rebuilt = evaluate(m, field, w.trial, load, nullptr, inertia, constraints, &w.rebuilt_samples);
       if (std::isfinite(e_rebuilt) && !(e_rebuilt >= e)) {
-        e = e_rebuilt;
-        return rebuilt;
+        std::swap(w.trial_samples, w.rebuilt_samples);
+        return e_rebuilt;
       }
-      return trial;
+      std::swap(w.trial.x, w.rebuilt);
+      return e;
     };
-    RodState next;
-    double e_next = std::numeric_limits<double>::infinity();
+    double e_next = std::numeric_limits<double>::infinity();  // of the step taken: in w.trial, or w.next if kept
+    bool in_next = false;
     for (;;) {
-      double e = 0.0;
-      RodState trial = trial_at(delta, t, e);
+      const double e = trial_at(delta, t);
       if (std::isfinite(e) && (!resolvable || e <= energy + 1e-4 * t * slope)) {
-        next = std::move(trial);
         e_next = e;
         break;
       }
       t *= 0.5;
       if (t < 1e-10) break;
     }
-    if (descent.size() > 0) {
+    if (has_descent) {
+      if (std::isfinite(e_next)) {  // keep the Newton step's trial while the descent's trials use w.trial
+        std::swap(w.next, w.trial);
+        std::swap(w.next_samples, w.trial_samples);
+        in_next = true;
+      }
       double turn = 0.0;
-      for (Eigen::Index j = 0; j < m.edges; ++j) turn = std::max(turn, descent.segment<3>(6 * j + 3).norm());
+      for (Eigen::Index j = 0; j < m.edges; ++j) turn = std::max(turn, w.z.segment<3>(6 * j + 3).norm());
       for (double scale = turn > 0.0 ? kMaxTurn / turn : 0.0; scale > 1e-6 * kMaxTurn; scale *= 0.25) {
-        double e = 0.0;
-        RodState trial = trial_at(descent, scale, e);
+        const double e = trial_at(w.z, descent_sign * scale);
         if (std::isfinite(e) && e < std::min(e_next, energy)) {
-          next = std::move(trial);
           e_next = e;
+          in_next = false;
           break;
         }
       }
@@ -911,16 +1002,25 @@ std::string newton(const RodModel& m, const RodField& field, RodState& s, double
       // in stiff directions (stretch, wall contacts: g·H⁻¹g ≪ the ~1e-16 relative error of an energy made of large
       // cancelling terms). Then the gradient, not the energy, decides: the (trust-bounded) step is taken if it
       // cuts the scaled gradient by a tenth.
-      RodState trial = apply(s, delta, t0);
-      System probe(m.edges, false);
-      const double e_probe = evaluate(m, field, trial, load, &probe, inertia, constraints);
-      if (!std::isfinite(e_probe) || !(scaled_norm(m, probe.gradient) < 0.9 * report.gradient_norm)) {
+      apply(s, delta, t0, w.trial);
+      w.trial_samples.reset(edges);
+      if (w.probe.gradient.size() != sys.gradient.size()) w.probe = System(m.edges, false);
+      w.probe.gradient.setZero();
+      const double e_probe = evaluate(m, field, w.trial, load, &w.probe, inertia, constraints, &w.trial_samples);
+      if (!std::isfinite(e_probe) || !(scaled_norm(m, w.probe.gradient) < 0.9 * report.gradient_norm)) {
         return "line search failed";
       }
-      s = std::move(trial);
+      std::swap(s, w.trial);
+      std::swap(w.current, w.trial_samples);
       continue;
     }
-    s = std::move(next);
+    if (in_next) {
+      std::swap(s, w.next);
+      std::swap(w.current, w.next_samples);
+    } else {
+      std::swap(s, w.trial);
+      std::swap(w.current, w.trial_samples);
+    }
   }
   return "Newton did not converge in " + std::to_string(max_iterations) + " iterations";
 }
@@ -1085,7 +1185,8 @@ RodSolveReport step_rod_dynamics(const RodModel& model, const RodField& field, R
   // Start from the prediction (nodes moved by v·dt, frames turned by w·dt): Newton then only corrects.
   for (std::size_t i = 1; i <= n; ++i) next.x[i] = inertia.x[i];
   next.frames = inertia.frames;
-  const std::string why = newton(model, field, next, 1.0, options, report, options.max_newton * 4, &inertia);
+  NewtonScratch scratch;
+  const std::string why = newton(model, field, next, 1.0, options, report, options.max_newton * 4, scratch, &inertia);
   if (!why.empty()) {
     report.failure = why;
     return report;
@@ -1151,13 +1252,15 @@ RodSolveReport solve_rod_statics(const RodModel& model, const RodField& field, R
       state.frames.size() != static_cast<std::size_t>(model.edges)) {
     throw InputError("rod: the state does not match the model's edge count");
   }
+  NewtonScratch local;
+  NewtonScratch& scratch = ws != nullptr ? ws->scratch : local;
   RodSolveReport report;
   // Warm start: the full load from the caller's state (the previous equilibrium of a simulation loop, or the
   // straight rod). Only when that fails does the ramp start over from the unloaded state.
   if (!options.ramp) {
     RodState trial = state;
     const std::string why =
-        newton(model, field, trial, 1.0, options, report, options.max_snap_newton, nullptr, ws, constraints);
+        newton(model, field, trial, 1.0, options, report, options.max_snap_newton, scratch, nullptr, ws, constraints);
     if (!why.empty()) {
       report.failure = why;
       return report;
@@ -1169,7 +1272,8 @@ RodSolveReport solve_rod_statics(const RodModel& model, const RodField& field, R
   }
   if (options.min_load_steps <= 1) {
     RodState trial = state;
-    if (newton(model, field, trial, 1.0, options, report, options.max_newton, nullptr, ws, constraints).empty()) {
+    if (newton(model, field, trial, 1.0, options, report, options.max_newton, scratch, nullptr, ws, constraints)
+            .empty()) {
       state = std::move(trial);
       report.load_steps = 1;
       report.converged = true;
@@ -1180,14 +1284,17 @@ RodSolveReport solve_rod_statics(const RodModel& model, const RodField& field, R
   double step = 1.0 / std::max(2, options.min_load_steps);
   const double min_step = 1.0 / options.max_load_steps;
   // The unloaded state first (it may not be at rest if the caller's state is not).
-  if (std::string why = newton(model, field, state, 0.0, options, report, options.max_snap_newton, nullptr, ws, constraints); !why.empty()) {
+  if (std::string why =
+          newton(model, field, state, 0.0, options, report, options.max_snap_newton, scratch, nullptr, ws, constraints);
+      !why.empty()) {
     report.failure = "unloaded rod: " + why;
     return report;
   }
   while (load < 1.0) {
     const double next = std::min(1.0, load + step);
     RodState trial = state;
-    std::string why = newton(model, field, trial, next, options, report, options.max_newton, nullptr, ws, constraints);
+    std::string why =
+        newton(model, field, trial, next, options, report, options.max_newton, scratch, nullptr, ws, constraints);
     if (!why.empty() && report.iterations >= options.max_iterations) {
       report.failure = "at load factor " + std::to_string(load) + ": " + why;
       return report;
@@ -1197,7 +1304,8 @@ RodSolveReport solve_rod_statics(const RodModel& model, const RodField& field, R
       // last one, however small the load step; the energy still decreases along Newton's steps, so follow them to
       // the next stable branch.
       trial = state;
-      why = newton(model, field, trial, next, options, report, options.max_snap_newton, nullptr, ws, constraints);
+      why = newton(model, field, trial, next, options, report, options.max_snap_newton, scratch, nullptr, ws,
+                   constraints);
       if (why.empty()) ++report.snaps;
     }
     if (why.empty()) {

@@ -151,8 +151,10 @@ struct RodSolveReport {
   std::string failure;         ///< empty when converged; otherwise the cause (NaN, no descent, ramp exhausted)
 };
 
-/// Scratch kept between solves of one rod (a simulation loop): the last Hessian, reused for chord steps from a
-/// nearby state and recomputed whenever a chord step fails to cut the gradient by a fifth. One per solver thread.
+/// Scratch kept between solves of one rod (a simulation loop): Newton's buffers (a solve with a workspace allocates
+/// nothing once they are sized; without one, each solve allocates them once) and the last Hessian, reused for chord
+/// steps from a nearby state and recomputed whenever a chord step fails to cut the gradient by a fifth. One per
+/// solver thread.
 /// Since the Hessian became analytic it no longer pays (bench_rod, EPM moved 1 mm between solves: 0.46 vs 0.39 ms
 /// with the dipole field, 0.92 vs 0.73 ms with the exact cylinder field); kept for fields far costlier than these.
 class RodWorkspace {
