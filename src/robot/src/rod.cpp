@@ -35,7 +35,8 @@ struct Slot {
   int offset;
 };
 
-/// Gradient and the block-tridiagonal Hessian: diag[i] = H(i, i), sub[i] = H(i, i − 1).
+/// Gradient and the block-tridiagonal Hessian: diag[i] = H(i, i), sub[i] = H(i, i − 1). Once factored (BlockFactor),
+/// only the lower triangle of each diag[i] is the Hessian's: the upper one holds the factor.
 struct System {
   VecX gradient;
   std::vector<Mat6> diag;
@@ -52,9 +53,9 @@ struct System {
   }
 };
 
-/// The field at the edge midpoints of one state, sampled on first use: the gradient, the Hessian and the line
-/// search's accepted trial share one sample per midpoint instead of sampling it again (the field is a pure function
-/// of the point). Whoever moves the state resets it.
+/// The field at the edge midpoints of one state, sampled on first use: the gradient and the Hessian share one sample
+/// per midpoint instead of sampling it again (the field is a pure function of the point). Whoever moves the state
+/// resets it.
 struct FieldSamples {
   std::vector<magnetics::FieldSample> value;
   std::vector<unsigned char> known;
@@ -586,71 +587,81 @@ void analytic_hessian(const RodModel& m, const RodField& field, const RodState& 
   }
 }
 
-/// The Cholesky factor L (A = LLᵀ) of a symmetric 6 × 6 block, read from its lower triangle, with L's diagonal stored
-/// as reciprocals (the substitutions multiply instead of divide); false when A is not positive definite.
-bool cholesky(const Mat6& a, Mat6& l) {
+/// The Cholesky factor L of a symmetric 6 × 6 block A = LLᵀ, read from the lower triangle of `a`, stored in the
+/// upper triangle of `packed` (L(i, j) at (j, i) for i > j) and in `diagonal` (1/L(j, j): the substitutions multiply
+/// instead of divide); false when A is not positive definite. The loops have constant bounds (the triangle selected
+/// inside) so that they unroll completely (3× faster than loops bounded by j).
+bool cholesky(const Mat6& a, Mat6& packed, Vec6& diagonal) {
   for (int j = 0; j < 6; ++j) {
     double d = a(j, j);
-    for (int k = 0; k < j; ++k) d -= l(j, k) * l(j, k);
+    for (int k = 0; k < 6; ++k) {
+      if (k < j) d -= packed(k, j) * packed(k, j);
+    }
     if (!(d > 0.0)) return false;
-    const double inverse = 1.0 / std::sqrt(d);
-    l(j, j) = inverse;
-    for (int i = j + 1; i < 6; ++i) {
+    diagonal[j] = 1.0 / std::sqrt(d);
+    for (int i = 0; i < 6; ++i) {
+      if (i <= j) continue;
       double v = a(i, j);
-      for (int k = 0; k < j; ++k) v -= l(i, k) * l(j, k);
-      l(i, j) = v * inverse;
+      for (int k = 0; k < 6; ++k) {
+        if (k < j) v -= packed(k, i) * packed(k, j);
+      }
+      packed(j, i) = v * diagonal[j];
     }
   }
   return true;
 }
 
-/// v ← A⁻¹v = L⁻ᵀL⁻¹v for the factor of `cholesky`: forward, then back substitution. The loops have constant bounds
-/// (the triangle selected inside) so that they unroll completely: 3× faster than loops bounded by j.
-void cholesky_solve(const Mat6& l, Vec6& v) {
+/// v ← A⁻¹v = L⁻ᵀL⁻¹v for a factor of `cholesky`: forward, then back substitution.
+void cholesky_solve(const Mat6& packed, const Vec6& diagonal, Vec6& v) {
   for (int j = 0; j < 6; ++j) {
-    v[j] *= l(j, j);
+    v[j] *= diagonal[j];
     for (int i = 0; i < 6; ++i) {
-      if (i > j) v[i] -= l(i, j) * v[j];
+      if (i > j) v[i] -= packed(j, i) * v[j];
     }
   }
   for (int j = 5; j >= 0; --j) {
     double r = v[j];
     for (int k = 0; k < 6; ++k) {
-      if (k > j) r -= l(k, j) * v[k];
+      if (k > j) r -= packed(j, k) * v[k];
     }
-    v[j] = r * l(j, j);
+    v[j] = r * diagonal[j];
   }
 }
 
 /// Block Cholesky (block Thomas) factorisation of H + μ|diag H| for the block-tridiagonal H of a System: the pivots
 /// P_i = H_ii − H_i,i−1 P_{i−1}⁻¹ H_i,i−1ᵀ, each kept as its Cholesky factor L_i (which also checks that it is positive
 /// definite). P_{i−1}⁻¹ is never formed: with W = L_{i−1}⁻¹ H_i,i−1ᵀ (six forward substitutions) the update is
-/// P_i = H_ii − WᵀW, its lower triangle only. One 6 × 6 block per edge besides H (an explicit inverse and
-/// H_i,i−1 P_{i−1}⁻¹ per pivot took twice the memory and twice the arithmetic).
+/// P_i = H_ii − WᵀW, its lower triangle only. L_i lives in the upper triangle of the symmetric block H_ii, which
+/// nothing else reads, and its diagonal here: the factor costs 6 numbers per edge besides H. (An explicit inverse and
+/// H_i,i−1 P_{i−1}⁻¹ per pivot took twice the arithmetic and 72 numbers per edge; at 100 edges the solver's buffers
+/// then outgrew what the allocator keeps between solves, and every cold solve paid page faults for them.)
 class BlockFactor {
  public:
-  /// False when a pivot block is not positive definite (H + μ|diag H| is not).
-  bool factor(const System& sys, double mu) {
+  /// False when a pivot block is not positive definite (H + μ|diag H| is not). Writes the upper triangles of sys.diag.
+  bool factor(System& sys, double mu) {
     m_sys = &sys;
     const auto n = sys.diag.size();
-    m_factor.resize(n);
+    m_diagonal.resize(n);
     for (std::size_t i = 0; i < n; ++i) {
       // Marquardt: damping in proportion to each unknown's own stiffness, so stiff stretch and soft bending are
       // damped alike (a multiple of I either stalls the bending or does nothing to the stretch).
       Mat6 p = sys.diag[i];
       if (mu > 0.0) p.diagonal() += mu * sys.diag[i].diagonal().cwiseAbs().cwiseMax(1e-300);
       if (i > 0) {
-        const Mat6& l = m_factor[i - 1];
+        const Mat6& l = sys.diag[i - 1];  // L_{i−1}(j, k) at (k, j)
+        const Vec6& d = m_diagonal[i - 1];
         Mat6 w = sys.sub[i].transpose();
         for (int j = 0; j < 6; ++j) {
-          for (int k = 0; k < j; ++k) w.row(j) -= l(j, k) * w.row(k);
-          w.row(j) *= l(j, j);
+          for (int k = 0; k < 6; ++k) {
+            if (k < j) w.row(j) -= l(k, j) * w.row(k);
+          }
+          w.row(j) *= d[j];
         }
         for (int b = 0; b < 6; ++b) {
           for (int a = b; a < 6; ++a) p(a, b) -= w.col(a).dot(w.col(b));
         }
       }
-      if (!cholesky(p, m_factor[i])) return false;
+      if (!cholesky(p, sys.diag[i], m_diagonal[i])) return false;
     }
     return true;
   }
@@ -658,19 +669,19 @@ class BlockFactor {
   /// out = (H + μ|diag H|)⁻¹ rhs (out may be rhs); false if not finite. Forward: y_i = P_i⁻¹(rhs_i − H_i,i−1 y_{i−1});
   /// back: out_i = y_i − P_i⁻¹ H_i+1,iᵀ out_{i+1}.
   bool solve(const VecX& rhs, VecX& out) const {
-    const auto n = m_factor.size();
+    const auto n = m_diagonal.size();
     out.resize(static_cast<Eigen::Index>(6 * n));
     for (std::size_t i = 0; i < n; ++i) {
       const auto at = static_cast<Eigen::Index>(6 * i);
       Vec6 y = rhs.segment<6>(at);
       if (i > 0) y.noalias() -= m_sys->sub[i] * out.segment<6>(at - 6);
-      cholesky_solve(m_factor[i], y);
+      cholesky_solve(m_sys->diag[i], m_diagonal[i], y);
       out.segment<6>(at) = y;
     }
     for (std::size_t i = n - 1; i-- > 0;) {
       const auto at = static_cast<Eigen::Index>(6 * i);
       Vec6 r = m_sys->sub[i + 1].transpose() * out.segment<6>(at + 6);
-      cholesky_solve(m_factor[i], r);
+      cholesky_solve(m_sys->diag[i], m_diagonal[i], r);
       out.segment<6>(at) -= r;
     }
     return out.allFinite();
@@ -678,15 +689,20 @@ class BlockFactor {
 
  private:
   const System* m_sys = nullptr;
-  std::vector<Mat6> m_factor;  ///< L_i of each pivot (reciprocal diagonal, see cholesky)
+  std::vector<Vec6> m_diagonal;  ///< 1/L_i(j, j) of each pivot (the rest of L_i: System::diag, see cholesky)
 };
 
-/// vᵀHv for the block-tridiagonal H.
+/// vᵀHv for the block-tridiagonal H, from the lower triangles of its diagonal blocks (the upper ones may hold a
+/// factor).
 double quadratic_form(const System& sys, const VecX& v) {
   double sum = 0.0;
   for (std::size_t i = 0; i < sys.diag.size(); ++i) {
     const auto at = static_cast<Eigen::Index>(6 * i);
-    sum += v.segment<6>(at).dot(sys.diag[i] * v.segment<6>(at));
+    const Mat6& d = sys.diag[i];
+    for (int b = 0; b < 6; ++b) {
+      sum += d(b, b) * v[at + b] * v[at + b];
+      for (int a = b + 1; a < 6; ++a) sum += 2.0 * d(a, b) * v[at + a] * v[at + b];
+    }
     if (i > 0) sum += 2.0 * v.segment<6>(at).dot(sys.sub[i] * v.segment<6>(at - 6));
   }
   return sum;
@@ -810,10 +826,10 @@ struct NewtonScratch {
   RodState trial;  ///< a trial step, then the better of it and its rebuilt nodes
   std::vector<Vec3> rebuilt;  ///< the trial's nodes rebuilt along its frames
   RodState next;   ///< the Newton step's trial while one along z competes (rare)
-  FieldSamples current;  ///< at the state being iterated
-  FieldSamples trial_samples;
-  FieldSamples rebuilt_samples;
-  FieldSamples next_samples;
+  /// At the state being iterated, for its gradient and Hessian. The line search's trials do not keep theirs: one
+  /// buffer per trial (the winner's then saves the next gradient ~100 samples) kept the buffers of a cold solve at
+  /// 100 edges above what the allocator holds between solves, and the page faults cost more than the samples.
+  FieldSamples current;
 
   void size(int edges) {
     if (sys.diag.size() != static_cast<std::size_t>(edges)) sys = System(edges);
@@ -941,20 +957,14 @@ std::string newton(const RodModel& m, const RodField& field, RodState& s, double
     // Positions move linearly but frames turn exactly, so a bending step also stretches the edges, which stalls a
     // slender (axially stiff) rod on tiny steps. Each trial is also offered with its nodes rebuilt along the new
     // frames at the strains the step predicts; the lower energy wins (test_rod's 12 large-deflection cases: 9–147
-    // Newton iterations with it; 1092–7196 without, and one case failed). The winner is left in w.trial, its field
-    // samples in w.trial_samples.
+    // Newton iterations with it; 1092–7196 without, and one case failed). The winner is left in w.trial.
     const auto trial_at = [&](const VecX& step, double scale) {
       apply(s, step, scale, w.trial);
-      w.trial_samples.reset(edges);
-      const double e = evaluate(m, field, w.trial, load, nullptr, inertia, constraints, &w.trial_samples);
+      const double e = evaluate(m, field, w.trial, load, nullptr, inertia, constraints);
       rebuild_positions(w.trial, s, step, scale, w.rebuilt);
       std::swap(w.trial.x, w.rebuilt);  // w.trial is now the rebuilt state (the same frames)
-      w.rebuilt_samples.reset(edges);
-      const double e_rebuilt = evaluate(m, field, w.trial, load, nullptr, inertia, constraints, &w.rebuilt_samples);
-      if (std::isfinite(e_rebuilt) && !(e_rebuilt >= e)) {
-        std::swap(w.trial_samples, w.rebuilt_samples);
-        return e_rebuilt;
-      }
+      const double e_rebuilt = evaluate(m, field, w.trial, load, nullptr, inertia, constraints);
+      if (std::isfinite(e_rebuilt) && !(e_rebuilt >= e)) return e_rebuilt;
       std::swap(w.trial.x, w.rebuilt);
       return e;
     };
@@ -972,7 +982,6 @@ std::string newton(const RodModel& m, const RodField& field, RodState& s, double
     if (has_descent) {
       if (std::isfinite(e_next)) {  // keep the Newton step's trial while the descent's trials use w.trial
         std::swap(w.next, w.trial);
-        std::swap(w.next_samples, w.trial_samples);
         in_next = true;
       }
       double turn = 0.0;
@@ -1003,24 +1012,18 @@ std::string newton(const RodModel& m, const RodField& field, RodState& s, double
       // cancelling terms). Then the gradient, not the energy, decides: the (trust-bounded) step is taken if it
       // cuts the scaled gradient by a tenth.
       apply(s, delta, t0, w.trial);
-      w.trial_samples.reset(edges);
       if (w.probe.gradient.size() != sys.gradient.size()) w.probe = System(m.edges, false);
       w.probe.gradient.setZero();
-      const double e_probe = evaluate(m, field, w.trial, load, &w.probe, inertia, constraints, &w.trial_samples);
+      const double e_probe = evaluate(m, field, w.trial, load, &w.probe, inertia, constraints);
       if (!std::isfinite(e_probe) || !(scaled_norm(m, w.probe.gradient) < 0.9 * report.gradient_norm)) {
         return "line search failed";
       }
       std::swap(s, w.trial);
-      std::swap(w.current, w.trial_samples);
+      w.current.reset(edges);
       continue;
     }
-    if (in_next) {
-      std::swap(s, w.next);
-      std::swap(w.current, w.next_samples);
-    } else {
-      std::swap(s, w.trial);
-      std::swap(w.current, w.trial_samples);
-    }
+    std::swap(s, in_next ? w.next : w.trial);
+    w.current.reset(edges);
   }
   return "Newton did not converge in " + std::to_string(max_iterations) + " iterations";
 }
