@@ -5,6 +5,7 @@
 #include <iostream>
 
 #include "commands.hpp"
+#include "mpm_command.hpp"
 #include "phantom_command.hpp"
 #include "magvine/config.hpp"
 #include "magvine/core/error.hpp"
@@ -110,6 +111,8 @@ int main(int argc, char** argv) {
 
   magvine::cli::PhantomCommand phantom;
   phantom.attach(app);
+  magvine::cli::MpmCommand mpm_cmd;
+  mpm_cmd.attach(app, *study_cmd);
 #if MAGVINE_WITH_RENDER
   magvine::cli::RenderCommand render_cmd;
   render_cmd.attach(app);
@@ -137,6 +140,7 @@ int main(int argc, char** argv) {
     if (mesh_check_cmd->parsed()) return magvine::cli::run_mesh_check(mesh_check);
     if (mesh_graph_cmd->parsed()) return magvine::cli::run_mesh_graph(mesh_graph);
     if (phantom.parsed()) return phantom.run();
+    if (mpm_cmd.parsed()) return mpm_cmd.run();
 #if MAGVINE_WITH_RENDER
     if (render_cmd.parsed()) return render_cmd.run();
 #endif

@@ -40,6 +40,34 @@ struct Stencil {
   }
 };
 
+/// Strides of a box's linear index (the last axis fastest).
+template <int D>
+Index<D> strides(const Index<D>& n) {
+  Index<D> s;
+  s[D - 1] = 1;
+  for (int a = D - 2; a >= 0; --a) s[a] = s[a + 1] * n[a + 1];
+  return s;
+}
+
+/// Visits the 3^D stencil nodes as (linear index, weight, offset per axis 0..2) for a box with strides `st` whose
+/// first node is the stencil's base at linear index `first`; the last axis fastest.
+template <int D, typename Fn>
+void for_nodes(const Stencil<D>& s, std::int64_t first, const Index<D>& st, Fn&& fn) {
+  if constexpr (D == 2) {
+    for (int i = 0; i < 3; ++i) {
+      const std::int64_t ki = first + i * st[0];
+      for (int j = 0; j < 3; ++j) fn(ki + j, s.w[0][i] * s.w[1][j], i, j, 0);
+    }
+  } else {
+    for (int i = 0; i < 3; ++i)
+      for (int j = 0; j < 3; ++j) {
+        const std::int64_t kij = first + i * st[0] + j * st[1];
+        const double wij = s.w[0][i] * s.w[1][j];
+        for (int k = 0; k < 3; ++k) fn(kij + k, wij * s.w[2][k], i, j, k);
+      }
+  }
+}
+
 template <int D>
 std::int64_t linear(const Index<D>& i, const Index<D>& lo, const Index<D>& n) {
   std::int64_t k = 0;
@@ -249,8 +277,8 @@ StepStatus step(const MpmModel<D>& model, const AppliedField& field, MpmState<D>
   ws.lo = lo;
   ws.n = hi - lo + Index<D>::Ones();
   const auto nodes = static_cast<std::size_t>(ws.n.prod());
-  ws.node_mass.assign(nodes, 0.0);
-  ws.node_momentum.assign(nodes, VecD<D>::Zero());
+  ws.node.assign(nodes, Eigen::Matrix<double, D + 1, 1>::Zero());
+  const Index<D> stride = strides<D>(ws.n);
   if (general) {
     ws.node_moment.assign(nodes, VecD<D>::Zero());
     refresh_field(field, dx, ws);
@@ -290,14 +318,24 @@ StepStatus step(const MpmModel<D>& model, const AppliedField& field, MpmState<D>
     }
     const double m = model.mass[p];
     const MatD<D> affine = -dt * model.volume[p] * d_inv * stress * f.transpose() + m * state.c[p];
-    const VecD<D> mv = m * state.v[p];
+    // The record added at a node: w · (m v + A (x_i − x_p), m), A (x_i − x_p) = Σ_a A.col(a) d_a.
+    Eigen::Matrix<double, D + 1, 1> base_rec;
+    base_rec.template head<D>() = m * state.v[p];
+    base_rec[D] = m;
+    std::array<std::array<Eigen::Matrix<double, D + 1, 1>, 3>, D> along;
+    for (int a = 0; a < D; ++a)
+      for (int o = 0; o < 3; ++o) {
+        along[a][o].template head<D>() = affine.col(a) * ((o - st.fx[a]) * dx);
+        along[a][o][D] = 0.0;
+      }
     const VecD<D> moment = (general && magnetic) ? VecD<D>(model.volume[p] / kMu0 * (f * br)) : VecD<D>::Zero();
-    for_stencil<D>(st, [&](double w, const Index<D>& o) {
-      const auto k = static_cast<std::size_t>(linear<D>(st.base + o, lo, ws.n));
-      const VecD<D> dpos = (o.template cast<double>() - st.fx) * dx;
-      ws.node_momentum[k] += w * (mv + affine * dpos);
-      ws.node_mass[k] += w * m;
-      if (general && magnetic) ws.node_moment[k] += w * moment;
+    const std::int64_t first = linear<D>(st.base, lo, ws.n);
+    for_nodes<D>(st, first, stride, [&](std::int64_t k, double w, int i, int j, int l) {
+      Eigen::Matrix<double, D + 1, 1> rec = base_rec + along[0][i] + along[1][j];
+      if constexpr (D == 3) rec += along[2][l];
+      else (void)l;
+      ws.node[static_cast<std::size_t>(k)] += w * rec;
+      if (general && magnetic) ws.node_moment[static_cast<std::size_t>(k)] += w * moment;
     });
   };
   for (std::size_t colour = 0; colour < 2; ++colour) {
@@ -313,7 +351,7 @@ StepStatus step(const MpmModel<D>& model, const AppliedField& field, MpmState<D>
 #pragma omp parallel for schedule(static) if (total > kParallelMin)
   for (std::int64_t kk = 0; kk < total; ++kk) {
     const auto k = static_cast<std::size_t>(kk);
-    const double m = ws.node_mass[k];
+    const double m = ws.node[k][D];
     if (m <= 0.0) continue;
     Index<D> i;
     std::int64_t r = kk;
@@ -326,10 +364,10 @@ StepStatus step(const MpmModel<D>& model, const AppliedField& field, MpmState<D>
       return (xi.array() >= box.first.array()).all() && (xi.array() <= box.second.array()).all();
     });
     if (clamped) {
-      ws.node_momentum[k].setZero();
+      ws.node[k].template head<D>().setZero();
       continue;
     }
-    VecD<D> v = ws.node_momentum[k] / m;
+    VecD<D> v = ws.node[k].template head<D>() / m;
     if (general) {  // eq 3.16: f_i = ∇B_iᵀ m_i
       const auto fk = static_cast<std::size_t>(linear<D>(i, ws.field_lo, ws.field_n));
       v += dt / m * (ws.field_g[fk].transpose() * ws.node_moment[k]);
@@ -344,7 +382,7 @@ StepStatus step(const MpmModel<D>& model, const AppliedField& field, MpmState<D>
       Vec3 n3;
       if (ob.distance(to3<D>(xi), &n3) <= 0.0) apply_boundary<D>(v, from3<D>(n3), ob.boundary, ob.friction);
     }
-    ws.node_momentum[k] = v;  // now the velocity
+    ws.node[k].template head<D>() = v;  // now the velocity
   }
 
   // G2P, with the failure checks.
@@ -354,12 +392,18 @@ StepStatus step(const MpmModel<D>& model, const AppliedField& field, MpmState<D>
   for (std::int64_t pp = 0; pp < n_particles; ++pp) {
     const auto p = static_cast<std::size_t>(pp);
     const Stencil<D> st(state.x[p], inv_dx);
+    std::array<std::array<double, 3>, D> d;  // x_i − x_p per axis
+    for (int a = 0; a < D; ++a)
+      for (int o = 0; o < 3; ++o) d[a][o] = (o - st.fx[a]) * dx;
     VecD<D> v = VecD<D>::Zero();
     MatD<D> b = MatD<D>::Zero();
-    for_stencil<D>(st, [&](double w, const Index<D>& o) {
-      const VecD<D>& vi = ws.node_momentum[static_cast<std::size_t>(linear<D>(st.base + o, lo, ws.n))];
-      v += w * vi;
-      b.noalias() += (w * vi) * ((o.template cast<double>() - st.fx) * dx).transpose();
+    for_nodes<D>(st, linear<D>(st.base, lo, ws.n), stride, [&](std::int64_t k, double w, int i, int j, int l) {
+      const VecD<D> wv = w * ws.node[static_cast<std::size_t>(k)].template head<D>();
+      v += wv;
+      b.col(0) += wv * d[0][i];
+      b.col(1) += wv * d[1][j];
+      if constexpr (D == 3) b.col(2) += wv * d[2][l];
+      else (void)l;
     });
     state.v[p] = v;
     state.c[p] = d_inv * b;

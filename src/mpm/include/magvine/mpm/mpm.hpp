@@ -123,8 +123,8 @@ struct AppliedField {
 template <int D>
 struct MpmWorkspace {
   Eigen::Matrix<std::int64_t, D, 1> lo, n;  // the grid box: first node index and node counts per axis
-  std::vector<double> node_mass;
-  std::vector<VecD<D>> node_momentum;  // momentum, then velocity
+  /// Per node: momentum (then velocity) in the first D entries, mass last.
+  std::vector<Eigen::Matrix<double, D + 1, 1>> node;
   std::vector<VecD<D>> node_moment;    // magnetic moment [A·m²] (non-uniform fields only)
   // Field at the nodes of a box that only grows, evaluated once per field version.
   Eigen::Matrix<std::int64_t, D, 1> field_lo, field_n;

@@ -1,0 +1,91 @@
+#include "mpm_command.hpp"
+
+#include <cstdio>
+#include <filesystem>
+#include <iostream>
+#include <thread>
+
+#include "magvine/config.hpp"
+#include "magvine/core/error.hpp"
+#if MAGVINE_WITH_MPM
+#include "magvine/core/units.hpp"
+#include "magvine/scene/mpm_scene.hpp"
+#include "magvine/scene/mpm_study.hpp"
+#endif
+
+namespace magvine::cli {
+
+void MpmCommand::attach(CLI::App& app, CLI::App& study) {
+  m_cmd = app.add_subcommand("mpm", "magnetic MPM: soft magnetic bodies of any shape in a field (metrics.json, "
+                                    "probes.csv, PLY particle snapshots); exit 3 when the solver fails");
+  m_cmd->add_option("scene", m_scene, "MPM scene file (YAML with an mpm: section)")->required();
+  m_cmd->add_option("--out", m_out, "output folder (default: runs/<scene name>)");
+  m_study = study.add_subcommand("mpm-beam", "MPM on the Zhao beam vs the elastica at five particle densities: "
+                                             "error against runtime (CSV)");
+  m_study->add_option("--out", m_study_out, "output folder")->required();
+  m_study->add_option("--jobs", m_jobs, "beams run at once (default: every core)")->check(CLI::Range(1, 1024));
+}
+
+bool MpmCommand::parsed() const { return m_cmd->parsed() || m_study->parsed(); }
+
+int MpmCommand::run() {
+  if (!config::kWithMpm) {
+    throw InputError("magvine " + std::string(m_cmd->parsed() ? "mpm" : "study mpm-beam") +
+                     ": this magvine was built without the MPM module (configure with -DMAGVINE_WITH_MPM=ON)");
+  }
+  return m_cmd->parsed() ? run_scene() : run_study();
+}
+
+#if MAGVINE_WITH_MPM
+int MpmCommand::run_scene() {
+  const std::filesystem::path out =
+      m_out.empty() ? std::filesystem::path("runs") / std::filesystem::path(m_scene).stem() : std::filesystem::path(m_out);
+  const scene::MpmScene sc = scene::load_mpm_scene(m_scene);
+  std::cerr << "magvine mpm: " << sc.positions.size() << " particles in " << sc.body_names.size()
+            << (sc.body_names.size() == 1 ? " body" : " bodies") << ", " << sc.dimension << "D, step "
+            << sc.time_step * 1e6 << " us (stable bound " << sc.stable_step * 1e6 << " us), " << sc.duration
+            << " s simulated\n";
+  int shown = -1;
+  const scene::MpmResult r = scene::run_mpm_scene(sc, [&](double done) {
+    const int percent = static_cast<int>(100.0 * done);
+    if (percent / 10 == shown) return;
+    shown = percent / 10;
+    std::cerr << "\r  [" << std::string(static_cast<std::size_t>(shown), '#')
+              << std::string(static_cast<std::size_t>(10 - shown), '.') << "] " << percent << " %" << std::flush;
+  });
+  std::cerr << '\n';
+  if (!r.ok) {
+    std::cerr << "magvine: numerical failure: " << r.failure << '\n';
+    return static_cast<int>(ExitCode::kNumericalFailure);
+  }
+  scene::write_mpm_outputs(sc, r, out);
+  std::cerr << "magvine mpm: " << r.steps << " steps, " << r.time << " s simulated" << (r.settled ? " (at rest)" : "")
+            << " in " << r.runtime_s << " s ("
+            << static_cast<double>(sc.positions.size()) * static_cast<double>(r.steps) / r.runtime_s / 1e6
+            << " M particle-steps/s)";
+  for (std::size_t q = 0; q < sc.probes.size(); ++q) {
+    const Vec3 d = (r.samples.back().probes[q] - r.samples.front().probes[q]) / kMmToM;
+    std::cerr << "; " << sc.probes[q].name << " moved (" << d.x() << ", " << d.y() << ", " << d.z() << ") mm";
+  }
+  std::cerr << " -> " << out.string() << "/{metrics.json,probes.csv,snapshots/}\n";
+  return 0;
+}
+
+int MpmCommand::run_study() {
+  const int jobs = m_jobs > 0 ? m_jobs : static_cast<int>(std::max(1u, std::thread::hardware_concurrency()));
+  std::cerr << "magvine study mpm-beam: " << 5 * scene::zhao_study_fields().size() << " beams on " << jobs
+            << " threads\n";
+  scene::run_mpm_beam_study(m_study_out, jobs, [](const scene::ZhaoPoint& p) {
+    std::fprintf(stderr, "  %d cells x %d particles/cell, %4.1f mT: delta/L %.4f (elastica %.4f) in %.1f s%s\n",
+                 p.cells, p.particles_per_cell, p.field * 1e3, p.deflection, p.reference, p.seconds,
+                 p.ok ? (p.settled ? "" : " NOT at rest") : " FAILED");
+  });
+  std::cerr << "magvine study mpm-beam: " << m_study_out << "/mpm_beam_study.csv, mpm_beam_summary.csv\n";
+  return 0;
+}
+#else
+int MpmCommand::run_scene() { return 0; }
+int MpmCommand::run_study() { return 0; }
+#endif
+
+}  // namespace magvine::cli

@@ -1,0 +1,92 @@
+#pragma once
+/// MPM scenes (`mpm:` section; built only with MAGVINE_WITH_MPM): soft magnetic bodies of any shape sampled into
+/// particles, an applied field (uniform, keyframed or rotating) and/or permanent magnets, obstacles, clamps and
+/// probes. `magvine mpm SCENE.yaml --out DIR` runs one; docs/scenes.md documents the keys.
+
+#include <cstdint>
+#include <filesystem>
+#include <functional>
+#include <optional>
+#include <string>
+#include <variant>
+#include <vector>
+
+#include "magvine/magnetics/field_model.hpp"
+#include "magvine/mpm/mpm.hpp"
+
+namespace magvine::scene {
+
+/// A uniform applied field over time [T]: keyframes linearly interpolated (held after the last), or a field of
+/// constant magnitude rotating about an axis.
+struct MpmFieldSchedule {
+  std::vector<std::pair<double, Vec3>> keyframes;  ///< (t [s], B [T]), t increasing; empty: no uniform field
+  bool rotating = false;
+  double amplitude = 0.0;        ///< |B| [T]
+  double frequency = 0.0;        ///< [Hz]
+  Vec3 axis = Vec3::UnitX();     ///< rotation axis (unit)
+  Vec3 start = Vec3::UnitZ();    ///< direction at t = 0 (unit, ⟂ axis)
+
+  bool any() const { return rotating || !keyframes.empty(); }
+  /// B(t) [T].
+  Vec3 at(double t) const;
+};
+
+/// A point followed through the run: the mean of the particles that start within `radius` of it.
+struct MpmProbe {
+  std::string name;
+  Vec3 at = Vec3::Zero();  ///< [m]
+  std::vector<std::uint32_t> particles;
+};
+
+/// A loaded MPM scene, SI units; the model holds every particle.
+struct MpmScene {
+  std::string file;
+  int dimension = 3;
+  mpm::MpmModel<2> model2;  ///< used when dimension == 2
+  mpm::MpmModel<3> model3;  ///< used when dimension == 3
+  std::vector<Vec3> positions;  ///< initial particle positions [m] (z = 0 in 2D)
+  std::vector<std::string> body_names;  ///< per body; model.section holds the body index
+  double time_step = 0.0;       ///< [s]
+  double stable_step = 0.0;     ///< the automatic step's bound courant·δx/c_P [s]
+  double duration = 0.0;        ///< [s]
+  double settle_window = 0.0;   ///< > 0: stop once every probe moved less than settle_tolerance over this [s]
+  double settle_tolerance = 0.0;  ///< [m]
+  double snapshot_interval = 0.0;  ///< [s] between PLY snapshots; 0: the first and last only
+  MpmFieldSchedule field;
+  std::optional<magnetics::FieldModel> magnets;  ///< static permanent magnets (exact cylinder or dipole)
+  std::vector<MpmProbe> probes;
+};
+
+/// Parses and validates (InputError naming the file, line and key for anything wrong; meshes relative to the scene).
+MpmScene load_mpm_scene(const std::filesystem::path& file);
+MpmScene parse_mpm_scene(const std::string& text, const std::string& file_label,
+                         const std::filesystem::path& base_dir = {});
+/// True when the file has a top-level `mpm:` key.
+bool is_mpm_scene(const std::filesystem::path& file);
+
+/// One probe sample.
+struct MpmSample {
+  double time = 0.0;
+  std::vector<Vec3> probes;  ///< [m]
+  double kinetic_energy = 0.0;
+};
+
+struct MpmResult {
+  bool ok = true;
+  std::string failure;  ///< the step's cause when !ok
+  bool settled = false;
+  long steps = 0;
+  double time = 0.0;       ///< simulated [s]
+  double runtime_s = 0.0;
+  std::vector<MpmSample> samples;
+  /// Particle positions at the snapshot times [m] (first: t = 0, last: the end).
+  std::vector<std::pair<double, std::vector<Vec3>>> snapshots;
+};
+
+/// Runs the scene; `progress(fraction)` is called now and then.
+MpmResult run_mpm_scene(const MpmScene& scene, const std::function<void(double)>& progress = {});
+
+/// Writes DIR/metrics.json, DIR/probes.csv and DIR/snapshots/NNNN.ply (positions in mm), atomically per file.
+void write_mpm_outputs(const MpmScene& scene, const MpmResult& result, const std::filesystem::path& dir);
+
+}  // namespace magvine::scene

@@ -1,0 +1,586 @@
+#include "magvine/scene/mpm_scene.hpp"
+
+#include <nlohmann/json.hpp>
+
+#include <algorithm>
+#include <cmath>
+#include <cstdio>
+#include <fstream>
+#include <sstream>
+
+#include "magnet_entries.hpp"
+#include "magvine/anatomy/mesh_io.hpp"
+#include "magvine/core/atomic_file.hpp"
+#include "magvine/core/error.hpp"
+#include "magvine/core/stopwatch.hpp"
+#include "magvine/core/units.hpp"
+#include "magvine/core/usage.hpp"
+#include "magvine/mpm/sampling.hpp"
+#include "magvine/robot/elastica.hpp"
+#include "robot_entries.hpp"
+#include "yaml_reader.hpp"
+
+namespace magvine::scene {
+namespace {
+
+constexpr double kDefaultCourant = 0.4;  // of the P-wave CFL step; stable in every test and scene (README)
+constexpr int kDefaultParticlesPerCell = 2;
+constexpr double kDefaultBulkRatio = 20.0;  // K = 20 G (thesis eq 3.10)
+constexpr double kMaxParticles = 2e7;
+constexpr double kMaxNodes = 2e8;  // grid nodes of the domain's bounding box at δx: a typo in cell is refused early
+
+mpm::Boundary boundary_of(const YamlMap& m, const std::string& key) {
+  const std::string b = m.text(key);
+  if (b == "sticky") return mpm::Boundary::kSticky;
+  if (b == "slip") return mpm::Boundary::kSlip;
+  if (b == "friction") return mpm::Boundary::kFriction;
+  m.fail(key, "must be sticky, slip or friction (got '" + b + "')");
+}
+
+double friction_of(const YamlMap& m, mpm::Boundary b) {
+  if (!m.has("friction")) {
+    if (b == mpm::Boundary::kFriction) m.fail("friction", "missing required key (boundary: friction needs μ)");
+    return 0.0;
+  }
+  const double mu = m.number("friction");
+  if (mu < 0.0) m.fail("friction", "must be >= 0");
+  return mu;
+}
+
+mpm::Material material_of(const YamlMap& m, double pascals) {
+  m.allow_only({"shear_modulus", "bulk_modulus", "density"});
+  mpm::Material mat;
+  mat.shear_modulus = m.positive("shear_modulus") * pascals;
+  mat.bulk_modulus = m.has("bulk_modulus") ? m.positive("bulk_modulus") * pascals
+                                           : kDefaultBulkRatio * mat.shear_modulus;
+  mat.density = m.positive("density");
+  return mat;
+}
+
+/// Remanence B̃r [T] from {remanence, direction}.
+Vec3 remanence_of(const YamlMap& m) {
+  m.allow_only({"remanence", "direction", "axis", "from", "to"});
+  const double br = m.number("remanence");
+  if (std::abs(br) > 3.0) m.fail("remanence", "is in tesla and must be within ±3 T");
+  return br * m.nonzero_vec3("direction").normalized();
+}
+
+int axis_of(const YamlMap& m) {
+  const std::string a = m.text("axis");
+  if (a == "x") return 0;
+  if (a == "y") return 1;
+  if (a == "z") return 2;
+  m.fail("axis", "must be x, y or z (got '" + a + "')");
+}
+
+MpmFieldSchedule field_of(const YamlMap& f) {
+  f.allow_only({"b", "keyframes", "rotating"});
+  const int kinds = static_cast<int>(f.has("b")) + static_cast<int>(f.has("keyframes")) +
+                    static_cast<int>(f.has("rotating"));
+  if (kinds != 1) f.fail("b", "give exactly one of b (constant), keyframes or rotating");
+  MpmFieldSchedule s;
+  constexpr double kT = 1e-3;  // mT in files
+  if (f.has("b")) s.keyframes.push_back({0.0, f.vec3("b") * kT});
+  if (f.has("keyframes")) {
+    const YAML::Node list = f.node("keyframes");
+    if (!list.IsSequence() || list.size() == 0) f.fail("keyframes", "must be a list of {t, b}");
+    for (std::size_t i = 0; i < list.size(); ++i) {
+      const YamlMap k(list[i], f.file(), f.key_path("keyframes[" + std::to_string(i) + "]"));
+      k.allow_only({"t", "b"});
+      const double t = k.number("t");
+      if (t < 0.0 || (!s.keyframes.empty() && t <= s.keyframes.back().first)) {
+        k.fail("t", "must be >= 0 and increase from keyframe to keyframe");
+      }
+      s.keyframes.push_back({t, k.vec3("b") * kT});
+    }
+  }
+  if (f.has("rotating")) {
+    const YamlMap r = f.map("rotating");
+    r.allow_only({"amplitude", "frequency", "axis", "start"});
+    s.rotating = true;
+    s.amplitude = r.number("amplitude") * kT;
+    s.frequency = r.number("frequency");
+    s.axis = r.nonzero_vec3("axis").normalized();
+    Vec3 start = r.nonzero_vec3("start");
+    start -= start.dot(s.axis) * s.axis;
+    if (start.norm() < 1e-9) r.fail("start", "must not be parallel to axis");
+    s.start = start.normalized();
+  }
+  return s;
+}
+
+mpm::Obstacle obstacle_of(const YamlMap& o, double unit) {
+  o.allow_only({"name", "shape", "min", "max", "centre", "radius", "point", "normal", "from", "to", "boundary",
+                "friction"});
+  mpm::Obstacle ob;
+  ob.name = o.has("name") ? o.text("name") : o.path();
+  const std::string shape = o.text("shape");
+  if (shape == "box") {
+    ob.shape = mpm::Obstacle::Shape::kBox;
+    ob.a = o.vec3("min") * unit;
+    ob.b = o.vec3("max") * unit;
+    if ((ob.b.array() <= ob.a.array()).any()) o.fail("max", "must exceed min on every axis");
+  } else if (shape == "sphere") {
+    ob.shape = mpm::Obstacle::Shape::kSphere;
+    ob.a = o.vec3("centre") * unit;
+    ob.radius = o.positive("radius") * unit;
+  } else if (shape == "plane") {
+    ob.shape = mpm::Obstacle::Shape::kHalfSpace;
+    ob.a = o.vec3("point") * unit;
+    ob.b = o.nonzero_vec3("normal").normalized();
+  } else if (shape == "cylinder") {
+    ob.shape = mpm::Obstacle::Shape::kCylinder;
+    ob.a = o.vec3("from") * unit;
+    ob.b = o.vec3("to") * unit;
+    ob.radius = o.positive("radius") * unit;
+    if ((ob.b - ob.a).norm() <= 0.0) o.fail("to", "must differ from from");
+  } else {
+    o.fail("shape", "must be box, sphere, plane or cylinder (got '" + shape + "')");
+  }
+  ob.boundary = o.has("boundary") ? boundary_of(o, "boundary") : mpm::Boundary::kSticky;
+  ob.friction = friction_of(o, ob.boundary);
+  return ob;
+}
+
+/// Particles of one body: positions, per-particle remanence, and the lattice spacing.
+struct BodyParticles {
+  std::vector<Vec3> x;
+  std::vector<Vec3> br;
+  mpm::Material material;
+  std::string name;
+};
+
+BodyParticles body_of(const YamlMap& b, double unit, double pascals, const mpm::LatticeOptions& lattice, int dim,
+                      const std::filesystem::path& base_dir) {
+  b.allow_only({"name", "shape", "min", "max", "from", "to", "radius", "file", "material", "magnetisation",
+                "sections"});
+  BodyParticles out;
+  out.name = b.has("name") ? b.text("name") : b.path();
+  out.material = material_of(b.map("material"), pascals);
+  const std::string shape = b.text("shape");
+  if (shape == "box") {
+    const Vec3 lo = b.vec3("min") * unit, hi = b.vec3("max") * unit;
+    for (int a = 0; a < dim; ++a) {
+      if (hi[a] <= lo[a]) b.fail("max", "must exceed min on every axis of the simulation");
+    }
+    out.x = mpm::sample_box(lo, hi, lattice, dim);
+  } else if (shape == "cylinder") {
+    if (dim == 2) b.fail("shape", "a cylinder needs dimension: 3");
+    out.x = mpm::sample_cylinder(b.vec3("from") * unit, b.vec3("to") * unit, b.positive("radius") * unit, lattice);
+  } else if (shape == "mesh") {
+    if (dim == 2) b.fail("shape", "a mesh needs dimension: 3");
+    std::filesystem::path file = b.text("file");
+    if (file.is_relative()) file = base_dir / file;
+    anatomy::MeshImportOptions options;
+    options.scale = unit;
+    options.units = LengthUnit::kM;
+    try {
+      out.x = mpm::sample_mesh(anatomy::import_mesh(file, options).mesh, lattice, file.string());
+    } catch (const InputError& e) {
+      b.fail("file", e.what());
+    }
+  } else {
+    b.fail("shape", "must be box, cylinder or mesh (got '" + shape + "')");
+  }
+  if (out.x.empty()) b.fail("shape", "holds no particle at this cell size (make cell smaller)");
+  out.br.assign(out.x.size(), Vec3::Zero());
+  if (b.has("magnetisation") && b.has("sections")) b.fail("sections", "give magnetisation or sections, not both");
+  if (b.has("magnetisation")) {
+    const Vec3 br = remanence_of(b.map("magnetisation"));
+    std::fill(out.br.begin(), out.br.end(), br);
+  }
+  if (b.has("sections")) {
+    const YAML::Node list = b.node("sections");
+    if (!list.IsSequence()) b.fail("sections", "must be a list of {axis, from, to, remanence, direction}");
+    for (std::size_t i = 0; i < list.size(); ++i) {
+      const YamlMap s(list[i], b.file(), b.key_path("sections[" + std::to_string(i) + "]"));
+      const Vec3 br = remanence_of(s);
+      const int a = axis_of(s);
+      const double from = s.number("from") * unit, to = s.number("to") * unit;
+      if (to <= from) s.fail("to", "must exceed from");
+      for (std::size_t p = 0; p < out.x.size(); ++p) {
+        if (out.x[p][a] >= from && out.x[p][a] < to) out.br[p] = br;
+      }
+    }
+  }
+  return out;
+}
+
+template <int D>
+void fill_model(mpm::MpmModel<D>& m, const std::vector<BodyParticles>& bodies, double v0) {
+  for (std::size_t bi = 0; bi < bodies.size(); ++bi) {
+    m.materials.push_back(bodies[bi].material);
+    for (std::size_t p = 0; p < bodies[bi].x.size(); ++p) {
+      m.volume.push_back(v0);
+      m.mass.push_back(bodies[bi].material.density * v0);
+      m.remanence.push_back(bodies[bi].br[p].template head<D>());
+      m.material.push_back(static_cast<std::uint16_t>(bi));
+      m.section.push_back(static_cast<std::uint16_t>(bi));
+    }
+  }
+}
+
+template <int D>
+mpm::MpmModel<D>& model_of(MpmScene& s) {
+  if constexpr (D == 2) return s.model2;
+  else return s.model3;
+}
+template <int D>
+const mpm::MpmModel<D>& model_of(const MpmScene& s) {
+  if constexpr (D == 2) return s.model2;
+  else return s.model3;
+}
+
+}  // namespace
+
+Vec3 MpmFieldSchedule::at(double t) const {
+  if (rotating) {
+    const double angle = 2.0 * kPi * frequency * t;
+    return amplitude * (std::cos(angle) * start + std::sin(angle) * axis.cross(start));
+  }
+  if (keyframes.empty()) return Vec3::Zero();
+  if (t <= keyframes.front().first) return keyframes.front().second;
+  for (std::size_t i = 1; i < keyframes.size(); ++i) {
+    if (t < keyframes[i].first) {
+      const auto& [t0, b0] = keyframes[i - 1];
+      const auto& [t1, b1] = keyframes[i];
+      return b0 + (t - t0) / (t1 - t0) * (b1 - b0);
+    }
+  }
+  return keyframes.back().second;
+}
+
+bool is_mpm_scene(const std::filesystem::path& file) {
+  const YAML::Node root = parse_yaml(read_text_file(file.string(), "scene file"), file.string());
+  return root.IsMap() && static_cast<bool>(root["mpm"]);
+}
+
+MpmScene load_mpm_scene(const std::filesystem::path& file) {
+  return parse_mpm_scene(read_text_file(file.string(), "scene file"), file.string(), file.parent_path());
+}
+
+MpmScene parse_mpm_scene(const std::string& text, const std::string& label, const std::filesystem::path& base_dir) {
+  const YamlMap top(parse_yaml(text, label), label, "");
+  top.allow_only({"units", "seed", "mpm", "bodies", "clamps", "field", "magnets", "obstacles", "probes"});
+  const FileUnits units = file_units(top);
+  const double unit = units.metres;
+  MpmScene sc;
+  sc.file = label;
+  const YamlMap m = top.map("mpm");
+  m.allow_only({"dimension", "cell", "particles_per_cell", "jitter", "courant", "time_step", "duration", "damping",
+                "gravity", "domain", "settle", "snapshots"});
+  const double dim = m.has("dimension") ? m.number("dimension") : 3.0;
+  if (dim != 2.0 && dim != 3.0) m.fail("dimension", "must be 2 (plane strain, x–y) or 3");
+  sc.dimension = static_cast<int>(dim);
+  const double cell = m.positive("cell") * unit;
+  const double ppc = m.has("particles_per_cell") ? m.number("particles_per_cell") : kDefaultParticlesPerCell;
+  if (ppc != std::floor(ppc) || ppc < 1 || ppc > 8) m.fail("particles_per_cell", "must be a whole number from 1 to 8");
+  mpm::LatticeOptions lattice;
+  lattice.spacing = cell / ppc;
+  lattice.jitter = m.has("jitter") && m.node("jitter").as<bool>();
+  if (top.has("seed")) {
+    const double seed = top.number("seed");
+    if (seed != std::floor(seed) || seed < 0 || seed > 9.007e15) top.fail("seed", "must be a whole number >= 0");
+    lattice.seed = static_cast<std::uint64_t>(seed);
+  }
+  sc.duration = m.positive("duration");
+  const double damping = m.has("damping") ? m.number("damping") : 0.0;
+  if (damping < 0.0) m.fail("damping", "must be >= 0 (1/s)");
+  const Vec3 gravity = m.has("gravity") ? m.vec3("gravity") : Vec3::Zero();
+  const YamlMap domain = m.map("domain");
+  domain.allow_only({"min", "max", "walls", "friction"});
+  const Vec3 dmin = domain.vec3("min") * unit, dmax = domain.vec3("max") * unit;
+  double cells = 1.0;
+  for (int a = 0; a < sc.dimension; ++a) {
+    if (dmax[a] <= dmin[a]) domain.fail("max", "must exceed min on every axis of the simulation");
+    cells *= (dmax[a] - dmin[a]) / cell;
+  }
+  if (cells > kMaxNodes) m.fail("cell", "gives more than 2e8 grid cells over the domain (is the unit right?)");
+  const mpm::Boundary walls = domain.has("walls") ? boundary_of(domain, "walls") : mpm::Boundary::kSticky;
+  const double wall_mu = friction_of(domain, walls);
+  if (m.has("settle")) {
+    const YamlMap s = m.map("settle");
+    s.allow_only({"window", "tolerance"});
+    sc.settle_window = s.positive("window");
+    sc.settle_tolerance = s.positive("tolerance") * unit;
+  }
+  if (m.has("snapshots")) sc.snapshot_interval = m.positive("snapshots");
+
+  // Bodies → particles.
+  const YAML::Node blist = top.node("bodies");
+  if (!blist.IsSequence() || blist.size() == 0) top.fail("bodies", "must be a non-empty list of bodies");
+  std::vector<BodyParticles> bodies;
+  std::size_t total = 0;
+  for (std::size_t i = 0; i < blist.size(); ++i) {
+    const YamlMap b(blist[i], label, "bodies[" + std::to_string(i) + "]");
+    bodies.push_back(body_of(b, unit, units.pascals, lattice, sc.dimension, base_dir));
+    sc.body_names.push_back(bodies.back().name);
+    total += bodies.back().x.size();
+    if (static_cast<double>(total) > kMaxParticles) b.fail("shape", "gives more than 2e7 particles (make cell larger)");
+    for (const Vec3& p : bodies.back().x) {
+      for (int a = 0; a < sc.dimension; ++a) {
+        if (p[a] <= dmin[a] + cell || p[a] >= dmax[a] - cell) {
+          b.fail("shape", "reaches within one cell of the domain's walls (enlarge mpm.domain)");
+        }
+      }
+    }
+  }
+  if (bodies.size() > 65535) top.fail("bodies", "at most 65535 bodies");
+  for (const BodyParticles& b : bodies) sc.positions.insert(sc.positions.end(), b.x.begin(), b.x.end());
+  const double v0 = std::pow(lattice.spacing, sc.dimension);
+
+  auto common = [&](auto& model) {
+    using V = std::decay_t<decltype(model.gravity)>;
+    constexpr int D = V::RowsAtCompileTime;
+    model.cell = cell;
+    model.domain_min = dmin.head<D>();
+    model.domain_max = dmax.head<D>();
+    model.walls = walls;
+    model.wall_friction = wall_mu;
+    model.gravity = gravity.head<D>();
+    model.damping = damping;
+    fill_model<D>(model, bodies, v0);
+    if (top.has("clamps")) {
+      const YAML::Node list = top.node("clamps");
+      if (!list.IsSequence()) top.fail("clamps", "must be a list of {min, max} boxes");
+      for (std::size_t i = 0; i < list.size(); ++i) {
+        const YamlMap c(list[i], label, "clamps[" + std::to_string(i) + "]");
+        c.allow_only({"min", "max"});
+        const Vec3 lo = c.vec3("min") * unit, hi = c.vec3("max") * unit;
+        if ((hi.head<D>().array() < lo.head<D>().array()).any()) c.fail("max", "must not be below min");
+        model.clamps.push_back({lo.head<D>(), hi.head<D>()});
+      }
+    }
+    if (top.has("obstacles")) {
+      const YAML::Node list = top.node("obstacles");
+      if (!list.IsSequence()) top.fail("obstacles", "must be a list of obstacles");
+      for (std::size_t i = 0; i < list.size(); ++i) {
+        model.obstacles.push_back(obstacle_of(YamlMap(list[i], label, "obstacles[" + std::to_string(i) + "]"), unit));
+      }
+    }
+    sc.stable_step = model.stable_step(m.has("courant") ? m.positive("courant") : kDefaultCourant);
+  };
+  if (sc.dimension == 2) common(sc.model2);
+  else common(sc.model3);
+  if (m.has("courant") && m.positive("courant") > 1.0) m.fail("courant", "must be <= 1 (0.4 by default)");
+  sc.time_step = sc.stable_step;
+  if (m.has("time_step")) {
+    const double dt = m.positive("time_step");
+    if (dt > sc.stable_step) {
+      m.fail("time_step", "is above the stable step " + std::to_string(sc.stable_step) +
+                              " s (courant · cell / P-wave speed); leave it out to use that step");
+    }
+    sc.time_step = dt;
+  }
+
+  if (top.has("field")) sc.field = field_of(top.map("field"));
+  if (top.has("magnets")) sc.magnets = parse_magnet_list(top, unit);
+
+  if (top.has("probes")) {
+    const YAML::Node list = top.node("probes");
+    if (!list.IsSequence()) top.fail("probes", "must be a list of {name, at}");
+    for (std::size_t i = 0; i < list.size(); ++i) {
+      const YamlMap p(list[i], label, "probes[" + std::to_string(i) + "]");
+      p.allow_only({"name", "at", "radius"});
+      MpmProbe probe;
+      probe.name = p.text("name");
+      probe.at = p.vec3("at") * unit;
+      if (sc.dimension == 2) probe.at.z() = 0.0;
+      const double r = p.has("radius") ? p.positive("radius") * unit : cell;
+      for (std::size_t k = 0; k < sc.positions.size(); ++k) {
+        if ((sc.positions[k] - probe.at).norm() <= r) probe.particles.push_back(static_cast<std::uint32_t>(k));
+      }
+      if (probe.particles.empty()) p.fail("at", "has no particle within its radius (one cell by default)");
+      sc.probes.push_back(std::move(probe));
+    }
+  }
+  if (sc.settle_window > 0.0 && sc.probes.empty()) m.fail("settle", "needs at least one probe to watch");
+  return sc;
+}
+
+namespace {
+
+template <int D>
+MpmResult run_dim(const MpmScene& sc, const std::function<void(double)>& progress) {
+  const mpm::MpmModel<D>& model = model_of<D>(sc);
+  std::vector<mpm::VecD<D>> x0;
+  x0.reserve(sc.positions.size());
+  for (const Vec3& p : sc.positions) x0.push_back(p.head<D>());
+  mpm::MpmState<D> state = mpm::rest_state<D>(x0);
+  mpm::MpmWorkspace<D> ws;
+
+  mpm::AppliedField applied;
+  robot::FieldFunction magnets;
+  if (sc.magnets) {
+    std::vector<magnetics::Pose> poses = sc.magnets->rest_poses;
+    magnets = robot::field_function(*sc.magnets, poses);
+  }
+  auto field_at = [&](double t) {
+    if (magnets) {
+      applied.kind = mpm::AppliedField::Kind::kGeneral;
+      const Vec3 u = sc.field.at(t);
+      if (!applied.sample) {
+        applied.sample = [&magnets, &u](const Vec3& x) {
+          magnetics::FieldSample s = magnets(x);
+          s.b += u;
+          return s;
+        };
+      }
+      // A uniform part that changes forces a re-evaluation of the node field cache.
+      if (sc.field.any() && (t == 0.0 || sc.field.at(t) != sc.field.at(t - sc.time_step))) ++applied.version;
+    } else if (sc.field.any()) {
+      applied.kind = mpm::AppliedField::Kind::kUniform;
+      applied.uniform = sc.field.at(t);
+    }
+    return applied;
+  };
+  // The uniform part captured by reference above must outlive the lambda: keep it here.
+  MpmResult r;
+  auto sample = [&] {
+    MpmSample s;
+    s.time = state.time;
+    for (const MpmProbe& p : sc.probes) {
+      Vec3 c = Vec3::Zero();
+      for (std::uint32_t i : p.particles) {
+        if constexpr (D == 2) c += Vec3(state.x[i].x(), state.x[i].y(), 0.0);
+        else c += state.x[i];
+      }
+      s.probes.push_back(c / static_cast<double>(p.particles.size()));
+    }
+    s.kinetic_energy = mpm::kinetic_energy(model, state);
+    r.samples.push_back(std::move(s));
+  };
+  auto snapshot = [&] {
+    std::vector<Vec3> pts;
+    pts.reserve(state.x.size());
+    for (const auto& x : state.x) {
+      if constexpr (D == 2) pts.emplace_back(x.x(), x.y(), 0.0);
+      else pts.push_back(x);
+    }
+    r.snapshots.push_back({state.time, std::move(pts)});
+  };
+  const double sample_every = sc.settle_window > 0.0 ? sc.settle_window / 10.0 : std::max(sc.duration / 1000.0,
+                                                                                            sc.time_step);
+  sample();
+  snapshot();
+  double next_sample = sample_every, next_snapshot = sc.snapshot_interval, next_progress = 0.0;
+  const Stopwatch clock;
+  const long steps = static_cast<long>(std::ceil(sc.duration / sc.time_step - 1e-9));
+  for (long k = 0; k < steps; ++k) {
+    const double dt = std::min(sc.time_step, sc.duration - state.time);
+    if (!(dt > 0.0)) break;
+    const mpm::StepStatus st = mpm::step(model, field_at(state.time), state, ws, dt);
+    ++r.steps;
+    if (!st.ok) {
+      r.ok = false;
+      r.failure = st.cause;
+      break;
+    }
+    if (state.time >= next_sample - 1e-12) {
+      next_sample += sample_every;
+      sample();
+      // Settled: every probe within tolerance of where it is now over the last window (11 samples).
+      if (sc.settle_window > 0.0 && r.samples.size() >= 11) {
+        double spread = 0.0;
+        const MpmSample& last = r.samples.back();
+        for (std::size_t j = r.samples.size() - 11; j < r.samples.size(); ++j) {
+          for (std::size_t q = 0; q < last.probes.size(); ++q) {
+            spread = std::max(spread, (r.samples[j].probes[q] - last.probes[q]).norm());
+          }
+        }
+        if (spread < sc.settle_tolerance) {
+          r.settled = true;
+          break;
+        }
+      }
+    }
+    if (sc.snapshot_interval > 0.0 && state.time >= next_snapshot - 1e-12) {
+      next_snapshot += sc.snapshot_interval;
+      snapshot();
+    }
+    if (progress && state.time >= next_progress) {
+      progress(state.time / sc.duration);
+      next_progress += sc.duration / 100.0;
+    }
+  }
+  r.runtime_s = clock.seconds();
+  r.time = state.time;
+  if (r.samples.back().time < state.time) sample();
+  if (r.snapshots.back().first < state.time) snapshot();
+  return r;
+}
+
+std::string ply_of(const std::vector<Vec3>& pts, const std::vector<std::uint16_t>& body) {
+  std::ostringstream o;
+  o << "ply\nformat ascii 1.0\ncomment magvine MPM particles, positions in mm\nelement vertex " << pts.size()
+    << "\nproperty float x\nproperty float y\nproperty float z\nproperty ushort body\nend_header\n";
+  char line[96];
+  for (std::size_t i = 0; i < pts.size(); ++i) {
+    std::snprintf(line, sizeof line, "%.5g %.5g %.5g %u\n", pts[i].x() / kMmToM, pts[i].y() / kMmToM,
+                  pts[i].z() / kMmToM, static_cast<unsigned>(body[i]));
+    o << line;
+  }
+  return o.str();
+}
+
+}  // namespace
+
+MpmResult run_mpm_scene(const MpmScene& sc, const std::function<void(double)>& progress) {
+  return sc.dimension == 2 ? run_dim<2>(sc, progress) : run_dim<3>(sc, progress);
+}
+
+void write_mpm_outputs(const MpmScene& sc, const MpmResult& r, const std::filesystem::path& dir) {
+  create_output_directory(dir);
+  create_output_directory(dir / "snapshots");
+  const std::size_t n = sc.positions.size();
+  const std::vector<std::uint16_t>& body = sc.dimension == 2 ? sc.model2.section : sc.model3.section;
+  const double cell = sc.dimension == 2 ? sc.model2.cell : sc.model3.cell;
+  nlohmann::json j;
+  j["scene"] = sc.file;
+  j["dimension"] = sc.dimension;
+  j["particles"] = n;
+  j["cell_mm"] = cell / kMmToM;
+  j["time_step_s"] = sc.time_step;
+  j["stable_step_s"] = sc.stable_step;
+  j["steps"] = r.steps;
+  j["simulated_time_s"] = r.time;
+  j["runtime_s"] = r.runtime_s;
+  j["particle_steps_per_s"] = r.runtime_s > 0.0 ? static_cast<double>(n) * static_cast<double>(r.steps) / r.runtime_s
+                                                : 0.0;
+  j["ok"] = r.ok;
+  if (!r.ok) j["failure"] = r.failure;
+  j["settled"] = r.settled;
+  j["bodies"] = sc.body_names;
+  nlohmann::json probes = nlohmann::json::object();
+  for (std::size_t q = 0; q < sc.probes.size(); ++q) {
+    const Vec3 a = r.samples.front().probes[q] / kMmToM, b = r.samples.back().probes[q] / kMmToM;
+    probes[sc.probes[q].name] = {{"start_mm", {a.x(), a.y(), a.z()}},
+                                 {"end_mm", {b.x(), b.y(), b.z()}},
+                                 {"displacement_mm", {b.x() - a.x(), b.y() - a.y(), b.z() - a.z()}},
+                                 {"particles", sc.probes[q].particles.size()}};
+  }
+  j["probes"] = probes;
+  j["kinetic_energy_final_J"] = r.samples.back().kinetic_energy;
+  std::ostringstream csv;
+  csv << "t_s";
+  for (const MpmProbe& p : sc.probes) csv << ',' << p.name << "_x_mm," << p.name << "_y_mm," << p.name << "_z_mm";
+  csv << ",kinetic_energy_J\n";
+  csv.precision(9);
+  for (const MpmSample& s : r.samples) {
+    csv << s.time;
+    for (const Vec3& p : s.probes) csv << ',' << p.x() / kMmToM << ',' << p.y() / kMmToM << ',' << p.z() / kMmToM;
+    csv << ',' << s.kinetic_energy << '\n';
+  }
+  nlohmann::json snaps = nlohmann::json::array();
+  for (std::size_t k = 0; k < r.snapshots.size(); ++k) {
+    char name[32];
+    std::snprintf(name, sizeof name, "%04zu.ply", k);
+    write_file_atomically(dir / "snapshots" / name, ply_of(r.snapshots[k].second, body));
+    snaps.push_back({{"t_s", r.snapshots[k].first}, {"file", std::string("snapshots/") + name}});
+  }
+  j["snapshots"] = snaps;
+  write_file_atomically(dir / "probes.csv", csv.str());
+  write_file_atomically(dir / "metrics.json", j.dump(2) + "\n");
+}
+
+}  // namespace magvine::scene
