@@ -79,7 +79,7 @@ MpmFieldSchedule field_of(const YamlMap& f) {
                     static_cast<int>(f.has("rotating"));
   if (kinds != 1) f.fail("b", "give exactly one of b (constant), keyframes or rotating");
   MpmFieldSchedule s;
-  constexpr double kT = 1e-3;  // mT in files
+  constexpr double kT = 1.0;  // tesla in files, as in the magnets file
   if (f.has("b")) s.keyframes.push_back({0.0, f.vec3("b") * kT});
   if (f.has("keyframes")) {
     const YAML::Node list = f.node("keyframes");
@@ -411,30 +411,27 @@ MpmResult run_dim(const MpmScene& sc, const std::function<void(double)>& progres
 
   mpm::AppliedField applied;
   robot::FieldFunction magnets;
-  if (sc.magnets) {
-    std::vector<magnetics::Pose> poses = sc.magnets->rest_poses;
-    magnets = robot::field_function(*sc.magnets, poses);
+  if (sc.magnets) magnets = robot::field_function(*sc.magnets, sc.magnets->rest_poses);
+  Vec3 uniform_now = sc.field.at(0.0);  // the uniform part at the current step (read by applied.sample)
+  if (magnets) {
+    applied.kind = mpm::AppliedField::Kind::kGeneral;
+    applied.sample = [&magnets, &uniform_now](const Vec3& x) {
+      magnetics::FieldSample s = magnets(x);
+      s.b += uniform_now;
+      return s;
+    };
+  } else if (sc.field.any()) {
+    applied.kind = mpm::AppliedField::Kind::kUniform;
   }
-  auto field_at = [&](double t) {
-    if (magnets) {
-      applied.kind = mpm::AppliedField::Kind::kGeneral;
-      const Vec3 u = sc.field.at(t);
-      if (!applied.sample) {
-        applied.sample = [&magnets, &u](const Vec3& x) {
-          magnetics::FieldSample s = magnets(x);
-          s.b += u;
-          return s;
-        };
-      }
-      // A uniform part that changes forces a re-evaluation of the node field cache.
-      if (sc.field.any() && (t == 0.0 || sc.field.at(t) != sc.field.at(t - sc.time_step))) ++applied.version;
-    } else if (sc.field.any()) {
-      applied.kind = mpm::AppliedField::Kind::kUniform;
-      applied.uniform = sc.field.at(t);
+  auto field_at = [&](double t) -> const mpm::AppliedField& {
+    const Vec3 u = sc.field.at(t);
+    if (applied.kind == mpm::AppliedField::Kind::kGeneral && u != uniform_now) {
+      uniform_now = u;
+      ++applied.version;  // the node field cache holds the old uniform part: evaluate again
     }
+    applied.uniform = u;
     return applied;
   };
-  // The uniform part captured by reference above must outlive the lambda: keep it here.
   MpmResult r;
   auto sample = [&] {
     MpmSample s;

@@ -16,7 +16,7 @@
 
 namespace magvine::scene {
 
-/// A uniform applied field over time [T]: keyframes linearly interpolated (held after the last), or a field of
+/// A uniform applied field over time [T; tesla in files, like the magnets file]: keyframes linearly interpolated (held after the last), or a field of
 /// constant magnitude rotating about an axis.
 struct MpmFieldSchedule {
   std::vector<std::pair<double, Vec3>> keyframes;  ///< (t [s], B [T]), t increasing; empty: no uniform field
