@@ -18,6 +18,7 @@ packages=(
   nlohmann-json3-dev                   # JSON reports (MIT)
   libcli11-dev                         # command line (BSD-3)
   libopencv-dev                        # optional render module: images and video (Apache-2.0)
+  libgomp1                             # OpenMP runtime of GCC for the MPM solver (GCC runtime library exception)
   libembree-dev                        # BVH builder of the collision world; render: CPU ray casting (Apache-2.0)
   libgtest-dev libgmock-dev            # tests (BSD-3)
   libbenchmark-dev                     # benchmarks (Apache-2.0)

@@ -159,6 +159,22 @@ TEST(MpmScene, ACantileverUnderGravityBendsAsTimoshenkosBeam) {
   EXPECT_NEAR(tip / expect, 1.0, 0.03);  // 3 %: three cells through the thickness (README: MPM convergence)
 }
 
+TEST(MpmScene, TheZhaoBeamBucklesAsTheElasticaPredicts) {
+  // Closed form first (notes §9 table): δ/L = 0.7952 at B̄ = 5, 0.6230 at B̄ = 10, straight below π²/4.
+  EXPECT_NEAR(antiparallel_elastica_deflection(5.0), 0.7952, 1e-4);
+  EXPECT_NEAR(antiparallel_elastica_deflection(10.0), 0.6230, 1e-4);
+  EXPECT_EQ(antiparallel_elastica_deflection(2.4), 0.0);
+  // MPM at 10 mT (B̄ = 4.96), 3 cells through the thickness and 3 particles per cell per axis. The study (README:
+  // "MPM") measures −8.6 % here, −5.4 % at 4 particles per cell and −4.4 % at 4 cells; the tolerance, 12 %, only
+  // guards that resolution, the study carries the accuracy claim.
+  const ZhaoPoint p = run_zhao_beam(3, 3, 10e-3);
+  std::printf("Zhao beam at 10 mT: delta/L %.4f, elastica %.4f (%.2f %%), %ld steps, %.1f s\n", p.deflection,
+              p.reference, 100.0 * (p.deflection / p.reference - 1.0), p.steps, p.seconds);
+  ASSERT_TRUE(p.ok);
+  EXPECT_TRUE(p.settled);
+  EXPECT_NEAR(p.deflection / p.reference, 1.0, 0.12);
+}
+
 TEST(MpmScene, StiffAndSoftBeamsRunStablyWithTheAutomaticStep) {
   // G from 10 kPa to 10 MPa (the extremes): 3000 automatic steps of the 60 × 3 × 3 mm beam under gravity
   // and 10 mT across it; nothing may fail, and the clamp must hold.

@@ -9,6 +9,7 @@
 #include <sstream>
 
 #include "magnet_entries.hpp"
+#include "mpm_video.hpp"
 #include "magvine/anatomy/mesh_io.hpp"
 #include "magvine/core/atomic_file.hpp"
 #include "magvine/core/error.hpp"
@@ -268,7 +269,7 @@ MpmScene parse_mpm_scene(const std::string& text, const std::string& label, cons
   sc.file = label;
   const YamlMap m = top.map("mpm");
   m.allow_only({"dimension", "cell", "particles_per_cell", "jitter", "courant", "time_step", "duration", "damping",
-                "gravity", "domain", "settle", "snapshots"});
+                "gravity", "domain", "settle", "snapshots", "video"});
   const double dim = m.has("dimension") ? m.number("dimension") : 3.0;
   if (dim != 2.0 && dim != 3.0) m.fail("dimension", "must be 2 (plane strain, x–y) or 3");
   sc.dimension = static_cast<int>(dim);
@@ -305,6 +306,26 @@ MpmScene parse_mpm_scene(const std::string& text, const std::string& label, cons
     sc.settle_tolerance = s.positive("tolerance") * unit;
   }
   if (m.has("snapshots")) sc.snapshot_interval = m.positive("snapshots");
+  if (m.has("video")) {
+    const YamlMap v = m.map("video");
+    v.allow_only({"view", "up", "size", "fps", "speed"});
+    MpmVideo video;
+    if (v.has("view")) video.view = v.nonzero_vec3("view").normalized();
+    if (v.has("up")) video.up = v.nonzero_vec3("up").normalized();
+    if (video.view.cross(video.up).norm() < 1e-6) v.fail("up", "must not be parallel to view");
+    if (v.has("size")) {
+      const YAML::Node size = v.node("size");
+      if (!size.IsSequence() || size.size() != 2) v.fail("size", "must be [width, height] in pixels");
+      video.width = size[0].as<int>();
+      video.height = size[1].as<int>();
+      if (video.width < 16 || video.height < 16 || video.width > 4096 || video.height > 4096) {
+        v.fail("size", "must be 16 to 4096 pixels each way");
+      }
+    }
+    if (v.has("fps")) video.fps = v.positive("fps");
+    if (v.has("speed")) video.speed = v.positive("speed");
+    sc.video = video;
+  }
 
   // Bodies → particles.
   const YAML::Node blist = top.node("bodies");
@@ -458,9 +479,21 @@ MpmResult run_dim(const MpmScene& sc, const std::function<void(double)>& progres
   };
   const double sample_every = sc.settle_window > 0.0 ? sc.settle_window / 10.0 : std::max(sc.duration / 1000.0,
                                                                                             sc.time_step);
+  auto frame = [&] {
+    std::vector<Vec3> pts;
+    pts.reserve(state.x.size());
+    for (const auto& x : state.x) {
+      if constexpr (D == 2) pts.emplace_back(x.x(), x.y(), 0.0);
+      else pts.push_back(x);
+    }
+    r.frames.push_back(std::move(pts));
+  };
+  const double frame_every = sc.video ? sc.video->speed / sc.video->fps : 0.0;
   sample();
   snapshot();
+  if (sc.video) frame();
   double next_sample = sample_every, next_snapshot = sc.snapshot_interval, next_progress = 0.0;
+  double next_frame = frame_every;
   const Stopwatch clock;
   const long steps = static_cast<long>(std::ceil(sc.duration / sc.time_step - 1e-9));
   for (long k = 0; k < steps; ++k) {
@@ -490,6 +523,10 @@ MpmResult run_dim(const MpmScene& sc, const std::function<void(double)>& progres
           break;
         }
       }
+    }
+    if (sc.video && state.time >= next_frame - 1e-12) {
+      next_frame += frame_every;
+      frame();
     }
     if (sc.snapshot_interval > 0.0 && state.time >= next_snapshot - 1e-12) {
       next_snapshot += sc.snapshot_interval;
@@ -576,6 +613,11 @@ void write_mpm_outputs(const MpmScene& sc, const MpmResult& r, const std::filesy
     snaps.push_back({{"t_s", r.snapshots[k].first}, {"file", std::string("snapshots/") + name}});
   }
   j["snapshots"] = snaps;
+  if (sc.video) {
+    const std::filesystem::path video = write_mpm_video(*sc.video, r.frames, body, cell / 4.0, dir / "particles");
+    if (video.empty()) j["video_skipped"] = "built without the render module";
+    else j["video"] = video.filename().string();
+  }
   write_file_atomically(dir / "probes.csv", csv.str());
   write_file_atomically(dir / "metrics.json", j.dump(2) + "\n");
 }

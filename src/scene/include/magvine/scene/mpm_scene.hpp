@@ -38,6 +38,15 @@ struct MpmProbe {
   std::vector<std::uint32_t> particles;
 };
 
+/// A particle video (`mpm.video`; written when the render module is built).
+struct MpmVideo {
+  Vec3 view = -Vec3::UnitY();  ///< looking along this direction
+  Vec3 up = Vec3::UnitZ();
+  int width = 640, height = 480;
+  double fps = 30.0;
+  double speed = 0.1;  ///< simulated seconds per second of video
+};
+
 /// A loaded MPM scene, SI units; the model holds every particle.
 struct MpmScene {
   std::string file;
@@ -55,6 +64,7 @@ struct MpmScene {
   MpmFieldSchedule field;
   std::optional<magnetics::FieldModel> magnets;  ///< static permanent magnets (exact cylinder or dipole)
   std::vector<MpmProbe> probes;
+  std::optional<MpmVideo> video;
 };
 
 /// Parses and validates (InputError naming the file, line and key for anything wrong; meshes relative to the scene).
@@ -81,12 +91,15 @@ struct MpmResult {
   std::vector<MpmSample> samples;
   /// Particle positions at the snapshot times [m] (first: t = 0, last: the end).
   std::vector<std::pair<double, std::vector<Vec3>>> snapshots;
+  /// Particle positions at the video's frame times [m] (with `video`).
+  std::vector<std::vector<Vec3>> frames;
 };
 
 /// Runs the scene; `progress(fraction)` is called now and then.
 MpmResult run_mpm_scene(const MpmScene& scene, const std::function<void(double)>& progress = {});
 
-/// Writes DIR/metrics.json, DIR/probes.csv and DIR/snapshots/NNNN.ply (positions in mm), atomically per file.
+/// Writes DIR/metrics.json, DIR/probes.csv, DIR/snapshots/NNNN.ply (positions in mm) and, with a video and the
+/// render module, DIR/particles.mp4 (or .avi); atomically per file.
 void write_mpm_outputs(const MpmScene& scene, const MpmResult& result, const std::filesystem::path& dir);
 
 }  // namespace magvine::scene

@@ -1,0 +1,59 @@
+# End-to-end test of `magvine mpm` (MPM module only): a small 2D beam sagging under gravity writes metrics.json,
+# probes.csv and PLY snapshots; a bad scene exits 2 with one line naming the key and leaves no output folder; a step
+# above the stable bound is refused the same way.
+# Run by CTest with -DMAGVINE=... -DWORK=... -DPYTHON=...
+include(${CMAKE_CURRENT_LIST_DIR}/cli_common.cmake)
+
+file(WRITE ${WORK}/beam.yaml "units: {length: mm}
+mpm:
+  dimension: 2
+  cell: 0.5
+  duration: 0.01
+  damping: 50
+  gravity: [0, -9.81, 0]
+  domain: {min: [-5, -15, 0], max: [15, 5, 0]}
+  snapshots: 0.005
+bodies:
+  - {name: beam, shape: box, min: [-1, -0.75, 0], max: [10, 0.75, 0], material: {shear_modulus: 100000, density: 1000}}
+clamps:
+  - {min: [-5, -2, 0], max: [0, 2, 0]}
+probes:
+  - {name: tip, at: [9.9, 0, 0], radius: 0.5}
+")
+execute_process(COMMAND ${MAGVINE} mpm ${WORK}/beam.yaml --out ${WORK}/run RESULT_VARIABLE rc ERROR_VARIABLE err)
+expect_rc(${rc} 0 "mpm beam: ${err}")
+foreach(f metrics.json probes.csv snapshots/0000.ply snapshots/0002.ply)
+  if(NOT EXISTS ${WORK}/run/${f})
+    message(FATAL_ERROR "mpm beam: ${f} missing (${err})")
+  endif()
+endforeach()
+execute_process(COMMAND ${PYTHON} -c "
+import json
+m = json.load(open('${WORK}/run/metrics.json'))
+assert m['ok'] and m['dimension'] == 2 and m['particles'] == 22 * 3 * 4, m
+tip = m['probes']['tip']['displacement_mm']
+assert tip[1] < 0, tip          # it sags
+ply = open('${WORK}/run/snapshots/0002.ply').read().split('end_header')[1].split()
+assert len(ply) == 4 * m['particles'], len(ply)
+" RESULT_VARIABLE rc ERROR_VARIABLE err)
+expect_rc(${rc} 0 "mpm beam outputs: ${err}")
+
+foreach(bad "shear_modulus: 100000;shear_modulus: -3;bodies[0].material.shear_modulus"
+            "damping: 50;damping: 50\n  time_step: 0.1;mpm.time_step: is above the stable step"
+            "dimension: 2;dimension: 2\n  colour: red;mpm.colour: unknown key")
+  list(GET bad 0 from)
+  list(GET bad 1 to)
+  list(GET bad 2 message)
+  file(READ ${WORK}/beam.yaml text)
+  string(REPLACE "\\n" "\n" to "${to}")
+  string(REPLACE "${from}" "${to}" text "${text}")
+  file(WRITE ${WORK}/bad.yaml "${text}")
+  execute_process(COMMAND ${MAGVINE} mpm ${WORK}/bad.yaml --out ${WORK}/bad RESULT_VARIABLE rc ERROR_VARIABLE err)
+  expect_rc(${rc} 2 "mpm bad scene (${message}): ${err}")
+  string(FIND "${err}" "${message}" pos)
+  string(REGEX MATCHALL "\n" lines "${err}")
+  list(LENGTH lines n)
+  if(pos EQUAL -1 OR NOT n EQUAL 1 OR EXISTS ${WORK}/bad)
+    message(FATAL_ERROR "mpm bad scene: want one line with '${message}' and no output, got '${err}'")
+  endif()
+endforeach()
