@@ -330,13 +330,27 @@ StepStatus step(const MpmModel<D>& model, const AppliedField& field, MpmState<D>
       }
     const VecD<D> moment = (general && magnetic) ? VecD<D>(model.volume[p] / kMu0 * (f * br)) : VecD<D>::Zero();
     const std::int64_t first = linear<D>(st.base, lo, ws.n);
-    for_nodes<D>(st, first, stride, [&](std::int64_t k, double w, int i, int j, int l) {
-      Eigen::Matrix<double, D + 1, 1> rec = base_rec + along[0][i] + along[1][j];
-      if constexpr (D == 3) rec += along[2][l];
-      else (void)l;
-      ws.node[static_cast<std::size_t>(k)] += w * rec;
-      if (general && magnetic) ws.node_moment[static_cast<std::size_t>(k)] += w * moment;
-    });
+    if constexpr (D == 3) {
+      // Node (i, j, k) gets w_i w_j w_k (r_ij + a_k): r_ij = base + a_i + a_j is formed once per (i, j).
+      std::array<Eigen::Matrix<double, 4, 1>, 3> wa2;
+      for (int k = 0; k < 3; ++k) wa2[k] = st.w[2][k] * along[2][k];
+      for (int i = 0; i < 3; ++i)
+        for (int j = 0; j < 3; ++j) {
+          const double wij = st.w[0][i] * st.w[1][j];
+          const Eigen::Matrix<double, 4, 1> r = base_rec + along[0][i] + along[1][j];
+          Eigen::Matrix<double, 4, 1>* node = &ws.node[static_cast<std::size_t>(first + i * stride[0] + j * stride[1])];
+          for (int k = 0; k < 3; ++k) node[k] += wij * (st.w[2][k] * r + wa2[k]);
+          if (general && magnetic) {
+            VecD<D>* mo = &ws.node_moment[static_cast<std::size_t>(first + i * stride[0] + j * stride[1])];
+            for (int k = 0; k < 3; ++k) mo[k] += (wij * st.w[2][k]) * moment;
+          }
+        }
+    } else {
+      for_nodes<D>(st, first, stride, [&](std::int64_t k, double w, int i, int j, int) {
+        ws.node[static_cast<std::size_t>(k)] += w * (base_rec + along[0][i] + along[1][j]);
+        if (general && magnetic) ws.node_moment[static_cast<std::size_t>(k)] += w * moment;
+      });
+    }
   };
   for (std::size_t colour = 0; colour < 2; ++colour) {
 #pragma omp parallel for schedule(dynamic, 1) if (static_cast<std::int64_t>(np) > kParallelMin)
@@ -396,15 +410,34 @@ StepStatus step(const MpmModel<D>& model, const AppliedField& field, MpmState<D>
     for (int a = 0; a < D; ++a)
       for (int o = 0; o < 3; ++o) d[a][o] = (o - st.fx[a]) * dx;
     VecD<D> v = VecD<D>::Zero();
-    MatD<D> b = MatD<D>::Zero();
-    for_nodes<D>(st, linear<D>(st.base, lo, ws.n), stride, [&](std::int64_t k, double w, int i, int j, int l) {
-      const VecD<D> wv = w * ws.node[static_cast<std::size_t>(k)].template head<D>();
-      v += wv;
-      b.col(0) += wv * d[0][i];
-      b.col(1) += wv * d[1][j];
-      if constexpr (D == 3) b.col(2) += wv * d[2][l];
-      else (void)l;
-    });
+    MatD<D> b = MatD<D>::Zero();  // Σ w v_i (x_i − x_p)ᵀ
+    const std::int64_t first = linear<D>(st.base, lo, ws.n);
+    if constexpr (D == 3) {
+      // Sum along k first: s = Σ_k w_k v, t = Σ_k w_k d_k v; then the (i, j) weights and offsets apply once.
+      for (int i = 0; i < 3; ++i)
+        for (int j = 0; j < 3; ++j) {
+          const Eigen::Matrix<double, 4, 1>* node =
+              &ws.node[static_cast<std::size_t>(first + i * stride[0] + j * stride[1])];
+          Vec3 sum = Vec3::Zero(), moment_k = Vec3::Zero();
+          for (int k = 0; k < 3; ++k) {
+            const Vec3 wv = st.w[2][k] * node[k].template head<3>();
+            sum += wv;
+            moment_k += d[2][k] * wv;
+          }
+          const double wij = st.w[0][i] * st.w[1][j];
+          v += wij * sum;
+          b.col(0) += (wij * d[0][i]) * sum;
+          b.col(1) += (wij * d[1][j]) * sum;
+          b.col(2) += wij * moment_k;
+        }
+    } else {
+      for_nodes<D>(st, first, stride, [&](std::int64_t k, double w, int i, int j, int) {
+        const VecD<D> wv = w * ws.node[static_cast<std::size_t>(k)].template head<D>();
+        v += wv;
+        b.col(0) += wv * d[0][i];
+        b.col(1) += wv * d[1][j];
+      });
+    }
     state.v[p] = v;
     state.c[p] = d_inv * b;
     state.f[p] = (MatD<D>::Identity() + dt * state.c[p]) * state.f[p];
