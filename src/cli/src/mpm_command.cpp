@@ -30,7 +30,7 @@ bool MpmCommand::parsed() const { return m_cmd->parsed() || m_study->parsed(); }
 
 int MpmCommand::run() {
   if (!config::kWithMpm) {
-    throw InputError("magvine " + std::string(m_cmd->parsed() ? "mpm" : "study mpm-beam") +
+    throw InputError(std::string(m_cmd->parsed() ? "mpm" : "study mpm-beam") +
                      ": this magvine was built without the MPM module (configure with -DMAGVINE_WITH_MPM=ON)");
   }
   return m_cmd->parsed() ? run_scene() : run_study();
