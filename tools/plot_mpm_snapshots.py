@@ -3,7 +3,10 @@
 of the particles (mm) along --view with --up towards the top, coloured by body. A missing or malformed input gives
 one line on stderr, exit status 2 and no PNG.
 
-    /usr/bin/python3 tools/plot_mpm_snapshots.py DIR [--panels 4] [--view 0,-1,0] [--up 0,0,1] [--out DIR/snapshots.png]
+    /usr/bin/python3 tools/plot_mpm_snapshots.py DIR [--panels 4] [--view 0,-1,0] [--up 0,0,1] [--rect U0,V0,U1,V1 ...]
+        [--out DIR/snapshots.png]
+
+--rect draws a grey rectangle (an obstacle's outline) in the picture's own axes, mm.
 """
 import argparse
 import json
@@ -55,6 +58,7 @@ def main():
     ap.add_argument("--view", default="0,-1,0")
     ap.add_argument("--up", default="0,0,1")
     ap.add_argument("--title", default="")
+    ap.add_argument("--rect", action="append", default=[])
     ap.add_argument("--out")
     a = ap.parse_args()
     mpath = os.path.join(a.dir, "metrics.json")
@@ -74,6 +78,13 @@ def main():
         fail("--up", "is parallel to --view")
     up /= np.linalg.norm(up)
     right = np.cross(d, up)
+    rects = []
+    for r in a.rect:
+        try:
+            u0, v0, u1, v1 = (float(t) for t in r.split(","))
+        except ValueError:
+            fail("--rect", f"needs four numbers U0,V0,U1,V1, got '{r}'")
+        rects.append((min(u0, u1), min(v0, v1), abs(u1 - u0), abs(v1 - v0)))
     frames = [(snaps[i]["t_s"], *read_ply(os.path.join(a.dir, snaps[i]["file"]))) for i in picks]
     allx = np.concatenate([p @ right for _, p, _ in frames])
     ally = np.concatenate([p @ up for _, p, _ in frames])
@@ -83,6 +94,8 @@ def main():
         order = np.argsort(depth)
         ax.scatter((p @ right)[order], (p @ up)[order], c=body[order], cmap="tab10", vmin=0, vmax=9, s=0.6,
                    linewidths=0)
+        for u, v, w, h in rects:
+            ax.add_patch(plt.Rectangle((u, v), w, h, color="0.75", zorder=0))
         ax.set_xlim(allx.min() - 0.5, allx.max() + 0.5)
         ax.set_ylim(ally.min() - 0.5, ally.max() + 0.5)
         ax.set_aspect("equal")
