@@ -262,22 +262,41 @@ StepStatus step(const MpmModel<D>& model, const AppliedField& field, MpmState<D>
   const bool uniform = field.kind == AppliedField::Kind::kUniform;
   const VecD<D> b_uniform = from3<D>(field.uniform);
 
-  // The grid box: every node some particle's stencil touches.
+  // The grid box: every node some particle's stencil touches (a parallel min/max, so order does not matter).
   Index<D> lo = Index<D>::Constant(std::numeric_limits<std::int64_t>::max());
   Index<D> hi = Index<D>::Constant(std::numeric_limits<std::int64_t>::min());
-  for (std::size_t p = 0; p < np; ++p) {
-    for (int a = 0; a < D; ++a) {
-      const double s = state.x[p][a] * inv_dx - 0.5;
-      if (!std::isfinite(s)) return {false, "particle " + std::to_string(p) + " has a non-finite position"};
-      const auto b = static_cast<std::int64_t>(std::floor(s));
-      lo[a] = std::min(lo[a], b);
-      hi[a] = std::max(hi[a], b + 2);
+  std::atomic<std::int64_t> nonfinite{-1};
+  const auto n_points = static_cast<std::int64_t>(np);
+#pragma omp parallel if (n_points > kParallelMin)
+  {
+    Index<D> my_lo = lo, my_hi = hi;
+#pragma omp for schedule(static) nowait
+    for (std::int64_t pp = 0; pp < n_points; ++pp) {
+      const VecD<D>& x = state.x[static_cast<std::size_t>(pp)];
+      if (!x.allFinite()) {
+        nonfinite = pp;
+        continue;
+      }
+      for (int a = 0; a < D; ++a) {
+        const auto b = static_cast<std::int64_t>(std::floor(x[a] * inv_dx - 0.5));
+        my_lo[a] = std::min(my_lo[a], b);
+        my_hi[a] = std::max(my_hi[a], b + 2);
+      }
+    }
+#pragma omp critical(mpm_box)
+    {
+      lo = lo.cwiseMin(my_lo);
+      hi = hi.cwiseMax(my_hi);
     }
   }
+  if (nonfinite >= 0) return {false, "particle " + std::to_string(nonfinite.load()) + " has a non-finite position"};
   ws.lo = lo;
   ws.n = hi - lo + Index<D>::Ones();
   const auto nodes = static_cast<std::size_t>(ws.n.prod());
-  ws.node.assign(nodes, Eigen::Matrix<double, D + 1, 1>::Zero());
+  ws.node.resize(nodes);
+  const auto n_nodes = static_cast<std::int64_t>(nodes);
+#pragma omp parallel for schedule(static) if (n_nodes > kParallelMin)
+  for (std::int64_t k = 0; k < n_nodes; ++k) ws.node[static_cast<std::size_t>(k)].setZero();
   const Index<D> stride = strides<D>(ws.n);
   if (general) {
     ws.node_moment.assign(nodes, VecD<D>::Zero());
@@ -290,14 +309,16 @@ StepStatus step(const MpmModel<D>& model, const AppliedField& field, MpmState<D>
   const auto slabs = static_cast<std::size_t>((ws.n[axis] + kSlabCells - 1) / kSlabCells);
   ws.slab_count.assign(slabs + 1, 0);
   ws.slab_order.resize(np);
-  auto slab_of = [&](std::size_t p) {
-    const auto b = static_cast<std::int64_t>(std::floor(state.x[p][axis] * inv_dx - 0.5));
-    return static_cast<std::size_t>((b - lo[axis]) / kSlabCells);
-  };
-  for (std::size_t p = 0; p < np; ++p) ++ws.slab_count[slab_of(p) + 1];
+  ws.slab_key.resize(np);
+#pragma omp parallel for schedule(static) if (n_points > kParallelMin)
+  for (std::int64_t pp = 0; pp < n_points; ++pp) {
+    const auto b = static_cast<std::int64_t>(std::floor(state.x[static_cast<std::size_t>(pp)][axis] * inv_dx - 0.5));
+    ws.slab_key[static_cast<std::size_t>(pp)] = static_cast<std::uint32_t>((b - lo[axis]) / kSlabCells);
+  }
+  for (std::size_t p = 0; p < np; ++p) ++ws.slab_count[ws.slab_key[p] + 1];
   for (std::size_t s = 0; s < slabs; ++s) ws.slab_count[s + 1] += ws.slab_count[s];
   ws.slab_start.assign(ws.slab_count.begin(), ws.slab_count.end());
-  for (std::size_t p = 0; p < np; ++p) ws.slab_order[ws.slab_start[slab_of(p)]++] = static_cast<std::uint32_t>(p);
+  for (std::size_t p = 0; p < np; ++p) ws.slab_order[ws.slab_start[ws.slab_key[p]]++] = static_cast<std::uint32_t>(p);
 
   // P2G.
   auto scatter = [&](std::size_t p) {

@@ -132,7 +132,7 @@ struct MpmWorkspace {
   std::vector<MatD<D>> field_g;
   std::uint64_t field_version = ~std::uint64_t{0};
   bool field_valid = false;
-  std::vector<std::uint32_t> slab_start, slab_order, slab_count;
+  std::vector<std::uint32_t> slab_start, slab_order, slab_count, slab_key;
 };
 
 /// What a step found. `ok` is false when the state must not be used (the cause says why).
