@@ -3,6 +3,7 @@
 // automatic step, and failure detection.
 
 #include <gtest/gtest.h>
+#include <omp.h>
 
 #include <cmath>
 #include <cstdio>
@@ -154,6 +155,31 @@ TEST(MpmStress, NeoHookeanIsTheDerivativeOfItsEnergyAndFreeAtRest) {
   // Rest state stress free in both dimensions (the 2D law is the plane-strain restriction, F33 = 1).
   EXPECT_LT(elastic_stress<2>(m, Eigen::Matrix2d::Identity()).norm(), 1e-9);
   EXPECT_LT(elastic_stress<3>(m, Eigen::Matrix3d::Identity()).norm(), 1e-9);
+}
+
+TEST(MpmTransfers, ResultsDoNotDependOnTheThreadCount) {
+  // P2G writes each node from one slab at a time in a fixed order, so 1 and 2 threads give the same bits.
+  auto run = [](int threads) {
+    omp_set_num_threads(threads);
+    auto [model, state] = block<3>(Vec3(0, 0, 0), Vec3(0.02, 0.003, 0.003), 5e-4, 2, silicone());
+    model.clamps.push_back({Vec3(-1, -1, -1), Vec3(0.001, 1, 1)});
+    model.gravity = Vec3(0, -9.81, 0);
+    for (auto& br : model.remanence) br = Vec3(0.1, 0, 0);
+    AppliedField f;
+    f.kind = AppliedField::Kind::kUniform;
+    f.uniform = Vec3(0, 0.02, 0);
+    MpmWorkspace<3> ws;
+    const double dt = model.stable_step(kCourant);
+    for (int s = 0; s < 50; ++s) EXPECT_TRUE(step(model, f, state, ws, dt).ok);
+    return state;
+  };
+  const MpmState<3> one = run(1), two = run(2);
+  ASSERT_GT(one.x.size(), 4096u);  // large enough for the parallel loops to run in parallel
+  for (std::size_t p = 0; p < one.x.size(); ++p) {
+    ASSERT_EQ(one.x[p], two.x[p]) << p;
+    ASSERT_EQ(one.f[p], two.f[p]) << p;
+  }
+  omp_set_num_threads(1);
 }
 
 }  // namespace
