@@ -24,6 +24,9 @@
 #include "magvine/scene/field_map.hpp"
 #include "magvine/scene/field_study.hpp"
 #include "magvine/scene/experiment.hpp"
+#if MAGVINE_WITH_MPM
+#include "magvine/scene/mpm_scene.hpp"
+#endif
 #include "magvine/scene/free_space.hpp"
 #include "magvine/scene/mechanics_study.hpp"
 #include "magvine/scene/magnets_file.hpp"
@@ -227,6 +230,11 @@ int run_experiment_scene(const RunArgs& args, const std::filesystem::path& out) 
 int run_scene(const RunArgs& args) {
   const std::filesystem::path out =
       args.out.empty() ? std::filesystem::path("runs") / std::filesystem::path(args.scene).stem() : std::filesystem::path(args.out);
+#if MAGVINE_WITH_MPM
+  if (scene::is_mpm_scene(args.scene)) {
+    throw InputError(args.scene + ": an MPM scene (it has mpm:); run it with magvine mpm " + args.scene);
+  }
+#endif
   if (scene::is_experiment_scene(args.scene)) return run_experiment_scene(args, out);
   const scene::FreeSpaceScene sc = scene::load_free_space_scene(args.scene);
   const scene::FreeSpaceResult result = scene::solve_free_space(sc);
