@@ -189,6 +189,16 @@ int run_mesh_graph(const MeshGraphArgs& args) {
   return 0;
 }
 
+std::function<void(double)> progress_bar() {
+  return [shown = -1](double done) mutable {
+    const int percent = static_cast<int>(100.0 * done);
+    if (percent / 10 == shown) return;
+    shown = percent / 10;
+    std::cerr << "\r  [" << std::string(static_cast<std::size_t>(shown), '#')
+              << std::string(static_cast<std::size_t>(10 - shown), '.') << "] " << percent << " %" << std::flush;
+  };
+}
+
 int run_experiment_scene(const RunArgs& args, const std::filesystem::path& out) {
   const scene::ExperimentScene sc = scene::load_experiment_scene(args.scene);
   std::cerr << "magvine run: growing a vine in " << sc.anatomy_label << " for " << sc.duration << " s (" << sc.mesh.triangles.size()
@@ -197,14 +207,7 @@ int run_experiment_scene(const RunArgs& args, const std::filesystem::path& out) 
     std::cerr << "magvine run: warning: " << args.scene
               << ": outputs.video skipped: this magvine was built without the render module\n";
   }
-  int shown = -1;
-  const scene::ExperimentResult result = scene::run_experiment(sc, [&](double done) {
-    const int percent = static_cast<int>(100.0 * done);
-    if (percent / 10 == shown) return;
-    shown = percent / 10;
-    std::cerr << "\r  [" << std::string(static_cast<std::size_t>(shown), '#')
-              << std::string(static_cast<std::size_t>(10 - shown), '.') << "] " << percent << " %" << std::flush;
-  });
+  const scene::ExperimentResult result = scene::run_experiment(sc, progress_bar());
   std::cerr << '\n';
   if (!sc.videos.empty()) {
     std::cerr << "magvine run: rendering " << sc.videos.size() << (sc.videos.size() == 1 ? " video" : " videos")

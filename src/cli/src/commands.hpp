@@ -1,6 +1,7 @@
 #pragma once
 // The verbs of the magvine executable. Each returns the process exit code and throws InputError for bad input.
 
+#include <functional>
 #include <optional>
 #include <string>
 #include <vector>
@@ -73,6 +74,9 @@ struct TrialsArgs {
 };
 /// `magvine trials`: seeded perturbed repeats of an experiment towards each target, in parallel (scene/experiment.hpp).
 int run_trials(const TrialsArgs& args);
+
+/// A progress callback for a run: a ten-step bar with the percentage on stderr, redrawn only when a tenth passes.
+std::function<void(double)> progress_bar();
 
 /// `magvine validate --out DIR`: the robot-mechanics studies (scene/mechanics_study.hpp).
 int run_validate(const std::string& out_dir);

@@ -5,6 +5,7 @@
 #include <iostream>
 #include <thread>
 
+#include "commands.hpp"
 #include "magvine/config.hpp"
 #include "magvine/core/error.hpp"
 #if MAGVINE_WITH_MPM
@@ -45,14 +46,7 @@ int MpmCommand::run_scene() {
             << (sc.body_names.size() == 1 ? " body" : " bodies") << ", " << sc.dimension << "D, step "
             << sc.time_step * 1e6 << " us (stable bound " << sc.stable_step * 1e6 << " us), " << sc.duration
             << " s simulated\n";
-  int shown = -1;
-  const scene::MpmResult r = scene::run_mpm_scene(sc, [&](double done) {
-    const int percent = static_cast<int>(100.0 * done);
-    if (percent / 10 == shown) return;
-    shown = percent / 10;
-    std::cerr << "\r  [" << std::string(static_cast<std::size_t>(shown), '#')
-              << std::string(static_cast<std::size_t>(10 - shown), '.') << "] " << percent << " %" << std::flush;
-  });
+  const scene::MpmResult r = scene::run_mpm_scene(sc, progress_bar());
   std::cerr << '\n';
   if (!r.ok) {
     std::cerr << "magvine: numerical failure: " << r.failure << '\n';

@@ -75,21 +75,6 @@ std::int64_t linear(const Index<D>& i, const Index<D>& lo, const Index<D>& n) {
   return k;
 }
 
-/// Visits the 3^D stencil nodes with their weight and offset (0..2 per axis), the last axis fastest.
-template <int D, typename Fn>
-void for_stencil(const Stencil<D>& s, Fn&& fn) {
-  if constexpr (D == 2) {
-    for (int i = 0; i < 3; ++i)
-      for (int j = 0; j < 3; ++j) fn(s.w[0][i] * s.w[1][j], Index<D>(i, j));
-  } else {
-    for (int i = 0; i < 3; ++i)
-      for (int j = 0; j < 3; ++j) {
-        const double wij = s.w[0][i] * s.w[1][j];
-        for (int k = 0; k < 3; ++k) fn(wij * s.w[2][k], Index<D>(i, j, k));
-      }
-  }
-}
-
 template <int D>
 Vec3 to3(const VecD<D>& x) {
   if constexpr (D == 2) return Vec3(x[0], x[1], 0.0);
@@ -302,6 +287,7 @@ StepStatus step(const MpmModel<D>& model, const AppliedField& field, MpmState<D>
     ws.node_moment.assign(nodes, VecD<D>::Zero());
     refresh_field(field, dx, ws);
   }
+  const Index<D> field_stride = general ? strides<D>(ws.field_n) : Index<D>::Zero();
 
   // Slabs along the longest axis, particles bucketed by slab (counting sort, stable: deterministic order).
   int axis = 0;
@@ -331,9 +317,8 @@ StepStatus step(const MpmModel<D>& model, const AppliedField& field, MpmState<D>
       VecD<D> b = b_uniform;
       if (general) {
         b.setZero();
-        for_stencil<D>(st, [&](double w, const Index<D>& o) {
-          b += w * ws.field_b[static_cast<std::size_t>(linear<D>(st.base + o, ws.field_lo, ws.field_n))];
-        });
+        for_nodes<D>(st, linear<D>(st.base, ws.field_lo, ws.field_n), field_stride,
+                     [&](std::int64_t k, double w, int, int, int) { b += w * ws.field_b[static_cast<std::size_t>(k)]; });
       }
       stress.noalias() -= (1.0 / kMu0) * b * br.transpose();  // eq 3.13
     }

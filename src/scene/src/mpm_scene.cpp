@@ -421,6 +421,14 @@ MpmScene parse_mpm_scene(const std::string& text, const std::string& label, cons
 
 namespace {
 
+/// Particle positions as 3-vectors (z = 0 in 2D) [m].
+template <int D>
+std::vector<Vec3> positions3(const mpm::MpmState<D>& state) {
+  std::vector<Vec3> out(state.x.size(), Vec3::Zero());
+  for (std::size_t i = 0; i < state.x.size(); ++i) out[i].head<D>() = state.x[i];
+  return out;
+}
+
 template <int D>
 MpmResult run_dim(const MpmScene& sc, const std::function<void(double)>& progress) {
   const mpm::MpmModel<D>& model = model_of<D>(sc);
@@ -459,35 +467,16 @@ MpmResult run_dim(const MpmScene& sc, const std::function<void(double)>& progres
     s.time = state.time;
     for (const MpmProbe& p : sc.probes) {
       Vec3 c = Vec3::Zero();
-      for (std::uint32_t i : p.particles) {
-        if constexpr (D == 2) c += Vec3(state.x[i].x(), state.x[i].y(), 0.0);
-        else c += state.x[i];
-      }
+      for (std::uint32_t i : p.particles) c.head<D>() += state.x[i];
       s.probes.push_back(c / static_cast<double>(p.particles.size()));
     }
     s.kinetic_energy = mpm::kinetic_energy(model, state);
     r.samples.push_back(std::move(s));
   };
-  auto snapshot = [&] {
-    std::vector<Vec3> pts;
-    pts.reserve(state.x.size());
-    for (const auto& x : state.x) {
-      if constexpr (D == 2) pts.emplace_back(x.x(), x.y(), 0.0);
-      else pts.push_back(x);
-    }
-    r.snapshots.push_back({state.time, std::move(pts)});
-  };
+  auto snapshot = [&] { r.snapshots.push_back({state.time, positions3<D>(state)}); };
   const double sample_every = sc.settle_window > 0.0 ? sc.settle_window / 10.0 : std::max(sc.duration / 1000.0,
                                                                                             sc.time_step);
-  auto frame = [&] {
-    std::vector<Vec3> pts;
-    pts.reserve(state.x.size());
-    for (const auto& x : state.x) {
-      if constexpr (D == 2) pts.emplace_back(x.x(), x.y(), 0.0);
-      else pts.push_back(x);
-    }
-    r.frames.push_back(std::move(pts));
-  };
+  auto frame = [&] { r.frames.push_back(positions3<D>(state)); };
   const double frame_every = sc.video ? sc.video->speed / sc.video->fps : 0.0;
   sample();
   snapshot();
