@@ -1,7 +1,7 @@
 #include "magvine/mpm/cantilever.hpp"
 
+#include <algorithm>
 #include <cmath>
-#include <deque>
 
 #include "magvine/core/error.hpp"
 #include "magvine/mpm/sampling.hpp"
@@ -66,6 +66,17 @@ VecD<D> mean_position(const MpmState<D>& state, const std::vector<std::uint32_t>
   return ids.empty() ? s : VecD<D>(s / static_cast<double>(ids.size()));
 }
 
+bool RestWatch::add(const std::vector<Vec3>& probes) {
+  m_history.push_back(probes);
+  if (m_history.size() > 11) m_history.pop_front();
+  if (m_history.size() < 11) return false;
+  double spread = 0.0;
+  for (const std::vector<Vec3>& h : m_history) {
+    for (std::size_t q = 0; q < probes.size(); ++q) spread = std::max(spread, (h[q] - probes[q]).norm());
+  }
+  return spread < m_tolerance;
+}
+
 template <int D>
 SettleResult settle(const MpmModel<D>& model, MpmState<D>& state, MpmWorkspace<D>& ws,
                     const std::function<AppliedField(double)>& field, const std::vector<std::uint32_t>& probe,
@@ -73,9 +84,8 @@ SettleResult settle(const MpmModel<D>& model, MpmState<D>& state, MpmWorkspace<D
   SettleResult r;
   const double bound = model.stable_step(o.courant);
   r.time_step = o.time_step > 0.0 ? o.time_step : bound;
-  // The probe's path sampled every window/10; at rest when the last window's samples all lie within tolerance.
-  const double sample_every = o.window / 10.0;
-  std::deque<VecD<D>> history;
+  // The probe's path sampled every window/10.
+  RestWatch watch(o.tolerance);
   double next_sample = state.time;
   const double start = state.time;
   while (state.time - start < o.max_time) {
@@ -83,16 +93,12 @@ SettleResult settle(const MpmModel<D>& model, MpmState<D>& state, MpmWorkspace<D
     ++r.steps;
     if (!r.status.ok) break;
     if (state.time >= next_sample) {
-      next_sample += sample_every;
-      history.push_back(mean_position(state, probe));
-      if (history.size() > 11) history.pop_front();
-      if (history.size() == 11 && state.time - start >= o.min_time) {
-        double spread = 0.0;
-        for (const VecD<D>& h : history) spread = std::max(spread, (h - history.back()).norm());
-        if (spread < o.tolerance) {
-          r.settled = true;
-          break;
-        }
+      next_sample += o.window / 10.0;
+      Vec3 probe_at = Vec3::Zero();
+      probe_at.head<D>() = mean_position(state, probe);
+      if (watch.add({probe_at}) && state.time - start >= o.min_time) {
+        r.settled = true;
+        break;
       }
     }
   }

@@ -16,6 +16,7 @@
 #include "magvine/core/stopwatch.hpp"
 #include "magvine/core/units.hpp"
 #include "magvine/core/usage.hpp"
+#include "magvine/mpm/cantilever.hpp"
 #include "magvine/mpm/sampling.hpp"
 #include "magvine/robot/elastica.hpp"
 #include "robot_entries.hpp"
@@ -478,7 +479,9 @@ MpmResult run_dim(const MpmScene& sc, const std::function<void(double)>& progres
                                                                                             sc.time_step);
   auto frame = [&] { r.frames.push_back(positions3<D>(state)); };
   const double frame_every = sc.video ? sc.video->speed / sc.video->fps : 0.0;
+  mpm::RestWatch watch(sc.settle_tolerance);
   sample();
+  watch.add(r.samples.back().probes);
   snapshot();
   if (sc.video) frame();
   double next_sample = sample_every, next_snapshot = sc.snapshot_interval, next_progress = 0.0;
@@ -498,19 +501,9 @@ MpmResult run_dim(const MpmScene& sc, const std::function<void(double)>& progres
     if (state.time >= next_sample - 1e-12) {
       next_sample += sample_every;
       sample();
-      // Settled: every probe within tolerance of where it is now over the last window (11 samples).
-      if (sc.settle_window > 0.0 && r.samples.size() >= 11) {
-        double spread = 0.0;
-        const MpmSample& last = r.samples.back();
-        for (std::size_t j = r.samples.size() - 11; j < r.samples.size(); ++j) {
-          for (std::size_t q = 0; q < last.probes.size(); ++q) {
-            spread = std::max(spread, (r.samples[j].probes[q] - last.probes[q]).norm());
-          }
-        }
-        if (spread < sc.settle_tolerance) {
-          r.settled = true;
-          break;
-        }
+      if (sc.settle_window > 0.0 && watch.add(r.samples.back().probes)) {  // every probe at rest
+        r.settled = true;
+        break;
       }
     }
     if (sc.video && state.time >= next_frame - 1e-12) {

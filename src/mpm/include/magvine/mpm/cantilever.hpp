@@ -6,6 +6,7 @@
 /// material behind the face sits in the clamp, whose grid nodes (x ≤ 0) are held.
 
 #include <cstdint>
+#include <deque>
 #include <functional>
 #include <vector>
 
@@ -49,6 +50,19 @@ struct SettleOptions {
   double max_time = 1.0;         ///< stop here even if still moving [s]
   double window = 0.02;          ///< rest: the probe moved less than `tolerance` over this long [s]
   double tolerance = 0.0;        ///< [m]
+};
+
+/// Rest detection from probe samples taken every window/10: at rest once the last 11 samples all lie within
+/// `tolerance` of the newest.
+class RestWatch {
+ public:
+  explicit RestWatch(double tolerance) : m_tolerance(tolerance) {}
+  /// Adds a sample (one point per probe) [m]; true when at rest.
+  bool add(const std::vector<Vec3>& probes);
+
+ private:
+  double m_tolerance;
+  std::deque<std::vector<Vec3>> m_history;
 };
 
 struct SettleResult {
