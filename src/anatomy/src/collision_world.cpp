@@ -854,7 +854,7 @@ struct ContactCache::Storage {
     const std::size_t lane = leaf_count % 4;
     if (lane == 0) {
       if (group_count == groups.size()) return false;
-      groups[group_count++] = empty_group();
+      groups[group_count++] = detail::TriangleBvh::empty_node();
     }
     detail::TriangleBvh::Node& g = groups[group_count - 1];
     g.lo_x[lane] = box.lo[0];
@@ -867,19 +867,6 @@ struct ContactCache::Storage {
                     static_cast<std::uint32_t>(slot_count - first);
     ++leaf_count;
     return true;
-  }
-
-  static detail::TriangleBvh::Node empty_group() {
-    constexpr float kInf = std::numeric_limits<float>::infinity();
-    detail::TriangleBvh::Node n{};
-    n.lo_x.fill(kInf);
-    n.lo_y.fill(kInf);
-    n.lo_z.fill(kInf);
-    n.hi_x.fill(-kInf);
-    n.hi_y.fill(-kInf);
-    n.hi_z.fill(-kInf);
-    n.child.fill(detail::TriangleBvh::kLeafBit);  // empty leaves
-    return n;
   }
 };
 

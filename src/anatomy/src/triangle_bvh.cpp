@@ -89,7 +89,7 @@ class Flattener {
   /// Appends `n` (and its subtree) and returns its index.
   std::uint32_t node(const BuildNode& n) {
     const auto index = static_cast<std::uint32_t>(m_nodes.size());
-    m_nodes.push_back(empty());
+    m_nodes.push_back(TriangleBvh::empty_node());
     for (unsigned k = 0; k < n.count; ++k) {
       const BuildItem* item = n.children[k];
       const std::uint32_t child =
@@ -101,7 +101,7 @@ class Flattener {
 
   /// A root holding a single leaf (a mesh of at most kMaxLeafSize triangles) with its box.
   void root_leaf(const BuildLeaf& l, const RTCBounds& b) {
-    m_nodes.push_back(empty());
+    m_nodes.push_back(TriangleBvh::empty_node());
     set_child(m_nodes.back(), 0, leaf(l), b);
   }
 
@@ -116,24 +116,24 @@ class Flattener {
     out.hi_z[k] = b.upper_z;
   }
 
-  static TriangleBvh::Node empty() {
-    constexpr float kInf = std::numeric_limits<float>::infinity();
-    TriangleBvh::Node n{};
-    n.lo_x.fill(kInf);
-    n.lo_y.fill(kInf);
-    n.lo_z.fill(kInf);
-    n.hi_x.fill(-kInf);
-    n.hi_y.fill(-kInf);
-    n.hi_z.fill(-kInf);
-    n.child.fill(TriangleBvh::kLeafBit);  // an empty leaf: harmless even if a test accepted the empty box
-    return n;
-  }
-
   std::vector<TriangleBvh::Node>& m_nodes;
   std::vector<std::uint32_t>& m_order;
 };
 
 }  // namespace
+
+TriangleBvh::Node TriangleBvh::empty_node() {
+  constexpr float kInf = std::numeric_limits<float>::infinity();
+  Node n{};
+  n.lo_x.fill(kInf);
+  n.lo_y.fill(kInf);
+  n.lo_z.fill(kInf);
+  n.hi_x.fill(-kInf);
+  n.hi_y.fill(-kInf);
+  n.hi_z.fill(-kInf);
+  n.child.fill(kLeafBit);  // an empty leaf: harmless even if a test accepted the empty box
+  return n;
+}
 
 TriangleBvh::TriangleBvh(std::span<const Vec3> vertices, std::span<const Triangle> triangles) {
   if (triangles.empty()) throw InputError("collision world BVH: the mesh has no triangles");

@@ -41,6 +41,8 @@ class TriangleBvh {
     std::array<std::uint32_t, 4> child;
   };
   static constexpr std::uint32_t kLeafBit = 0x80000000u;
+  /// A node whose four children are empty leaves with empty boxes (rejected by every test).
+  static Node empty_node();
 
   /// Builds over `triangles` (indices into `vertices`). Throws InputError when Embree fails, or when the mesh has
   /// more than 2^27 triangles (the slot field of a leaf).
