@@ -157,6 +157,35 @@ TEST(MpmStress, NeoHookeanIsTheDerivativeOfItsEnergyAndFreeAtRest) {
   EXPECT_LT(elastic_stress<3>(m, Eigen::Matrix3d::Identity()).norm(), 1e-9);
 }
 
+TEST(MpmStress, KirchhoffStressIsPTimesFTransposeFromStrongCompressionToStrongExpansion) {
+  // P2G uses τ = P Fᵀ formed without F⁻¹ and with a Newton inverse cube root instead of libm's cbrt. Reference: P from
+  // F⁻ᵀ (Eigen's inverse) times Fᵀ, where P itself is checked against the finite-difference derivative of the energy
+  // (which calls std::cbrt), over J from 1e−3 to 1e2. Tolerances: 1e−12 is round-off in the two formulas; 1e−6 is the
+  // central difference's truncation at these step sizes.
+  const Material m = silicone(3e5);
+  Eigen::Matrix3d base;
+  base << 1.1, 0.2, -0.05, 0.03, 0.9, 0.1, -0.02, 0.15, 1.05;
+  for (const double scale : {0.1, 0.5, 1.0, 2.0, 4.6}) {
+    const Eigen::Matrix3d f = scale * base;
+    const Eigen::Matrix3d p = elastic_stress<3>(m, f);
+    const Eigen::Matrix3d tau = kirchhoff_stress<3>(m, f);
+    EXPECT_LT((tau - p * f.transpose()).norm() / tau.norm(), 1e-12) << "J = " << f.determinant();
+    Eigen::Matrix3d fd;
+    const double h = 1e-6 * scale;
+    for (int i = 0; i < 3; ++i)
+      for (int j = 0; j < 3; ++j) {
+        Eigen::Matrix3d a = f, b = f;
+        a(i, j) += h;
+        b(i, j) -= h;
+        fd(i, j) = (strain_energy_density<3>(m, a) - strain_energy_density<3>(m, b)) / (2 * h);
+      }
+    EXPECT_LT((p - fd).norm() / p.norm(), 1e-6) << "J = " << f.determinant();
+    const Eigen::Matrix2d f2 = f.topLeftCorner<2, 2>();
+    const Eigen::Matrix2d p2 = elastic_stress<2>(m, f2);
+    EXPECT_LT((kirchhoff_stress<2>(m, f2) - p2 * f2.transpose()).norm() / p2.norm(), 1e-12);
+  }
+}
+
 TEST(MpmTransfers, ResultsDoNotDependOnTheThreadCount) {
   // P2G writes each node from one slab at a time in a fixed order, so 1 and 2 threads give the same bits.
   auto run = [](int threads) {

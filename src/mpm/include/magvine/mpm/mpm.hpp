@@ -71,24 +71,24 @@ struct Obstacle {
 /// Immutable description of one MPM body set: particles' rest data, materials, grid, boundaries.
 template <int D>
 struct MpmModel {
-  double cell = 0.0;                        ///< grid spacing δx [m]
-  VecD<D> domain_min = VecD<D>::Zero();     ///< the domain's walls [m]
+  double cell = 0.0;                     ///< grid spacing δx [m]
+  VecD<D> domain_min = VecD<D>::Zero();  ///< the domain's walls [m]
   VecD<D> domain_max = VecD<D>::Zero();
-  Boundary walls = Boundary::kSticky;       ///< condition at the domain walls
-  double wall_friction = 0.0;               ///< μ for kFriction walls
-  VecD<D> gravity = VecD<D>::Zero();        ///< g [m/s²]
-  double damping = 0.0;                     ///< c [1/s] (eq 3.17)
+  Boundary walls = Boundary::kSticky;  ///< condition at the domain walls
+  double wall_friction = 0.0;          ///< μ for kFriction walls
+  VecD<D> gravity = VecD<D>::Zero();   ///< g [m/s²]
+  double damping = 0.0;                ///< c [1/s] (eq 3.17)
   std::vector<Material> materials;
   std::vector<Obstacle> obstacles;
   /// Clamps: grid nodes inside any of these boxes [min, max] are held at rest (the body is fixed there).
   std::vector<std::pair<VecD<D>, VecD<D>>> clamps;
 
   // Per particle (all the same length N).
-  std::vector<double> volume;            ///< V0 [m³; m² per metre of depth in 2D]
-  std::vector<double> mass;              ///< ρ V0 [kg]
-  std::vector<VecD<D>> remanence;        ///< B̃r, referential [T]
-  std::vector<std::uint16_t> material;   ///< index into materials
-  std::vector<std::uint16_t> section;    ///< the section a particle was sampled in (for outputs)
+  std::vector<double> volume;           ///< V0 [m³; m² per metre of depth in 2D]
+  std::vector<double> mass;             ///< ρ V0 [kg]
+  std::vector<VecD<D>> remanence;       ///< B̃r, referential [T]
+  std::vector<std::uint16_t> material;  ///< index into materials
+  std::vector<std::uint16_t> section;   ///< the section a particle was sampled in (for outputs)
 
   std::size_t size() const { return volume.size(); }
   /// The largest stable step for this model: courant · δx / max wave speed [s].
@@ -98,11 +98,11 @@ struct MpmModel {
 /// Everything that changes in time.
 template <int D>
 struct MpmState {
-  double time = 0.0;                 ///< [s]
-  std::vector<VecD<D>> x;            ///< positions [m]
-  std::vector<VecD<D>> v;            ///< velocities [m/s]
-  std::vector<MatD<D>> c;            ///< affine velocity field C (APIC/MLS) [1/s]
-  std::vector<MatD<D>> f;            ///< deformation gradient F
+  double time = 0.0;       ///< [s]
+  std::vector<VecD<D>> x;  ///< positions [m]
+  std::vector<VecD<D>> v;  ///< velocities [m/s]
+  std::vector<MatD<D>> c;  ///< affine velocity field C (APIC/MLS) [1/s]
+  std::vector<MatD<D>> f;  ///< deformation gradient F
 };
 
 /// A rest state: particles at `positions`, at rest, undeformed.
@@ -119,13 +119,18 @@ struct AppliedField {
   std::uint64_t version = 0;  ///< change it whenever the general field changes (moving magnets)
 };
 
+/// A grid node's record: momentum (then velocity) in the first D entries, mass in entry D (a 2D record leaves the
+/// last entry unused). 32-byte aligned: the particle kernels move it as one 4-double SIMD value.
+struct alignas(32) NodeRecord {
+  double value[4];
+};
+
 /// Preallocated scratch (grid box, node field cache, slab buckets). Reused across steps; grows, never shrinks.
 template <int D>
 struct MpmWorkspace {
   Eigen::Matrix<std::int64_t, D, 1> lo, n;  // the grid box: first node index and node counts per axis
-  /// Per node: momentum (then velocity) in the first D entries, mass last.
-  std::vector<Eigen::Matrix<double, D + 1, 1>> node;
-  std::vector<VecD<D>> node_moment;    // magnetic moment [A·m²] (non-uniform fields only)
+  std::vector<NodeRecord> node;
+  std::vector<VecD<D>> node_moment;  // magnetic moment [A·m²] (non-uniform fields only)
   // Field at the nodes of a box that only grows, evaluated once per field version.
   Eigen::Matrix<std::int64_t, D, 1> field_lo, field_n;
   std::vector<VecD<D>> field_b;
@@ -154,6 +159,10 @@ double kinetic_energy(const MpmModel<D>& model, const MpmState<D>& state);
 /// First Piola–Kirchhoff stress of the elastic part (exposed for tests) [Pa].
 template <int D>
 MatD<D> elastic_stress(const Material& m, const MatD<D>& f);
+
+/// Kirchhoff stress τ = P Fᵀ of the elastic part, formed without inverting F (what P2G uses) [Pa].
+template <int D>
+MatD<D> kirchhoff_stress(const Material& m, const MatD<D>& f);
 
 /// Strain energy density of the elastic part [J/m³] (its derivative is elastic_stress).
 template <int D>
