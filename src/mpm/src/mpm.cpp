@@ -10,6 +10,7 @@
 #include <cstring>
 #include <limits>
 
+#include "magvine/core/multiversion.hpp"
 #include "magvine/core/units.hpp"
 
 namespace magvine::mpm {
@@ -435,21 +436,13 @@ inline bool gather_particle(const StepContext<D>& c, std::size_t p) {
          (state.x[p].array() > model.domain_max.array()).any();
 }
 
-// The particle loops are compiled twice, for baseline x86-64 and for x86-64-v3 (AVX2 and FMA: a node's 4-double
-// record is one register), and the loader picks the copy the CPU can run (function multiversioning). `flatten`
-// inlines the kernels into each copy. The two copies round differently (FMA); on one machine, results do not change
-// between runs or thread counts.
-#if defined(__x86_64__) && defined(__GNUC__) && !defined(__clang__)
-#define MAGVINE_MPM_KERNEL __attribute__((target_clones("arch=x86-64-v3", "default"), flatten))
-#else
-#define MAGVINE_MPM_KERNEL
-#endif
-
-MAGVINE_MPM_KERNEL void scatter_2d(const StepContext<2>& c, const std::uint32_t* p, const std::uint32_t* end) {
+// The particle loops are compiled for baseline x86-64 and for x86-64-v3 (magvine/core/multiversion.hpp): with AVX2 a
+// node's 4-double record is one register.
+MAGVINE_HOT_KERNEL void scatter_2d(const StepContext<2>& c, const std::uint32_t* p, const std::uint32_t* end) {
   for (; p != end; ++p) scatter_particle<2>(c, *p);
 }
 
-MAGVINE_MPM_KERNEL void scatter_3d(const StepContext<3>& c, const std::uint32_t* p, const std::uint32_t* end) {
+MAGVINE_HOT_KERNEL void scatter_3d(const StepContext<3>& c, const std::uint32_t* p, const std::uint32_t* end) {
   for (; p != end; ++p) scatter_particle<3>(c, *p);
 }
 
@@ -457,7 +450,7 @@ MAGVINE_MPM_KERNEL void scatter_3d(const StepContext<3>& c, const std::uint32_t*
 /// Every particle is updated either way.
 constexpr std::int64_t kNoFailure = std::numeric_limits<std::int64_t>::max();
 
-MAGVINE_MPM_KERNEL std::int64_t gather_2d(const StepContext<2>& c, const std::uint32_t* p, const std::uint32_t* end) {
+MAGVINE_HOT_KERNEL std::int64_t gather_2d(const StepContext<2>& c, const std::uint32_t* p, const std::uint32_t* end) {
   std::int64_t bad = kNoFailure;
   for (; p != end; ++p) {
     if (gather_particle<2>(c, *p)) bad = std::min<std::int64_t>(bad, *p);
@@ -465,7 +458,7 @@ MAGVINE_MPM_KERNEL std::int64_t gather_2d(const StepContext<2>& c, const std::ui
   return bad;
 }
 
-MAGVINE_MPM_KERNEL std::int64_t gather_3d(const StepContext<3>& c, const std::uint32_t* p, const std::uint32_t* end) {
+MAGVINE_HOT_KERNEL std::int64_t gather_3d(const StepContext<3>& c, const std::uint32_t* p, const std::uint32_t* end) {
   std::int64_t bad = kNoFailure;
   for (; p != end; ++p) {
     if (gather_particle<3>(c, *p)) bad = std::min<std::int64_t>(bad, *p);

@@ -7,6 +7,7 @@
 #include <string>
 
 #include "magvine/core/error.hpp"
+#include "magvine/core/multiversion.hpp"
 #include "magvine/core/units.hpp"
 #include "magvine/robot/inflated_beam.hpp"
 
@@ -650,16 +651,17 @@ class BlockFactor {
       if (i > 0) {
         const Mat6& l = sys.diag[i - 1];  // L_{i−1}(j, k) at (k, j)
         const Vec6& d = m_diagonal[i - 1];
-        Mat6 w = sys.sub[i].transpose();
+        // U = Wᵀ = H_i,i−1 L_{i−1}⁻ᵀ: W's rows are U's columns, which are contiguous (Eigen is column-major), so the
+        // substitution works on whole columns; then WᵀW = UUᵀ as one fixed-size product (the upper triangle it
+        // also fills is never read).
+        Mat6 u = sys.sub[i];
         for (int j = 0; j < 6; ++j) {
           for (int k = 0; k < 6; ++k) {
-            if (k < j) w.row(j) -= l(k, j) * w.row(k);
+            if (k < j) u.col(j) -= l(k, j) * u.col(k);
           }
-          w.row(j) *= d[j];
+          u.col(j) *= d[j];
         }
-        for (int b = 0; b < 6; ++b) {
-          for (int a = b; a < 6; ++a) p(a, b) -= w.col(a).dot(w.col(b));
-        }
+        p.noalias() -= u * u.transpose();
       }
       if (!cholesky(p, sys.diag[i], m_diagonal[i])) return false;
     }
@@ -854,10 +856,12 @@ namespace {
 
 /// Newton at a fixed load factor. Returns the cause of failure, empty on success. With a workspace, chord steps
 /// reuse its Hessian until one fails to cut the gradient by a fifth (or to factor, to descend, or to pass the line
-/// search); then it is recomputed.
-std::string newton(const RodModel& m, const RodField& field, RodState& s, double load, const RodSolveOptions& o,
-                   RodSolveReport& report, int max_iterations, NewtonScratch& w, const Inertia* inertia = nullptr,
-                   RodWorkspace::Impl* ws = nullptr, const RodConstraints* constraints = nullptr) {
+/// search); then it is recomputed. Built for baseline x86-64 and for x86-64-v3 (magvine/core/multiversion.hpp), with
+/// the energy, the Hessian and the factorisation inlined into each copy.
+MAGVINE_HOT_KERNEL std::string newton(const RodModel& m, const RodField& field, RodState& s, double load,
+                                      const RodSolveOptions& o, RodSolveReport& report, int max_iterations,
+                                      NewtonScratch& w, const Inertia* inertia = nullptr,
+                                      RodWorkspace::Impl* ws = nullptr, const RodConstraints* constraints = nullptr) {
   bool fresh = ws == nullptr || ws->edges != m.edges;
   bool last_was_chord = false;
   double previous_norm = std::numeric_limits<double>::infinity();
