@@ -15,6 +15,7 @@
 #include "magvine/anatomy/segment_geometry.hpp"
 #include "magvine/core/check.hpp"
 #include "magvine/core/error.hpp"
+#include "magvine/core/multiversion.hpp"
 #include "magvine/core/units.hpp"
 #include "triangle_bvh.hpp"
 
@@ -828,7 +829,7 @@ CollisionWorld::~CollisionWorld() = default;
 CollisionWorld::CollisionWorld(CollisionWorld&&) noexcept = default;
 CollisionWorld& CollisionWorld::operator=(CollisionWorld&&) noexcept = default;
 
-std::size_t CollisionWorld::sphere_contacts(const Vec3& centre, double radius, std::span<Contact> out) const {
+MAGVINE_HOT_KERNEL std::size_t CollisionWorld::sphere_contacts(const Vec3& centre, double radius, std::span<Contact> out) const {
   MAGVINE_ASSERT(radius > 0.0 && centre.allFinite());
   const Tables& w = m_impl->tables;
   ContactSink sink(out, w.merge_cos);
@@ -891,7 +892,7 @@ bool ContactCache::filled() const {
   return m_storage->world != nullptr;
 }
 
-std::size_t CollisionWorld::sphere_contacts(const Vec3& centre, double radius, std::span<Contact> out,
+MAGVINE_HOT_KERNEL std::size_t CollisionWorld::sphere_contacts(const Vec3& centre, double radius, std::span<Contact> out,
                                             ContactCache& cache) const {
   MAGVINE_ASSERT(radius > 0.0 && centre.allFinite());
   const Tables& w = m_impl->tables;
@@ -951,7 +952,7 @@ std::size_t CollisionWorld::sphere_contacts(const Vec3& centre, double radius, s
   return sink.finish();
 }
 
-std::size_t CollisionWorld::capsule_contacts(const Vec3& a, const Vec3& b, double radius,
+MAGVINE_HOT_KERNEL std::size_t CollisionWorld::capsule_contacts(const Vec3& a, const Vec3& b, double radius,
                                              std::span<Contact> out) const {
   MAGVINE_ASSERT(radius > 0.0 && a.allFinite() && b.allFinite());
   // A segment too short to define a direction is a sphere (its length is far below any triangle size).

@@ -7,7 +7,7 @@
 /// The two copies round differently in the last bits (FMA contracts a·b + c), so results may differ between machines
 /// of different levels; on one machine they repeat exactly. Other compilers and architectures get one plain copy.
 ///
-/// Use it on functions with internal linkage that are not templates (GCC 12 does not clone templates).
+/// Use it on functions and member functions that are not templates (GCC 12 does not clone templates).
 #if defined(__x86_64__) && defined(__GNUC__) && !defined(__clang__)
 #define MAGVINE_HOT_KERNEL __attribute__((target_clones("arch=x86-64-v3", "default"), flatten))
 #else
