@@ -829,7 +829,8 @@ CollisionWorld::~CollisionWorld() = default;
 CollisionWorld::CollisionWorld(CollisionWorld&&) noexcept = default;
 CollisionWorld& CollisionWorld::operator=(CollisionWorld&&) noexcept = default;
 
-MAGVINE_HOT_KERNEL std::size_t CollisionWorld::sphere_contacts(const Vec3& centre, double radius, std::span<Contact> out) const {
+MAGVINE_HOT_KERNEL std::size_t CollisionWorld::sphere_contacts(const Vec3& centre, double radius,
+                                                                std::span<Contact> out) const {
   MAGVINE_ASSERT(radius > 0.0 && centre.allFinite());
   const Tables& w = m_impl->tables;
   ContactSink sink(out, w.merge_cos);
@@ -892,8 +893,8 @@ bool ContactCache::filled() const {
   return m_storage->world != nullptr;
 }
 
-MAGVINE_HOT_KERNEL std::size_t CollisionWorld::sphere_contacts(const Vec3& centre, double radius, std::span<Contact> out,
-                                            ContactCache& cache) const {
+MAGVINE_HOT_KERNEL std::size_t CollisionWorld::sphere_contacts(const Vec3& centre, double radius,
+                                                                std::span<Contact> out, ContactCache& cache) const {
   MAGVINE_ASSERT(radius > 0.0 && centre.allFinite());
   const Tables& w = m_impl->tables;
   ContactCache::Storage& kept = *cache.m_storage;
@@ -953,7 +954,7 @@ MAGVINE_HOT_KERNEL std::size_t CollisionWorld::sphere_contacts(const Vec3& centr
 }
 
 MAGVINE_HOT_KERNEL std::size_t CollisionWorld::capsule_contacts(const Vec3& a, const Vec3& b, double radius,
-                                             std::span<Contact> out) const {
+                                                                 std::span<Contact> out) const {
   MAGVINE_ASSERT(radius > 0.0 && a.allFinite() && b.allFinite());
   // A segment too short to define a direction is a sphere (its length is far below any triangle size).
   if ((b - a).squaredNorm() <= 1e-24 * radius * radius) return sphere_contacts(0.5 * (a + b), radius, out);
