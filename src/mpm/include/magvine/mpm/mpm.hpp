@@ -17,8 +17,9 @@
 /// Hard-magnetic stress (Zhao et al. 2019, eq 3.13): P_mag = −(1/μ0) B ⊗ B̃r, B̃r the referential remanence.
 ///
 /// The grid is a dense box around the particles, rebuilt each step (never the whole domain), so memory follows the
-/// body, not the domain. P2G runs in parallel (OpenMP) over slabs four cells thick along the longest axis: even
-/// slabs, then odd ones, so no two threads write one node and the sums do not depend on the thread count.
+/// body, not the domain. P2G, the grid update and G2P run in one OpenMP region over slabs four cells thick along the
+/// longest axis: each thread owns a run of whole slabs (an equal share of the particles) for both transfers; P2G does
+/// the even slabs, then the odd ones, so no two threads write one node and the sums do not depend on the thread count.
 
 #include <cstdint>
 #include <functional>
