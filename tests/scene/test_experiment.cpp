@@ -468,6 +468,50 @@ TEST(Experiment, TheNavigatorDeflatesTheSkinVineAtTheCarinaAndSteersItIntoAMainB
   EXPECT_GT(r.final_state.tip().x(), 2e-3);  // towards 0-0 (+x)
 }
 
+TEST(Experiment, TheNavigatorRaisesThePressureOnlyForAHeldTipAndOnlyBelowBurst) {
+  // assets/scenes/bronchial_tree_generation4.yaml: boost_pressure 42 kPa after 0.5 s without growth, until the tip
+  // has grown 5 mm. Towards 0-1-0-1-1 the unperturbed Ø4 mm vine is held at the generation-4 entry near 7 s.
+  // Asserted from the samples: the pressure is the schedule's 35 kPa or the boost's 42 kPa; every rise comes at
+  // least 0.5 s after the everted length last changed, every fall once the length is 5 mm past where the rise
+  // began (edges of 2 mm: the first edge at or past it); and at least one boost happens.
+  const std::filesystem::path file =
+      std::filesystem::path(MAGVINE_SOURCE_DIR) / "assets/scenes/bronchial_tree_generation4.yaml";
+  ExperimentScene scene = with_target(load_experiment_scene(file), "0-1-0-1-1");
+  ASSERT_TRUE(scene.navigator);
+  EXPECT_DOUBLE_EQ(scene.navigator->boost_pressure, 42e3);
+  scene.duration = 8.6;
+  const ExperimentResult r = run_experiment(scene);
+  int rises = 0;
+  double changed_at = 0.0;  // when the everted length last changed
+  double previous_length = scene.vine.length;
+  double previous_pressure = 35e3;
+  double rise_length = 0.0;
+  for (const ExperimentSample& s : r.samples) {
+    EXPECT_TRUE(s.pressure == 35e3 || s.pressure == 42e3) << s.time << " s: " << s.pressure;
+    if (s.pressure > previous_pressure) {
+      ++rises;
+      EXPECT_GE(s.time - changed_at, 0.5 - 1e-9) << "rise at " << s.time << " s";
+      rise_length = previous_length;
+    }
+    if (s.pressure < previous_pressure) {
+      EXPECT_GE(previous_length, rise_length + 5e-3 - 1e-12) << "fall at " << s.time << " s";
+      EXPECT_LT(previous_length, rise_length + 5e-3 + 2e-3) << "fall at " << s.time << " s";
+    }
+    if (s.length != previous_length) changed_at = s.time;
+    previous_length = s.length;
+    previous_pressure = s.pressure;
+  }
+  std::printf("  %d boost(s) to 42 kPa by %.1f s, %.0f mm everted\n", rises, scene.duration, 1e3 * previous_length);
+  EXPECT_GE(rises, 1);
+  // 45 kPa is above this Ø4 mm film's burst (44.6 kPa with its diametric extension): refused at load.
+  std::string text = text_of(file);
+  const std::string error = error_of(replaced(text, "boost_pressure: 42", "boost_pressure: 45"));
+  EXPECT_NE(error.find("bad.yaml:"), std::string::npos) << error;
+  EXPECT_NE(error.find("control.navigator.boost_pressure: must be below the vine's burst pressure, 44.6 kPa"),
+            std::string::npos)
+      << error;
+}
+
 TEST(Experiment, ATargetOrABaseOutsideTheLumenIsRefusedBeforeTheRun) {
   // Checked by the collision world's ray parity when the run starts, before any step or output.
   const std::string text = demo_text();
@@ -488,6 +532,7 @@ void expect_reaches(const ExperimentScene& scene, const std::string& target, con
   std::cout << "[ " << label << " ] " << target << ": " << (r.success ? "reached" : "NOT reached") << " at "
             << r.time_to_target << " s, " << 1e3 * r.samples.back().length << " mm everted, " << r.events.size()
             << " events, " << r.runtime_s << " s of computing\n";
+  for (const auto& e : r.events) std::cout << "   " << e.time << " s " << e.kind << ": " << e.detail << "\n";
   EXPECT_TRUE(r.success) << target;
 }
 

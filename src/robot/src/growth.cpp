@@ -26,6 +26,9 @@ constexpr double kStill = 0.02;
 // radius is continuous in w: min(R, kSlack·w) reaches R at w = 2.22R, where slot_area and flat_width are already
 // those of the round section.
 constexpr double kSlack = 0.45;
+// Moves toward the middle of its chords of the point where the growth test measures the lumen ahead of a new tip
+// (VineGrowth::lumen_width): two leave a quarter of the offset in a round lumen.
+constexpr int kRecentrings = 2;
 
 std::string format(const char* pattern, double a, double b = 0.0, double c = 0.0, double d = 0.0, double e = 0.0) {
   char buffer[256];
@@ -92,26 +95,44 @@ int VineGrowth::retract_to(double length, GrowthStepReport& report) {
   return removed;
 }
 
-double VineGrowth::lumen_width(const Vec3& x, const Mat3& frame, Vec3* across) const {
+double VineGrowth::lumen_width(const Vec3& x, const Mat3& frame, Vec3* across, int recentrings) const {
   const double reach = 2.0 * m_radius;
+  Vec3 centre = x;
   double width = 2.0 * reach;
-  for (int k = 0; k < 4; ++k) {
-    const double a = 0.25 * kPi * k;
-    const Vec3 u = std::cos(a) * frame.col(1) + std::sin(a) * frame.col(2);
-    const auto plus = m_world->ray_cast(x, u, reach);
-    const auto minus = m_world->ray_cast(x, -u, reach);
-    const double w = (plus ? plus->distance : reach) + (minus ? minus->distance : reach);
-    if (w < width && across != nullptr) *across = u;
-    width = std::min(width, w);
+  Vec3 line = frame.col(1);
+  for (int pass = 0;; ++pass) {
+    width = 2.0 * reach;
+    Vec3 middle = Vec3::Zero();  // the mean of the chords' midpoints
+    for (int k = 0; k < 4; ++k) {
+      const double a = 0.25 * kPi * k;
+      const Vec3 u = std::cos(a) * frame.col(1) + std::sin(a) * frame.col(2);
+      const auto plus = m_world->ray_cast(centre, u, reach);
+      const auto minus = m_world->ray_cast(centre, -u, reach);
+      const double d_plus = plus ? plus->distance : reach;
+      const double d_minus = minus ? minus->distance : reach;
+      if (d_plus + d_minus < width) line = u;
+      width = std::min(width, d_plus + d_minus);
+      middle += centre + 0.5 * (d_plus - d_minus) * u;
+    }
+    // A point off the lumen's axis has short chords across it (2√(ρ² − d²) at d off the axis of a round lumen of
+    // radius ρ), which read as a gap that is not there. Where the width would squeeze the body, the point moves to
+    // the mean of the chords' midpoints and the chords are cast again: in a round lumen each move halves the
+    // offset (the midpoint of the chord along u is the axis point plus the offset's component along u, and four
+    // directions 45° apart average uuᵀ to I/2); across a slot it changes no chord's length.
+    if (pass == recentrings || kSlack * width >= m_radius) break;
+    middle *= 0.25;
+    if ((middle - centre).norm() < 1e-3 * m_radius || !m_world->contains(middle)) break;
+    centre = middle;
   }
+  if (across != nullptr) *across = line;
   return width;
 }
 
-double VineGrowth::node_radius(const Vec3& x, const Mat3& frame, Vec3* across) const {
+double VineGrowth::node_radius(const Vec3& x, const Mat3& frame, Vec3* across, int recentrings) const {
   if (m_world == nullptr) return m_radius;
   const Vec3 t = frame.col(0);
   Vec3 line = frame.col(1);
-  double width = lumen_width(x, frame, &line);
+  double width = lumen_width(x, frame, &line, recentrings);
   // A centre pressed past the wall (a new tip placed into a carina's ridge before the solve pushes it out) sees the
   // tissue, not a gap: only the probes inside the lumen count then.
   if (width < 4.0 * m_radius && !m_world->contains(x)) width = 4.0 * m_radius;
@@ -122,7 +143,7 @@ double VineGrowth::node_radius(const Vec3& x, const Mat3& frame, Vec3* across) c
       const Vec3 probe = x + side * m_radius * t;
       if (!m_world->contains(probe)) continue;
       Vec3 u = line;
-      const double w = lumen_width(probe, frame, &u);
+      const double w = lumen_width(probe, frame, &u, recentrings);
       if (w < width) line = u;
       width = std::min(width, w);
     }
@@ -616,8 +637,9 @@ GrowthStepReport VineGrowth::advance(double dt, const GrowthControl& control) {
     m_state.frames.push_back(frame);
     // Squeezing: where the lumen ahead is narrower than the body, the tip flattens into it and the pressure drives
     // it over the flattened section's area only: it advances while P·A_slot exceeds the yield force Y·πR² (the
-    // tail and the fold resist as before), and it is blocked otherwise.
-    const double tip_radius = node_radius(m_state.x.back(), m_state.frames.back());
+    // tail and the fold resist as before), and it is blocked otherwise. The width is read from the lumen's middle
+    // (re-centred chords): the new tip, pressed against a branch's wall, would otherwise read a gap that is not there.
+    const double tip_radius = node_radius(m_state.x.back(), m_state.frames.back(), nullptr, kRecentrings);
     // (A catheter is pushed from the base: the gap does not slow it until the tube is pressed flat.)
     const double squeeze = m_options.catheter ? 1.0 : slot_area(m_radius, tip_radius / kSlack) / (kPi * m_radius * m_radius);
     const bool flat = m_options.catheter &&

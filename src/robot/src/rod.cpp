@@ -16,6 +16,8 @@ namespace {
 
 using Mat6 = Eigen::Matrix<double, 6, 6>;
 constexpr double kMaxTurn = 0.5;  // [rad] largest frame rotation of one Newton step
+// [relative] the damping past which a step the line search keeps rejecting ends the solve ("line search failed")
+constexpr double kMaxRetryDamping = 1e-1;
 using Vec6 = Eigen::Matrix<double, 6, 1>;
 
 Mat3 skew(const Vec3& v) {
@@ -872,6 +874,10 @@ MAGVINE_HOT_KERNEL std::string newton(const RodModel& m, const RodField& field, 
   BlockFactor& factor = w.factor;
   VecX& delta = w.delta;
   double mu_hint = 0.0;  // the Levenberg damping the last damped step needed
+  // The least damping of the next step: raised after a step the line search rejected, relaxed tenfold per step
+  // taken.
+  double damping_floor = 0.0;
+  const auto relax = [](double floor) { return floor > 1e-5 ? 0.1 * floor : 0.0; };
   for (int it = 0; it < max_iterations; ++it) {
     if (report.iterations >= o.max_iterations) {
       return "iteration budget of " + std::to_string(o.max_iterations) + " Newton iterations exhausted";
@@ -903,7 +909,7 @@ MAGVINE_HOT_KERNEL std::string newton(const RodModel& m, const RodField& field, 
     }
     // Levenberg damping only when the Hessian is not positive definite (near a snap, or a field against the
     // magnetisation) or the step is not a descent direction; a chord Hessian that needs it is recomputed first.
-    double mu = 0.0;
+    double mu = damping_floor;
     for (;;) {
       // delta = H⁻¹g first, negated below: −H⁻¹g is a descent direction when g·H⁻¹g > 0.
       if (factor.factor(sys, mu) && factor.solve(sys.gradient, delta) && sys.gradient.dot(delta) > 0.0) break;
@@ -1020,14 +1026,23 @@ MAGVINE_HOT_KERNEL std::string newton(const RodModel& m, const RodField& field, 
       w.probe.gradient.setZero();
       const double e_probe = evaluate(m, field, w.trial, load, &w.probe, inertia, constraints);
       if (!std::isfinite(e_probe) || !(scaled_norm(m, w.probe.gradient) < 0.9 * report.gradient_norm)) {
-        return "line search failed";
+        // The quadratic model misled the step (a contact met within its smooth zone, a field gradient's
+        // negative stiffness): damp harder, towards a short step down the gradient scaled by the stiffness, which
+        // the energy does resolve (Levenberg–Marquardt's rejected step).
+        if (mu >= kMaxRetryDamping) return "line search failed";
+        damping_floor = std::max(1e-4, 10.0 * mu);
+        fresh = true;
+        last_was_chord = false;
+        continue;
       }
       std::swap(s, w.trial);
       w.current.reset(edges);
+      damping_floor = relax(damping_floor);
       continue;
     }
     std::swap(s, in_next ? w.next : w.trial);
     w.current.reset(edges);
+    damping_floor = relax(damping_floor);
   }
   return "Newton did not converge in " + std::to_string(max_iterations) + " iterations";
 }

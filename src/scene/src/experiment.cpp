@@ -765,7 +765,8 @@ ExperimentScene parse_experiment_scene(const std::string& text, const std::strin
   if (control.has("navigator")) {
     const YamlMap n = control.map("navigator");
     n.allow_only({"target", "magnet", "distance", "min_distance", "max_distance", "lead", "interval",
-                  "deflate_pressure", "deflate_time", "junction_distance", "lateral"});
+                  "deflate_pressure", "deflate_time", "junction_distance", "lateral", "boost_pressure",
+                  "boost_after", "boost_length"});
     if (!scene.graph) {
       n.fail("target", "the navigator plans on an airway graph: a generated phantom's, or anatomy.graph (extract | "
                        "FILE.json) for a mesh");
@@ -809,6 +810,23 @@ ExperimentScene parse_experiment_scene(const std::string& text, const std::strin
     if (n.has("deflate_pressure")) nav.deflate_pressure = n.positive("deflate_pressure") * stress_unit;
     if (n.has("deflate_time")) nav.deflate_time = n.positive("deflate_time");
     if (n.has("junction_distance")) nav.junction_distance = n.positive("junction_distance") * unit;
+    if (n.has("boost_pressure")) {
+      nav.boost_pressure = n.positive("boost_pressure") * stress_unit;
+      // Burst where the hoop stress P·R(P)/t reaches the wall strength S, with the diametric extension
+      // R(P) = R(1 + PR/(tE)) of the growth model: (R²/(t²E))·P² + (R/t)·P − S = 0.
+      const robot::VineParameters& v = scene.vine;
+      const double a = v.radius * v.radius / (v.wall.thickness * v.wall.thickness * v.wall.modulus);
+      const double b = v.radius / v.wall.thickness;
+      const double burst = 2.0 * v.wall_strength / (b + std::sqrt(b * b + 4.0 * a * v.wall_strength));
+      if (!scene.growth.catheter && nav.boost_pressure >= burst) {
+        char message[160];
+        std::snprintf(message, sizeof message, "must be below the vine's burst pressure, %.1f kPa (hoop stress P·R/t at the "
+                      "wall strength)", burst / kKpaToPa);
+        n.fail("boost_pressure", message);
+      }
+    }
+    if (n.has("boost_after")) nav.boost_after = n.positive("boost_after");
+    if (n.has("boost_length")) nav.boost_length = n.positive("boost_length") * unit;
 
     scene.navigator = nav;
   }
@@ -880,6 +898,9 @@ ExperimentResult run_experiment(const ExperimentScene& scene, const std::functio
                                        : std::nullopt;
   std::vector<int> deflated_at;  // branches whose end junction the navigator has deflated the vine for
   double deflate_until = -1.0;
+  double grown_at = 0.0;        // when the everted length last increased (the navigator's boost)
+  double grown_length = -1.0;   // the everted length then [m]
+  double boost_until = -1.0;    // boosting until the everted length reaches this [m] (< 0: not boosting)
   double next_shape = 0.0;  // outputs.shape_interval
   double next_frame = 0.0;  // outputs.video: one record per frame of the most frequent video
   double frame_interval = std::numeric_limits<double>::infinity();
@@ -981,6 +1002,18 @@ ExperimentResult run_experiment(const ExperimentScene& scene, const std::functio
     }
     robot::GrowthControl control;
     control.pressure = scene.pressure.at(t);
+    if (scene.navigator && scene.navigator->boost_pressure > 0.0) {
+      const double length = growth.length();
+      if (length > grown_length) {
+        grown_length = length;
+        grown_at = t;
+      }
+      if (boost_until >= 0.0 && length >= boost_until) boost_until = -1.0;
+      if (boost_until < 0.0 && t - grown_at >= scene.navigator->boost_after - 1e-9) {
+        boost_until = length + scene.navigator->boost_length;
+      }
+      if (boost_until >= 0.0) control.pressure = std::max(control.pressure, scene.navigator->boost_pressure);
+    }
     if (scene.navigator && scene.navigator->deflate_pressure > 0.0) {
       // Pressure regulation (thesis 4.7.3): once per junction on the path, deflate for deflate_time while the magnet
       // bends the body towards the next branch, then back to the schedule (the next branch's walls hold the turn).

@@ -31,7 +31,10 @@
 /// flattens at constant perimeter (a thin, inextensible film) into a stadium of width w: the node's contact radius
 /// drops to 0.45·w (a little slack between the two walls), each wall carries the pressure on the flat strip,
 /// P·(πR − πw/2) per unit length, and the tip in the narrowing is driven over the stadium's area
-/// A = πRw − πw²/4 only: it advances while P·A/(πR²) > Y (else a "squeeze" event).
+/// A = πRw − πw²/4 only: it advances while P·A/(πR²) > Y (else a "squeeze" event). For this growth test the width
+/// ahead of the new tip is measured from the lumen's middle (lumen_width's re-centring): a tip pressed against the
+/// wall of a round branch, probed R ahead, otherwise read chords of 1–1.4 mm across a Ø4.5 mm generation-4 branch
+/// as a gap and stopped there. The contact radii keep the chords through the nodes themselves.
 ///
 /// Tissue forces per step: normal k·depth at every node in contact (plus the flattened section's pressure, or a pinched
 /// catheter's ring force), shear the anchors' tangential force (eversion; the directions a wall pressing the node
@@ -216,11 +219,13 @@ class VineGrowth {
   int retract_to(double length, GrowthStepReport& report);
   double extended_radius(double pressure) const;
   /// Narrowest width of the lumen across the body at x (4 lines through x in the plane ⟂ frame.col(0), ray casts
-  /// up to 2R each way) [m].
-  double lumen_width(const Vec3& x, const Mat3& frame, Vec3* across = nullptr) const;
+  /// up to 2R each way) [m]. With `recentrings` > 0, where that would squeeze the body the lines are cast again from
+  /// the mean of the chords' midpoints, up to that many times, so that a point off a round lumen's axis does not
+  /// read its short chords as a gap.
+  double lumen_width(const Vec3& x, const Mat3& frame, Vec3* across = nullptr, int recentrings = 0) const;
   /// The body's contact radius at x: R, or half the lumen width at x or R ahead of or behind it when narrower.
-  /// `across`, if given, receives the direction of the narrowest line (the pinch).
-  double node_radius(const Vec3& x, const Mat3& frame, Vec3* across = nullptr) const;
+  /// `across`, if given, receives the direction of the narrowest line (the pinch); `recentrings` as lumen_width.
+  double node_radius(const Vec3& x, const Mat3& frame, Vec3* across = nullptr, int recentrings = 0) const;
   bool solve_with_wall(GrowthStepReport& report);
   void add_event(std::string kind, std::string detail);
 
