@@ -168,6 +168,18 @@ TEST(Growth, BurstsWhenTheHoopStressPassesTheFilmStrength) {
   EXPECT_EQ(g.events().back().kind, "burst");
   EXPECT_TRUE(g.advance(1.0, {.pressure = 12e3}).stalled);  // a burst vine grows no more
   EXPECT_EQ(g.length(), before);
+  // burst_pressure (what a scene's boost_pressure is checked against) is the same threshold: the hoop stress with
+  // the extension equals the strength there to round-off, and the growth bursts just above it, not just below.
+  const double p = burst_pressure(skin_mvr());
+  std::printf("  burst pressure %.2f kPa\n", p / 1e3);
+  EXPECT_NEAR(p * extended_radius(skin_mvr(), p) / skin_mvr().wall.thickness, skin_mvr().wall_strength,
+              1e-12 * skin_mvr().wall_strength);
+  EXPECT_GT(p, 47e3);
+  EXPECT_LT(p, 48.5e3);
+  VineGrowth below(skin_mvr(), o, nullptr, {}, Vec3::Zero(), Mat3::Identity());
+  EXPECT_FALSE(below.advance(0.1, {.pressure = 0.999 * p}).burst);
+  VineGrowth above(skin_mvr(), o, nullptr, {}, Vec3::Zero(), Mat3::Identity());
+  EXPECT_TRUE(above.advance(0.1, {.pressure = 1.001 * p}).burst);
 }
 
 /// Grows the Ø8 mm vine (or pushes it, `mode`) to 100 mm along the floor of a square channel, gravity pulling it

@@ -199,9 +199,20 @@ VineGrowth::VineGrowth(const VineParameters& vine, const GrowthOptions& options,
   if (!solve_with_wall(report)) add_event("solver", "initial equilibrium: " + report.failure);
 }
 
+double extended_radius(const VineParameters& v, double pressure) {
+  return v.radius * (1.0 + pressure * v.radius / (v.wall.thickness * v.wall.modulus));
+}
+
+double burst_pressure(const VineParameters& v) {
+  const double a = v.radius * v.radius / (v.wall.thickness * v.wall.thickness * v.wall.modulus);
+  const double b = v.radius / v.wall.thickness;
+  // 2S/(b + √(b² + 4aS)): the root without the cancellation of (−b + √(b² + 4aS))/(2a) for a small a.
+  return 2.0 * v.wall_strength / (b + std::sqrt(b * b + 4.0 * a * v.wall_strength));
+}
+
 double VineGrowth::extended_radius(double pressure) const {
   if (m_options.catheter) return 0.5 * m_options.catheter->outer_diameter;
-  return m_vine.radius * (1.0 + pressure * m_vine.radius / (m_vine.wall.thickness * m_vine.wall.modulus));
+  return robot::extended_radius(m_vine, pressure);
 }
 
 void VineGrowth::rebuild_model(double pressure) {

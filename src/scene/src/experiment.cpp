@@ -812,12 +812,7 @@ ExperimentScene parse_experiment_scene(const std::string& text, const std::strin
     if (n.has("junction_distance")) nav.junction_distance = n.positive("junction_distance") * unit;
     if (n.has("boost_pressure")) {
       nav.boost_pressure = n.positive("boost_pressure") * stress_unit;
-      // Burst where the hoop stress P·R(P)/t reaches the wall strength S, with the diametric extension
-      // R(P) = R(1 + PR/(tE)) of the growth model: (R²/(t²E))·P² + (R/t)·P − S = 0.
-      const robot::VineParameters& v = scene.vine;
-      const double a = v.radius * v.radius / (v.wall.thickness * v.wall.thickness * v.wall.modulus);
-      const double b = v.radius / v.wall.thickness;
-      const double burst = 2.0 * v.wall_strength / (b + std::sqrt(b * b + 4.0 * a * v.wall_strength));
+      const double burst = robot::burst_pressure(scene.vine);
       if (!scene.growth.catheter && nav.boost_pressure >= burst) {
         char message[160];
         std::snprintf(message, sizeof message, "must be below the vine's burst pressure, %.1f kPa (hoop stress P·R/t at the "

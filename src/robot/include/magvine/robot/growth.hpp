@@ -178,6 +178,13 @@ struct GrowthControl {
   double tether_length = std::numeric_limits<double>::infinity();  ///< the length the tether has released [m]
 };
 
+/// The vine's radius at `pressure` with its diametric extension, R(1 + PR/(tE)) (the film's hoop strain) [m].
+double extended_radius(const VineParameters& v, double pressure);
+
+/// The pressure at which the hoop stress P·R(P)/t, with the diametric extension, reaches the wall strength S: the
+/// positive root of (R²/(t²E))·P² + (R/t)·P − S = 0 [Pa]. What VineGrowth's burst event tests.
+double burst_pressure(const VineParameters& v);
+
 /// A vine growing through one anatomy. The world and the field are borrowed (the world must outlive this).
 class VineGrowth {
  public:
