@@ -815,8 +815,9 @@ ExperimentScene parse_experiment_scene(const std::string& text, const std::strin
       const double burst = robot::burst_pressure(scene.vine);
       if (!scene.growth.catheter && nav.boost_pressure >= burst) {
         char message[160];
-        std::snprintf(message, sizeof message, "must be below the vine's burst pressure, %.1f kPa (hoop stress P·R/t at the "
-                      "wall strength)", burst / kKpaToPa);
+        std::snprintf(message, sizeof message,
+                      "must be below the vine's burst pressure, %.1f kPa (hoop stress P·R/t at the wall strength)",
+                      burst / kKpaToPa);
         n.fail("boost_pressure", message);
       }
     }
@@ -893,7 +894,7 @@ ExperimentResult run_experiment(const ExperimentScene& scene, const std::functio
                                        : std::nullopt;
   std::vector<int> deflated_at;  // branches whose end junction the navigator has deflated the vine for
   double deflate_until = -1.0;
-  double grown_at = 0.0;        // when the everted length last increased (the navigator's boost)
+  double grown_at = 0.0;        // when the everted length last changed (the navigator's boost)
   double grown_length = -1.0;   // the everted length then [m]
   double boost_until = -1.0;    // boosting until the everted length reaches this [m] (< 0: not boosting)
   double next_shape = 0.0;  // outputs.shape_interval
@@ -998,8 +999,11 @@ ExperimentResult run_experiment(const ExperimentScene& scene, const std::functio
     robot::GrowthControl control;
     control.pressure = scene.pressure.at(t);
     if (scene.navigator && scene.navigator->boost_pressure > 0.0) {
+      // Held: the length has not changed for boost_after, and no tether or made length caps it.
       const double length = growth.length();
-      if (length > grown_length) {
+      const double cap =
+          std::min(scene.tether ? scene.tether->at(t) : scene.growth.max_length, scene.growth.max_length);
+      if (length != grown_length || length >= cap - 1e-9) {
         grown_length = length;
         grown_at = t;
       }

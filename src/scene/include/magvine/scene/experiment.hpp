@@ -127,7 +127,8 @@ struct Navigator {
   double lateral = 0.0;
   double deflate_time = 2.0;        ///< [s]
   double junction_distance = 0.01;  ///< [m]
-  /// Pressure regulation for a blocked tip: when the vine has not grown for boost_after [s] (the tip held at a
+  /// Pressure regulation for a blocked tip: when the vine has not grown for boost_after [s], with no tether or made
+  /// length holding it (the tip held at a
   /// junction's entry, where bending into the branch stores more energy than the growth force does work), the
   /// pressure is raised to at least boost_pressure [Pa] until the tip has grown boost_length [m] further; the growth
   /// force (P − Y)·πR² rises faster with P than the crease moment πR³P does. 0: off.
