@@ -162,8 +162,11 @@ TEST(Experiment, TrialsPerturbEachRunAndGiveTheSameOutcomesOnOneThreadOrTwo) {
   EXPECT_NE(a.navigator_offset, b.navigator_offset);
   EXPECT_NE(a.pressure.values[0], scene.pressure.values[0]);
   EXPECT_EQ(perturbed(scene, 1).vine.wall.modulus, a.vine.wall.modulus);
+  const std::filesystem::path dir = std::filesystem::temp_directory_path() / "magvine_test_trials";
+  std::filesystem::remove_all(dir);
   const std::vector<TrialOutcome> one = run_trials(scene, {"0-0", "0-1"}, 2, 1);
-  const std::vector<TrialOutcome> two = run_trials(scene, {"0-0", "0-1"}, 2, 2);
+  // On two threads, keeping each trial's outputs (--keep-runs): each folder's metrics are that trial's.
+  const std::vector<TrialOutcome> two = run_trials(scene, {"0-0", "0-1"}, 2, 2, nullptr, dir / "runs");
   ASSERT_EQ(one.size(), 4u);
   ASSERT_EQ(two.size(), 4u);
   for (std::size_t i = 0; i < one.size(); ++i) {
@@ -172,9 +175,16 @@ TEST(Experiment, TrialsPerturbEachRunAndGiveTheSameOutcomesOnOneThreadOrTwo) {
     EXPECT_EQ(one[i].time_to_target, two[i].time_to_target);
     EXPECT_EQ(one[i].final_error, two[i].final_error);
     EXPECT_TRUE(one[i].success) << one[i].target << " repeat " << one[i].repeat;
+    const std::filesystem::path run = dir / "runs" / (two[i].target + "_r" + std::to_string(two[i].repeat));
+    std::ifstream in(run / "metrics.json");
+    ASSERT_TRUE(in) << run;
+    const nlohmann::json m = nlohmann::json::parse(in);
+    EXPECT_EQ(m.at("seed").get<std::uint64_t>(), two[i].seed) << run;
+    EXPECT_EQ(m.at("success").get<bool>(), two[i].success) << run;
+    EXPECT_EQ(m.at("time_to_target_s").get<double>(), two[i].time_to_target) << run;
+    EXPECT_TRUE(std::filesystem::exists(run / "events.json")) << run;
+    EXPECT_TRUE(std::filesystem::exists(run / "tip_trajectory.csv")) << run;
   }
-  const std::filesystem::path dir = std::filesystem::temp_directory_path() / "magvine_test_trials";
-  std::filesystem::remove_all(dir);
   write_trial_outputs(one, dir);
   std::ifstream md(dir / "summary.md");
   const std::string table(std::istreambuf_iterator<char>(md), {});

@@ -270,13 +270,15 @@ int run_trials(const TrialsArgs& args) {
         const int bar = 20 * done / total;
         std::cerr << "\r  [" << std::string(static_cast<std::size_t>(bar), '#')
                   << std::string(static_cast<std::size_t>(20 - bar), '.') << "] " << done << "/" << total << std::flush;
-      });
+      }, args.keep_runs ? out / "runs" : std::filesystem::path());
   std::cerr << '\n';
   scene::write_trial_outputs(outcomes, out);
   std::ifstream md(out / "summary.md");
   std::cout << md.rdbuf();
   std::cerr << "magvine trials: " << (out / "trials.csv").string() << ", " << (out / "summary.csv").string() << ", "
-            << (out / "summary.md").string() << '\n';
+            << (out / "summary.md").string();
+  if (args.keep_runs) std::cerr << ", each trial's outputs in " << (out / "runs").string() << "/<target>_r<repeat>";
+  std::cerr << '\n';
   return 0;
 }
 

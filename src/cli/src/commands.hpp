@@ -71,6 +71,7 @@ struct TrialsArgs {
   int repeats = 4;
   int jobs = 0;                      // 0: every core
   std::string out;                   // empty: runs/<scene stem>-trials
+  bool keep_runs = false;            // each trial's outputs in <out>/runs/<target>_r<repeat>
 };
 /// `magvine trials`: seeded perturbed repeats of an experiment towards each target, in parallel (scene/experiment.hpp).
 int run_trials(const TrialsArgs& args);

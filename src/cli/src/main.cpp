@@ -102,6 +102,9 @@ int main(int argc, char** argv) {
       ->check(CLI::Range(1, 100000));
   trials_cmd->add_option("--jobs", trials.jobs, "threads (default: every core)")->check(CLI::Range(1, 1024));
   trials_cmd->add_option("--out", trials.out, "output folder (default: runs/<scene name>-trials)");
+  trials_cmd->add_flag("--keep-runs", trials.keep_runs,
+                       "also write each trial's outputs (metrics, events, trajectories; no videos) to "
+                       "OUT/runs/<target>_r<repeat> (e.g. 0-1-0_r3)");
 
   std::string validate_out;
   auto* validate_cmd = app.add_subcommand(

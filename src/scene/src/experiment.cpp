@@ -1103,7 +1103,8 @@ ExperimentScene perturbed(const ExperimentScene& scene, std::uint64_t seed) {
 }
 
 std::vector<TrialOutcome> run_trials(const ExperimentScene& scene, const std::vector<std::string>& targets,
-                                     int repeats, int jobs, const std::function<void(int, int)>& progress) {
+                                     int repeats, int jobs, const std::function<void(int, int)>& progress,
+                                     const std::filesystem::path& runs_dir) {
   if (repeats < 1) throw InputError("--repeats", 0, "", "must be >= 1");
   if (jobs < 1) throw InputError("--jobs", 0, "", "must be >= 1");
   std::vector<ExperimentScene> aimed;
@@ -1118,6 +1119,7 @@ std::vector<TrialOutcome> run_trials(const ExperimentScene& scene, const std::ve
     }
   }
   const int total = static_cast<int>(aimed.size()) * repeats;
+  if (!runs_dir.empty()) create_output_directory(runs_dir);  // before the threads create their folders in it
   std::vector<TrialOutcome> outcomes(static_cast<std::size_t>(total));
   std::atomic<int> next{0};
   std::atomic<int> done{0};
@@ -1146,6 +1148,11 @@ std::vector<TrialOutcome> run_trials(const ExperimentScene& scene, const std::ve
         for (const robot::GrowthEvent& e : res.events) o.burst = o.burst || e.kind == "burst";
         o.runtime_s = res.runtime_s;
         if (!o.success) o.reason = failure_reason(res, f);
+        if (!runs_dir.empty()) {
+          ExperimentScene kept = trial;
+          kept.videos.clear();  // trials write no videos
+          write_experiment_outputs(kept, res, runs_dir / (names[t] + "_r" + std::to_string(r)));
+        }
       } catch (...) {
         const std::lock_guard lock(report);
         if (!failure) failure = std::current_exception();
