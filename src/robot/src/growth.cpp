@@ -98,7 +98,7 @@ int VineGrowth::retract_to(double length, GrowthStepReport& report) {
 double VineGrowth::lumen_width(const Vec3& x, const Mat3& frame, Vec3* across, int recentrings) const {
   const double reach = 2.0 * m_radius;
   Vec3 centre = x;
-  double width = 2.0 * reach;
+  double width = 0.0;
   Vec3 line = frame.col(1);
   for (int pass = 0;; ++pass) {
     width = 2.0 * reach;

@@ -998,12 +998,11 @@ ExperimentResult run_experiment(const ExperimentScene& scene, const std::functio
     }
     robot::GrowthControl control;
     control.pressure = scene.pressure.at(t);
+    if (scene.tether) control.tether_length = scene.tether->at(t);
     if (scene.navigator && scene.navigator->boost_pressure > 0.0) {
       // Held: the length has not changed for boost_after, and no tether or made length caps it.
       const double length = growth.length();
-      const double cap =
-          std::min(scene.tether ? scene.tether->at(t) : scene.growth.max_length, scene.growth.max_length);
-      if (length != grown_length || length >= cap - 1e-9) {
+      if (length != grown_length || length >= std::min(control.tether_length, scene.growth.max_length) - 1e-9) {
         grown_length = length;
         grown_at = t;
       }
@@ -1028,7 +1027,6 @@ ExperimentResult run_experiment(const ExperimentScene& scene, const std::functio
       }
       if (t < deflate_until) control.pressure = std::min(control.pressure, scene.navigator->deflate_pressure);
     }
-    if (scene.tether) control.tether_length = scene.tether->at(t);
     const robot::GrowthStepReport r = growth.advance(dt, control);
     out.converged = r.converged;
     if (!r.converged) {
