@@ -37,6 +37,29 @@ TEST(FieldModel, UniformOnlyModelHasNoGradient) {
   EXPECT_FALSE(model.has_gradient());
 }
 
+TEST(FieldModel, CurvatureOfPosedDipolesMatchesDifferencesOfTheGradient) {
+  // Two posed dipoles and a uniform field: closed-form curvature (the uniform one adds none) against central
+  // differences of Gᵀw; a cylinder has none in closed form.
+  FieldModel model;
+  model.add(DipoleSource{Vec3(0, 0, 970.1)}, Pose::from_axis(Vec3(0.02, -0.2, 0.01), Vec3(0.3, 1.0, 0.2)));
+  model.add(DipoleSource{Vec3(50, 0, 0)}, Pose::from_axis(Vec3(-0.1, 0.05, 0.1), Vec3(1.0, 0.0, -0.4)));
+  model.add(UniformSource{Vec3(0.01, 0, 0)}, Pose{});
+  ASSERT_TRUE(model.has_analytic_curvature());
+  const Vec3 x(0.03, 0.01, -0.02);
+  const Vec3 w(0.4, -1.0, 0.3);
+  Mat3 fd;
+  const double step = 1e-6;
+  for (int j = 0; j < 3; ++j) {
+    const Vec3 e = step * Vec3::Unit(j);
+    fd.col(j) = (field_gradient(model, model.rest_poses, x + e).g - field_gradient(model, model.rest_poses, x - e).g)
+                    .transpose() *
+                w / (2 * step);
+  }
+  EXPECT_TRUE(close(flat(field_curvature(model, model.rest_poses, x, w)), flat(fd), 1e-7));  // O(step²/d²), d ≥ 0.1 m
+  model.add(CylinderMagnet(0.0508, 0.1016, Vec3(0, 0, 1.48)), Pose{});
+  EXPECT_FALSE(model.has_analytic_curvature());
+}
+
 TEST(FieldModel, RotatedAxialMagnetMatchesOnAxisFormulaAlongItsAxis) {
   // An axial magnet whose axis points along world (1, 1, 0)/√2, centred at c: along that line the field is
   // the on-axis closed form, directed along the axis — an independent check of the pose transform.

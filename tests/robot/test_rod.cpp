@@ -58,7 +58,12 @@ TEST(Rod, GradientMatchesFiniteDifferencesOfTheEnergy) {
     r = Eigen::AngleAxisd(0.5 * u(rng), Vec3(u(rng), u(rng), u(rng)).normalized()).toRotationMatrix() * r;
   testing::nodes_along_frames(m, s, 1e-6, rng);
   testing::expect_gradient_matches_energy(m, field, s, "rod");
+  ASSERT_TRUE(static_cast<bool>(field.curvature()));  // a dipole's curvature is closed-form
   testing::expect_hessian_matches_finite_differences(m, field, s, "rod");
+  // The same field without its curvature: the Hessian differences the field gradient instead.
+  const RodField plain = [&field](const Vec3& x) { return field(x); };
+  ASSERT_FALSE(static_cast<bool>(plain.curvature()));
+  testing::expect_hessian_matches_finite_differences(m, plain, s, "rod, differenced curvature");
 }
 
 TEST(Rod, ContactAnchorAndForceTermsMatchFiniteDifferences) {

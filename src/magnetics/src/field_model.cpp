@@ -63,6 +63,24 @@ bool FieldModel::has_gradient() const {
   return false;
 }
 
+bool FieldModel::has_analytic_curvature() const {
+  for (const auto& s : sources) {
+    if (!std::holds_alternative<UniformSource>(s) && !std::holds_alternative<DipoleSource>(s)) return false;
+  }
+  return true;
+}
+
+Mat3 field_curvature(const FieldModel& model, std::span<const Pose> poses, const Vec3& x, const Vec3& w) {
+  MAGVINE_ASSERT(poses.size() == model.size() && model.has_analytic_curvature());
+  Mat3 out = Mat3::Zero();
+  for (std::size_t k = 0; k < model.size(); ++k) {
+    if (const auto* d = std::get_if<DipoleSource>(&model.sources[k])) {
+      out += dipole_field_curvature(poses[k].rotation * d->moment, x - poses[k].position, w);
+    }
+  }
+  return out;
+}
+
 void field_batch(const FieldModel& model, std::span<const Pose> poses, std::span<const Vec3> points,
                  std::span<Vec3> out) {
   MAGVINE_ASSERT(poses.size() == model.size() && out.size() == points.size());

@@ -129,6 +129,10 @@ void validate(const ElasticaProblem& p, const ElasticaOptions& o) {
 FieldFunction field_function(const magnetics::FieldModel& model, std::vector<magnetics::Pose> poses) {
   if (model.has_gradient()) {
     usage::note(usage::Component::kGradientField);
+    if (model.has_analytic_curvature()) {
+      return {[model, poses](const Vec3& x) { return magnetics::field_gradient(model, poses, x); },
+              [model, poses](const Vec3& x, const Vec3& w) { return magnetics::field_curvature(model, poses, x, w); }};
+    }
     return [model, poses = std::move(poses)](const Vec3& x) { return magnetics::field_gradient(model, poses, x); };
   }
   return [model, poses = std::move(poses)](const Vec3& x) {

@@ -469,7 +469,8 @@ Mat3 local_rotation_hessian(const Gradient& gradient) {
 ///     Baker–Campbell–Hausdorff term of exp(−[δφ_a])exp([δφ_b]), g the joint's gradient in δφ_b);
 ///   magnets: with w = dU/dB = −m + R p (p = V de/db, P = V d²e/db², body frame), c the midpoint and G = ∂B/∂c,
 ///     δφδφ: sym(w Bᵀ) − w·B I + [B]ᵀRPRᵀ[B];  δφδc: ([w] − [B]RPRᵀ)G;  δcδc: GᵀRPRᵀG + Σ_i w_i ∇²B_i,
-///     the last from forward differences of G (skipped when the field has no gradient at any midpoint: uniform);
+///     the last from the field's closed-form curvature where it has one (dipoles), else from forward differences of G
+///     (skipped when the field has no gradient at any midpoint: uniform);
 ///   inertia and the tip moment: central differences of their one-block gradients.
 /// Checked against finite_difference_hessian (central differences of the whole gradient) in test_rod.
 /// `cache`, when given, holds (or receives) the field at this state's edge midpoints.
@@ -526,8 +527,9 @@ void analytic_hessian(const RodModel& m, const RodField& field, const RodState& 
       const bool flat = samples.at(field, s, j).g.isZero(0.0);  // sampled at every edge, even past the first gradient
       uniform = uniform && flat;
     }
-    // Forward differences of G: truncation ~step/d relative (d the distance to the magnet, ≫ L/1e6 here) and
-    // round-off ~ε·d/step, both far below what Newton's convergence notices; half the field samples of central ones.
+    // Without a closed-form curvature, forward differences of G: truncation ~step/d relative (d the distance to the
+    // magnet, ≫ L/1e6 here) and round-off ~ε·d/step, both far below what Newton's convergence notices; half the
+    // field samples of central ones. (For a dipole the closed form took a tenth off a cold 100-node solve.)
     const double step = 1e-6 * m.length;
     for (int j = 0; j < n; ++j) {
       const auto ju = static_cast<std::size_t>(j);
@@ -543,14 +545,23 @@ void analytic_hessian(const RodModel& m, const RodField& field, const RodState& 
         p_world = volume * r * d2e * r.transpose();
       }
       if (w.isZero(0.0) && volume == 0.0) continue;
-      const Mat3 bx = skew(f.b);
-      const Mat3 h_phiphi = cross_squared(w, f.b) + bx.transpose() * p_world * bx;
-      const Mat3 h_phic = (skew(w) - bx * p_world) * f.g;
-      Mat3 h_cc = f.g.transpose() * p_world * f.g;
+      Mat3 h_phiphi = cross_squared(w, f.b);
+      Mat3 h_phic = skew(w) * f.g;
+      Mat3 h_cc = Mat3::Zero();
+      if (volume > 0.0) {  // the induced moment's terms (a hard moment has P = 0)
+        const Mat3 bx = skew(f.b);
+        h_phiphi += bx.transpose() * p_world * bx;
+        h_phic -= bx * p_world * f.g;
+        h_cc = f.g.transpose() * p_world * f.g;
+      }
       if (!uniform) {
         const Vec3 c = 0.5 * (s.x[ju] + s.x[ju + 1]);
-        for (int k = 0; k < 3; ++k) h_cc.col(k) += (field(c + step * Vec3::Unit(k)).g - f.g).transpose() * w / step;
-        h_cc = 0.5 * (h_cc + h_cc.transpose()).eval();
+        if (field.curvature()) {
+          h_cc += field.curvature()(c, w);
+        } else {
+          for (int k = 0; k < 3; ++k) h_cc.col(k) += (field(c + step * Vec3::Unit(k)).g - f.g).transpose() * w / step;
+          h_cc = 0.5 * (h_cc + h_cc.transpose()).eval();
+        }
       }
       add_edge_element(sys, j, EdgeVector::midpoint, h_cc, h_phic.transpose(), h_phiphi);
     }
@@ -590,23 +601,30 @@ void analytic_hessian(const RodModel& m, const RodField& field, const RodState& 
   }
 }
 
-/// The Cholesky factor L of a symmetric 6 × 6 block A = LLᵀ, read from the lower triangle of `a`, stored in the
-/// upper triangle of `packed` (L(i, j) at (j, i) for i > j) and in `diagonal` (1/L(j, j): the substitutions multiply
-/// instead of divide); false when A is not positive definite. The loops have constant bounds (the triangle selected
-/// inside) so that they unroll completely (3× faster than loops bounded by j).
-bool cholesky(const Mat6& a, Mat6& packed, Vec6& diagonal) {
+/// The LDLᵀ factor of a symmetric 6 × 6 block A (L unit lower triangular), read from the lower triangle of `a`: L
+/// stored in the upper triangle of `packed` (L(i, j) at (j, i) for i > j), 1/D in `diagonal` (the substitutions
+/// multiply instead of divide); false when A is not positive definite (a pivot D_j ≤ 0). No square roots: the
+/// pivots form a chain (each column needs the previous one's), and a square root on it cost as much again as the
+/// division. The loops have constant bounds (the triangle selected inside) so that they unroll completely (3×
+/// faster than loops bounded by j).
+bool ldlt(const Mat6& a, Mat6& packed, Vec6& diagonal) {
+  Vec6 pivot;
+  Vec6 w;
   for (int j = 0; j < 6; ++j) {
     double d = a(j, j);
     for (int k = 0; k < 6; ++k) {
-      if (k < j) d -= packed(k, j) * packed(k, j);
+      if (k >= j) continue;
+      w[k] = packed(k, j) * pivot[k];  // L(j, k)·D_k
+      d -= packed(k, j) * w[k];
     }
     if (!(d > 0.0)) return false;
-    diagonal[j] = 1.0 / std::sqrt(d);
+    pivot[j] = d;
+    diagonal[j] = 1.0 / d;
     for (int i = 0; i < 6; ++i) {
       if (i <= j) continue;
       double v = a(i, j);
       for (int k = 0; k < 6; ++k) {
-        if (k < j) v -= packed(k, i) * packed(k, j);
+        if (k < j) v -= packed(k, i) * w[k];
       }
       packed(j, i) = v * diagonal[j];
     }
@@ -614,28 +632,28 @@ bool cholesky(const Mat6& a, Mat6& packed, Vec6& diagonal) {
   return true;
 }
 
-/// v ← A⁻¹v = L⁻ᵀL⁻¹v for a factor of `cholesky`: forward, then back substitution.
-void cholesky_solve(const Mat6& packed, const Vec6& diagonal, Vec6& v) {
+/// v ← A⁻¹v = L⁻ᵀD⁻¹L⁻¹v for a factor of `ldlt`: forward, scale, then back substitution.
+void ldlt_solve(const Mat6& packed, const Vec6& diagonal, Vec6& v) {
   for (int j = 0; j < 6; ++j) {
-    v[j] *= diagonal[j];
     for (int i = 0; i < 6; ++i) {
       if (i > j) v[i] -= packed(j, i) * v[j];
     }
   }
+  v = v.cwiseProduct(diagonal);
   for (int j = 5; j >= 0; --j) {
     double r = v[j];
     for (int k = 0; k < 6; ++k) {
       if (k > j) r -= packed(j, k) * v[k];
     }
-    v[j] = r * diagonal[j];
+    v[j] = r;
   }
 }
 
-/// Block Cholesky (block Thomas) factorisation of H + μ|diag H| for the block-tridiagonal H of a System: the pivots
-/// P_i = H_ii − H_i,i−1 P_{i−1}⁻¹ H_i,i−1ᵀ, each kept as its Cholesky factor L_i (which also checks that it is positive
-/// definite). P_{i−1}⁻¹ is never formed: with W = L_{i−1}⁻¹ H_i,i−1ᵀ (six forward substitutions) the update is
-/// P_i = H_ii − WᵀW, its lower triangle only. L_i lives in the upper triangle of the symmetric block H_ii, which
-/// nothing else reads, and its diagonal here: the factor costs 6 numbers per edge besides H. (An explicit inverse and
+/// Block LDLᵀ (block Thomas) factorisation of H + μ|diag H| for the block-tridiagonal H of a System: the pivots
+/// P_i = H_ii − H_i,i−1 P_{i−1}⁻¹ H_i,i−1ᵀ, each kept as its factor L_i D_i L_iᵀ (which also checks that it is positive
+/// definite). P_{i−1}⁻¹ is never formed: with U = H_i,i−1 L_{i−1}⁻ᵀ (six substitutions) the update is
+/// P_i = H_ii − U D_{i−1}⁻¹ Uᵀ, its lower triangle only. L_i lives in the upper triangle of the symmetric block H_ii,
+/// which nothing else reads, and 1/D_i here: the factor costs 6 numbers per edge besides H. (An explicit inverse and
 /// H_i,i−1 P_{i−1}⁻¹ per pivot took twice the arithmetic and 72 numbers per edge; at 100 edges the solver's buffers
 /// then outgrew what the allocator keeps between solves, and every cold solve paid page faults for them.)
 class BlockFactor {
@@ -652,20 +670,17 @@ class BlockFactor {
       if (mu > 0.0) p.diagonal() += mu * sys.diag[i].diagonal().cwiseAbs().cwiseMax(1e-300);
       if (i > 0) {
         const Mat6& l = sys.diag[i - 1];  // L_{i−1}(j, k) at (k, j)
-        const Vec6& d = m_diagonal[i - 1];
-        // U = Wᵀ = H_i,i−1 L_{i−1}⁻ᵀ: W's rows are U's columns, which are contiguous (Eigen is column-major), so the
-        // substitution works on whole columns; then WᵀW = UUᵀ as one fixed-size product (the upper triangle it
-        // also fills is never read).
+        // U = H_i,i−1 L_{i−1}⁻ᵀ: the substitution works on U's columns, which are contiguous (Eigen is
+        // column-major); then U D⁻¹ Uᵀ as one fixed-size product (the upper triangle it also fills is never read).
         Mat6 u = sys.sub[i];
         for (int j = 0; j < 6; ++j) {
           for (int k = 0; k < 6; ++k) {
             if (k < j) u.col(j) -= l(k, j) * u.col(k);
           }
-          u.col(j) *= d[j];
         }
-        p.noalias() -= u * u.transpose();
+        p.noalias() -= (u * m_diagonal[i - 1].asDiagonal()) * u.transpose();
       }
-      if (!cholesky(p, sys.diag[i], m_diagonal[i])) return false;
+      if (!ldlt(p, sys.diag[i], m_diagonal[i])) return false;
     }
     return true;
   }
@@ -679,13 +694,13 @@ class BlockFactor {
       const auto at = static_cast<Eigen::Index>(6 * i);
       Vec6 y = rhs.segment<6>(at);
       if (i > 0) y.noalias() -= m_sys->sub[i] * out.segment<6>(at - 6);
-      cholesky_solve(m_sys->diag[i], m_diagonal[i], y);
+      ldlt_solve(m_sys->diag[i], m_diagonal[i], y);
       out.segment<6>(at) = y;
     }
     for (std::size_t i = n - 1; i-- > 0;) {
       const auto at = static_cast<Eigen::Index>(6 * i);
       Vec6 r = m_sys->sub[i + 1].transpose() * out.segment<6>(at + 6);
-      cholesky_solve(m_sys->diag[i], m_diagonal[i], r);
+      ldlt_solve(m_sys->diag[i], m_diagonal[i], r);
       out.segment<6>(at) -= r;
     }
     return out.allFinite();
@@ -693,7 +708,7 @@ class BlockFactor {
 
  private:
   const System* m_sys = nullptr;
-  std::vector<Vec6> m_diagonal;  ///< 1/L_i(j, j) of each pivot (the rest of L_i: System::diag, see cholesky)
+  std::vector<Vec6> m_diagonal;  ///< 1/D_i of each pivot (L_i: System::diag, see ldlt)
 };
 
 /// vᵀHv for the block-tridiagonal H, from the lower triangles of its diagonal blocks (the upper ones may hold a

@@ -37,4 +37,22 @@ inline FieldSample dipole_field_gradient(const Vec3& m, const Vec3& r) {
   return out;
 }
 
+/// The Hessian of w·B in x (w a fixed vector), Σ_i w_i ∂²B_i/∂x∂x, of a dipole: with a = m·r̂, c = w·r̂ and d = |r|,
+///   μ0/(4πd⁵)[3(m wᵀ + w mᵀ + (m·w)I) − 15((c m + a w)r̂ᵀ + r̂(c m + a w)ᵀ + ac I + (m·w)r̂r̂ᵀ) + 105 ac r̂r̂ᵀ],
+/// symmetric and traceless (w·B is harmonic away from the dipole). The curvature term of a magnet's energy −m·B.
+inline Mat3 dipole_field_curvature(const Vec3& m, const Vec3& r, const Vec3& w) {
+  const double d2 = r.squaredNorm();
+  if (d2 < kDipoleCoreRadius * kDipoleCoreRadius) return Mat3::Zero();
+  const double inv_d = 1.0 / std::sqrt(d2);
+  const Vec3 rh = r * inv_d;
+  const double a = rh.dot(m);
+  const double c = rh.dot(w);
+  const double mw = m.dot(w);
+  const Vec3 v = c * m + a * w;
+  Mat3 h = 3.0 * (m * w.transpose() + w * m.transpose()) - 15.0 * (v * rh.transpose() + rh * v.transpose()) +
+           (105.0 * a * c - 15.0 * mw) * (rh * rh.transpose());
+  h.diagonal().array() += 3.0 * mw - 15.0 * a * c;
+  return kMu0 / (4.0 * kPi) * inv_d * inv_d * inv_d * inv_d * inv_d * h;
+}
+
 }  // namespace magvine::magnetics

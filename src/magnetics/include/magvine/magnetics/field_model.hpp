@@ -41,12 +41,19 @@ struct FieldModel {
   std::size_t size() const { return sources.size(); }
   /// False when every source is uniform: then G ≡ 0 and callers need not ask for it.
   bool has_gradient() const;
+  /// True when field_curvature is closed-form for every source (uniform fields and dipoles).
+  bool has_analytic_curvature() const;
 };
 
 /// B at world point x [T], poses.size() == model.size().
 Vec3 field(const FieldModel& model, std::span<const Pose> poses, const Vec3& x);
 /// B and G at world point x, world frame.
 FieldSample field_gradient(const FieldModel& model, std::span<const Pose> poses, const Vec3& x);
+
+/// Σ_i w_i ∂²B_i/∂x∂x at world point x for a fixed world vector w [T/m²·w] (the field's curvature along w, e.g. the
+/// stiffness a magnet's potential −m·B adds to its position), symmetric; closed-form for dipoles, zero for uniform
+/// fields. Precondition: model.has_analytic_curvature().
+Mat3 field_curvature(const FieldModel& model, std::span<const Pose> poses, const Vec3& x, const Vec3& w);
 
 /// Batch forms: out[i] for points[i]; out.size() == points.size(). Loop over sources outside, points inside.
 void field_batch(const FieldModel& model, std::span<const Pose> poses, std::span<const Vec3> points,

@@ -23,6 +23,7 @@
 #include "magvine/core/eigen_types.hpp"
 #include "magvine/magnetics/field_model.hpp"
 #include "magvine/magnetics/field_sample.hpp"
+#include "magvine/robot/field_function.hpp"
 
 namespace magvine::robot {
 
@@ -32,11 +33,6 @@ enum class PlanarMagnetisation {
   kNormal,  ///< along ẑ × t (the base normal +y for a beam clamped along +x)
 };
 
-/// Field and gradient at a world point [T, T/m]; only the x–y parts are used.
-using FieldFunction = std::function<magnetics::FieldSample(const Vec3&)>;
-
-/// The field of `model` with its sources at `poses` (copied), with the gradient only when some source has one.
-FieldFunction field_function(const magnetics::FieldModel& model, std::vector<magnetics::Pose> poses);
 
 /// One planar cantilever problem, SI units.
 struct ElasticaProblem {
@@ -48,7 +44,7 @@ struct ElasticaProblem {
   Eigen::Vector2d gravity = Eigen::Vector2d::Zero();  ///< g [m/s²]
   double remanence = 0.0;                             ///< Br [T]
   PlanarMagnetisation magnetisation = PlanarMagnetisation::kAxial;
-  FieldFunction field;                                  ///< empty: no field
+  FieldFunction field;                                  ///< empty: no field; only the x–y parts are used
   Eigen::Vector2d tip_force = Eigen::Vector2d::Zero();  ///< F_tip [N]
   double tip_moment = 0.0;                              ///< M_tip about +z [N·m]
 };

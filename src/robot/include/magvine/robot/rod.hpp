@@ -29,11 +29,12 @@
 
 #include "magvine/core/eigen_types.hpp"
 #include "magvine/magnetics/field_sample.hpp"
+#include "magvine/robot/field_function.hpp"
 
 namespace magvine::robot {
 
 /// Field and gradient at a world point [T, T/m].
-using RodField = std::function<magnetics::FieldSample(const Vec3&)>;
+using RodField = FieldFunction;
 
 /// Bending of a pressurised thin-walled tube (PHYSICS.md §3, inflated_beam.hpp), per joint of bend angle ψ over ℓ
 /// with curvature κ = |ω_bend| = 2 tan(ψ/2)/ℓ:
