@@ -3,6 +3,7 @@
 
 #include <array>
 #include <cmath>
+#include <memory>
 #include <string>
 #include <utility>
 
@@ -129,11 +130,19 @@ void validate(const ElasticaProblem& p, const ElasticaOptions& o) {
 FieldFunction field_function(const magnetics::FieldModel& model, std::vector<magnetics::Pose> poses) {
   if (model.has_gradient()) {
     usage::note(usage::Component::kGradientField);
-    if (model.has_analytic_curvature()) {
-      return {[model, poses](const Vec3& x) { return magnetics::field_gradient(model, poses, x); },
-              [model, poses](const Vec3& x, const Vec3& w) { return magnetics::field_curvature(model, poses, x, w); }};
-    }
-    return [model, poses = std::move(poses)](const Vec3& x) { return magnetics::field_gradient(model, poses, x); };
+    // One copy of the magnets, shared by the sample and the curvature.
+    struct Posed {
+      magnetics::FieldModel model;
+      std::vector<magnetics::Pose> poses;
+    };
+    auto posed = std::make_shared<const Posed>(Posed{model, std::move(poses)});
+    FieldFunction::Sample sample = [posed](const Vec3& x) {
+      return magnetics::field_gradient(posed->model, posed->poses, x);
+    };
+    if (!model.has_analytic_curvature()) return sample;
+    return {std::move(sample), [posed](const Vec3& x, const Vec3& w) {
+              return magnetics::field_curvature(posed->model, posed->poses, x, w);
+            }};
   }
   return [model, poses = std::move(poses)](const Vec3& x) {
     magnetics::FieldSample sample;

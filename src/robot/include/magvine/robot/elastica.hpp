@@ -33,7 +33,6 @@ enum class PlanarMagnetisation {
   kNormal,  ///< along ẑ × t (the base normal +y for a beam clamped along +x)
 };
 
-
 /// One planar cantilever problem, SI units.
 struct ElasticaProblem {
   double length = 0.0;             ///< L [m], > 0
