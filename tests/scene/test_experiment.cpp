@@ -147,6 +147,40 @@ TEST(Experiment, NavigatorSteersIntoEitherDaughterOfTheYAndToGenerationTwoOfTheT
   }
 }
 
+TEST(Experiment, TheNavigatorSteersAPushedMagneticRodIntoEitherDaughterOfTheY) {
+  // robot.kind: rod, pushed from the base (y_bifurcation_magnetic_rod.yaml: a Ø3 mm soft rod, its distal 20 mm
+  // magnetised along its axis). The navigator's field at the tip turns the magnetised tip towards the aim: the rod
+  // reaches the end of daughter 0-0 (+y) and, aimed the other way, of its mirror image 0-1 (−y); without a magnet it
+  // does not reach 0-0's end. The inserted part carries the rod's distal magnetisation (the tip's 20 mm, 13–14 of
+  // its 1.5 mm edges, whatever the insertion) and the body has no pressure.
+  const std::filesystem::path scene = std::filesystem::path(MAGVINE_SOURCE_DIR) / "assets/scenes/y_bifurcation_magnetic_rod.yaml";
+  for (const auto& [daughter, side] : {std::pair<const char*, double>{"0-0", 1.0}, {"0-1", -1.0}}) {
+    const ExperimentResult r = navigate_to(scene, "target: \"0-0\"", "target: \"" + std::string(daughter) + "\"");
+    EXPECT_TRUE(r.success) << daughter;
+    EXPECT_TRUE(r.converged) << r.failure;
+    EXPECT_GT(side * r.final_state.tip().y(), 15e-3) << daughter;  // in the daughter, ±35° from the parent
+    EXPECT_EQ(r.samples.back().pressure, 0.0);
+  }
+  std::ifstream in(scene);
+  std::string text(std::istreambuf_iterator<char>(in), {});
+  text = replaced(text, "magnets:\n  - {kind: cylinder, diameter: 101.6, length: 101.6, polarisation: 1.48, "
+                        "position: [90, 250, 0], axis: [0, -1, 0]}\n", "");
+  text = replaced(text, "  navigator: {target: \"0-0\", magnet: 0, distance: 110}", "  tether: [[0, 5], [8, 125]]");
+  text += "target: {position: [100, 24, 0], tolerance: 6}\n";
+  const ExperimentScene plain = parse_experiment_scene(text, "rod.yaml", MAGVINE_SOURCE_DIR);
+  ASSERT_TRUE(plain.growth.rod.has_value());
+  const robot::RodModel& body = plain.growth.rod->body;
+  EXPECT_NEAR(plain.growth.rod->radius, 1.5e-3, 1e-12);
+  EXPECT_TRUE(body.moment_per_length.front().isZero());
+  EXPECT_NEAR(body.moment_per_length.back().x(), 0.125 / kMu0 * kPi * 2.25e-6, 1e-9);  // M·A along the tangent
+  const ExperimentResult unsteered = run_experiment(plain);
+  EXPECT_FALSE(unsteered.success);
+  EXPECT_GT(unsteered.samples.back().length, 0.09);  // it was inserted, just not steered
+  // A rod has no pressure: a pressure schedule is refused.
+  EXPECT_NE(error_of(replaced(text, "  tether: [[0, 5], [8, 125]]", "  pressure: [[0, 35]]")).find("control.pressure"),
+            std::string::npos);
+}
+
 TEST(Experiment, TrialsPerturbEachRunAndGiveTheSameOutcomesOnOneThreadOrTwo) {
   // magvine trials: the Y navigator scene towards both daughters, 2 repeats each, on 1 and on 2 threads: the same
   // outcomes in the same order (each trial's perturbation is drawn from its own seed); every trial reaches its
@@ -315,7 +349,7 @@ TEST(Experiment, BadScenesNameTheFileAndKey) {
   expect_error(replaced(text, "phantom: {kind: y_bifurcation}", "phantom: {kind: y_junction}"), "anatomy.phantom.kind");
   expect_error(replaced(text, "phantom: {kind: y_bifurcation}", "mesh: no_such_airway.stl"), "no_such_airway.stl");
   expect_error(replaced(text, "duration: 8, ", ""), "simulation.duration");
-  expect_error(replaced(text, "kind: vine", "kind: rod"), "robot.kind");
+  expect_error(replaced(text, "kind: vine", "kind: tentacle"), "robot.kind");
   expect_error(replaced(text, "growth: {yield_pressure: 20}", "growth: {yield_pressure: 20, max_incidence: 95}"),
                "growth.max_incidence: must be an angle in degrees between 0 and 90");
   expect_error(replaced(text, "growth: {yield_pressure: 20}",

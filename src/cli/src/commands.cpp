@@ -201,8 +201,9 @@ std::function<void(double)> progress_bar() {
 
 int run_experiment_scene(const RunArgs& args, const std::filesystem::path& out) {
   const scene::ExperimentScene sc = scene::load_experiment_scene(args.scene);
-  std::cerr << "magvine run: growing a vine in " << sc.anatomy_label << " for " << sc.duration << " s (" << sc.mesh.triangles.size()
-            << " triangles)\n";
+  const bool rod = sc.growth.rod.has_value();
+  std::cerr << "magvine run: " << (rod ? "pushing a rod into " : "growing a vine in ") << sc.anatomy_label << " for "
+            << sc.duration << " s (" << sc.mesh.triangles.size() << " triangles)\n";
   if (!config::kWithRender && !sc.videos.empty()) {
     std::cerr << "magvine run: warning: " << args.scene
               << ": outputs.video skipped: this magvine was built without the render module\n";
@@ -215,7 +216,8 @@ int run_experiment_scene(const RunArgs& args, const std::filesystem::path& out) 
   }
   scene::write_experiment_outputs(sc, result, out);
   const Vec3 tip = result.final_state.tip() / kMmToM;
-  std::cerr << "magvine run: " << result.samples.back().length / kMmToM << " mm everted, tip at (" << tip.x() << ", "
+  std::cerr << "magvine run: " << result.samples.back().length / kMmToM << (rod ? " mm inserted" : " mm everted")
+            << ", tip at (" << tip.x() << ", "
             << tip.y() << ", " << tip.z() << ") mm, " << result.events.size() << " events"
             << (sc.target ? (result.success ? ", target reached at " + std::to_string(result.time_to_target) + " s"
                                             : std::string(", target not reached"))

@@ -129,7 +129,7 @@ double VineGrowth::lumen_width(const Vec3& x, const Mat3& frame, Vec3* across, i
 }
 
 double VineGrowth::node_radius(const Vec3& x, const Mat3& frame, Vec3* across, int recentrings) const {
-  if (m_world == nullptr) return m_radius;
+  if (m_world == nullptr || m_options.rod) return m_radius;  // a solid rod does not flatten
   const Vec3 t = frame.col(0);
   Vec3 line = frame.col(1);
   double width = lumen_width(x, frame, &line, recentrings);
@@ -151,6 +151,29 @@ double VineGrowth::node_radius(const Vec3& x, const Mat3& frame, Vec3* across, i
   if (across != nullptr) *across = line;
   return std::min(m_radius, kSlack * width);
 }
+
+namespace {
+
+/// The inserted distal length of a pushed rod (PushedRod), as `edges` edges: the body's uniform properties, and per
+/// edge the magnetisation of the material there (edge midpoints mapped to the body's edges from its tip).
+RodModel inserted_part(const RodModel& body, double length, int edges) {
+  RodModel m = body;
+  m.length = length;
+  m.edges = edges;
+  if (!body.moment_per_length.empty()) {
+    const double h = length / edges;
+    const double h_body = body.length / body.edges;
+    m.moment_per_length.resize(static_cast<std::size_t>(edges));
+    for (int j = 0; j < edges; ++j) {
+      const double s = body.length - length + (j + 0.5) * h;  // material arc length from the rod's base
+      const int k = std::clamp(static_cast<int>(std::floor(s / h_body)), 0, body.edges - 1);
+      m.moment_per_length[static_cast<std::size_t>(j)] = body.moment_per_length[static_cast<std::size_t>(k)];
+    }
+  }
+  return m;
+}
+
+}  // namespace
 
 VineGrowth::VineGrowth(const VineParameters& vine, const GrowthOptions& options, const anatomy::CollisionWorld* world,
                        RodField field, const Vec3& base_position, const Mat3& base_frame)
@@ -186,6 +209,17 @@ VineGrowth::VineGrowth(const VineParameters& vine, const GrowthOptions& options,
     check(c.modulus > 0.0 && std::isfinite(c.modulus) && c.density >= 0.0, "catheter: modulus must be > 0");
     m_vine.radius = 0.5 * c.outer_diameter;  // the edge length and contact radius follow the tube
   }
+  if (options.rod) {
+    const PushedRod& r = *options.rod;
+    check(options.mode == InsertionMode::kPushed, "a rod is pushed: set mode to pushed");
+    check(!options.catheter, "push a rod or a catheter, not both");
+    check(r.radius > 0.0 && std::isfinite(r.radius), "rod: radius must be > 0");
+    check(r.body.length > 0.0 && r.body.edges >= 1, "rod: the body needs a length and edges");
+    check(r.insertion_speed >= 0.0 && std::isfinite(r.insertion_speed), "rod: insertion_speed must be >= 0");
+    check(r.body.rest_strain.empty(), "rod: a pre-curved rod is not supported in anatomy");
+    check(vine.length <= r.body.length * (1.0 + 1e-9), "rod: the inserted length exceeds the rod's length");
+    m_vine.radius = r.radius;  // the edge length and contact radius follow the rod
+  }
   m_h = options.edge_length > 0.0 ? options.edge_length : m_vine.radius;
   const int edges = std::max(1, static_cast<int>(std::lround(vine.length / m_h)));
   m_vine.edges = edges;
@@ -212,6 +246,7 @@ double burst_pressure(const VineParameters& v) {
 
 double VineGrowth::extended_radius(double pressure) const {
   if (m_options.catheter) return 0.5 * m_options.catheter->outer_diameter;
+  if (m_options.rod) return m_options.rod->radius;
   return robot::extended_radius(m_vine, pressure);
 }
 
@@ -224,6 +259,8 @@ void VineGrowth::rebuild_model(double pressure) {
   if (m_options.catheter) {
     const CatheterTube& c = *m_options.catheter;
     m_model = circular_tube_rod(v.length, c.outer_diameter, c.inner_diameter, c.modulus / 3.0, c.density, v.edges);
+  } else if (m_options.rod) {
+    m_model = inserted_part(m_options.rod->body, v.length, v.edges);
   } else {
     m_model = vine_rod(v);
   }
@@ -233,10 +270,12 @@ void VineGrowth::rebuild_model(double pressure) {
   m_radius = v.radius;
   m_pressure = pressure;
   const double ei = m_model.bending_stiffness_3;
+  // A solid rod presses the wall with its section's stiffness over an edge, E·h (E from EI = Eπr⁴/4).
+  const double solid = m_options.rod ? 4.0 * ei / (kPi * std::pow(m_radius, 4)) * m_h : 0.0;
   m_stiffness = m_options.contact_stiffness > 0.0
                     ? m_options.contact_stiffness
-                    : std::max(50.0 * kPi * (m_options.catheter ? 0.0 : pressure) * m_radius,
-                               10.0 * ei / (m_h * m_h * m_h));
+                    : std::max({50.0 * kPi * (m_options.catheter || m_options.rod ? 0.0 : pressure) * m_radius,
+                                10.0 * ei / (m_h * m_h * m_h), solid});
 }
 
 double VineGrowth::turning() const {
@@ -284,6 +323,14 @@ bool VineGrowth::solve_with_wall(GrowthStepReport& report) {
   // carry it past walls it had not met): the pass is undone and the wall kept as a plane for that node for the rest
   // of the step, facing the side it came from (continuous collision for a swing across an obstacle).
   std::vector<NodeContact> crossed;
+  // Pushed mode: planes kept for a node that swung back in a solve. On a curved wall the planes queried at one
+  // position push a sliding node to another, whose planes (and the friction of the new normal force) push it back: a
+  // two-cycle that never settles. Keeping the planes of each swing (up to kMaxHolds) for the rest of the step holds
+  // it between them.
+  std::vector<NodeContact> held;
+  std::vector<int> holds(nodes, 0);
+  constexpr int kMaxHolds = 3;
+  std::vector<Vec3> last_move(nodes, Vec3::Zero());
   RodState before;
   for (int pass = 0; pass < m_options.max_contact_passes; ++pass) {
     ++report.contact_passes;
@@ -331,6 +378,7 @@ bool VineGrowth::solve_with_wall(GrowthStepReport& report) {
       }
     }
     c.contacts.insert(c.contacts.end(), crossed.begin(), crossed.end());
+    c.contacts.insert(c.contacts.end(), held.begin(), held.end());
     if (m_world != nullptr) before = m_state;
     const RodSolveReport r = solve_rod_statics(m_model, m_field, m_state, m_options.solver, &m_workspace, &c);
     report.newton_iterations += r.iterations;
@@ -358,6 +406,19 @@ bool VineGrowth::solve_with_wall(GrowthStepReport& report) {
         return false;
       }
       continue;
+    }
+    for (std::size_t i = 1; i < nodes && pushed && m_world != nullptr; ++i) {
+      const Vec3 move = m_state.x[i] - before.x[i];
+      if (holds[i] < kMaxHolds && has_planes[i] &&
+          move.dot(last_move[i]) < -0.25 * move.norm() * last_move[i].norm()) {
+        ++holds[i];
+        const PlaneCache& cache = m_cache[i];
+        for (std::size_t q = 0; q < cache.count; ++q) {
+          const anatomy::Contact& k = cache.found[q];
+          held.push_back({static_cast<int>(i), k.point, k.normal, radius[i] - smoothing, m_stiffness, smoothing});
+        }
+      }
+      last_move[i] = move;
     }
     // Wall forces from the planes at the solved state, and whether fresh queries agree with the planes.
     std::fill(wall_force.begin(), wall_force.end(), Vec3::Zero());
@@ -415,6 +476,9 @@ bool VineGrowth::solve_with_wall(GrowthStepReport& report) {
                              (m_options.catheter ? ring_crush_load(*m_options.catheter, g)
                                                  : m_pressure * flat_width(m_radius, g));
       }
+      // A node that swung back (pushed mode): its friction (μ·F_n from the last pass) follows the mean of the last
+      // two normal forces, which damps the two-cycle the friction otherwise keeps up.
+      if (holds[i] > 0) m_normal_force[i] = 0.5 * (m_normal_force[i] + previous_force[i]);
     }
     if (pushed) {
       for (std::size_t i = 1; i < nodes; ++i) {
@@ -506,7 +570,7 @@ GrowthStepReport VineGrowth::advance(double dt, const GrowthControl& control) {
   m_time += dt;
   const double p = control.pressure;
   const double hoop = p * extended_radius(p) / m_vine.wall.thickness;
-  if (!m_options.catheter && hoop > m_vine.wall_strength) {
+  if (!m_options.catheter && !m_options.rod && hoop > m_vine.wall_strength) {
     m_burst = true;
     report.stalled = true;
     report.burst = true;
@@ -526,6 +590,10 @@ GrowthStepReport VineGrowth::advance(double dt, const GrowthControl& control) {
   report.magnetorheological_yield = magnetorheological_yield();
   report.yield = law.yield_pressure + length_term + turning_term + report.magnetorheological_yield;
   report.speed = law.extensibility * std::max(0.0, p - report.yield);
+  if (m_options.rod) {  // pushed at its insertion speed up to the tether: no pressure, no growth law
+    report.yield = 0.0;
+    report.speed = m_options.rod->insertion_speed;
+  }
   if (report.speed == 0.0 && !m_stalled) {
     m_stalled = true;
     std::string detail = format("pressure %.2f kPa at or below the yield %.2f kPa (Y0 %.2f + length %.2f + turning "
@@ -652,10 +720,12 @@ GrowthStepReport VineGrowth::advance(double dt, const GrowthControl& control) {
     // (re-centred chords): the new tip, pressed against a branch's wall, would otherwise read a gap that is not there.
     const double tip_radius = node_radius(m_state.x.back(), m_state.frames.back(), nullptr, kRecentrings);
     // (A catheter is pushed from the base: the gap does not slow it until the tube is pressed flat.)
-    const double squeeze = m_options.catheter ? 1.0 : slot_area(m_radius, tip_radius / kSlack) / (kPi * m_radius * m_radius);
+    const double squeeze = m_options.catheter || m_options.rod
+                               ? 1.0
+                               : slot_area(m_radius, tip_radius / kSlack) / (kPi * m_radius * m_radius);
     const bool flat = m_options.catheter &&
                       tip_radius / kSlack < m_options.catheter->outer_diameter - m_options.catheter->inner_diameter;
-    const bool squeezed_out = flat || p * squeeze <= report.yield;
+    const bool squeezed_out = flat || (!m_options.rod && p * squeeze <= report.yield);
     // Blocked before solving: the new tip meets the wall steeper than max_incidence (it cannot slide along it).
     const Vec3 tangent = old_state.frames.back().col(0);
     double incidence = 0.0;

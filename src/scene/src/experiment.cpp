@@ -317,6 +317,7 @@ void parse_commands(const YamlMap& control, ExperimentScene& scene, double unit,
     };
     if (c.has("pressure")) {
       if (pressure_keys) c.fail("pressure", "the pressure has keyframes in control.pressure already");
+      if (scene.growth.rod) c.fail("pressure", "a pushed rod (robot.kind: rod) has no pressure");
       const double to = pressure.values.back() + c.number("pressure") * stress_unit;
       if (to < 0.0) c.fail("pressure", "would take the pressure below 0");
       ramp(pressure, to, "pressure");
@@ -601,14 +602,32 @@ ExperimentScene parse_experiment_scene(const std::string& text, const std::strin
     }
   }
 
-  // The vine.
+  // The vine, or a rod pushed from the base (growth.mode pushed, set here).
   const YamlMap robot = top.map("robot");
-  if (robot.text("kind") != "vine") robot.fail("kind", "an experiment grows a vine (kind: vine)");
-  scene.vine = parse_vine(robot, unit, stress_unit);
-  try {
-    (void)robot::vine_rod(scene.vine);
-  } catch (const robot::VineParameterError& e) {
-    robot.fail(robot.has(e.parameter()) ? e.parameter() : "kind", e.what());
+  const std::string kind = robot.text("kind");
+  std::optional<robot::PushedRod> pushed_rod;
+  if (kind == "rod") {
+    robot::PushedRod r;
+    r.body = parse_rod(robot, unit, stress_unit, {"inserted", "insertion_speed"}, &r.radius);
+    const double inserted =
+        robot.has("inserted") ? robot.positive("inserted") * unit : std::min(r.body.length, 4.0 * r.radius);
+    if (inserted > r.body.length) robot.fail("inserted", "must not exceed the rod's length");
+    if (robot.has("insertion_speed")) r.insertion_speed = non_negative(robot, "insertion_speed") * unit;
+    // The inserted length plays the vine's everted length (and its tether caps the insertion); no pressure.
+    scene.vine = robot::VineParameters{};
+    scene.vine.length = inserted;
+    scene.vine.radius = r.radius;
+    scene.vine.pressure = 0.0;
+    pushed_rod = r;
+  } else if (kind == "vine") {
+    scene.vine = parse_vine(robot, unit, stress_unit);
+    try {
+      (void)robot::vine_rod(scene.vine);
+    } catch (const robot::VineParameterError& e) {
+      robot.fail(robot.has(e.parameter()) ? e.parameter() : "kind", e.what());
+    }
+  } else {
+    robot.fail("kind", "an experiment grows a vine (kind: vine) or pushes a rod (kind: rod); got '" + kind + "'");
   }
   const YamlMap base = robot.map("base");
   base.allow_only({"position", "direction", "normal"});
@@ -670,6 +689,19 @@ ExperimentScene parse_experiment_scene(const std::string& text, const std::strin
       }
     }
     if (g.has("retraction_pressure")) o.retraction_pressure = non_negative("retraction_pressure") * stress_unit;
+    if (pushed_rod) {
+      for (const char* key : {"catheter", "magnetorheology", "retraction_pressure", "yield_pressure", "length_yield",
+                              "turning_yield", "extensibility"}) {
+        if (g.has(key)) g.fail(key, "a pushed rod (robot.kind: rod) has no pressure or growth law: it is inserted at "
+                                    "robot.insertion_speed up to the tether");
+      }
+      if (o.mode != robot::InsertionMode::kPushed && g.has("mode")) g.fail("mode", "a rod is pushed (mode: pushed)");
+    }
+  }
+  if (pushed_rod) {
+    scene.growth.mode = robot::InsertionMode::kPushed;
+    scene.growth.rod = *pushed_rod;
+    scene.growth.max_length = pushed_rod->body.length;  // inserted up to its whole length
   }
 
   if (top.has("magnets")) {
@@ -718,7 +750,10 @@ ExperimentScene parse_experiment_scene(const std::string& text, const std::strin
 
   const YamlMap control = top.map("control");
   control.allow_only({"pressure", "tether", "magnets", "navigator", "commands"});
-  if (control.has("pressure")) scene.pressure = schedule_of(control, "pressure", stress_unit, true);
+  if (control.has("pressure")) {
+    if (scene.growth.rod) control.fail("pressure", "a pushed rod (robot.kind: rod) has no pressure");
+    scene.pressure = schedule_of(control, "pressure", stress_unit, true);
+  }
   if (control.has("tether")) scene.tether = schedule_of(control, "tether", unit, true);
   if (scene.magnets) scene.magnet_keyframes.resize(scene.magnets->size());
   if (control.has("magnets")) {
@@ -810,6 +845,11 @@ ExperimentScene parse_experiment_scene(const std::string& text, const std::strin
     if (n.has("deflate_pressure")) nav.deflate_pressure = n.positive("deflate_pressure") * stress_unit;
     if (n.has("deflate_time")) nav.deflate_time = n.positive("deflate_time");
     if (n.has("junction_distance")) nav.junction_distance = n.positive("junction_distance") * unit;
+    if (scene.growth.rod) {
+      for (const char* key : {"boost_pressure", "deflate_pressure"}) {
+        if (n.has(key)) n.fail(key, "a pushed rod (robot.kind: rod) has no pressure to regulate");
+      }
+    }
     if (n.has("boost_pressure")) {
       nav.boost_pressure = n.positive("boost_pressure") * stress_unit;
       const double burst = robot::burst_pressure(scene.vine);
@@ -1093,8 +1133,18 @@ ExperimentScene perturbed(const ExperimentScene& scene, std::uint64_t seed) {
       for (MagnetKeyframe& k : keys) k.position += offset;
   }
   if (out.navigator) out.navigator_offset = offset;
-  for (double& v : out.pressure.values) v = std::max(0.0, v + pressure);
+  if (!out.growth.rod) {  // a pushed rod has no pressure
+    for (double& v : out.pressure.values) v = std::max(0.0, v + pressure);
+  }
   out.vine.wall.modulus *= modulus;
+  if (out.growth.rod) {
+    robot::RodModel& b = out.growth.rod->body;
+    b.bending_stiffness_2 *= modulus;
+    b.bending_stiffness_3 *= modulus;
+    b.torsional_stiffness *= modulus;
+    b.axial_stiffness *= modulus;
+    b.shear_stiffness *= modulus;
+  }
   out.growth.law.yield_pressure *= yield;
   out.seed = seed;
   return out;

@@ -86,11 +86,15 @@ double youngs_of(const YamlMap& m, double stress_unit) {
   return m.positive("youngs_modulus") * stress_unit;
 }
 
+}  // namespace
+
 double non_negative(const YamlMap& m, const std::string& key) {
   const double v = m.number(key);
   if (v < 0.0) m.fail(key, "must be >= 0 (got " + m.node(key).Scalar() + ")");
   return v;
 }
+
+namespace {
 
 /// Per-edge moment per unit length [A·m] from the magnetisation sections.
 std::vector<Vec3> magnetisation_of(const YamlMap& robot, double length, double unit, double area, int edges) {
@@ -136,9 +140,22 @@ std::vector<Vec3> magnetisation_of(const YamlMap& robot, double length, double u
   return out;
 }
 
-robot::RodModel parse_rod(const YamlMap& robot, double unit, double stress_unit) {
-  robot.allow_only({"kind", "length", "section", "shear_modulus", "youngs_modulus", "density", "magnetisation", "base",
-                    "nodes", "node_spacing"});
+robot::WallLayer layer_of(const YamlMap& m, double unit, double stress_unit) {
+  robot::WallLayer l;
+  l.thickness = m.positive("thickness") * unit;
+  l.modulus = youngs_of(m, stress_unit);
+  l.density = m.has("density") ? non_negative(m, "density") : 0.0;
+  return l;
+}
+
+}  // namespace
+
+robot::RodModel parse_rod(const YamlMap& robot, double unit, double stress_unit,
+                          std::initializer_list<std::string_view> extra_keys, double* contact_radius) {
+  std::vector<std::string_view> keys = {"kind",          "length", "section", "shear_modulus", "youngs_modulus",
+                                        "density",       "magnetisation", "base", "nodes", "node_spacing"};
+  keys.insert(keys.end(), extra_keys.begin(), extra_keys.end());
+  robot.allow_only(keys);
   const double length = robot.positive("length") * unit;
   const int edges = edges_of(robot, length, unit);
   const double e = youngs_of(robot, stress_unit);
@@ -153,27 +170,19 @@ robot::RodModel parse_rod(const YamlMap& robot, double unit, double stress_unit)
     const double t = section.positive("thickness") * unit;
     m = robot::rectangular_rod(length, w, t, e / 3.0, density, 0.0, Vec3::UnitX(), edges);
     area = w * t;
+    if (contact_radius != nullptr) *contact_radius = 0.5 * std::hypot(w, t);
   } else if (shape == "circle") {
     section.allow_only({"shape", "diameter"});
     const double d = section.positive("diameter") * unit;
     m = robot::circular_rod(length, d, e / 3.0, density, edges);
     area = 0.25 * kPi * d * d;
+    if (contact_radius != nullptr) *contact_radius = 0.5 * d;
   } else {
     section.fail("shape", "must be rectangle or circle (got '" + shape + "')");
   }
   if (robot.has("magnetisation")) m.moment_per_length = magnetisation_of(robot, length, unit, area, edges);
   return m;
 }
-
-robot::WallLayer layer_of(const YamlMap& m, double unit, double stress_unit) {
-  robot::WallLayer l;
-  l.thickness = m.positive("thickness") * unit;
-  l.modulus = youngs_of(m, stress_unit);
-  l.density = m.has("density") ? non_negative(m, "density") : 0.0;
-  return l;
-}
-
-}  // namespace
 
 robot::VineParameters parse_vine(const YamlMap& robot, double unit, double stress_unit) {
   robot.allow_only({"kind", "length", "diameter", "pressure", "wall", "skin", "fill", "base", "nodes", "node_spacing"});
@@ -249,7 +258,7 @@ FreeSpaceScene parse_free_space_scene(const std::string& text, const std::string
   const YamlMap robot = top.map("robot");
   scene.kind = robot.text("kind");
   if (scene.kind == "rod") {
-    scene.model = parse_rod(robot, unit, stress_unit);
+    scene.model = parse_rod(robot, unit, stress_unit, {}, nullptr);
   } else if (scene.kind == "vine") {
     scene.vine = parse_vine(robot, unit, stress_unit);
     try {

@@ -16,7 +16,8 @@
 /// along −t, and sideways μ·F_n·δ/h for δ ≪ h, a spring of stiffness μ·F_n/h towards where the node began the step
 /// (without it a pushed body loaded by its own friction buckles sideways in one solve). Its insertion follows the
 /// same growth law and tether (a stand-in for an insertion schedule), but nothing limits the push: the energy test
-/// of a blocked tip below applies to eversion only. GrowthOptions::catheter pushes a solid tube instead of the vine.
+/// of a blocked tip below applies to eversion only. GrowthOptions::catheter pushes a solid tube instead of the vine,
+/// GrowthOptions::rod a (magnetic) rod at its own insertion speed.
 ///
 /// Growth law (PHYSICS.md §3, Blumenschein et al. 2017's form; the constants are not published for these robots):
 ///   L̇ = K·max(0, P − Y),  Y = Y0 + c_L·L + c_θ·Σθ,
@@ -85,6 +86,18 @@ struct CatheterTube {
   double density = 1200.0;       ///< [kg/m³] (TPU)
 };
 
+/// A solid rod or catheter, magnetic or not (the mechanics' rod kind: rod.hpp), pushed in place of the vine's body
+/// (InsertionMode::kPushed only). `body` is the whole rod as built for free space (its length the full length; the
+/// magnetisation per edge from the base, at body.edges); the inserted part is its distal end, so the tip carries the
+/// rod's tip section whatever the insertion: edge j of the inserted length ℓ takes the magnetisation at material
+/// arc length L − ℓ + (j + ½)h. A solid section does not flatten: no squeezing, and the contacts are spheres of
+/// `radius` (the section's circumscribed radius: a square's corners do not enter the wall).
+struct PushedRod {
+  RodModel body;
+  double radius = 0.0;           ///< contact radius [m]
+  double insertion_speed = 0.01; ///< [m/s]: the insertion follows the tether at this speed (no growth law)
+};
+
 /// The body's solver in a growth step: from the last equilibrium at full load, no ramp (RodSolveOptions::ramp), at
 /// most 200 Newton iterations (a step that needs more is reverted and tried again later).
 inline RodSolveOptions growth_solver_options() {
@@ -103,6 +116,8 @@ struct GrowthOptions {
   /// insertion speed (control.pressure as a stand-in for the push); pressure, burst and diametric extension do not
   /// apply to it.
   std::optional<CatheterTube> catheter;
+  /// Pushed mode only: push this rod instead (PushedRod; not with `catheter`).
+  std::optional<PushedRod> rod;
   double edge_length = 0.0;        ///< h [m]; 0: the vine's radius
   double friction = 0.3;           ///< Coulomb μ between the body and the wall
   /// The steepest angle between the tip's tangent and a wall it meets at which the tip still slides along the wall
@@ -188,8 +203,9 @@ double burst_pressure(const VineParameters& v);
 /// A vine growing through one anatomy. The world and the field are borrowed (the world must outlive this).
 class VineGrowth {
  public:
-  /// `vine`: the body (vine.length the initial everted length, ≥ one edge; vine.edges ignored); base pose of the
-  /// clamp (tangent = first column of base_frame). `world` may be null (free space). Throws InputError for bad
+  /// `vine`: the body (vine.length the initial everted length, ≥ one edge; vine.edges ignored; for a pushed rod or
+  /// catheter only its length, the inserted length, is read); base pose of the clamp (tangent = first column of
+  /// base_frame). `world` may be null (free space). Throws InputError for bad
   /// parameters (VineParameterError for the vine's own).
   VineGrowth(const VineParameters& vine, const GrowthOptions& options, const anatomy::CollisionWorld* world,
              RodField field, const Vec3& base_position, const Mat3& base_frame);

@@ -141,7 +141,8 @@ struct Navigator {
 /// normal deviates once, from the scene's seed, the target and the repeat number): the magnets' placement is off by
 /// a constant offset (each coordinate σ = magnet_position_sd, default 2 mm: a robot arm's and a registration's
 /// error), the pressure by a constant (σ = pressure_sd, default 0.5 kPa: a regulator's), the film's modulus and the
-/// growth law's yield by a factor (σ = material_spread, default 5 %: batch to batch).
+/// growth law's yield by a factor (σ = material_spread, default 5 %: batch to batch). A pushed rod: its moduli by
+/// that factor, and no pressure.
 struct TrialPerturbation {
   double magnet_position_sd = 2e-3;  ///< [m]
   double pressure_sd = 0.5e3;        ///< [Pa]
