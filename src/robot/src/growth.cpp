@@ -274,7 +274,7 @@ void VineGrowth::rebuild_model(double pressure) {
   const double solid = m_options.rod ? 4.0 * ei / (kPi * std::pow(m_radius, 4)) * m_h : 0.0;
   m_stiffness = m_options.contact_stiffness > 0.0
                     ? m_options.contact_stiffness
-                    : std::max({50.0 * kPi * (m_options.catheter || m_options.rod ? 0.0 : pressure) * m_radius,
+                    : std::max({50.0 * kPi * (solid_body() ? 0.0 : pressure) * m_radius,
                                 10.0 * ei / (m_h * m_h * m_h), solid});
 }
 
@@ -570,7 +570,7 @@ GrowthStepReport VineGrowth::advance(double dt, const GrowthControl& control) {
   m_time += dt;
   const double p = control.pressure;
   const double hoop = p * extended_radius(p) / m_vine.wall.thickness;
-  if (!m_options.catheter && !m_options.rod && hoop > m_vine.wall_strength) {
+  if (!solid_body() && hoop > m_vine.wall_strength) {
     m_burst = true;
     report.stalled = true;
     report.burst = true;
@@ -583,30 +583,31 @@ GrowthStepReport VineGrowth::advance(double dt, const GrowthControl& control) {
     m_dirty = true;
     m_loads_failed = false;
   }
-  const GrowthLaw& law = m_options.law;
-  const double sigma = turning();
-  const double length_term = law.length_yield * (m_model.length + m_pending);  // the grown length, whole edges or not
-  const double turning_term = law.turning_yield * sigma;
-  report.magnetorheological_yield = magnetorheological_yield();
-  report.yield = law.yield_pressure + length_term + turning_term + report.magnetorheological_yield;
-  report.speed = law.extensibility * std::max(0.0, p - report.yield);
-  if (m_options.rod) {  // pushed at its insertion speed up to the tether: no pressure, no growth law
-    report.yield = 0.0;
-    report.speed = m_options.rod->insertion_speed;
-  }
-  if (report.speed == 0.0 && !m_stalled) {
-    m_stalled = true;
-    std::string detail = format("pressure %.2f kPa at or below the yield %.2f kPa (Y0 %.2f + length %.2f + turning "
-                                "%.2f kPa",
-                                p / kKpaToPa, report.yield / kKpaToPa, law.yield_pressure / kKpaToPa,
-                                length_term / kKpaToPa, turning_term / kKpaToPa);
-    if (m_options.magnetorheology) {
-      detail += format(" + magnetorheological %.2f kPa", report.magnetorheological_yield / kKpaToPa);
+  if (m_options.rod) {
+    report.speed = m_options.rod->insertion_speed;  // pushed up to the tether: no pressure, no growth law
+  } else {
+    const GrowthLaw& law = m_options.law;
+    const double sigma = turning();
+    // The grown length, whole edges or not.
+    const double length_term = law.length_yield * (m_model.length + m_pending);
+    const double turning_term = law.turning_yield * sigma;
+    report.magnetorheological_yield = magnetorheological_yield();
+    report.yield = law.yield_pressure + length_term + turning_term + report.magnetorheological_yield;
+    report.speed = law.extensibility * std::max(0.0, p - report.yield);
+    if (report.speed == 0.0 && !m_stalled) {
+      m_stalled = true;
+      std::string detail = format("pressure %.2f kPa at or below the yield %.2f kPa (Y0 %.2f + length %.2f + turning "
+                                  "%.2f kPa",
+                                  p / kKpaToPa, report.yield / kKpaToPa, law.yield_pressure / kKpaToPa,
+                                  length_term / kKpaToPa, turning_term / kKpaToPa);
+      if (m_options.magnetorheology) {
+        detail += format(" + magnetorheological %.2f kPa", report.magnetorheological_yield / kKpaToPa);
+      }
+      add_event("stall", detail + ")");
+    } else if (report.speed > 0.0 && m_stalled) {
+      m_stalled = false;
+      add_event("resume", format("pressure %.2f kPa above the yield %.2f kPa", p / kKpaToPa, report.yield / kKpaToPa));
     }
-    add_event("stall", detail + ")");
-  } else if (report.speed > 0.0 && m_stalled) {
-    m_stalled = false;
-    add_event("resume", format("pressure %.2f kPa above the yield %.2f kPa", p / kKpaToPa, report.yield / kKpaToPa));
   }
   // Retraction: a tether pulled back below the everted length inverts the tip of a deflated vine.
   if (m_options.retraction_pressure >= 0.0 && control.tether_length < m_model.length - 1e-9 * m_h) {
@@ -720,9 +721,8 @@ GrowthStepReport VineGrowth::advance(double dt, const GrowthControl& control) {
     // (re-centred chords): the new tip, pressed against a branch's wall, would otherwise read a gap that is not there.
     const double tip_radius = node_radius(m_state.x.back(), m_state.frames.back(), nullptr, kRecentrings);
     // (A catheter is pushed from the base: the gap does not slow it until the tube is pressed flat.)
-    const double squeeze = m_options.catheter || m_options.rod
-                               ? 1.0
-                               : slot_area(m_radius, tip_radius / kSlack) / (kPi * m_radius * m_radius);
+    const double squeeze =
+        solid_body() ? 1.0 : slot_area(m_radius, tip_radius / kSlack) / (kPi * m_radius * m_radius);
     const bool flat = m_options.catheter &&
                       tip_radius / kSlack < m_options.catheter->outer_diameter - m_options.catheter->inner_diameter;
     const bool squeezed_out = flat || (!m_options.rod && p * squeeze <= report.yield);

@@ -5,6 +5,7 @@
 #include <algorithm>
 #include <atomic>
 #include <cmath>
+#include <initializer_list>
 #include <limits>
 #include <mutex>
 #include <random>
@@ -276,6 +277,15 @@ bool keep_clear(const Navigator& nav, const anatomy::TriangleMesh& mesh, const s
   return true;
 }
 
+/// Refuses each of `keys` that `map` has, with `why` (a scene entry that does not apply: a pushed rod's pressure).
+void refuse_keys(const YamlMap& map, std::initializer_list<const char*> keys, const std::string& why) {
+  for (const char* key : keys) {
+    if (map.has(key)) map.fail(key, why);
+  }
+}
+
+constexpr const char* kRodHasNoPressure = "a pushed rod (robot.kind: rod) has no pressure";
+
 /// control.commands, the gamepad script (experiment.hpp), turned into keyframes: each command ramps its channel
 /// (a magnet's pose, the pressure, the tether) linearly from its value at `time` to the new one over `over` seconds.
 void parse_commands(const YamlMap& control, ExperimentScene& scene, double unit, double stress_unit) {
@@ -317,7 +327,7 @@ void parse_commands(const YamlMap& control, ExperimentScene& scene, double unit,
     };
     if (c.has("pressure")) {
       if (pressure_keys) c.fail("pressure", "the pressure has keyframes in control.pressure already");
-      if (scene.growth.rod) c.fail("pressure", "a pushed rod (robot.kind: rod) has no pressure");
+      if (scene.growth.rod) refuse_keys(c, {"pressure"}, kRodHasNoPressure);
       const double to = pressure.values.back() + c.number("pressure") * stress_unit;
       if (to < 0.0) c.fail("pressure", "would take the pressure below 0");
       ramp(pressure, to, "pressure");
@@ -690,11 +700,11 @@ ExperimentScene parse_experiment_scene(const std::string& text, const std::strin
     }
     if (g.has("retraction_pressure")) o.retraction_pressure = non_negative("retraction_pressure") * stress_unit;
     if (pushed_rod) {
-      for (const char* key : {"catheter", "magnetorheology", "retraction_pressure", "yield_pressure", "length_yield",
-                              "turning_yield", "extensibility"}) {
-        if (g.has(key)) g.fail(key, "a pushed rod (robot.kind: rod) has no pressure or growth law: it is inserted at "
-                                    "robot.insertion_speed up to the tether");
-      }
+      refuse_keys(g,
+                  {"catheter", "magnetorheology", "retraction_pressure", "yield_pressure", "length_yield",
+                   "turning_yield", "extensibility"},
+                  std::string(kRodHasNoPressure) +
+                      " or growth law: it is inserted at robot.insertion_speed up to the tether");
       if (o.mode != robot::InsertionMode::kPushed && g.has("mode")) g.fail("mode", "a rod is pushed (mode: pushed)");
     }
   }
@@ -751,7 +761,7 @@ ExperimentScene parse_experiment_scene(const std::string& text, const std::strin
   const YamlMap control = top.map("control");
   control.allow_only({"pressure", "tether", "magnets", "navigator", "commands"});
   if (control.has("pressure")) {
-    if (scene.growth.rod) control.fail("pressure", "a pushed rod (robot.kind: rod) has no pressure");
+    if (scene.growth.rod) refuse_keys(control, {"pressure"}, kRodHasNoPressure);
     scene.pressure = schedule_of(control, "pressure", stress_unit, true);
   }
   if (control.has("tether")) scene.tether = schedule_of(control, "tether", unit, true);
@@ -845,11 +855,7 @@ ExperimentScene parse_experiment_scene(const std::string& text, const std::strin
     if (n.has("deflate_pressure")) nav.deflate_pressure = n.positive("deflate_pressure") * stress_unit;
     if (n.has("deflate_time")) nav.deflate_time = n.positive("deflate_time");
     if (n.has("junction_distance")) nav.junction_distance = n.positive("junction_distance") * unit;
-    if (scene.growth.rod) {
-      for (const char* key : {"boost_pressure", "deflate_pressure"}) {
-        if (n.has(key)) n.fail(key, "a pushed rod (robot.kind: rod) has no pressure to regulate");
-      }
-    }
+    if (scene.growth.rod) refuse_keys(n, {"boost_pressure", "deflate_pressure"}, kRodHasNoPressure);
     if (n.has("boost_pressure")) {
       nav.boost_pressure = n.positive("boost_pressure") * stress_unit;
       const double burst = robot::burst_pressure(scene.vine);

@@ -236,6 +236,8 @@ class VineGrowth {
 
  private:
   void rebuild_model(double pressure);
+  /// A pushed catheter tube or rod rather than the vine's film: no pressure in its wall, no burst, no squeezed tip.
+  bool solid_body() const { return m_options.catheter.has_value() || m_options.rod.has_value(); }
   /// ΔP of GrowthOptions::magnetorheology for the current body and field [Pa] (0 when off).
   double magnetorheological_yield() const;
   /// Inverts whole edges at the tip down to `length` (keeps one edge) and solves again; returns how many.
