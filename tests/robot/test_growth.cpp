@@ -268,6 +268,52 @@ TEST(Growth, TipGrowingIntoTheEndWallIsBlockedAndNeverTunnels) {
   EXPECT_LT(most_iterations, 500);
 }
 
+/// Grows the fluid vine (Ø5 mm, 35 kPa, Y0 = 20 kPa, no gravity) at `heading` to the x axis towards the side wall
+/// y = 15 mm of a 30 mm wide channel with edges of `edge`; returns how far [m] the tip got along x past where it
+/// first touched that wall, and whether growth was blocked.
+std::pair<double, bool> slide_along_side_wall(double heading, double edge) {
+  const anatomy::CollisionWorld channel(box_mesh(Vec3(0.0, -15e-3, -8e-3), Vec3(0.14, 15e-3, 8e-3)));
+  GrowthOptions o;
+  o.gravity = Vec3::Zero();
+  o.law.yield_pressure = 20e3;
+  o.edge_length = edge;
+  VineGrowth g(fluid_vine(), o, &channel, {}, Vec3(2e-3, -12e-3, 0.0),
+               Eigen::AngleAxisd(heading, Vec3::UnitZ()).toRotationMatrix());
+  double touched = -1.0;
+  while (g.time() < 10.0 && g.state().tip().x() < 0.12) {
+    const GrowthStepReport r = g.advance(0.02, {.pressure = 35e3});
+    EXPECT_TRUE(r.converged) << r.failure;
+    if (!r.converged) break;
+    if (touched < 0.0 && g.state().tip().y() > 15e-3 - g.radius() - 0.2e-3) touched = g.state().tip().x();
+  }
+  bool blocked = false;
+  for (const GrowthEvent& e : g.events()) {
+    std::printf("    %.1f mm: %s: %s\n", 1e3 * e.length, e.kind.c_str(), e.detail.c_str());
+    blocked = blocked || e.kind == "blocked";
+  }
+  for (const Vec3& x : g.state().x) EXPECT_TRUE(channel.contains(x)) << "a node left the channel";
+  return {touched < 0.0 ? 0.0 : g.state().tip().x() - touched, blocked};
+}
+
+TEST(Growth, WhetherATipTurnsAlongAWallDoesNotDependOnTheEdgeLength) {
+  // A tip meeting a flat wall below the friction limit (73°) turns along it: the body, free to swing, bends over
+  // its length (the crease, if any, forms where the wall's push has the lever arm for it, M_c·tan α/F behind the
+  // tip) and the growth force pays for that turn over the growth it takes. At 30° and 60° the tip must slide on to
+  // the channel's end, and how far it gets must not depend on the edge length (R and R/2) beyond one long edge.
+  for (const double degrees : {30.0, 60.0}) {
+    double first = 0.0;
+    for (const double edge : {2.5e-3, 1.25e-3}) {
+      std::printf("  h = %.2f mm, heading %.0f deg:\n", 1e3 * edge, degrees);
+      const auto [slid, blocked] = slide_along_side_wall(degrees * kDegToRad, edge);
+      std::printf("  slid %.1f mm along the wall, %s\n", 1e3 * slid, blocked ? "blocked" : "not blocked");
+      EXPECT_FALSE(blocked) << "h " << edge << ", " << degrees << " deg";
+      EXPECT_GT(slid, 40e-3) << "h " << edge << ", " << degrees << " deg";
+      if (first == 0.0) first = slid;
+      EXPECT_NEAR(slid, first, 2.5e-3) << "h " << edge << ", " << degrees << " deg";
+    }
+  }
+}
+
 TEST(Growth, VineConformsIntoTheDaughterItLeansTowards) {
   // The Y bifurcation (parent Ø12 mm, daughters Ø9.5 mm at ±35°): a fluid vine started against one side wall, its
   // weight pulling it that way (gravity across the parent), slides along the wall into that side's daughter; mirrored,

@@ -241,6 +241,8 @@ TEST(Experiment, TrialsPerturbEachRunAndGiveTheSameOutcomesOnOneThreadOrTwo) {
   std::ifstream failed(dir / "summary.md");
   const std::string listed(std::istreambuf_iterator<char>(failed), {});
   EXPECT_NE(listed.find("Failures:\n\n- 0-1, repeat 0 (seed "), std::string::npos) << listed;
+  // No success: no path length, mean time or SD to show (a dash, not "nan").
+  EXPECT_NE(listed.find("| 0-1 | — | 0/1 | — | — |"), std::string::npos) << listed;
   std::filesystem::remove_all(dir);
 }
 
@@ -554,6 +556,24 @@ TEST(Experiment, TheNavigatorRaisesThePressureOnlyForAHeldTipAndOnlyBelowBurst) 
   EXPECT_NE(error.find("control.navigator.boost_pressure: must be below the vine's burst pressure, 44.6 kPa"),
             std::string::npos)
       << error;
+}
+
+TEST(Experiment, AGenerationFourEntryIsEnteredWithEdgesOfTwoAndOneAndAHalfMillimetres) {
+  // assets/scenes/bronchial_tree_generation4.yaml towards 0-0-1-1-0, unperturbed: entering the Ø4.5 mm branch bends
+  // the Ø4 mm body by ~35°. The growth's energy balance runs over the last body diameter of growth: taken per edge,
+  // the run with 1.5 mm edges was blocked at that entry (0.633 mJ stored against 0.269 mJ of work in one edge) while
+  // the one with 2 mm edges got in. The outcome must not turn on the resolution.
+  const std::filesystem::path file =
+      std::filesystem::path(MAGVINE_SOURCE_DIR) / "assets/scenes/bronchial_tree_generation4.yaml";
+  for (const double edge : {2e-3, 1.5e-3}) {
+    ExperimentScene scene = with_target(load_experiment_scene(file), "0-0-1-1-0");
+    scene.growth.edge_length = edge;
+    const ExperimentResult r = run_experiment(scene);
+    std::printf("  edges of %.1f mm: %s at %.2f s, %.0f mm everted\n", 1e3 * edge,
+                r.success ? "reached" : "not reached", r.time_to_target, 1e3 * r.samples.back().length);
+    for (const robot::GrowthEvent& e : r.events) std::printf("    %.2f s %s: %s\n", e.time, e.kind.c_str(), e.detail.c_str());
+    EXPECT_TRUE(r.success) << "edges of " << edge << " m";
+  }
 }
 
 TEST(Experiment, ATargetOrABaseOutsideTheLumenIsRefusedBeforeTheRun) {

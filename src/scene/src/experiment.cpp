@@ -1271,8 +1271,15 @@ void write_trial_outputs(const std::vector<TrialOutcome>& outcomes, const std::f
     std::snprintf(line, sizeof line, "%s,%.1f,%d,%d,%.3f,%.2f,%.2f\n", target.c_str(), length, ok, n,
                   static_cast<double>(ok) / n, mean, sd);
     csv << line;
-    std::snprintf(line, sizeof line, "| %s | %.0f | %d/%d | %.1f | %.1f |\n", target.c_str(), length, ok, n, mean, sd);
-    md << line;
+    // A table cell with no value (no success, or one: no SD) reads as a dash, not "nan".
+    const auto cell = [](double value, const char* format) {
+      if (!std::isfinite(value)) return std::string("—");
+      char text[32];
+      std::snprintf(text, sizeof text, format, value);
+      return std::string(text);
+    };
+    md << "| " << target << " | " << cell(length, "%.0f") << " | " << ok << '/' << n << " | " << cell(mean, "%.1f")
+       << " | " << cell(sd, "%.1f") << " |\n";
   }
   bool failures = false;
   for (const TrialOutcome& o : outcomes) {

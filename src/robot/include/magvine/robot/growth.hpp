@@ -42,6 +42,7 @@
 /// holds, including a pinch, removed) or μ·F_n (pushed).
 
 #include <array>
+#include <array>
 #include <limits>
 #include <optional>
 #include <string>
@@ -295,6 +296,9 @@ class VineGrowth {
   std::vector<PlaneCache> m_cache;
   WallForces m_forces;
   double m_energy = 0.0;  ///< total potential energy (body, loads, wall) at the last equilibrium [J]
+  /// (energy stored, growth work) of the edges added last, within one body diameter of growth [J]: the energy test
+  /// runs over that window.
+  std::vector<std::array<double, 2>> m_recent;
   std::vector<GrowthEvent> m_events;
 };
 
