@@ -220,8 +220,8 @@ std::vector<Vec3> planned_path(const anatomy::AirwayGraph& graph, const std::vec
   return path;
 }
 
-/// `path`: planned_path. The aim point lies `lead` along it past the tip's nearest point on it, so a short branch
-/// does not hide the turn after it.
+}  // namespace
+
 MagnetKeyframe navigate(const Navigator& nav, const std::vector<Vec3>& path, const Vec3& tip, const Mat3& tip_frame,
                         const std::optional<Vec3>& skin, double time, const Vec3& offset, Vec3& line) {
   const double at = arc_length_of_nearest(path, tip);
@@ -253,14 +253,29 @@ MagnetKeyframe navigate(const Navigator& nav, const std::vector<Vec3>& path, con
   if (skin) {
     // Gradient mode for a magnetic skin (thesis 4.7.1): the field at the tip along the skin's moment m, so the skin
     // is pulled towards the magnet without a torque. A dipole's field at r̂ (magnet to tip) is ∝ (3r̂r̂ᵀ − I)m_e,
-    // whose inverse gives m_e ∝ (3/2)(m·r̂)r̂ − m.
+    // whose inverse gives m_e ∝ (3/2)(m·r̂)r̂ − m for a field along b.
     const Vec3 m = (tip_frame * *skin).normalized();
+    Vec3 b = m;
+    if (nav.skin_mode == Navigator::SkinMode::kTorque) {
+      // Torque mode: the field along ω' × m, where ω = t × a turns the tangent t towards the aim's side a and ω' is
+      // ω without its part along m (no torque turns the body about m): m × (ω' × m) = ω'.
+      const Vec3 t = tip_frame.col(0);
+      const Vec3 v = aim - tip;
+      const Vec3 side = v - v.dot(t) * t;
+      if (side.norm() > 0.1 * v.norm()) {
+        const Vec3 omega = t.cross(side.normalized());
+        const Vec3 reachable = omega - omega.dot(m) * m;
+        if (reachable.norm() > 0.5 * omega.norm()) b = reachable.cross(m).normalized();
+      }
+    }
     const Vec3 r = -u;
-    const Vec3 axis = 1.5 * m.dot(r) * r - m;
+    const Vec3 axis = 1.5 * b.dot(r) * r - b;
     if (axis.norm() > 1e-9) k.axis = axis.normalized();
   }
   return k;
 }
+
+namespace {
 
 /// The navigator's pose kept clear of the anatomy: moved out along its line from the tip, 5 mm at a time up to
 /// max_distance, while the magnet (body, if any) would overlap the airway mesh. Returns whether it is clear.
@@ -810,7 +825,7 @@ ExperimentScene parse_experiment_scene(const std::string& text, const std::strin
   if (control.has("navigator")) {
     const YamlMap n = control.map("navigator");
     n.allow_only({"target", "magnet", "distance", "min_distance", "max_distance", "lead", "interval",
-                  "deflate_pressure", "deflate_time", "junction_distance", "lateral", "boost_pressure",
+                  "deflate_pressure", "deflate_time", "junction_distance", "lateral", "mode", "boost_pressure",
                   "boost_after", "boost_length"});
     if (!scene.graph) {
       n.fail("target", "the navigator plans on an airway graph: a generated phantom's, or anatomy.graph (extract | "
@@ -851,6 +866,17 @@ ExperimentScene parse_experiment_scene(const std::string& text, const std::strin
     if (n.has("lateral")) {
       nav.lateral = n.number("lateral");
       if (!(nav.lateral >= 0.0 && nav.lateral <= 1.0)) n.fail("lateral", "must be from 0 to 1");
+    }
+    if (n.has("mode")) {
+      const std::string mode = n.text("mode");
+      if (mode == "torque") {
+        nav.skin_mode = Navigator::SkinMode::kTorque;
+      } else if (mode != "gradient") {
+        n.fail("mode", "must be gradient or torque");
+      }
+      if (!(scene.vine.skin.thickness > 0.0 && scene.vine.skin_remanence != 0.0)) {
+        n.fail("mode", "steers a magnetic skin (robot.skin); a fill or a rod follows the magnet's pull");
+      }
     }
     if (n.has("deflate_pressure")) nav.deflate_pressure = n.positive("deflate_pressure") * stress_unit;
     if (n.has("deflate_time")) nav.deflate_time = n.positive("deflate_time");

@@ -125,6 +125,12 @@ struct Navigator {
   /// through the aim point (a fluid's pull), 1 straight across the tip towards the aim's side (what creases a
   /// deflated skin vine towards the next branch).
   double lateral = 0.0;
+  /// How the magnet bends a magnetic skin (thesis 4.7.1): gradient (its field at the tip along the skin's moment m:
+  /// pulled towards the magnet, no torque) or torque (its field across m, along ω' × m, where ω' is the axis that
+  /// turns the tip towards the aim with the part along m taken out: m × B then bends the tip towards the aim; where
+  /// that part is most of the turn, as when the next branch turns about m itself, gradient mode for that step).
+  enum class SkinMode { kGradient, kTorque };
+  SkinMode skin_mode = SkinMode::kGradient;
   double deflate_time = 2.0;        ///< [s]
   double junction_distance = 0.01;  ///< [m]
   /// Pressure regulation for a blocked tip: when the vine has not grown for boost_after [s], with no tether or made
@@ -136,6 +142,14 @@ struct Navigator {
   double boost_after = 0.5;    ///< [s]
   double boost_length = 5e-3;  ///< [m]
 };
+
+/// The navigator's pose for its magnet (experiment runs call it every `interval`): `path` is the planned centreline
+/// as one polyline; the aim point lies `lead` along it past the tip's nearest point on it (so a short branch does
+/// not hide the turn after it); the magnet sits `distance` from the tip on the line towards the aim (less the
+/// `lateral` share of its component along the tangent) plus `offset`, its axis along that line for a fill, or set
+/// by `skin_mode` for a magnetic skin whose moment is `skin` in the body frame. `line` returns that unit line.
+MagnetKeyframe navigate(const Navigator& nav, const std::vector<Vec3>& path, const Vec3& tip, const Mat3& tip_frame,
+                        const std::optional<Vec3>& skin, double time, const Vec3& offset, Vec3& line);
 
 /// Seeded perturbations of `magvine trials` (the scene's optional `trials:` section; each trial draws its own
 /// normal deviates once, from the scene's seed, the target and the repeat number): the magnets' placement is off by
