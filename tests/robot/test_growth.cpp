@@ -314,6 +314,33 @@ TEST(Growth, WhetherATipTurnsAlongAWallDoesNotDependOnTheEdgeLength) {
   }
 }
 
+TEST(Growth, ATipMeetingACarinaHeadOnRollsOffIntoADaughterButAFlatWallHoldsIt) {
+  // The Y bifurcation (parent Ø12 mm, daughters Ø9.5 mm at ±35°, rounded carina), the fluid vine grown along the
+  // parent's axis with no load across it, 0.2 mm to one side: it meets the carina's crest at ~80°, steeper than the
+  // friction limit (73°). A flat wall met that steeply holds the tip (friction), but on a convex crest the pushed,
+  // rounded tip is unstable and rolls off: it must grow into a daughter, every node in the lumen. (The head-on end
+  // wall of TipGrowingIntoTheEndWallIsBlockedAndNeverTunnels, flat, and a blind end, concave, still block.)
+  const anatomy::Phantom y = anatomy::make_y_bifurcation({});
+  const anatomy::CollisionWorld world(y.mesh);
+  for (const double side : {1.0, -1.0}) {
+    GrowthOptions o;
+    o.gravity = Vec3::Zero();
+    o.law.yield_pressure = 20e3;
+    VineGrowth g(fluid_vine(), o, &world, {}, Vec3(2e-3, 0.2e-3 * side, 0.0), Mat3::Identity());
+    while (g.length() < 100e-3 && g.time() < 20.0) {
+      const GrowthStepReport r = g.advance(0.02, {.pressure = 35e3});
+      ASSERT_TRUE(r.converged) << r.failure;
+    }
+    const Vec3 tip = g.state().tip();
+    std::printf("  side %+.0f: %.1f mm grown in %.2f s, tip (%.1f, %.1f, %.1f) mm\n", side, 1e3 * g.length(), g.time(),
+                1e3 * tip.x(), 1e3 * tip.y(), 1e3 * tip.z());
+    for (const GrowthEvent& e : g.events()) std::printf("    %.2f s %s: %s\n", e.time, e.kind.c_str(), e.detail.c_str());
+    for (const Vec3& x : g.state().x) EXPECT_TRUE(world.contains(x)) << "a node left the lumen";
+    EXPECT_NEAR(g.length(), 100e-3, g.edge_length());
+    EXPECT_GT(std::abs(tip.y()), 10e-3);  // in a daughter (their axes: y = ±(x − 66 mm)·tan 35°)
+  }
+}
+
 TEST(Growth, VineConformsIntoTheDaughterItLeansTowards) {
   // The Y bifurcation (parent Ø12 mm, daughters Ø9.5 mm at ±35°): a fluid vine started against one side wall, its
   // weight pulling it that way (gravity across the parent), slides along the wall into that side's daughter; mirrored,

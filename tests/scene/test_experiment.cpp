@@ -455,6 +455,46 @@ TEST(Experiment, ASwingAcrossAnObstacleDoesNotCarryTheBodyThroughIt) {
               1e3 * r.final_state.tip().y(), 1e3 * r.samples.back().length, r.success ? "reached" : "not reached");
 }
 
+TEST(Experiment, TheSBendScriptTakesTheSkinVineAroundBothObstacles) {
+  // Thesis 4.7.3 (fig 4.10) by gamepad, assets/scenes/s_bend_gamepad.yaml: the Ø8 mm skin MVR grown past the first
+  // obstacle at 12 kPa, deflated to 1 kPa with the EPM beside the channel (the body creases towards it), regrown at
+  // 12 kPa: its tip meets the second obstacle's rounded end, rolls off it into the gap below it (y < −6 mm) and
+  // grows on along the far wall to the target past it. Asserted: the target reached, the tip through that gap
+  // (beside the obstacle, 100 mm < x < 120 mm, at y < −6 mm) and past it (x > 120 mm), inside the lumen at every
+  // step and every node at the end. Without the magnet (moved 5 mm instead of 215 mm) the body grows straight into
+  // the second obstacle's flat face and is blocked there.
+  const std::filesystem::path file = std::filesystem::path(MAGVINE_SOURCE_DIR) / "assets/scenes/s_bend_gamepad.yaml";
+  const std::string text = text_of(file);
+  const ExperimentScene scene = load_experiment_scene(file);
+  const anatomy::CollisionWorld world(scene.mesh);
+  const ExperimentResult r = run_experiment(scene);
+  bool through_gap = false;
+  for (const ExperimentSample& s : r.samples) {
+    ASSERT_TRUE(world.contains(s.tip)) << "the tip left the lumen at " << s.time << " s";
+    if (s.tip.x() > 0.100 && s.tip.x() < 0.120 && s.tip.y() < -6e-3) through_gap = true;
+  }
+  for (const Vec3& x : r.final_state.x) EXPECT_TRUE(world.contains(x)) << "a node left the lumen";
+  const Vec3 tip = 1e3 * r.final_state.tip();
+  std::printf("  %s at %.1f s, tip (%.1f, %.1f, %.1f) mm, %.0f mm everted, %zu events\n",
+              r.success ? "reached" : "not reached", r.time_to_target, tip.x(), tip.y(), tip.z(),
+              1e3 * r.samples.back().length, r.events.size());
+  for (const robot::GrowthEvent& e : r.events) std::printf("    %.2f s %s: %s\n", e.time, e.kind.c_str(), e.detail.c_str());
+  EXPECT_TRUE(r.success);
+  EXPECT_TRUE(through_gap);
+  EXPECT_GT(tip.x(), 120.0);
+  const std::string away =
+      replaced(replaced(text, "move: [0, 215, 0]}", "move: [0, 5, 0]}"), "move: [0, -215, 0]}", "move: [0, -5, 0]}");
+  const ExperimentResult none = run_experiment(parse_experiment_scene(away, file.string(), file.parent_path()));
+  const Vec3 stopped = 1e3 * none.final_state.tip();
+  std::printf("  without the magnet: tip (%.1f, %.1f) mm, %s\n", stopped.x(), stopped.y(),
+              none.success ? "reached" : "not reached");
+  EXPECT_FALSE(none.success);
+  EXPECT_LT(stopped.x(), 100.0);  // before the second obstacle's face (x = 100 mm)
+  bool blocked = false;
+  for (const robot::GrowthEvent& e : none.events) blocked = blocked || e.kind == "blocked";
+  EXPECT_TRUE(blocked);
+}
+
 TEST(Experiment, AGamepadSteersTheSkinVineIntoEitherMainBronchus) {
   // Thesis 4.7.4 by gamepad (assets/scenes/bronchial_tree_skin_vine.yaml): the Ø8 mm skin MVR grown down the tree's
   // trachea at 12 kPa, deflated to 1 kPa for 2 s with the EPM brought in beside main bronchus 0-0, regrown at 12 kPa:

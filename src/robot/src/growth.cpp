@@ -729,17 +729,92 @@ GrowthStepReport VineGrowth::advance(double dt, const GrowthControl& control) {
     const bool squeezed_out = flat || (!m_options.rod && p * squeeze <= report.yield);
     // Blocked before solving: the new tip meets the wall steeper than max_incidence (it cannot slide along it).
     const Vec3 tangent = old_state.frames.back().col(0);
+    // The steepest wall the tip would meet at x (its incidence to the tangent, and that contact's normal).
+    const auto steepest = [&](const Vec3& x, double radius, Vec3* normal) {
+      std::array<anatomy::Contact, kContactsPerNode> found{};
+      const std::size_t k = m_world->sphere_contacts(x, radius, found);
+      double most = 0.0;
+      for (std::size_t q = 0; q < k; ++q) {
+        const double a = std::asin(std::clamp(-found[q].normal.dot(tangent), -1.0, 1.0));
+        if (a > most && normal != nullptr) *normal = found[q].normal;
+        most = std::max(most, a);
+      }
+      return most;
+    };
     double incidence = 0.0;
     if (m_world != nullptr && !squeezed_out) {
-      std::array<anatomy::Contact, kContactsPerNode> found{};
-      const std::size_t k = m_world->sphere_contacts(m_state.x.back(), tip_radius, found);
-      for (std::size_t q = 0; q < k; ++q) {
-        incidence = std::max(incidence, std::asin(std::clamp(-found[q].normal.dot(tangent), -1.0, 1.0)));
+      Vec3 n = Vec3::Zero();
+      incidence = steepest(m_state.x.back(), tip_radius, &n);
+      // A convex ridge met nearly head-on (a carina's crest) is no wall to slide along: the pushed, rounded tip is
+      // unstable on it (a ball pushed onto a crest) and rolls off, friction or not. Tried: the new edge turned so
+      // that the tip moves sideways by R/4, R/2 or R, in 8 directions around the tangent (the first towards the
+      // side it leans to); a shift counts where the wall there falls away in that direction (its normal leans along
+      // the shift, so the push drives the tip further off: convex), or is gone, and is met no steeper than
+      // max_incidence. The least steep such shift is taken, turned into that flank's plane as any wall met at a
+      // shallow angle (above). A flat wall keeps its normal and a concave one (a blind end, a bowl) turns it back
+      // against the shift: both still block. (Test ATipMeetingACarinaHeadOnRollsOffIntoADaughterButAFlatWallHoldsIt.)
+      Vec3 lean = n - n.dot(tangent) * tangent;
+      if (incidence > m_max_incidence && n.squaredNorm() > 0.0) {
+        if (lean.norm() < 1e-9) lean = tangent.unitOrthogonal();
+        const Vec3 e1 = lean.normalized();
+        const Vec3 e2 = tangent.cross(e1);
+        const Vec3& from = m_state.x[m_state.x.size() - 2];
+        const Vec3 ahead = m_state.x.back() - from;
+        double best = m_max_incidence;
+        Vec3 best_x = Vec3::Zero();
+        Vec3 best_direction = Vec3::Zero();
+        for (const double shift : {0.25 * m_radius, 0.5 * m_radius, m_radius}) {
+          for (int k = 0; k < 8; ++k) {
+            const double phi = kPi / 4.0 * k;
+            const Vec3 across = std::cos(phi) * e1 + std::sin(phi) * e2;
+            const Vec3 direction = (ahead + shift * across).normalized();
+            const Vec3 x = from + m_h * direction;
+            Vec3 there = Vec3::Zero();
+            const double a = steepest(x, node_radius(x, m_state.frames.back()), &there);
+            if (a < best && (there.squaredNorm() == 0.0 || there.dot(across) > 0.05)) {
+              best = a;
+              // Then along the flank, as on any wall met at a shallow angle (the first guess above).
+              const Vec3 along = direction.dot(there) < 0.0 ? Vec3(direction - direction.dot(there) * there) : direction;
+              best_direction = along.normalized();
+              best_x = from + m_h * best_direction;
+            }
+          }
+          if (best < m_max_incidence) break;
+        }
+        if (best < m_max_incidence) {
+          const Vec3 was = m_state.frames.back().col(0);
+          m_state.frames.back() =
+              Eigen::Quaterniond::FromTwoVectors(was, best_direction).toRotationMatrix() * m_state.frames.back();
+          m_state.x.back() = best_x;
+          incidence = best;
+        }
       }
     }
     const bool steep = squeezed_out || incidence > m_max_incidence;
     const double old_energy = m_energy;
-    const bool solved = !steep && solve_with_wall(report);
+    bool solved = false;
+    if (!steep) {
+      const RodState guess = m_state;
+      solved = solve_with_wall(report);
+      if (!solved) {
+        // As for new loads (above): Newton from the first guess at the full load failed, so the loads are ramped up
+        // from it instead (the slower, surer path) before the edge is given up.
+        m_state = guess;
+        m_anchor = old_anchor;
+        m_anchor.resize(m_state.x.size(), Vec3::Constant(kNone));
+        m_anchor_normal = old_normal;
+        m_anchor_normal.resize(m_state.x.size(), Vec3::Zero());
+        const RodSolveOptions fast = m_options.solver;
+        m_options.solver = RodSolveOptions{};
+        m_options.solver.tolerance = fast.tolerance;
+        m_options.solver.max_iterations = 600;
+        m_options.solver.max_snap_newton = 300;
+        report.converged = true;
+        report.failure.clear();
+        solved = solve_with_wall(report);
+        m_options.solver = fast;
+      }
+    }
     // Blocked after solving: growing stores more energy in the body, its contacts and its loads (bending the new
     // edge along a wall, lifting it, pressing it in) than the growth force does work, (P·A/(πR²) − Y)·πR²·h per
     // edge. The balance runs over the last body diameter of growth (this edge and those before it within 2R, the
