@@ -334,7 +334,9 @@ TEST(Growth, ATipMeetingACarinaHeadOnRollsOffIntoADaughterButAFlatWallHoldsIt) {
     const Vec3 tip = g.state().tip();
     std::printf("  side %+.0f: %.1f mm grown in %.2f s, tip (%.1f, %.1f, %.1f) mm\n", side, 1e3 * g.length(), g.time(),
                 1e3 * tip.x(), 1e3 * tip.y(), 1e3 * tip.z());
-    for (const GrowthEvent& e : g.events()) std::printf("    %.2f s %s: %s\n", e.time, e.kind.c_str(), e.detail.c_str());
+    for (const GrowthEvent& e : g.events()) {
+      std::printf("    %.2f s %s: %s\n", e.time, e.kind.c_str(), e.detail.c_str());
+    }
     for (const Vec3& x : g.state().x) EXPECT_TRUE(world.contains(x)) << "a node left the lumen";
     EXPECT_NEAR(g.length(), 100e-3, g.edge_length());
     EXPECT_GT(std::abs(tip.y()), 10e-3);  // in a daughter (their axes: y = ±(x − 66 mm)·tan 35°)

@@ -478,7 +478,9 @@ TEST(Experiment, TheSBendScriptTakesTheSkinVineAroundBothObstacles) {
   std::printf("  %s at %.1f s, tip (%.1f, %.1f, %.1f) mm, %.0f mm everted, %zu events\n",
               r.success ? "reached" : "not reached", r.time_to_target, tip.x(), tip.y(), tip.z(),
               1e3 * r.samples.back().length, r.events.size());
-  for (const robot::GrowthEvent& e : r.events) std::printf("    %.2f s %s: %s\n", e.time, e.kind.c_str(), e.detail.c_str());
+  for (const robot::GrowthEvent& e : r.events) {
+    std::printf("    %.2f s %s: %s\n", e.time, e.kind.c_str(), e.detail.c_str());
+  }
   EXPECT_TRUE(r.success);
   EXPECT_TRUE(through_gap);
   EXPECT_GT(tip.x(), 120.0);
@@ -691,7 +693,9 @@ TEST(Experiment, AGenerationFourEntryIsEnteredWithEdgesOfTwoAndOneAndAHalfMillim
     const ExperimentResult r = run_experiment(scene);
     std::printf("  edges of %.1f mm: %s at %.2f s, %.0f mm everted\n", 1e3 * edge,
                 r.success ? "reached" : "not reached", r.time_to_target, 1e3 * r.samples.back().length);
-    for (const robot::GrowthEvent& e : r.events) std::printf("    %.2f s %s: %s\n", e.time, e.kind.c_str(), e.detail.c_str());
+    for (const robot::GrowthEvent& e : r.events) {
+      std::printf("    %.2f s %s: %s\n", e.time, e.kind.c_str(), e.detail.c_str());
+    }
     EXPECT_TRUE(r.success) << "edges of " << edge << " m";
   }
 }

@@ -556,6 +556,19 @@ bool VineGrowth::solve_with_wall(GrowthStepReport& report) {
   return true;
 }
 
+bool VineGrowth::solve_with_wall_ramped(GrowthStepReport& report) {
+  const RodSolveOptions fast = m_options.solver;
+  m_options.solver = RodSolveOptions{};  // the ramp
+  m_options.solver.tolerance = fast.tolerance;
+  m_options.solver.max_iterations = 600;
+  m_options.solver.max_snap_newton = 300;
+  report.converged = true;
+  report.failure.clear();
+  const bool solved = solve_with_wall(report);
+  m_options.solver = fast;
+  return solved;
+}
+
 GrowthStepReport VineGrowth::advance(double dt, const GrowthControl& control) {
   GrowthStepReport report;
   if (!(dt > 0.0) || !std::isfinite(dt)) throw InputError("vine growth: dt must be > 0");
@@ -656,15 +669,7 @@ GrowthStepReport VineGrowth::advance(double dt, const GrowthControl& control) {
       m_state = old_state;
       m_anchor = old_anchor;
       m_anchor_normal = old_normal;
-      const RodSolveOptions fast = m_options.solver;
-      m_options.solver = RodSolveOptions{};  // the ramp
-      m_options.solver.tolerance = fast.tolerance;
-      m_options.solver.max_iterations = 600;
-      m_options.solver.max_snap_newton = 300;
-      report.converged = true;
-      report.failure.clear();
-      solved = solve_with_wall(report);
-      m_options.solver = fast;
+      solved = solve_with_wall_ramped(report);
     }
     if (!solved) {
       // Keep the last equilibrium (under the old loads), report the failure and try again later.
@@ -774,8 +779,8 @@ GrowthStepReport VineGrowth::advance(double dt, const GrowthControl& control) {
             if (a < best && (there.squaredNorm() == 0.0 || there.dot(across) > 0.05)) {
               best = a;
               // Then along the flank, as on any wall met at a shallow angle (the first guess above).
-              const Vec3 along = direction.dot(there) < 0.0 ? Vec3(direction - direction.dot(there) * there) : direction;
-              best_direction = along.normalized();
+              const double into = direction.dot(there);
+              best_direction = (into < 0.0 ? Vec3(direction - into * there) : direction).normalized();
               best_x = from + m_h * best_direction;
             }
           }
@@ -801,18 +806,8 @@ GrowthStepReport VineGrowth::advance(double dt, const GrowthControl& control) {
         // from it instead (the slower, surer path) before the edge is given up.
         m_state = guess;
         m_anchor = old_anchor;
-        m_anchor.resize(m_state.x.size(), Vec3::Constant(kNone));
         m_anchor_normal = old_normal;
-        m_anchor_normal.resize(m_state.x.size(), Vec3::Zero());
-        const RodSolveOptions fast = m_options.solver;
-        m_options.solver = RodSolveOptions{};
-        m_options.solver.tolerance = fast.tolerance;
-        m_options.solver.max_iterations = 600;
-        m_options.solver.max_snap_newton = 300;
-        report.converged = true;
-        report.failure.clear();
-        solved = solve_with_wall(report);
-        m_options.solver = fast;
+        solved = solve_with_wall_ramped(report);
       }
     }
     // Blocked after solving: growing stores more energy in the body, its contacts and its loads (bending the new

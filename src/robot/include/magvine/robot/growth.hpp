@@ -253,6 +253,8 @@ class VineGrowth {
   /// `across`, if given, receives the direction of the narrowest line (the pinch); `recentrings` as lumen_width.
   double node_radius(const Vec3& x, const Mat3& frame, Vec3* across = nullptr, int recentrings = 0) const;
   bool solve_with_wall(GrowthStepReport& report);
+  /// solve_with_wall with the loads ramped up from the current state (the slower, surer path after a failure).
+  bool solve_with_wall_ramped(GrowthStepReport& report);
   void add_event(std::string kind, std::string detail);
 
   VineParameters m_vine;
