@@ -799,12 +799,16 @@ GrowthStepReport VineGrowth::advance(double dt, const GrowthControl& control) {
     const double old_energy = m_energy;
     bool solved = false;
     if (!steep) {
-      const RodState guess = m_state;
+      // The first guess is the last equilibrium with the new tip node and frame.
+      const Vec3 guess_x = m_state.x.back();
+      const Mat3 guess_frame = m_state.frames.back();
       solved = solve_with_wall(report);
       if (!solved) {
         // As for new loads (above): Newton from the first guess at the full load failed, so the loads are ramped up
         // from it instead (the slower, surer path) before the edge is given up.
-        m_state = guess;
+        m_state = old_state;
+        m_state.x.push_back(guess_x);
+        m_state.frames.push_back(guess_frame);
         m_anchor = old_anchor;
         m_anchor_normal = old_normal;
         solved = solve_with_wall_ramped(report);
