@@ -556,6 +556,59 @@ bool VineGrowth::solve_with_wall(GrowthStepReport& report) {
   return true;
 }
 
+double VineGrowth::steepest_wall(const Vec3& x, double radius, const Vec3& tangent, Vec3* normal) const {
+  std::array<anatomy::Contact, kContactsPerNode> found{};
+  const std::size_t k = m_world->sphere_contacts(x, radius, found);
+  double most = 0.0;
+  for (std::size_t q = 0; q < k; ++q) {
+    const double a = std::asin(std::clamp(-found[q].normal.dot(tangent), -1.0, 1.0));
+    if (a > most && normal != nullptr) *normal = found[q].normal;
+    most = std::max(most, a);
+  }
+  return most;
+}
+
+double VineGrowth::roll_off_crest(const Vec3& tangent, const Vec3& normal, double incidence) {
+  // A convex ridge met nearly head-on (a carina's crest) is no wall to slide along: the pushed, rounded tip is
+  // unstable on it (a ball pushed onto a crest) and rolls off, friction or not. Tried: the new edge turned so that
+  // the tip moves sideways by R/4, R/2 or R, in 8 directions around the tangent (the first towards the side it leans
+  // to); a shift counts where the wall there falls away in that direction (its normal leans along the shift, so the
+  // push drives the tip further off: convex), or is gone, and is met no steeper than max_incidence. The least steep
+  // such shift is taken, turned into that flank's plane as any wall met at a shallow angle. A flat wall keeps its
+  // normal and a concave one (a blind end, a bowl) turns it back against the shift: both still block.
+  // (Test ATipMeetingACarinaHeadOnRollsOffIntoADaughterButAFlatWallHoldsIt.)
+  Vec3 lean = normal - normal.dot(tangent) * tangent;
+  if (lean.norm() < 1e-9) lean = tangent.unitOrthogonal();
+  const Vec3 e1 = lean.normalized();
+  const Vec3 e2 = tangent.cross(e1);
+  const Vec3& from = m_state.x[m_state.x.size() - 2];
+  const Vec3 ahead = m_state.x.back() - from;
+  double best = m_max_incidence;
+  Vec3 best_direction = Vec3::Zero();
+  for (const double shift : {0.25 * m_radius, 0.5 * m_radius, m_radius}) {
+    for (int k = 0; k < 8; ++k) {
+      const double phi = kPi / 4.0 * k;
+      const Vec3 across = std::cos(phi) * e1 + std::sin(phi) * e2;
+      const Vec3 direction = (ahead + shift * across).normalized();
+      const Vec3 x = from + m_h * direction;
+      Vec3 there = Vec3::Zero();
+      const double a = steepest_wall(x, node_radius(x, m_state.frames.back()), tangent, &there);
+      if (a < best && (there.squaredNorm() == 0.0 || there.dot(across) > 0.05)) {
+        best = a;
+        const double into = direction.dot(there);
+        best_direction = (into < 0.0 ? Vec3(direction - into * there) : direction).normalized();
+      }
+    }
+    if (best < m_max_incidence) break;
+  }
+  if (!(best < m_max_incidence)) return incidence;
+  const Vec3 was = m_state.frames.back().col(0);
+  m_state.frames.back() =
+      Eigen::Quaterniond::FromTwoVectors(was, best_direction).toRotationMatrix() * m_state.frames.back();
+  m_state.x.back() = from + m_h * best_direction;
+  return best;
+}
+
 bool VineGrowth::solve_with_wall_ramped(GrowthStepReport& report) {
   const RodSolveOptions fast = m_options.solver;
   m_options.solver = RodSolveOptions{};  // the ramp
@@ -732,68 +785,14 @@ GrowthStepReport VineGrowth::advance(double dt, const GrowthControl& control) {
     const bool flat = m_options.catheter &&
                       tip_radius / kSlack < m_options.catheter->outer_diameter - m_options.catheter->inner_diameter;
     const bool squeezed_out = flat || (!m_options.rod && p * squeeze <= report.yield);
-    // Blocked before solving: the new tip meets the wall steeper than max_incidence (it cannot slide along it).
+    // Blocked before solving: the new tip meets the wall steeper than max_incidence (it cannot slide along it),
+    // unless that wall is a convex crest, which it rolls off (roll_off_crest).
     const Vec3 tangent = old_state.frames.back().col(0);
-    // The steepest wall the tip would meet at x (its incidence to the tangent, and that contact's normal).
-    const auto steepest = [&](const Vec3& x, double radius, Vec3* normal) {
-      std::array<anatomy::Contact, kContactsPerNode> found{};
-      const std::size_t k = m_world->sphere_contacts(x, radius, found);
-      double most = 0.0;
-      for (std::size_t q = 0; q < k; ++q) {
-        const double a = std::asin(std::clamp(-found[q].normal.dot(tangent), -1.0, 1.0));
-        if (a > most && normal != nullptr) *normal = found[q].normal;
-        most = std::max(most, a);
-      }
-      return most;
-    };
     double incidence = 0.0;
     if (m_world != nullptr && !squeezed_out) {
       Vec3 n = Vec3::Zero();
-      incidence = steepest(m_state.x.back(), tip_radius, &n);
-      // A convex ridge met nearly head-on (a carina's crest) is no wall to slide along: the pushed, rounded tip is
-      // unstable on it (a ball pushed onto a crest) and rolls off, friction or not. Tried: the new edge turned so
-      // that the tip moves sideways by R/4, R/2 or R, in 8 directions around the tangent (the first towards the
-      // side it leans to); a shift counts where the wall there falls away in that direction (its normal leans along
-      // the shift, so the push drives the tip further off: convex), or is gone, and is met no steeper than
-      // max_incidence. The least steep such shift is taken, turned into that flank's plane as any wall met at a
-      // shallow angle (above). A flat wall keeps its normal and a concave one (a blind end, a bowl) turns it back
-      // against the shift: both still block. (Test ATipMeetingACarinaHeadOnRollsOffIntoADaughterButAFlatWallHoldsIt.)
-      Vec3 lean = n - n.dot(tangent) * tangent;
-      if (incidence > m_max_incidence && n.squaredNorm() > 0.0) {
-        if (lean.norm() < 1e-9) lean = tangent.unitOrthogonal();
-        const Vec3 e1 = lean.normalized();
-        const Vec3 e2 = tangent.cross(e1);
-        const Vec3& from = m_state.x[m_state.x.size() - 2];
-        const Vec3 ahead = m_state.x.back() - from;
-        double best = m_max_incidence;
-        Vec3 best_x = Vec3::Zero();
-        Vec3 best_direction = Vec3::Zero();
-        for (const double shift : {0.25 * m_radius, 0.5 * m_radius, m_radius}) {
-          for (int k = 0; k < 8; ++k) {
-            const double phi = kPi / 4.0 * k;
-            const Vec3 across = std::cos(phi) * e1 + std::sin(phi) * e2;
-            const Vec3 direction = (ahead + shift * across).normalized();
-            const Vec3 x = from + m_h * direction;
-            Vec3 there = Vec3::Zero();
-            const double a = steepest(x, node_radius(x, m_state.frames.back()), &there);
-            if (a < best && (there.squaredNorm() == 0.0 || there.dot(across) > 0.05)) {
-              best = a;
-              // Then along the flank, as on any wall met at a shallow angle (the first guess above).
-              const double into = direction.dot(there);
-              best_direction = (into < 0.0 ? Vec3(direction - into * there) : direction).normalized();
-              best_x = from + m_h * best_direction;
-            }
-          }
-          if (best < m_max_incidence) break;
-        }
-        if (best < m_max_incidence) {
-          const Vec3 was = m_state.frames.back().col(0);
-          m_state.frames.back() =
-              Eigen::Quaterniond::FromTwoVectors(was, best_direction).toRotationMatrix() * m_state.frames.back();
-          m_state.x.back() = best_x;
-          incidence = best;
-        }
-      }
+      incidence = steepest_wall(m_state.x.back(), tip_radius, tangent, &n);
+      if (incidence > m_max_incidence && n.squaredNorm() > 0.0) incidence = roll_off_crest(tangent, n, incidence);
     }
     const bool steep = squeezed_out || incidence > m_max_incidence;
     const double old_energy = m_energy;

@@ -252,6 +252,13 @@ class VineGrowth {
   /// The body's contact radius at x: R, or half the lumen width at x or R ahead of or behind it when narrower.
   /// `across`, if given, receives the direction of the narrowest line (the pinch); `recentrings` as lumen_width.
   double node_radius(const Vec3& x, const Mat3& frame, Vec3* across = nullptr, int recentrings = 0) const;
+  /// The steepest wall a tip sphere of `radius` at x meets: its incidence to `tangent` [rad] (0: none), and, if
+  /// `normal` is given, that contact's normal.
+  double steepest_wall(const Vec3& x, double radius, const Vec3& tangent, Vec3* normal) const;
+  /// A new tip met steeper than max_incidence on a wall of normal `normal`: where the wall is a convex crest, turns
+  /// the new edge so the tip rolls off it and returns the incidence there; otherwise leaves the tip and returns
+  /// `incidence`.
+  double roll_off_crest(const Vec3& tangent, const Vec3& normal, double incidence);
   bool solve_with_wall(GrowthStepReport& report);
   /// solve_with_wall with the loads ramped up from the current state (the slower, surer path after a failure).
   bool solve_with_wall_ramped(GrowthStepReport& report);
