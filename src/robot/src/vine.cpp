@@ -54,6 +54,8 @@ VineParameters thesis_fluid_vine(double length, int edges) {
   return v;
 }
 
+bool has_magnetic_skin(const VineParameters& v) { return v.skin.thickness > 0.0 && v.skin_remanence != 0.0; }
+
 double hoop_stress(const VineParameters& v) { return v.pressure * v.radius / v.wall.thickness; }
 
 double pressure_tip_force(const VineParameters& v) { return v.pressure * kPi * v.radius * v.radius; }
@@ -96,7 +98,7 @@ RodModel vine_rod(const VineParameters& v, double stretch_shear_factor) {
                       fill_density_of(v) * inner_area;
   m.rotational_inertia_per_length = 0.5 * m.mass_per_length * r * r;  // a thin tube (and its fill) about a diameter
   m.inflated = InflatedBending{.radius = r, .pressure = v.pressure, .flat_bending_stiffness = kPi * r * et3 / 6.0};
-  if (v.skin.thickness > 0.0 && v.skin_remanence != 0.0) {
+  if (has_magnetic_skin(v)) {
     require(v.skin_direction.norm() > 0.0, "skin", "skin magnetisation direction must not be zero");
     const Vec3 d = v.skin_direction.normalized();
     require(std::abs(d.x()) < 1e-6, "skin",

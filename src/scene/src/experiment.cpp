@@ -874,7 +874,7 @@ ExperimentScene parse_experiment_scene(const std::string& text, const std::strin
       } else if (mode != "gradient") {
         n.fail("mode", "must be gradient or torque");
       }
-      if (!(scene.vine.skin.thickness > 0.0 && scene.vine.skin_remanence != 0.0)) {
+      if (!robot::has_magnetic_skin(scene.vine)) {
         n.fail("mode", "steers a magnetic skin (robot.skin); a fill or a rod follows the magnet's pull");
       }
     }
@@ -959,8 +959,8 @@ ExperimentResult run_experiment(const ExperimentScene& scene, const std::functio
   const std::optional<MagnetBody> steered_body =
       scene.navigator ? magnet_body(*scene.magnets, static_cast<std::size_t>(scene.navigator->magnet)) : std::nullopt;
   bool workspace_warned = false;
-  // A magnetic skin's moment direction in the body frame (the navigator's gradient mode); none for a fill.
-  const std::optional<Vec3> skin = scene.vine.skin.thickness > 0.0 && scene.vine.skin_remanence != 0.0
+  // A magnetic skin's moment direction in the body frame (the navigator's skin modes); none for a fill.
+  const std::optional<Vec3> skin = robot::has_magnetic_skin(scene.vine)
                                        ? std::optional<Vec3>(std::copysign(1.0, scene.vine.skin_remanence) *
                                                              scene.vine.skin_direction.normalized())
                                        : std::nullopt;

@@ -65,6 +65,8 @@ VineParameters thesis_skin_mvr(double length, int edges = 0);
 /// kDefaultWallStrength (2.9 MPa, from its Ø3 mm burst), filled with magnetic fluid (the bounded law).
 VineParameters thesis_fluid_vine(double length, int edges = 0);
 
+/// Whether the vine carries a magnetised skin (a skin layer with a remanence).
+bool has_magnetic_skin(const VineParameters& v);
 /// Hoop stress at pressure P [Pa].
 double hoop_stress(const VineParameters& v);
 /// The axial wall tension PπR² [N] that balances the pressure on the tip.
