@@ -156,6 +156,35 @@ TEST(Growth, AFieldSwitchedOnMidGrowthBendsTheBodyBeforeItGrowsOn) {
   EXPECT_LT(g.state().tip().y(), 1.5 * expected);  // grown on along the bent tip and bent further
 }
 
+TEST(Growth, ABodyWithoutEquilibriumStoresNoGrowthForLater) {
+  // While new loads have no equilibrium (here a field that reads NaN), the body keeps its last one and the tip does
+  // not grow; the growth law's speed over that time must not be stored and paid out as several edges at once when
+  // the loads are fine again (a 12 mm jump in one step did that at a generation-3 junction). Afterwards one step
+  // of dt grows at most speed·dt plus the one edge that may have been due before.
+  GrowthOptions o;
+  o.gravity = Vec3::Zero();
+  VineGrowth g(skin_mvr(40e-3), o, nullptr, {}, Vec3::Zero(), Mat3::Identity());
+  const GrowthControl inflated{.pressure = 12e3};
+  for (int i = 0; i < 10; ++i) ASSERT_TRUE(g.advance(0.02, inflated).converged);
+  g.set_field([](const Vec3&) {
+    magnetics::FieldSample f;
+    f.b = Vec3::Constant(std::nan(""));
+    return f;
+  });
+  const double held = g.length();
+  GrowthStepReport r;
+  for (int i = 0; i < 50; ++i) r = g.advance(0.02, inflated);  // 1 s without equilibrium
+  EXPECT_FALSE(r.converged);
+  EXPECT_EQ(g.length(), held);
+  g.set_field({});
+  r = g.advance(0.02, inflated);
+  ASSERT_TRUE(r.converged) << r.failure;
+  const double grown = g.length() - held;
+  std::printf("  without equilibrium for 1 s, then %.1f mm in one 0.02 s step (speed %.1f mm/s, edge %.1f mm)\n",
+              1e3 * grown, 1e3 * r.speed, 1e3 * g.edge_length());
+  EXPECT_LE(grown, r.speed * 0.02 + g.edge_length() + 1e-12);
+}
+
 TEST(Growth, BurstsWhenTheHoopStressPassesTheFilmStrength) {
   // Hoop stress P R(1 + ε) / t: the 20 µm film at 10 MPa bursts above 47.7 kPa (46.2 kPa without the extension).
   GrowthOptions o;

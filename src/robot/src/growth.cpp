@@ -706,6 +706,7 @@ GrowthStepReport VineGrowth::advance(double dt, const GrowthControl& control) {
     report.failure = "the new loads have no equilibrium yet (retried every " +
                      format("%.2f s", m_options.retry_interval) + ")";
     report.stalled = true;
+    m_pending = std::min(m_pending, m_h);  // a body without equilibrium does not store growth either
     return report;
   }
   if (m_dirty) {
@@ -734,6 +735,7 @@ GrowthStepReport VineGrowth::advance(double dt, const GrowthControl& control) {
       m_anchor_normal = old_normal;
       m_normal_force = old_force;
       report.stalled = true;
+      m_pending = std::min(m_pending, m_h);
       return report;
     }
     m_loads_failed = false;
