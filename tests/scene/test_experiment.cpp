@@ -369,6 +369,20 @@ TEST(Experiment, BadScenesNameTheFileAndKey) {
                "magnets[0].position: the magnet would overlap the anatomy");
   expect_error(replaced(text, "{time: 1, position: [70, 110, 0]", "{time: 1, position: [70, 40, 0]"),
                "control.magnets[0].keyframes[1].position: on its way there");
+  // control.navigator.recover retracts a deflated vine: the growth must say at what pressure it inverts.
+  const std::string recovering =
+      replaced(text, "  magnets:\n    - {magnet: 0, keyframes: [{time: 0, position: [90, 250, 0], axis: [0, -1, 0]},\n"
+                     "                              {time: 1, position: [70, 110, 0], axis: [0, -1, 0]}]}",
+               "  navigator: {target: \"0-1\", magnet: 0, recover: {retries: 2}}");
+  expect_error(recovering, "control.navigator.recover.retries: the navigator retracts a deflated vine: set "
+                           "growth.retraction_pressure");
+  const std::string retractable =
+      replaced(recovering, "growth: {yield_pressure: 20}", "growth: {yield_pressure: 20, retraction_pressure: 5}");
+  expect_error(replaced(retractable, "retries: 2", "retries: 1.5"),
+               "control.navigator.recover.retries: must be a whole");
+  expect_error(replaced(retractable, "retries: 2", "retries: 2, bak: 10"), "did you mean 'back'");
+  expect_error(replaced(retractable, "recover: {retries: 2}", "recover: {back: 10}"),
+               "control.navigator.recover.retries");
   if (!config::kWithRender) {  // with the render module: test_video_outputs
     // Without it a video is checked and skipped (a warning), so bundled scenes with videos still run.
     EXPECT_EQ(error_of(text + "outputs: {video: {camera: tip}}\n"), "no error");
@@ -611,7 +625,7 @@ TEST(Experiment, TheNavigatorsTorqueModeTurnsASkinTowardsTheAimAndItsGradientMod
   EXPECT_NE(wrong.find("control.navigator.mode: must be gradient or torque"), std::string::npos) << wrong;
   const std::string fluid = error_of(replaced(text_of(std::filesystem::path(MAGVINE_SOURCE_DIR) /
                                                       "assets/scenes/bronchial_tree_generation4.yaml"),
-                                              "boost_pressure: 42}", "boost_pressure: 42, mode: torque}"));
+                                              "boost_pressure: 42\n", "boost_pressure: 42\n    mode: torque\n"));
   EXPECT_NE(fluid.find("control.navigator.mode: steers a magnetic skin (robot.skin)"), std::string::npos) << fluid;
 }
 
@@ -647,6 +661,7 @@ TEST(Experiment, TheNavigatorRaisesThePressureOnlyForAHeldTipAndOnlyBelowBurst) 
   ExperimentScene scene = with_target(load_experiment_scene(file), "0-1-0-1-1");
   ASSERT_TRUE(scene.navigator);
   EXPECT_DOUBLE_EQ(scene.navigator->boost_pressure, 42e3);
+  scene.navigator->recover.retries = 0;  // the boost alone (the retractions: the test after the next)
   scene.duration = 8.6;
   const ExperimentResult r = run_experiment(scene);
   int rises = 0;
@@ -690,6 +705,7 @@ TEST(Experiment, AGenerationFourEntryIsEnteredWithEdgesOfTwoAndOneAndAHalfMillim
   for (const double edge : {2e-3, 1.5e-3}) {
     ExperimentScene scene = with_target(load_experiment_scene(file), "0-0-1-1-0");
     scene.growth.edge_length = edge;
+    scene.navigator->recover.retries = 0;  // entered at the first try, not after a retraction
     const ExperimentResult r = run_experiment(scene);
     std::printf("  edges of %.1f mm: %s at %.2f s, %.0f mm everted\n", 1e3 * edge,
                 r.success ? "reached" : "not reached", r.time_to_target, 1e3 * r.samples.back().length);
@@ -698,6 +714,69 @@ TEST(Experiment, AGenerationFourEntryIsEnteredWithEdgesOfTwoAndOneAndAHalfMillim
     }
     EXPECT_TRUE(r.success) << "edges of " << edge << " m";
   }
+}
+
+TEST(Experiment, TheNavigatorBacksTheVineOutOfAWrongDaughterAndGrowsItIntoTheRightOne) {
+  // assets/scenes/bronchial_tree_generation4.yaml, the trial towards 0-0-1-1-0 that `magvine trials` runs first
+  // (seed 1·1000003 + 1·10007 + 0): the perturbed vine turns into the wrong generation-4 daughter, 0-0-1-1-1, a
+  // blind end. Without retractions it stays there. With control.navigator.recover (retries 3, past 4 mm, back
+  // 20 mm) the navigator deflates it to the growth's retraction pressure, 5 kPa, once it has grown 4 mm into
+  // 0-0-1-1-1, pulls it back to 20 mm short of where it left the path, gives the pressure back, and the vine
+  // reaches the target. Asserted from the samples: the length only falls at or below 5 kPa; the first retraction
+  // takes back 24 mm (4 past, 20 back) within an edge either way; the tip was in 0-0-1-1-1 before it succeeded.
+  const std::filesystem::path file =
+      std::filesystem::path(MAGVINE_SOURCE_DIR) / "assets/scenes/bronchial_tree_generation4.yaml";
+  const ExperimentScene aimed = with_target(load_experiment_scene(file), "0-0-1-1-0");
+  ASSERT_TRUE(aimed.navigator);
+  EXPECT_EQ(aimed.navigator->recover.retries, 3);
+  EXPECT_DOUBLE_EQ(aimed.growth.retraction_pressure, 5e3);
+  ExperimentScene scene = perturbed(aimed, 1 * 1000003ULL + 1 * 10007ULL);
+  const auto describe = [](const char* label, const ExperimentResult& r) {
+    std::printf("  %s: %s at %.2f s, %.0f mm everted, %d retraction(s)\n", label,
+                r.success ? "reached" : "not reached", r.time_to_target, 1e3 * r.samples.back().length, r.recoveries);
+    for (const robot::GrowthEvent& e : r.events) {
+      if (e.kind != "recover" && e.kind != "blocked") continue;
+      std::printf("    %.2f s %s: %s\n", e.time, e.kind.c_str(), e.detail.c_str());
+    }
+  };
+  scene.navigator->recover.retries = 0;
+  const ExperimentResult stuck = run_experiment(scene);
+  describe("without retractions", stuck);
+  EXPECT_FALSE(stuck.success);
+  EXPECT_EQ(stuck.recoveries, 0);
+  ASSERT_TRUE(scene.graph);
+  ASSERT_GE(stuck.samples.back().branch, 0);
+  EXPECT_EQ(scene.graph->branches[static_cast<std::size_t>(stuck.samples.back().branch)].name, "0-0-1-1-1");
+
+  scene.navigator->recover.retries = 3;
+  const ExperimentResult r = run_experiment(scene);
+  describe("with them", r);
+  EXPECT_TRUE(r.success);
+  EXPECT_GE(r.recoveries, 1);
+  EXPECT_LE(r.recoveries, 3);
+  bool wrong = false;
+  double peak = 0.0;     // the everted length when the first retraction began
+  double lowest = 1.0;   // and where it ended
+  bool retracting = false;
+  bool first_done = false;
+  double previous = scene.vine.length;
+  for (const ExperimentSample& s : r.samples) {
+    wrong = wrong || (s.branch >= 0 && scene.graph->branches[static_cast<std::size_t>(s.branch)].name == "0-0-1-1-1");
+    if (s.length < previous) {
+      EXPECT_LE(s.pressure, 5e3) << s.time << " s";
+      if (!retracting && !first_done) peak = previous;
+      retracting = true;
+      if (!first_done) lowest = s.length;
+    } else if (retracting && s.length > previous) {
+      retracting = false;
+      first_done = true;
+    }
+    previous = s.length;
+  }
+  const double h = 2e-3;  // the scene's edges: R
+  std::printf("  first retraction: %.1f -> %.1f mm\n", 1e3 * peak, 1e3 * lowest);
+  EXPECT_TRUE(wrong);
+  EXPECT_NEAR(peak - lowest, 24e-3, h + 1e-9);
 }
 
 TEST(Experiment, ATargetOrABaseOutsideTheLumenIsRefusedBeforeTheRun) {

@@ -277,6 +277,97 @@ MagnetKeyframe navigate(const Navigator& nav, const std::vector<Vec3>& path, con
 
 namespace {
 
+/// printf into a string (event details).
+template <typename... Args>
+std::string printf_text(const char* pattern, Args... args) {
+  char text[320];
+  std::snprintf(text, sizeof text, pattern, args...);
+  return text;
+}
+
+/// control.navigator.recover (Navigator::Recovery): watches where the tip is and whether it grows, and takes the
+/// pressure and the tether over while it backs the vine out of a wrong turn.
+class WrongTurnRecovery {
+ public:
+  WrongTurnRecovery(const Navigator::Recovery& options, double retraction_pressure, double length)
+      : m_options(options), m_retraction_pressure(retraction_pressure), m_shortest(length), m_on_path(length) {}
+
+  /// One step at time t, before the growth advances: `length` is the everted length [m], `off_path` the branch the
+  /// last sample's tip is in when that is off the planned path (else empty), `capped` whether a tether, the made
+  /// length or the navigator's deflation holds the vine (not a held tip). While retracting, control's pressure is
+  /// at most the retraction pressure and its tether pulls back; `events` gets a "recover" event at each start and end.
+  void step(double t, double length, const std::string& off_path, bool capped, robot::GrowthControl& control,
+            std::vector<robot::GrowthEvent>& events) {
+    if (m_retracting) {
+      // Done at the length asked for, or once the last step's tether was there and the vine stopped shortening
+      // (whole edges go).
+      const double tether = std::max(m_to, m_from - m_options.speed * (t - m_since));
+      const bool settled = m_last_tether <= m_to && length >= m_last;
+      m_last = length;
+      m_last_tether = tether;
+      if (length <= m_to + 1e-9 || settled) {
+        m_retracting = false;
+        m_held_length = length;
+        m_held_since = t;
+        m_on_path = length;
+        events.push_back(
+            {t, length, "recover", printf_text("back at %.1f mm: the pressure is given back", 1e3 * length)});
+      } else {
+        control.pressure = std::min(control.pressure, m_retraction_pressure);
+        control.tether_length = std::min(control.tether_length, tether);
+        return;
+      }
+    }
+    if (length != m_held_length || capped) {
+      m_held_length = length;
+      m_held_since = t;
+    }
+    if (off_path.empty()) m_on_path = length;
+    if (m_used >= m_options.retries) return;
+    std::string why;
+    double to = 0.0;
+    if (!off_path.empty() && length - m_on_path >= m_options.past - 1e-9) {
+      why = printf_text("the tip has grown %.1f mm into %s, off the path", 1e3 * (length - m_on_path),
+                        off_path.c_str());
+      to = m_on_path - m_options.back;
+    } else if (t - m_held_since >= m_options.after - 1e-9) {
+      why = printf_text("the tip has been held at %.1f mm for %.1f s", 1e3 * length, t - m_held_since);
+      to = length - m_options.back;
+    } else {
+      return;
+    }
+    ++m_used;
+    m_retracting = true;
+    m_from = length;
+    m_last = length;
+    m_last_tether = length;
+    m_to = std::max(m_shortest, to);
+    m_since = t;
+    events.push_back({t, length, "recover",
+                      why + printf_text(": deflated to %.1f kPa, the tether pulls it back to %.1f mm (retry %d of %d)",
+                                   m_retraction_pressure / kKpaToPa, 1e3 * m_to, m_used, m_options.retries)});
+    control.pressure = std::min(control.pressure, m_retraction_pressure);
+  }
+
+  bool retracting() const { return m_retracting; }
+  int used() const { return m_used; }
+
+ private:
+  Navigator::Recovery m_options;
+  double m_retraction_pressure;
+  double m_shortest;  ///< the vine's starting length: no retraction goes below it [m]
+  double m_on_path;   ///< the everted length at the last sample on the path [m]
+  double m_held_length = -1.0;
+  double m_held_since = 0.0;
+  bool m_retracting = false;
+  double m_from = 0.0;
+  double m_to = 0.0;
+  double m_since = 0.0;
+  double m_last = 0.0;         ///< the everted length at the last step of the retraction [m]
+  double m_last_tether = 0.0;  ///< and the tether it set then [m]
+  int m_used = 0;
+};
+
 /// The navigator's pose kept clear of the anatomy: moved out along its line from the tip, 5 mm at a time up to
 /// max_distance, while the magnet (body, if any) would overlap the airway mesh. Returns whether it is clear.
 bool keep_clear(const Navigator& nav, const anatomy::TriangleMesh& mesh, const std::optional<MagnetBody>& body,
@@ -450,9 +541,15 @@ RunFigures figures_of(const ExperimentScene& scene, const ExperimentResult& resu
 std::string failure_reason(const ExperimentResult& result, const RunFigures& figures) {
   std::ostringstream why;
   why.precision(3);
+  // The last event that stopped the tip since the navigator last backed it out of a wrong turn (which dealt with
+  // the stops before it).
   const robot::GrowthEvent* last = nullptr;
   for (const robot::GrowthEvent& e : result.events) {
-    if (e.kind != "resume") last = &e;
+    if (e.kind == "recover") {
+      last = nullptr;
+    } else if (e.kind != "resume" && e.kind != "retract") {
+      last = &e;
+    }
   }
   const std::string branch =
       figures.branches.empty() ? std::string() : ", last in branch " + figures.branches.back();
@@ -463,6 +560,10 @@ std::string failure_reason(const ExperimentResult& result, const RunFigures& fig
   }
   why << branch;
   if (figures.final_error) why << ", " << 1e3 * *figures.final_error << " mm from the target";
+  if (result.recoveries > 0) {
+    why << ", after " << result.recoveries << (result.recoveries == 1 ? " retraction" : " retractions")
+        << " by the navigator";
+  }
   return why.str();
 }
 
@@ -826,7 +927,7 @@ ExperimentScene parse_experiment_scene(const std::string& text, const std::strin
     const YamlMap n = control.map("navigator");
     n.allow_only({"target", "magnet", "distance", "min_distance", "max_distance", "lead", "interval",
                   "deflate_pressure", "deflate_time", "junction_distance", "lateral", "mode", "boost_pressure",
-                  "boost_after", "boost_length"});
+                  "boost_after", "boost_length", "recover"});
     if (!scene.graph) {
       n.fail("target", "the navigator plans on an airway graph: a generated phantom's, or anatomy.graph (extract | "
                        "FILE.json) for a mesh");
@@ -895,6 +996,24 @@ ExperimentScene parse_experiment_scene(const std::string& text, const std::strin
     }
     if (n.has("boost_after")) nav.boost_after = n.positive("boost_after");
     if (n.has("boost_length")) nav.boost_length = n.positive("boost_length") * unit;
+    if (n.has("recover")) {
+      const YamlMap r = n.map("recover");
+      r.allow_only({"retries", "past", "after", "back", "speed"});
+      Navigator::Recovery& rec = nav.recover;
+      const double retries = r.number("retries");
+      if (retries != std::floor(retries) || retries < 0 || retries > 100) {
+        r.fail("retries", "must be a whole number from 0 to 100");
+      }
+      rec.retries = static_cast<int>(retries);
+      if (r.has("past")) rec.past = r.positive("past") * unit;
+      if (r.has("after")) rec.after = r.positive("after");
+      if (r.has("back")) rec.back = r.positive("back") * unit;
+      if (r.has("speed")) rec.speed = r.positive("speed") * unit;
+      if (scene.growth.rod) r.fail("retries", "a pushed rod is withdrawn by its tether schedule, not by the navigator");
+      if (rec.retries > 0 && scene.growth.retraction_pressure < 0.0) {
+        r.fail("retries", "the navigator retracts a deflated vine: set growth.retraction_pressure (e.g. 5 kPa)");
+      }
+    }
 
     scene.navigator = nav;
   }
@@ -969,6 +1088,10 @@ ExperimentResult run_experiment(const ExperimentScene& scene, const std::functio
   double grown_at = 0.0;        // when the everted length last changed (the navigator's boost)
   double grown_length = -1.0;   // the everted length then [m]
   double boost_until = -1.0;    // boosting until the everted length reaches this [m] (< 0: not boosting)
+  std::optional<WrongTurnRecovery> recovery;  // control.navigator.recover
+  if (scene.navigator && scene.navigator->recover.retries > 0) {
+    recovery.emplace(scene.navigator->recover, scene.growth.retraction_pressure, scene.vine.length);
+  }
   double next_shape = 0.0;  // outputs.shape_interval
   double next_frame = 0.0;  // outputs.video: one record per frame of the most frequent video
   double frame_interval = std::numeric_limits<double>::infinity();
@@ -1099,6 +1222,16 @@ ExperimentResult run_experiment(const ExperimentScene& scene, const std::functio
       }
       if (t < deflate_until) control.pressure = std::min(control.pressure, scene.navigator->deflate_pressure);
     }
+    if (recovery && !out.success) {
+      const int here = out.samples.empty() ? -1 : out.samples.back().branch;
+      const bool off_path = here >= 0 && std::find(plan.begin(), plan.end(), here) == plan.end();
+      const double length = growth.length();
+      const bool capped =
+          length >= std::min(control.tether_length, scene.growth.max_length) - 1e-9 || t < deflate_until;
+      recovery->step(t, length, off_path ? scene.graph->branches[static_cast<std::size_t>(here)].name : "", capped,
+                     control, workspace_events);
+      if (recovery->retracting()) boost_until = -1.0;
+    }
     const robot::GrowthStepReport r = growth.advance(dt, control);
     out.converged = r.converged;
     if (!r.converged) {
@@ -1129,6 +1262,7 @@ ExperimentResult run_experiment(const ExperimentScene& scene, const std::functio
       break;
     }
   }
+  if (recovery) out.recoveries = recovery->used();
   out.events = growth.events();
   out.events.insert(out.events.end(), workspace_events.begin(), workspace_events.end());
   std::stable_sort(out.events.begin(), out.events.end(),
@@ -1225,6 +1359,7 @@ std::vector<TrialOutcome> run_trials(const ExperimentScene& scene, const std::ve
         o.everted_length = f.everted_length;
         o.final_error = f.final_error.value_or(0.0);
         o.max_normal = f.max_normal;
+        o.retractions = res.recoveries;
         for (const robot::GrowthEvent& e : res.events) o.burst = o.burst || e.kind == "burst";
         o.runtime_s = res.runtime_s;
         if (!o.success) o.reason = failure_reason(res, f);
@@ -1260,17 +1395,23 @@ void write_trial_outputs(const std::vector<TrialOutcome>& outcomes, const std::f
   };
   std::ostringstream all;
   all.precision(10);
-  all << "target,repeat,seed,success,burst,time_to_target_s,everted_length_m,final_error_m,max_normal_N,runtime_s,"
-         "reason\n";
+  all << "target,repeat,seed,success,burst,time_to_target_s,everted_length_m,final_error_m,max_normal_N,retractions,"
+         "runtime_s,reason\n";
   for (const TrialOutcome& o : outcomes) {
     all << o.target << ',' << o.repeat << ',' << o.seed << ',' << (o.success ? 1 : 0) << ',' << (o.burst ? 1 : 0) << ','
         << (o.success ? std::to_string(o.time_to_target) : std::string()) << ',' << o.everted_length << ','
-        << o.final_error << ',' << o.max_normal << ',' << o.runtime_s << ',' << quoted(o.reason) << '\n';
+        << o.final_error << ',' << o.max_normal << ',' << o.retractions << ',' << o.runtime_s << ','
+        << quoted(o.reason) << '\n';
   }
   std::ostringstream csv;
   std::ostringstream md;
-  csv << "target,path_length_mm,successes,trials,success_rate,mean_time_s,sd_time_s\n";
-  md << "| target | path length [mm] | success | mean time [s] | SD [s] |\n|---|---|---|---|---|\n";
+  // A column for the navigator's retractions (Navigator::Recovery) where any trial had one.
+  const bool retracted = std::any_of(outcomes.begin(), outcomes.end(), [](const TrialOutcome& o) {
+    return o.retractions > 0;
+  });
+  csv << "target,path_length_mm,successes,trials,success_rate,mean_time_s,sd_time_s,retractions\n";
+  md << "| target | path length [mm] | success | mean time [s] | SD [s] |" << (retracted ? " retractions |" : "")
+     << "\n|---|---|---|---|---|" << (retracted ? "---|" : "") << "\n";
   std::vector<std::string> order;
   for (const TrialOutcome& o : outcomes) {
     if (std::find(order.begin(), order.end(), o.target) == order.end()) order.push_back(o.target);
@@ -1282,9 +1423,11 @@ void write_trial_outputs(const std::vector<TrialOutcome>& outcomes, const std::f
     double sum_t = 0.0;
     double sum_t2 = 0.0;
     double sum_l = 0.0;
+    int retractions = 0;
     for (const TrialOutcome& o : outcomes) {
       if (o.target != target) continue;
       ++n;
+      retractions += o.retractions;
       if (!o.success) continue;
       ++ok;
       sum_t += o.time_to_target;
@@ -1294,8 +1437,8 @@ void write_trial_outputs(const std::vector<TrialOutcome>& outcomes, const std::f
     const double mean = ok > 0 ? sum_t / ok : std::nan("");
     const double sd = ok > 1 ? std::sqrt(std::max(0.0, (sum_t2 - ok * mean * mean) / (ok - 1))) : std::nan("");
     const double length = ok > 0 ? 1e3 * sum_l / ok : std::nan("");
-    std::snprintf(line, sizeof line, "%s,%.1f,%d,%d,%.3f,%.2f,%.2f\n", target.c_str(), length, ok, n,
-                  static_cast<double>(ok) / n, mean, sd);
+    std::snprintf(line, sizeof line, "%s,%.1f,%d,%d,%.3f,%.2f,%.2f,%d\n", target.c_str(), length, ok, n,
+                  static_cast<double>(ok) / n, mean, sd, retractions);
     csv << line;
     // A table cell with no value (no success, or one: no SD) reads as a dash, not "nan".
     const auto cell = [](double value, const char* format) {
@@ -1305,7 +1448,9 @@ void write_trial_outputs(const std::vector<TrialOutcome>& outcomes, const std::f
       return std::string(text);
     };
     md << "| " << target << " | " << cell(length, "%.0f") << " | " << ok << '/' << n << " | " << cell(mean, "%.1f")
-       << " | " << cell(sd, "%.1f") << " |\n";
+       << " | " << cell(sd, "%.1f") << " |";
+    if (retracted) md << ' ' << retractions << " |";
+    md << '\n';
   }
   bool failures = false;
   for (const TrialOutcome& o : outcomes) {
@@ -1354,6 +1499,7 @@ void write_experiment_outputs(const ExperimentScene& scene, const ExperimentResu
   }
   j["stalls"] = stalls;
   j["blocked"] = blocked;
+  j["retractions"] = result.recoveries;  // the navigator's, out of wrong turns (control.navigator.recover)
   j["events"] = static_cast<int>(result.events.size());
   double travel = 0.0;
   std::vector<std::optional<Vec3>> previous(scene.magnets ? scene.magnets->size() : 0);

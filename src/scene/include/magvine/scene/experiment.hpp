@@ -141,6 +141,20 @@ struct Navigator {
   double boost_pressure = 0.0;
   double boost_after = 0.5;    ///< [s]
   double boost_length = 5e-3;  ///< [m]
+  /// Recovery from a wrong turn (control.navigator.recover; retries 0: off). When the tip has grown `past` [m] into
+  /// a branch off the planned path, or has been held for `after` [s] (a boost included), the navigator deflates the
+  /// vine to the growth's retraction_pressure and pulls the tether back at `speed` [m/s] until the everted length is
+  /// `back` [m] short of where the tip left the path (held: of where it is), then gives the pressure back and lets it
+  /// grow again, at most `retries` times a run. The retraction is tip-driven (growth.retraction_pressure): a deflated
+  /// vine whose tip inverts, as with a tip retraction device; the thesis pulled its deflated vines out whole (its 5.7).
+  struct Recovery {
+    int retries = 0;
+    double past = 4e-3;    ///< [m]
+    double after = 2.0;    ///< [s]
+    double back = 20e-3;   ///< [m]
+    double speed = 20e-3;  ///< [m/s]
+  };
+  Recovery recover;
 };
 
 /// The navigator's pose for its magnet (experiment runs call it every `interval`): `path` is the planned centreline
@@ -266,6 +280,7 @@ struct ExperimentResult {
   std::string failure;         ///< the first such step's cause
   bool success = false;        ///< the tip came within the target's tolerance (false without a target)
   double time_to_target = -1;  ///< [s], −1 when not reached
+  int recoveries = 0;          ///< times the navigator backed the vine out of a wrong turn (Navigator::Recovery)
   double runtime_s = 0.0;
 };
 
@@ -291,6 +306,7 @@ struct TrialOutcome {
   double everted_length = 0.0;   ///< [m]
   double final_error = 0.0;      ///< tip to target [m]
   double max_normal = 0.0;       ///< [N]
+  int retractions = 0;           ///< the navigator's (ExperimentResult::recoveries)
   double runtime_s = 0.0;
   /// Why a failed trial failed, one line: the last event that stopped the tip (with its numbers), the branch it was
   /// in and how far from the target it ended; empty on success.
