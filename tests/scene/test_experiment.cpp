@@ -777,6 +777,27 @@ TEST(Experiment, TheNavigatorBacksTheVineOutOfAWrongDaughterAndGrowsItIntoTheRig
   std::printf("  first retraction: %.1f -> %.1f mm\n", 1e3 * peak, 1e3 * lowest);
   EXPECT_TRUE(wrong);
   EXPECT_NEAR(peak - lowest, 24e-3, h + 1e-9);
+
+  // The count in metrics.json, and a retractions column in the trials' summary (absent where none happened: the
+  // trials test above).
+  const std::filesystem::path dir = std::filesystem::temp_directory_path() / "magvine_test_recovery";
+  std::filesystem::remove_all(dir);
+  write_experiment_outputs(scene, r, dir / "run");
+  std::ifstream in(dir / "run" / "metrics.json");
+  ASSERT_TRUE(in);
+  EXPECT_EQ(nlohmann::json::parse(in).at("retractions").get<int>(), r.recoveries);
+  TrialOutcome o;
+  o.target = "0-0-1-1-0";
+  o.success = true;
+  o.time_to_target = r.time_to_target;
+  o.everted_length = r.samples.back().length;
+  o.retractions = r.recoveries;
+  write_trial_outputs({o}, dir);
+  std::ifstream md(dir / "summary.md");
+  const std::string table(std::istreambuf_iterator<char>(md), {});
+  EXPECT_NE(table.find("| SD [s] | retractions |\n|---|---|---|---|---|---|\n"), std::string::npos) << table;
+  EXPECT_NE(table.find(" | " + std::to_string(r.recoveries) + " |\n"), std::string::npos) << table;
+  std::filesystem::remove_all(dir);
 }
 
 TEST(Experiment, ATargetOrABaseOutsideTheLumenIsRefusedBeforeTheRun) {

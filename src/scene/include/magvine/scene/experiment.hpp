@@ -309,7 +309,7 @@ struct TrialOutcome {
   int retractions = 0;           ///< the navigator's (ExperimentResult::recoveries)
   double runtime_s = 0.0;
   /// Why a failed trial failed, one line: the last event that stopped the tip (with its numbers), the branch it was
-  /// in and how far from the target it ended; empty on success.
+  /// in, how far from the target it ended and after how many retractions; empty on success.
   std::string reason;
 };
 
@@ -333,10 +333,11 @@ void write_trial_outputs(const std::vector<TrialOutcome>& outcomes, const std::f
 /// centreline graph, anatomy/airway_graph.hpp). metrics.json keys: success, time_to_target_s,
 /// final_tip_error_m (null without a target), tip_position_m, everted_length_m, tip_path_length_m, branches_reached
 /// (graph names in order, with a graph), generation_reached, tip_to_centreline_m (at the end) and
-/// mean_tip_to_centreline_m (time average), path_progress (0–1 along the navigator's planned path to its target), max_wall_normal_N, mean_wall_normal_N (time average of the total),
-/// max_wall_shear_N (largest total over the steps), stalls, blocked, events, magnet_travel_m, simulated_s,
-/// runtime_s, real_time_factor, converged (the last step), failed_steps, failure, seed, and with outputs.video the
-/// videos (tip.mp4 / overview.mp4, or .avi) and "videos": [{camera, file, codec, frames, fps, size}].
+/// mean_tip_to_centreline_m (time average), path_progress (0–1 along the navigator's planned path to its target),
+/// max_wall_normal_N, mean_wall_normal_N (time average of the total), max_wall_shear_N (largest total over the
+/// steps), stalls, blocked, retractions (the navigator's), events, magnet_travel_m, simulated_s, runtime_s,
+/// real_time_factor, converged (the last step), failed_steps, failure, seed, and with outputs.video the videos
+/// (tip.mp4 / overview.mp4, or .avi) and "videos": [{camera, file, codec, frames, fps, size}].
 void write_experiment_outputs(const ExperimentScene& scene, const ExperimentResult& result,
                               const std::filesystem::path& dir);
 
