@@ -222,6 +222,9 @@ int run_experiment_scene(const RunArgs& args, const std::filesystem::path& out) 
             << (sc.target ? (result.success ? ", target reached at " + std::to_string(result.time_to_target) + " s"
                                             : std::string(", target not reached"))
                           : std::string())
+            << (result.recoveries > 0 ? ", after " + std::to_string(result.recoveries) +
+                                            (result.recoveries == 1 ? " retraction" : " retractions")
+                                      : std::string())
             << "; " << result.runtime_s << " s of computing -> " << out.string() << "/{metrics.json,tip_trajectory.csv,"
             << (sc.magnets ? "magnet_trajectory.csv," : "") << "events.json,shape.csv"
             << (sc.videos.empty() ? "" : ",videos (metrics.json: videos)") << "}\n";
