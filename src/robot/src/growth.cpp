@@ -12,6 +12,7 @@
 
 #include "magvine/anatomy/collision_world.hpp"
 #include "magvine/core/error.hpp"
+#include "magvine/core/text.hpp"
 #include "magvine/core/units.hpp"
 
 namespace magvine::robot {
@@ -29,12 +30,6 @@ constexpr double kSlack = 0.45;
 // Moves toward the middle of its chords of the point where the growth test measures the lumen ahead of a new tip
 // (VineGrowth::lumen_width): two leave a quarter of the offset in a round lumen.
 constexpr int kRecentrings = 2;
-
-std::string format(const char* pattern, double a, double b = 0.0, double c = 0.0, double d = 0.0, double e = 0.0) {
-  char buffer[256];
-  std::snprintf(buffer, sizeof buffer, pattern, a, b, c, d, e);
-  return buffer;
-}
 
 bool has_anchor(const Vec3& a) { return !std::isnan(a.x()); }
 
@@ -524,7 +519,7 @@ bool VineGrowth::solve_with_wall(GrowthStepReport& report) {
     if (pass + 1 == m_options.max_contact_passes) {
       report.converged = false;
       report.failure = "the wall contacts did not settle in " + std::to_string(m_options.max_contact_passes) +
-                       " solves (a node moved more than " + format("%.2f mm", 1e3 * margin) +
+                       " solves (a node moved more than " + printf_string("%.2f mm", 1e3 * margin) +
                        " past its contact planes or sank 5 % of R deeper into the wall than they allow)";
       return false;
     }
@@ -640,8 +635,8 @@ GrowthStepReport VineGrowth::advance(double dt, const GrowthControl& control) {
     m_burst = true;
     report.stalled = true;
     report.burst = true;
-    add_event("burst", format("pressure %.1f kPa: hoop stress %.2f MPa above the film's strength %.2f MPa",
-                              p / kKpaToPa, hoop / 1e6, m_vine.wall_strength / 1e6));
+    add_event("burst", printf_string("pressure %.1f kPa: hoop stress %.2f MPa above the film's strength %.2f MPa",
+                                     p / kKpaToPa, hoop / 1e6, m_vine.wall_strength / 1e6));
     return report;
   }
   if (p != m_pressure) {
@@ -662,17 +657,19 @@ GrowthStepReport VineGrowth::advance(double dt, const GrowthControl& control) {
     report.speed = law.extensibility * std::max(0.0, p - report.yield);
     if (report.speed == 0.0 && !m_stalled) {
       m_stalled = true;
-      std::string detail = format("pressure %.2f kPa at or below the yield %.2f kPa (Y0 %.2f + length %.2f + turning "
-                                  "%.2f kPa",
-                                  p / kKpaToPa, report.yield / kKpaToPa, law.yield_pressure / kKpaToPa,
-                                  length_term / kKpaToPa, turning_term / kKpaToPa);
+      std::string detail = printf_string(
+          "pressure %.2f kPa at or below the yield %.2f kPa (Y0 %.2f + length %.2f + turning "
+          "%.2f kPa",
+          p / kKpaToPa, report.yield / kKpaToPa, law.yield_pressure / kKpaToPa, length_term / kKpaToPa,
+          turning_term / kKpaToPa);
       if (m_options.magnetorheology) {
-        detail += format(" + magnetorheological %.2f kPa", report.magnetorheological_yield / kKpaToPa);
+        detail += printf_string(" + magnetorheological %.2f kPa", report.magnetorheological_yield / kKpaToPa);
       }
       add_event("stall", detail + ")");
     } else if (report.speed > 0.0 && m_stalled) {
       m_stalled = false;
-      add_event("resume", format("pressure %.2f kPa above the yield %.2f kPa", p / kKpaToPa, report.yield / kKpaToPa));
+      add_event("resume",
+                printf_string("pressure %.2f kPa above the yield %.2f kPa", p / kKpaToPa, report.yield / kKpaToPa));
     }
   }
   // Retraction: a tether pulled back below the everted length inverts the tip of a deflated vine.
@@ -685,15 +682,15 @@ GrowthStepReport VineGrowth::advance(double dt, const GrowthControl& control) {
       if (removed > 0) m_recent.clear();  // the energy window starts again from the new tip
       if (removed > 0 && !m_retracting) {
         m_retracting = true;
-        add_event("retract", format("the tether pulls the deflated vine (%.2f kPa) back from %.1f mm",
-                                    p / kKpaToPa, 1e3 * (m_model.length + removed * m_h)));
+        add_event("retract", printf_string("the tether pulls the deflated vine (%.2f kPa) back from %.1f mm",
+                                           p / kKpaToPa, 1e3 * (m_model.length + removed * m_h)));
       }
     } else if (!m_retract_refused) {
       m_retract_refused = true;
-      add_event("retract", format("the tether pulls back to %.1f mm but the vine is at %.2f kPa, above the "
-                                  "retraction pressure %.2f kPa: the length is held",
-                                  1e3 * control.tether_length, p / kKpaToPa,
-                                  m_options.retraction_pressure / kKpaToPa));
+      add_event("retract",
+                printf_string("the tether pulls back to %.1f mm but the vine is at %.2f kPa, above the "
+                              "retraction pressure %.2f kPa: the length is held",
+                              1e3 * control.tether_length, p / kKpaToPa, m_options.retraction_pressure / kKpaToPa));
     }
   }
   const double cap = std::min(control.tether_length, m_options.max_length) - (m_model.length + m_pending);
@@ -704,7 +701,7 @@ GrowthStepReport VineGrowth::advance(double dt, const GrowthControl& control) {
     // retry_interval has passed (each try can cost a whole ramp).
     report.converged = false;
     report.failure = "the new loads have no equilibrium yet (retried every " +
-                     format("%.2f s", m_options.retry_interval) + ")";
+                     printf_string("%.2f s", m_options.retry_interval) + ")";
     report.stalled = true;
     m_pending = std::min(m_pending, m_h);  // a body without equilibrium does not store growth either
     return report;
@@ -844,34 +841,39 @@ GrowthStepReport VineGrowth::advance(double dt, const GrowthControl& control) {
       if (flat) {
         if (!m_blocked) {
           m_blocked = true;
-          add_event("squeeze", format("a %.2f mm gap is narrower than the catheter pressed flat (%.2f mm)",
-                                      1e3 * tip_radius / kSlack,
-                                      1e3 * (m_options.catheter->outer_diameter - m_options.catheter->inner_diameter)));
+          add_event("squeeze",
+                    printf_string("a %.2f mm gap is narrower than the catheter pressed flat (%.2f mm)",
+                                  1e3 * tip_radius / kSlack,
+                                  1e3 * (m_options.catheter->outer_diameter - m_options.catheter->inner_diameter)));
         }
       } else if (squeezed_out) {
         if (!m_blocked) {
           m_blocked = true;
-          add_event("squeeze", format("a %.2f mm gap leaves the tip %.0f %% of its section: %.2f kPa x %.2f is at or "
-                                      "below the yield %.2f kPa",
-                                      1e3 * tip_radius / kSlack, 100.0 * squeeze, p / kKpaToPa, squeeze, report.yield / kKpaToPa));
+          add_event("squeeze",
+                    printf_string("a %.2f mm gap leaves the tip %.0f %% of its section: %.2f kPa x %.2f is at or "
+                                  "below the yield %.2f kPa",
+                                  1e3 * tip_radius / kSlack, 100.0 * squeeze, p / kKpaToPa, squeeze,
+                                  report.yield / kKpaToPa));
         }
       } else if (steep) {
         if (!m_blocked) {
           m_blocked = true;
-          add_event("blocked", format("the tip meets the wall at %.1f deg, steeper than max_incidence %.1f deg",
-                                      incidence / kDegToRad, m_max_incidence / kDegToRad));
+          add_event("blocked", printf_string("the tip meets the wall at %.1f deg, steeper than max_incidence %.1f deg",
+                                             incidence / kDegToRad, m_max_incidence / kDegToRad));
         }
       } else if (!solved) {
         if (!m_blocked) {
           m_blocked = true;
-          add_event("solver", "adding an edge at " + format("%.1f mm", 1e3 * m_model.length) + ": " + report.failure);
+          add_event("solver",
+                    "adding an edge at " + printf_string("%.1f mm", 1e3 * m_model.length) + ": " + report.failure);
         }
         report.converged = true;  // the step is reverted, the body keeps its last equilibrium
       } else if (!m_blocked) {
         m_blocked = true;
-        add_event("blocked", format("growing %.1f mm would store %.3g mJ over the last %.1f mm of growth, more than "
-                                    "the growth force's work %.3g mJ (%.3f N)",
-                                    1e3 * m_h, 1e3 * window_stored, 1e3 * window, 1e3 * window_work, tip_force));
+        add_event("blocked",
+                  printf_string("growing %.1f mm would store %.3g mJ over the last %.1f mm of growth, more than "
+                                "the growth force's work %.3g mJ (%.3f N)",
+                                1e3 * m_h, 1e3 * window_stored, 1e3 * window, 1e3 * window_work, tip_force));
       }
       m_normal_force = old_force;
       m_forces = old_forces;

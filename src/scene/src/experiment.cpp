@@ -21,6 +21,7 @@
 #include "magvine/core/atomic_file.hpp"
 #include "magvine/core/error.hpp"
 #include "magvine/core/stopwatch.hpp"
+#include "magvine/core/text.hpp"
 #include "magvine/core/units.hpp"
 #include "magvine/robot/elastica.hpp"
 #include "magvine/config.hpp"
@@ -277,14 +278,6 @@ MagnetKeyframe navigate(const Navigator& nav, const std::vector<Vec3>& path, con
 
 namespace {
 
-/// printf into a string (event details).
-template <typename... Args>
-std::string printf_text(const char* pattern, Args... args) {
-  char text[320];
-  std::snprintf(text, sizeof text, pattern, args...);
-  return text;
-}
-
 /// control.navigator.recover (Navigator::Recovery): watches where the tip is and whether it grows, and takes the
 /// pressure and the tether over while it backs the vine out of a wrong turn.
 class WrongTurnRecovery {
@@ -293,10 +286,10 @@ class WrongTurnRecovery {
       : m_options(options), m_retraction_pressure(retraction_pressure), m_shortest(length), m_on_path(length) {}
 
   /// One step at time t, before the growth advances: `length` is the everted length [m], `off_path` the branch the
-  /// last sample's tip is in when that is off the planned path (else empty), `capped` whether a tether, the made
-  /// length or the navigator's deflation holds the vine (not a held tip). While retracting, control's pressure is
-  /// at most the retraction pressure and its tether pulls back; `events` gets a "recover" event at each start and end.
-  void step(double t, double length, const std::string& off_path, bool capped, robot::GrowthControl& control,
+  /// last sample's tip is in when that is off the planned path (else empty), `held_for` how long the tip has not
+  /// grown with nothing but the wall holding it [s]. While retracting, control's pressure is at most the retraction
+  /// pressure and its tether pulls back; `events` gets a "recover" event at each start and end.
+  void step(double t, double length, const std::string& off_path, double held_for, robot::GrowthControl& control,
             std::vector<robot::GrowthEvent>& events) {
     if (m_retracting) {
       // Done at the length asked for, or once the last step's tether was there and the vine stopped shortening
@@ -307,31 +300,25 @@ class WrongTurnRecovery {
       m_last_tether = tether;
       if (length <= m_to + 1e-9 || settled) {
         m_retracting = false;
-        m_held_length = length;
-        m_held_since = t;
         m_on_path = length;
         events.push_back(
-            {t, length, "recover", printf_text("back at %.1f mm: the pressure is given back", 1e3 * length)});
+            {t, length, "recover", printf_string("back at %.1f mm: the pressure is given back", 1e3 * length)});
       } else {
         control.pressure = std::min(control.pressure, m_retraction_pressure);
         control.tether_length = std::min(control.tether_length, tether);
         return;
       }
     }
-    if (length != m_held_length || capped) {
-      m_held_length = length;
-      m_held_since = t;
-    }
     if (off_path.empty()) m_on_path = length;
     if (m_used >= m_options.retries) return;
     std::string why;
     double to = 0.0;
     if (!off_path.empty() && length - m_on_path >= m_options.past - 1e-9) {
-      why = printf_text("the tip has grown %.1f mm into %s, off the path", 1e3 * (length - m_on_path),
-                        off_path.c_str());
+      why = printf_string("the tip has grown %.1f mm into %s, off the path", 1e3 * (length - m_on_path),
+                          off_path.c_str());
       to = m_on_path - m_options.back;
-    } else if (t - m_held_since >= m_options.after - 1e-9) {
-      why = printf_text("the tip has been held at %.1f mm for %.1f s", 1e3 * length, t - m_held_since);
+    } else if (held_for >= m_options.after - 1e-9) {
+      why = printf_string("the tip has been held at %.1f mm for %.1f s", 1e3 * length, held_for);
       to = length - m_options.back;
     } else {
       return;
@@ -343,9 +330,10 @@ class WrongTurnRecovery {
     m_last_tether = length;
     m_to = std::max(m_shortest, to);
     m_since = t;
-    events.push_back({t, length, "recover",
-                      why + printf_text(": deflated to %.1f kPa, the tether pulls it back to %.1f mm (retry %d of %d)",
-                                   m_retraction_pressure / kKpaToPa, 1e3 * m_to, m_used, m_options.retries)});
+    events.push_back(
+        {t, length, "recover",
+         why + printf_string(": deflated to %.1f kPa, the tether pulls it back to %.1f mm (retry %d of %d)",
+                             m_retraction_pressure / kKpaToPa, 1e3 * m_to, m_used, m_options.retries)});
     control.pressure = std::min(control.pressure, m_retraction_pressure);
   }
 
@@ -357,8 +345,6 @@ class WrongTurnRecovery {
   double m_retraction_pressure;
   double m_shortest;  ///< the vine's starting length: no retraction goes below it [m]
   double m_on_path;   ///< the everted length at the last sample on the path [m]
-  double m_held_length = -1.0;
-  double m_held_since = 0.0;
   bool m_retracting = false;
   double m_from = 0.0;
   double m_to = 0.0;
@@ -1085,7 +1071,7 @@ ExperimentResult run_experiment(const ExperimentScene& scene, const std::functio
                                        : std::nullopt;
   std::vector<int> deflated_at;  // branches whose end junction the navigator has deflated the vine for
   double deflate_until = -1.0;
-  double grown_at = 0.0;        // when the everted length last changed (the navigator's boost)
+  double grown_at = 0.0;        // when the everted length last changed (the navigator's boost and recovery)
   double grown_length = -1.0;   // the everted length then [m]
   double boost_until = -1.0;    // boosting until the everted length reaches this [m] (< 0: not boosting)
   std::optional<WrongTurnRecovery> recovery;  // control.navigator.recover
@@ -1194,13 +1180,14 @@ ExperimentResult run_experiment(const ExperimentScene& scene, const std::functio
     robot::GrowthControl control;
     control.pressure = scene.pressure.at(t);
     if (scene.tether) control.tether_length = scene.tether->at(t);
+    const double length = growth.length();
+    // Held (the boost's and the recovery's test): the length has not changed since grown_at, and no tether or made
+    // length caps it.
+    if (length != grown_length || length >= std::min(control.tether_length, scene.growth.max_length) - 1e-9) {
+      grown_length = length;
+      grown_at = t;
+    }
     if (scene.navigator && scene.navigator->boost_pressure > 0.0) {
-      // Held: the length has not changed for boost_after, and no tether or made length caps it.
-      const double length = growth.length();
-      if (length != grown_length || length >= std::min(control.tether_length, scene.growth.max_length) - 1e-9) {
-        grown_length = length;
-        grown_at = t;
-      }
       if (boost_until >= 0.0 && length >= boost_until) boost_until = -1.0;
       if (boost_until < 0.0 && t - grown_at >= scene.navigator->boost_after - 1e-9) {
         boost_until = length + scene.navigator->boost_length;
@@ -1225,10 +1212,8 @@ ExperimentResult run_experiment(const ExperimentScene& scene, const std::functio
     if (recovery && !out.success) {
       const int here = out.samples.empty() ? -1 : out.samples.back().branch;
       const bool off_path = here >= 0 && std::find(plan.begin(), plan.end(), here) == plan.end();
-      const double length = growth.length();
-      const bool capped =
-          length >= std::min(control.tether_length, scene.growth.max_length) - 1e-9 || t < deflate_until;
-      recovery->step(t, length, off_path ? scene.graph->branches[static_cast<std::size_t>(here)].name : "", capped,
+      const double held_for = t - std::max(grown_at, deflate_until);  // a deflation holds it too
+      recovery->step(t, length, off_path ? scene.graph->branches[static_cast<std::size_t>(here)].name : "", held_for,
                      control, workspace_events);
       if (recovery->retracting()) boost_until = -1.0;
     }

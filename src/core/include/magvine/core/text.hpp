@@ -1,6 +1,7 @@
 #pragma once
-/// Small text helpers for error messages.
+/// Small text helpers for error messages and event details.
 
+#include <cstdio>
 #include <span>
 #include <string>
 #include <string_view>
@@ -12,5 +13,15 @@ std::size_t edit_distance(std::string_view a, std::string_view b);
 
 /// The candidate closest to `word` by edit distance ("" when `candidates` is empty).
 std::string closest_match(std::string_view word, std::span<const std::string_view> candidates);
+
+/// printf into a string, any length (numbers with units in events and messages: printf_string("%.1f mm", x)).
+template <typename... Args>
+std::string printf_string(const char* pattern, Args... args) {
+  const int n = std::snprintf(nullptr, 0, pattern, args...);
+  if (n <= 0) return {};
+  std::string text(static_cast<std::size_t>(n), '\0');
+  std::snprintf(text.data(), text.size() + 1, pattern, args...);
+  return text;
+}
 
 }  // namespace magvine
