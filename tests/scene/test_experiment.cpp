@@ -800,6 +800,50 @@ TEST(Experiment, TheNavigatorBacksTheVineOutOfAWrongDaughterAndGrowsItIntoTheRig
   std::filesystem::remove_all(dir);
 }
 
+TEST(Experiment, TheNavigatorBacksAHeldTipOutAndGrowsItInAgain) {
+  // The other trigger of control.navigator.recover: a tip held for `after` (2 s) with nothing but the wall holding
+  // it. The third trial towards 0-0-0-0-1 (seed 1·1000003 + 0 + 2) is blocked by the energy test at the
+  // generation-4 entry at 190 mm, boost or not (README: it failed so before retractions). Asserted from the samples:
+  // before the first retraction the everted length stood still for at least 2 s; the retraction takes it back 20 mm
+  // (within an edge), shortening only at 5 kPa; the run then reaches the target.
+  const std::filesystem::path file =
+      std::filesystem::path(MAGVINE_SOURCE_DIR) / "assets/scenes/bronchial_tree_generation4.yaml";
+  const ExperimentScene scene = perturbed(with_target(load_experiment_scene(file), "0-0-0-0-1"), 1 * 1000003ULL + 2);
+  const ExperimentResult r = run_experiment(scene);
+  std::printf("  %s at %.2f s, %d retraction(s)\n", r.success ? "reached" : "not reached", r.time_to_target,
+              r.recoveries);
+  for (const robot::GrowthEvent& e : r.events) {
+    if (e.kind != "recover" && e.kind != "blocked") continue;
+    std::printf("    %.2f s %s: %s\n", e.time, e.kind.c_str(), e.detail.c_str());
+  }
+  EXPECT_TRUE(r.success);
+  ASSERT_GE(r.recoveries, 1);
+  double still_since = 0.0;  // when the everted length last changed before the first retraction
+  double held = -1.0;        // how long it had stood still when the retraction began
+  double from = 0.0;
+  double lowest = 1.0;
+  double previous = scene.vine.length;
+  for (const ExperimentSample& s : r.samples) {
+    if (held < 0.0 && s.length < previous) {
+      held = s.time - scene.dt - still_since;
+      from = previous;
+    }
+    if (held >= 0.0) {
+      if (s.length > previous) break;  // growing again
+      if (s.length < previous) {
+        EXPECT_LE(s.pressure, 5e3) << s.time << " s";
+      }
+      lowest = std::min(lowest, s.length);
+    } else if (s.length != previous) {
+      still_since = s.time;
+    }
+    previous = s.length;
+  }
+  std::printf("  held %.2f s at %.1f mm, then back to %.1f mm\n", held, 1e3 * from, 1e3 * lowest);
+  EXPECT_GE(held, 2.0 - 1e-9);
+  EXPECT_NEAR(from - lowest, 20e-3, 2e-3 + 1e-9);  // back 20 mm, in whole 2 mm edges
+}
+
 TEST(Experiment, ATargetOrABaseOutsideTheLumenIsRefusedBeforeTheRun) {
   // Checked by the collision world's ray parity when the run starts, before any step or output.
   const std::string text = demo_text();
