@@ -33,6 +33,13 @@ constexpr int kRecentrings = 2;
 
 bool has_anchor(const Vec3& a) { return !std::isnan(a.x()); }
 
+/// Direction d, heading into a wall of unit normal n, turned into the wall's plane (a tip sliding along it); d itself
+/// where it leaves the wall or there is none (n zero). Normalised.
+Vec3 along_wall(const Vec3& d, const Vec3& n) {
+  const double into = d.dot(n);
+  return into < 0.0 ? Vec3(d - into * n).normalized() : d.normalized();
+}
+
 /// The unit tangent of the body at node i (mean of its edges' tangents).
 Vec3 node_tangent(const RodState& s, std::size_t i) {
   const std::size_t n = s.frames.size();
@@ -590,8 +597,7 @@ double VineGrowth::roll_off_crest(const Vec3& tangent, const Vec3& normal, doubl
       const double a = steepest_wall(x, node_radius(x, m_state.frames.back()), tangent, &there);
       if (a < best && (there.squaredNorm() == 0.0 || there.dot(across) > 0.05)) {
         best = a;
-        const double into = direction.dot(there);
-        best_direction = (into < 0.0 ? Vec3(direction - into * there) : direction).normalized();
+        best_direction = along_wall(direction, there);
       }
     }
     if (best < m_max_incidence) break;
@@ -765,7 +771,7 @@ GrowthStepReport VineGrowth::advance(double dt, const GrowthControl& control) {
         const Vec3 n = found[0].normal;
         // Only a shallow meeting slides (a steeper one is left for the blocked test below).
         if (t.dot(n) >= 0.0 || -t.dot(n) > std::sin(m_max_incidence)) break;
-        const Vec3 slid = (t - t.dot(n) * n).normalized();
+        const Vec3 slid = along_wall(t, n);
         if (!slid.allFinite()) break;
         frame = Eigen::Quaterniond::FromTwoVectors(t, slid).toRotationMatrix() * frame;
         next = m_state.x.back() + m_h * slid;
