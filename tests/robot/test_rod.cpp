@@ -68,7 +68,8 @@ TEST(Rod, GradientMatchesFiniteDifferencesOfTheEnergy) {
 
 TEST(Rod, ContactAnchorAndForceTermsMatchFiniteDifferences) {
   // The terms a growth simulation adds: wall planes (two pressed in, one clear of its node, two smoothed: in the
-  // cubic zone and beyond it), tangential anchors and fixed node forces, on a bent rod without other loads.
+  // cubic zone and beyond it), tangential anchors (a unit normal, a short one, none) and fixed node forces, on a bent
+  // rod without other loads.
   RodModel m = acceptance_rod(Vec3::UnitX(), 6);
   m.mass_per_length = 0.0;
   m.moment_per_length.clear();
@@ -86,6 +87,10 @@ TEST(Rod, ContactAnchorAndForceTermsMatchFiniteDifferences) {
   c.contacts.push_back({3, s.x[3] + Vec3(0.0, 0.0, -1.0e-3), Vec3::UnitZ(), 1.5e-3, k, 0.3e-3});  // beyond it
   c.anchors.push_back({3, s.x[3] + Vec3(0.4e-3, -0.2e-3, 0.1e-3), Vec3(0.0, 0.6, 0.8), 2e3});
   c.anchors.push_back({6, s.x[6] + Vec3(-0.2e-3, 0.3e-3, 0.0), Vec3::UnitZ(), 2e3});
+  // A pinched section's anchor: its normal is shorter than 1 (the planes carry part of F_n), or zero, and it also
+  // holds the node partly across the wall.
+  c.anchors.push_back({2, s.x[2] + Vec3(0.3e-3, 0.2e-3, -0.4e-3), Vec3(0.0, 0.3, 0.4), 2e3});
+  c.anchors.push_back({4, s.x[4] + Vec3(-0.1e-3, 0.2e-3, 0.3e-3), Vec3::Zero(), 2e3});
   c.forces.push_back({6, Vec3(1e-3, -2e-3, 0.5e-3)});
   testing::expect_gradient_matches_energy(m, {}, s, "constraints", &c);
   testing::expect_hessian_matches_finite_differences(m, {}, s, "constraints", &c);

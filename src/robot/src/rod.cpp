@@ -295,7 +295,9 @@ double evaluate(const RodModel& m, const RodField& field, const RodState& s, dou
     for (const NodeAnchor& a : constraints->anchors) {
       const Vec3 d = s.x[static_cast<std::size_t>(a.node)] - a.anchor;
       const Vec3 tangential = d - a.normal.dot(d) * a.normal;
-      energy += 0.5 * a.stiffness * tangential.squaredNorm();
+      // ½k·dᵀ(I − nnᵀ)d, whose gradient is k(I − nnᵀ)d also for a normal shorter than 1 (a pinched section's
+      // anchor, which holds it partly across the wall too); ½k·|(I − nnᵀ)d|² would not be.
+      energy += 0.5 * a.stiffness * d.dot(tangential);
       if (sys != nullptr) sys->add_gradient(position_slot(a.node), a.stiffness * tangential);
     }
     for (const NodeForce& f : constraints->forces) {
