@@ -299,7 +299,8 @@ TEST(Experiment, OutputsCarryTheContractKeys) {
   const nlohmann::json m = nlohmann::json::parse(in);
   for (const char* key : {"success", "time_to_target_s", "final_tip_error_m", "tip_position_m", "everted_length_m",
                           "tip_path_length_m", "branches_reached", "max_wall_normal_N", "mean_wall_normal_N",
-                          "max_wall_shear_N", "stalls", "magnet_travel_m", "runtime_s", "real_time_factor",
+                          "max_wall_shear_N", "unsettled_steps", "max_wall_normal_unsettled_N", "stalls",
+                          "magnet_travel_m", "runtime_s", "real_time_factor",
                           "converged", "seed"}) {
     EXPECT_TRUE(m.contains(key)) << key;
   }

@@ -18,6 +18,7 @@
 #endif
 #include "magvine/core/atomic_file.hpp"
 #include "magvine/core/error.hpp"
+#include "magvine/core/text.hpp"
 #include "magvine/core/units.hpp"
 #include "magvine/magnetics/field_model.hpp"
 #include "magvine/scene/centerline_study.hpp"
@@ -228,6 +229,20 @@ int run_experiment_scene(const RunArgs& args, const std::filesystem::path& out) 
             << "; " << result.runtime_s << " s of computing -> " << out.string() << "/{metrics.json,tip_trajectory.csv,"
             << (sc.magnets ? "magnet_trajectory.csv," : "") << "events.json,shape.csv"
             << (sc.videos.empty() ? "" : ",videos (metrics.json: videos)") << "}\n";
+  int unsettled = 0;
+  double unsettled_force = 0.0;
+  for (const scene::ExperimentSample& s : result.samples) {
+    if (!s.unsettled) continue;
+    ++unsettled;
+    unsettled_force = std::max(unsettled_force, s.max_normal);
+  }
+  if (unsettled > 0) {
+    std::cerr << "magvine run: " << unsettled << " of " << result.samples.size()
+              << " steps ended with the body still moving against the wall (largest normal force there "
+              << printf_string("%.2f N", unsettled_force)
+              << "); their wall forces are not an equilibrium and are left out of the maxima (tip_trajectory.csv: "
+                 "unsettled)\n";
+  }
   if (!result.converged) {
     std::cerr << "magvine: numerical failure: " << result.failure << '\n';
     return static_cast<int>(ExitCode::kNumericalFailure);

@@ -334,6 +334,7 @@ bool VineGrowth::solve_with_wall(GrowthStepReport& report) {
   constexpr int kMaxHolds = 3;
   std::vector<Vec3> last_move(nodes, Vec3::Zero());
   RodState before;
+  bool still_moving = false;  // the passes ran out with a node still moving (WallForces::unsettled)
   for (int pass = 0; pass < m_options.max_contact_passes; ++pass) {
     ++report.contact_passes;
     c.contacts.clear();
@@ -522,7 +523,10 @@ bool VineGrowth::solve_with_wall(GrowthStepReport& report) {
       }
     }
     if (settled) break;
-    if (pass + 1 == m_options.max_contact_passes && safe) break;
+    if (pass + 1 == m_options.max_contact_passes && safe) {
+      still_moving = largest_move > kUnsettledMove * m_radius;
+      break;
+    }
     if (pass + 1 == m_options.max_contact_passes) {
       report.converged = false;
       report.failure = "the wall contacts did not settle in " + std::to_string(m_options.max_contact_passes) +
@@ -534,6 +538,7 @@ bool VineGrowth::solve_with_wall(GrowthStepReport& report) {
   }
   // Tissue forces (the last solve's).
   m_forces = WallForces{};
+  m_forces.unsettled = still_moving;
   m_forces.normal.assign(nodes, 0.0);
   m_forces.shear.assign(nodes, 0.0);
   for (std::size_t i = 1; i < nodes; ++i) {

@@ -478,9 +478,11 @@ struct RunFigures {
   double everted_length = 0.0;       ///< at the end [m]
   std::optional<double> final_error;  ///< tip to target at the end [m]; none without a target
   double path = 0.0;                 ///< tip path length [m]
-  double max_normal = 0.0;           ///< largest wall normal force on a node [N]
+  double max_normal = 0.0;           ///< largest wall normal force on a node [N], over the settled steps
   double mean_normal = 0.0;          ///< time average of the total [N]
-  double max_shear = 0.0;            ///< largest total shear [N]
+  double max_shear = 0.0;            ///< largest total shear [N], over the settled steps
+  int unsettled_steps = 0;           ///< steps whose wall forces are not an equilibrium (left out of the maxima)
+  double max_normal_unsettled = 0.0; ///< the largest normal force on a node in those steps [N]
   std::vector<std::string> branches; ///< graph branches the tip passed through, in order
   int generation = -1;               ///< the deepest generation among them (−1 without a graph)
   std::optional<double> centreline;       ///< tip to the nearest centreline at the end [m] (with a graph)
@@ -498,9 +500,14 @@ RunFigures figures_of(const ExperimentScene& scene, const ExperimentResult& resu
   for (const ExperimentSample& s : result.samples) {
     f.path += (s.tip - last).norm();
     last = s.tip;
-    f.max_normal = std::max(f.max_normal, s.max_normal);
+    if (s.unsettled) {
+      ++f.unsettled_steps;
+      f.max_normal_unsettled = std::max(f.max_normal_unsettled, s.max_normal);
+    } else {
+      f.max_normal = std::max(f.max_normal, s.max_normal);
+      f.max_shear = std::max(f.max_shear, s.total_shear);
+    }
     f.mean_normal += s.total_normal / static_cast<double>(result.samples.size());
-    f.max_shear = std::max(f.max_shear, s.total_shear);
     if (scene.graph && s.branch >= 0 && s.branch != last_branch) {
       f.branches.push_back(scene.graph->branches[static_cast<std::size_t>(s.branch)].name);
       f.generation = std::max(f.generation, scene.graph->branches[static_cast<std::size_t>(s.branch)].generation);
@@ -1230,6 +1237,7 @@ ExperimentResult run_experiment(const ExperimentScene& scene, const std::functio
     s.max_normal = growth.wall_forces().max_normal;
     s.total_normal = growth.wall_forces().total_normal;
     s.total_shear = growth.wall_forces().total_shear;
+    s.unsettled = growth.wall_forces().unsettled;
     if (scene.graph) s.branch = nearest_branch(*scene.graph, s.tip);
     out.samples.push_back(s);
     record_frame(t);
@@ -1344,6 +1352,8 @@ std::vector<TrialOutcome> run_trials(const ExperimentScene& scene, const std::ve
         o.everted_length = f.everted_length;
         o.final_error = f.final_error.value_or(0.0);
         o.max_normal = f.max_normal;
+        o.max_normal_unsettled = f.max_normal_unsettled;
+        o.unsettled_steps = f.unsettled_steps;
         o.retractions = res.recoveries;
         for (const robot::GrowthEvent& e : res.events) o.burst = o.burst || e.kind == "burst";
         o.runtime_s = res.runtime_s;
@@ -1380,12 +1390,13 @@ void write_trial_outputs(const std::vector<TrialOutcome>& outcomes, const std::f
   };
   std::ostringstream all;
   all.precision(10);
-  all << "target,repeat,seed,success,burst,time_to_target_s,everted_length_m,final_error_m,max_normal_N,retractions,"
-         "runtime_s,reason\n";
+  all << "target,repeat,seed,success,burst,time_to_target_s,everted_length_m,final_error_m,max_normal_N,"
+         "max_normal_unsettled_N,unsettled_steps,retractions,runtime_s,reason\n";
   for (const TrialOutcome& o : outcomes) {
     all << o.target << ',' << o.repeat << ',' << o.seed << ',' << (o.success ? 1 : 0) << ',' << (o.burst ? 1 : 0) << ','
         << (o.success ? std::to_string(o.time_to_target) : std::string()) << ',' << o.everted_length << ','
-        << o.final_error << ',' << o.max_normal << ',' << o.retractions << ',' << o.runtime_s << ','
+        << o.final_error << ',' << o.max_normal << ',' << o.max_normal_unsettled << ','
+        << o.unsettled_steps << ',' << o.retractions << ',' << o.runtime_s << ','
         << quoted(o.reason) << '\n';
   }
   std::ostringstream csv;
@@ -1474,6 +1485,8 @@ void write_experiment_outputs(const ExperimentScene& scene, const ExperimentResu
   j["max_wall_normal_N"] = f.max_normal;
   j["mean_wall_normal_N"] = f.mean_normal;
   j["max_wall_shear_N"] = f.max_shear;
+  j["unsettled_steps"] = f.unsettled_steps;
+  j["max_wall_normal_unsettled_N"] = f.max_normal_unsettled;
   int stalls = 0;
   int blocked = 0;
   nlohmann::json events = nlohmann::json::array();
@@ -1504,11 +1517,12 @@ void write_experiment_outputs(const ExperimentScene& scene, const ExperimentResu
 
   std::ostringstream tips;
   tips.precision(10);
-  tips << "t_s,x_m,y_m,z_m,length_m,pressure_Pa,max_normal_N,total_normal_N,total_shear_N,branch\n";
+  tips << "t_s,x_m,y_m,z_m,length_m,pressure_Pa,max_normal_N,total_normal_N,total_shear_N,branch,unsettled\n";
   for (const ExperimentSample& s : result.samples) {
     tips << s.time << ',' << s.tip.x() << ',' << s.tip.y() << ',' << s.tip.z() << ',' << s.length << ','
          << s.pressure << ',' << s.max_normal << ',' << s.total_normal << ',' << s.total_shear << ','
-         << (s.branch >= 0 ? scene.graph->branches[static_cast<std::size_t>(s.branch)].name : std::string()) << '\n';
+         << (s.branch >= 0 ? scene.graph->branches[static_cast<std::size_t>(s.branch)].name : std::string()) << ','
+         << (s.unsettled ? 1 : 0) << '\n';
   }
   std::ostringstream shape;
   shape.precision(10);

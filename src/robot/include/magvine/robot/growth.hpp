@@ -171,7 +171,15 @@ struct WallForces {
   double max_shear = 0.0;
   double total_shear = 0.0;
   int nodes_in_contact = 0;
+  /// The step's contact passes ran out while a node still moved more than kUnsettledMove·R in the last one (the step
+  /// was accepted as safe, but its shape was still swinging): these forces are not an equilibrium of the contact
+  /// model, and the run's maxima leave them out (experiments count such steps and report their largest force apart).
+  bool unsettled = false;
 };
+
+/// A node move in a step's last contact pass, as a fraction of R, above which the step's wall forces count as
+/// unsettled (WallForces::unsettled): 5 % of R, the depth error the contact passes accept as safe.
+inline constexpr double kUnsettledMove = 0.05;
 
 /// What one advance did.
 struct GrowthStepReport {

@@ -244,6 +244,7 @@ struct ExperimentSample {
   double total_normal = 0.0;   ///< [N]
   double total_shear = 0.0;    ///< [N]
   int branch = -1;             ///< nearest branch of the phantom's graph to the tip (−1: no graph)
+  bool unsettled = false;      ///< its wall forces are not an equilibrium (robot::WallForces::unsettled)
 };
 
 struct MagnetSample {
@@ -305,7 +306,9 @@ struct TrialOutcome {
   double time_to_target = -1.0;  ///< [s]
   double everted_length = 0.0;   ///< [m]
   double final_error = 0.0;      ///< tip to target [m]
-  double max_normal = 0.0;       ///< [N]
+  double max_normal = 0.0;       ///< [N], over the steps whose contacts settled
+  double max_normal_unsettled = 0.0;  ///< [N], over the unsettled steps (robot::WallForces::unsettled)
+  int unsettled_steps = 0;
   int retractions = 0;           ///< the navigator's (ExperimentResult::recoveries)
   double runtime_s = 0.0;
   /// Why a failed trial failed, one line: the last event that stopped the tip (with its numbers), the branch it was
