@@ -178,8 +178,8 @@ struct WallForces {
 };
 
 /// A node move in a step's last contact pass, as a fraction of R, above which the step's wall forces count as
-/// unsettled (WallForces::unsettled): 5 % of R, the depth error the contact passes accept as safe.
-inline constexpr double kUnsettledMove = 0.05;
+/// unsettled (WallForces::unsettled): 1 % of R, the depth tolerance to which the passes settle the contact set.
+inline constexpr double kUnsettledMove = 0.01;
 
 /// What one advance did.
 struct GrowthStepReport {
