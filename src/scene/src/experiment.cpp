@@ -276,6 +276,16 @@ MagnetKeyframe navigate(const Navigator& nav, const std::vector<Vec3>& path, con
   return k;
 }
 
+UnsettledSteps unsettled_steps(const ExperimentResult& result) {
+  UnsettledSteps u;
+  for (const ExperimentSample& s : result.samples) {
+    if (!s.unsettled) continue;
+    ++u.count;
+    u.max_normal = std::max(u.max_normal, s.max_normal);
+  }
+  return u;
+}
+
 namespace {
 
 /// control.navigator.recover (Navigator::Recovery): watches where the tip is and whether it grows, and takes the
@@ -481,8 +491,7 @@ struct RunFigures {
   double max_normal = 0.0;           ///< largest wall normal force on a node [N], over the settled steps
   double mean_normal = 0.0;          ///< time average of the total [N]
   double max_shear = 0.0;            ///< largest total shear [N], over the settled steps
-  int unsettled_steps = 0;           ///< steps whose wall forces are not an equilibrium (left out of the maxima)
-  double max_normal_unsettled = 0.0; ///< the largest normal force on a node in those steps [N]
+  UnsettledSteps unsettled;          ///< the steps left out of the maxima
   std::vector<std::string> branches; ///< graph branches the tip passed through, in order
   int generation = -1;               ///< the deepest generation among them (−1 without a graph)
   std::optional<double> centreline;       ///< tip to the nearest centreline at the end [m] (with a graph)
@@ -492,6 +501,7 @@ struct RunFigures {
 
 RunFigures figures_of(const ExperimentScene& scene, const ExperimentResult& result) {
   RunFigures f;
+  f.unsettled = unsettled_steps(result);
   const Vec3 tip = result.final_state.tip();
   f.everted_length = result.samples.empty() ? scene.vine.length : result.samples.back().length;
   if (scene.target) f.final_error = (tip - *scene.target).norm();
@@ -500,10 +510,7 @@ RunFigures figures_of(const ExperimentScene& scene, const ExperimentResult& resu
   for (const ExperimentSample& s : result.samples) {
     f.path += (s.tip - last).norm();
     last = s.tip;
-    if (s.unsettled) {
-      ++f.unsettled_steps;
-      f.max_normal_unsettled = std::max(f.max_normal_unsettled, s.max_normal);
-    } else {
+    if (!s.unsettled) {
       f.max_normal = std::max(f.max_normal, s.max_normal);
       f.max_shear = std::max(f.max_shear, s.total_shear);
     }
@@ -1352,8 +1359,8 @@ std::vector<TrialOutcome> run_trials(const ExperimentScene& scene, const std::ve
         o.everted_length = f.everted_length;
         o.final_error = f.final_error.value_or(0.0);
         o.max_normal = f.max_normal;
-        o.max_normal_unsettled = f.max_normal_unsettled;
-        o.unsettled_steps = f.unsettled_steps;
+        o.max_normal_unsettled = f.unsettled.max_normal;
+        o.unsettled_steps = f.unsettled.count;
         o.retractions = res.recoveries;
         for (const robot::GrowthEvent& e : res.events) o.burst = o.burst || e.kind == "burst";
         o.runtime_s = res.runtime_s;
@@ -1485,8 +1492,8 @@ void write_experiment_outputs(const ExperimentScene& scene, const ExperimentResu
   j["max_wall_normal_N"] = f.max_normal;
   j["mean_wall_normal_N"] = f.mean_normal;
   j["max_wall_shear_N"] = f.max_shear;
-  j["unsettled_steps"] = f.unsettled_steps;
-  j["max_wall_normal_unsettled_N"] = f.max_normal_unsettled;
+  j["unsettled_steps"] = f.unsettled.count;
+  j["max_wall_normal_unsettled_N"] = f.unsettled.max_normal;
   int stalls = 0;
   int blocked = 0;
   nlohmann::json events = nlohmann::json::array();

@@ -290,6 +290,14 @@ struct ExperimentResult {
 ExperimentResult run_experiment(const ExperimentScene& scene,
                                 const std::function<void(double)>& progress = nullptr);
 
+/// The steps whose wall forces are not an equilibrium (ExperimentSample::unsettled): how many, and the largest normal
+/// force on a node among them [N]. metrics.json, trials.csv and `magvine run` report these apart from the maxima.
+struct UnsettledSteps {
+  int count = 0;
+  double max_normal = 0.0;
+};
+UnsettledSteps unsettled_steps(const ExperimentResult& result);
+
 /// The scene with its navigator aimed at branch `target` (its end the target point). InputError when the scene has no
 /// navigator or no such branch.
 ExperimentScene with_target(const ExperimentScene& scene, const std::string& target);
