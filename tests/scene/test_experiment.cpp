@@ -10,6 +10,7 @@
 #include <filesystem>
 #include <fstream>
 #include <limits>
+#include <numeric>
 #include <sstream>
 #include <string>
 #include <vector>
@@ -319,7 +320,7 @@ TEST(Experiment, OutputsCarryTheContractKeys) {
   std::ifstream shapes(dir / "shapes.csv");
   std::string line;
   std::getline(shapes, line);
-  EXPECT_EQ(line, "t_s,node,x_m,y_m,z_m");
+  EXPECT_EQ(line, "t_s,node,x_m,y_m,z_m,normal_N,shear_N");
   std::vector<std::string> rows;
   while (std::getline(shapes, line)) rows.push_back(line);
   ASSERT_EQ(rs.shapes.size(), 6u);
@@ -330,6 +331,23 @@ TEST(Experiment, OutputsCarryTheContractKeys) {
   EXPECT_NEAR(rs.shapes[1].time, 0.1, 1e-9);
   EXPECT_NEAR(rs.shapes[4].time, 0.4, 1e-9);
   EXPECT_EQ(rs.shapes.back().nodes.back(), rs.final_state.tip());
+  // The per-node wall forces of each shape are that step's: they add up to its total and peak at its maximum (a
+  // longer run, the body on the wall from 0.78 s).
+  shaped.duration = 2.0;
+  shaped.shape_interval = 0.5;
+  const ExperimentResult walled = run_experiment(shaped);
+  ASSERT_EQ(walled.shapes.size(), 5u);  // t = 0.02, 0.5, 1, 1.5, 2
+  EXPECT_GT(walled.shapes.back().normal.size(), 0u);
+  EXPECT_GT(*std::max_element(walled.shapes.back().normal.begin(), walled.shapes.back().normal.end()), 0.0);
+  for (const ShapeSample& sample : walled.shapes) {
+    const auto step = std::find_if(walled.samples.begin(), walled.samples.end(),
+                                   [&](const ExperimentSample& s) { return s.time == sample.time; });
+    ASSERT_NE(step, walled.samples.end());
+    ASSERT_EQ(sample.normal.size(), sample.nodes.size());
+    EXPECT_NEAR(std::accumulate(sample.normal.begin(), sample.normal.end(), 0.0), step->total_normal, 1e-12);
+    EXPECT_NEAR(std::accumulate(sample.shear.begin(), sample.shear.end(), 0.0), step->total_shear, 1e-12);
+    EXPECT_EQ(*std::max_element(sample.normal.begin(), sample.normal.end()), step->max_normal);
+  }
   std::filesystem::remove_all(dir);
 }
 

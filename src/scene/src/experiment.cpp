@@ -1242,6 +1242,7 @@ ExperimentResult run_experiment(const ExperimentScene& scene, const std::functio
     s.length = growth.length();
     s.pressure = control.pressure;
     s.max_normal = growth.wall_forces().max_normal;
+    s.mean_normal = growth.wall_forces().mean_normal;
     s.total_normal = growth.wall_forces().total_normal;
     s.total_shear = growth.wall_forces().total_shear;
     s.unsettled = growth.wall_forces().unsettled;
@@ -1249,7 +1250,7 @@ ExperimentResult run_experiment(const ExperimentScene& scene, const std::functio
     out.samples.push_back(s);
     record_frame(t);
     if (scene.shape_interval > 0.0 && t >= next_shape - 1e-9) {
-      out.shapes.push_back({t, growth.state().x});
+      out.shapes.push_back({t, growth.state().x, growth.wall_forces().normal, growth.wall_forces().shear});
       next_shape += scene.shape_interval;
     }
     if (scene.target && out.time_to_target < 0.0 && (s.tip - *scene.target).norm() <= scene.target_tolerance) {
@@ -1268,6 +1269,7 @@ ExperimentResult run_experiment(const ExperimentScene& scene, const std::functio
   std::stable_sort(out.events.begin(), out.events.end(),
                    [](const robot::GrowthEvent& a, const robot::GrowthEvent& b) { return a.time < b.time; });
   out.final_state = growth.state();
+  out.final_forces = growth.wall_forces();
   out.runtime_s = clock.seconds();
   return out;
 }
@@ -1524,17 +1526,27 @@ void write_experiment_outputs(const ExperimentScene& scene, const ExperimentResu
 
   std::ostringstream tips;
   tips.precision(10);
-  tips << "t_s,x_m,y_m,z_m,length_m,pressure_Pa,max_normal_N,total_normal_N,total_shear_N,branch,unsettled\n";
+  tips << "t_s,x_m,y_m,z_m,length_m,pressure_Pa,max_normal_N,mean_normal_N,total_normal_N,total_shear_N,branch,"
+          "unsettled\n";
   for (const ExperimentSample& s : result.samples) {
     tips << s.time << ',' << s.tip.x() << ',' << s.tip.y() << ',' << s.tip.z() << ',' << s.length << ','
-         << s.pressure << ',' << s.max_normal << ',' << s.total_normal << ',' << s.total_shear << ','
+         << s.pressure << ',' << s.max_normal << ',' << s.mean_normal << ',' << s.total_normal << ',' << s.total_shear
+         << ','
          << (s.branch >= 0 ? scene.graph->branches[static_cast<std::size_t>(s.branch)].name : std::string()) << ','
          << (s.unsettled ? 1 : 0) << '\n';
   }
   std::ostringstream shape;
   shape.precision(10);
-  shape << "x_m,y_m,z_m\n";
-  for (const Vec3& x : result.final_state.x) shape << x.x() << ',' << x.y() << ',' << x.z() << '\n';
+  // Per node: the position and the wall's forces on the tissue there (0 where a run's forces have fewer nodes).
+  const auto node_row = [](std::ostream& o, const Vec3& x, const std::vector<double>& normal,
+                           const std::vector<double>& shear, std::size_t i) {
+    o << x.x() << ',' << x.y() << ',' << x.z() << ',' << (i < normal.size() ? normal[i] : 0.0) << ','
+      << (i < shear.size() ? shear[i] : 0.0) << '\n';
+  };
+  shape << "x_m,y_m,z_m,normal_N,shear_N\n";
+  for (std::size_t i = 0; i < result.final_state.x.size(); ++i) {
+    node_row(shape, result.final_state.x[i], result.final_forces.normal, result.final_forces.shear, i);
+  }
 
   create_output_directory(dir);
   write_file_atomically(dir / "tip_trajectory.csv", tips.str());
@@ -1542,11 +1554,11 @@ void write_experiment_outputs(const ExperimentScene& scene, const ExperimentResu
   if (scene.shape_interval > 0.0) {
     std::ostringstream shapes;
     shapes.precision(10);
-    shapes << "t_s,node,x_m,y_m,z_m\n";
+    shapes << "t_s,node,x_m,y_m,z_m,normal_N,shear_N\n";
     for (const ShapeSample& sample : result.shapes) {
       for (std::size_t i = 0; i < sample.nodes.size(); ++i) {
-        const Vec3& x = sample.nodes[i];
-        shapes << sample.time << ',' << i << ',' << x.x() << ',' << x.y() << ',' << x.z() << '\n';
+        shapes << sample.time << ',' << i << ',';
+        node_row(shapes, sample.nodes[i], sample.normal, sample.shear, i);
       }
     }
     write_file_atomically(dir / "shapes.csv", shapes.str());

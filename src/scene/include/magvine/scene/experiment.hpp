@@ -241,6 +241,7 @@ struct ExperimentSample {
   double length = 0.0;         ///< everted length [m]
   double pressure = 0.0;       ///< [Pa]
   double max_normal = 0.0;     ///< largest wall normal force on a node [N]
+  double mean_normal = 0.0;    ///< over the nodes in contact [N]
   double total_normal = 0.0;   ///< [N]
   double total_shear = 0.0;    ///< [N]
   int branch = -1;             ///< nearest branch of the phantom's graph to the tip (−1: no graph)
@@ -258,6 +259,8 @@ struct MagnetSample {
 struct ShapeSample {
   double time = 0.0;         ///< [s]
   std::vector<Vec3> nodes;   ///< clamp first, tip last [m]
+  std::vector<double> normal;  ///< wall normal force on the tissue per node [N] (0 off the wall)
+  std::vector<double> shear;   ///< wall shear force on the tissue per node [N]
 };
 
 /// What a video frame needs of the run at one time (recorded when the scene has outputs.video).
@@ -276,6 +279,7 @@ struct ExperimentResult {
   std::vector<MagnetSample> magnet_samples;  ///< at every step where a keyframed magnet moved, and at t = 0
   std::vector<robot::GrowthEvent> events;
   robot::RodState final_state;
+  robot::WallForces final_forces;  ///< on the tissue, per node, at the end
   bool converged = true;       ///< the last step reached equilibrium
   int failed_steps = 0;        ///< steps whose new loads did not converge (the body kept its last equilibrium)
   std::string failure;         ///< the first such step's cause
