@@ -5,7 +5,8 @@ Left: a view (mm) on the plane of the run's two widest extents, or the one
 --plane names, of the phantom's centreline graph drawn at its lumen width
 (when graph.json is there), the final body, the tip's path coloured by
 time, the magnets' path and the target. Right: everted length, and the wall's
-largest normal force and total shear, against time; steps whose contacts did
+largest normal force and total shear, against time (the final body's nodes on
+the wall are ringed, their area following shape.csv's normal_N); steps whose contacts did
 not settle (the `unsettled` column) are left out of those lines and marked as
 grey crosses at their largest normal force. A missing or malformed
 input gives one line on stderr, exit status 2 and no PNG.
@@ -115,6 +116,12 @@ def main():
     if graph is not None:
         draw_graph(ax, graph_path, graph[0], axes)
     ax.plot(1e3 * shape[u], 1e3 * shape[v], "-", color="tab:orange", lw=3, label="vine (final)", zorder=3)
+    if "normal_N" in shape and np.any(shape["normal_N"] > 0):  # the final body's wall forces, per node
+        f = np.asarray(shape["normal_N"], float)
+        on = f > 0
+        ax.scatter(1e3 * shape[u][on], 1e3 * shape[v][on], s=80 * f[on] / f.max() + 4, facecolors="none",
+                   edgecolors="tab:red", lw=0.8, zorder=5,
+                   label="wall normal force per node (area ∝ force, largest %.2f N)" % f.max())
     sc = ax.scatter(1e3 * tip[u], 1e3 * tip[v], c=tip["t_s"], s=4, cmap="viridis", zorder=4,
                     label="tip path")
     fig.colorbar(sc, ax=ax, label="time [s]", shrink=0.8)
@@ -134,7 +141,7 @@ def main():
     ax.set_xlabel(u[0] + " [mm]")
     ax.set_ylabel(v[0] + " [mm]")
     ax.set_aspect("equal", adjustable="datalim")
-    ax.legend(loc="best", fontsize=8)
+    ax.legend(loc="upper right", fontsize=7)
     ax.grid(alpha=0.3)
 
     ax2.plot(tip["t_s"], 1e3 * tip["length_m"], color="tab:orange", label="everted length [mm]")
