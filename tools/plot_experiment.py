@@ -4,11 +4,11 @@
 Left: a view (mm) on the plane of the run's two widest extents, or the one
 --plane names, of the phantom's centreline graph drawn at its lumen width
 (when graph.json is there), the final body, the tip's path coloured by
-time, the magnets' path and the target. Right: everted length, and the wall's
-largest normal force and total shear, against time (the final body's nodes on
-the wall are ringed, their area following shape.csv's normal_N); steps whose contacts did
-not settle (the `unsettled` column) are left out of those lines and marked as
-grey crosses at their largest normal force. A missing or malformed
+time, the magnets' path and the target, with the final body's nodes on the
+wall ringed (area following shape.csv's normal_N). Right: everted length, and
+the wall's largest normal force and total shear, against time; steps whose
+contacts did not settle (the `unsettled` column) are left out of those lines
+and marked as grey crosses at their largest normal force. A missing or malformed
 input gives one line on stderr, exit status 2 and no PNG.
 
     /usr/bin/python3 tools/plot_experiment.py RUN_DIR --out PNG [--title T] [--plane xy|xz|yz]

@@ -1361,8 +1361,7 @@ std::vector<TrialOutcome> run_trials(const ExperimentScene& scene, const std::ve
         o.everted_length = f.everted_length;
         o.final_error = f.final_error.value_or(0.0);
         o.max_normal = f.max_normal;
-        o.max_normal_unsettled = f.unsettled.max_normal;
-        o.unsettled_steps = f.unsettled.count;
+        o.unsettled = f.unsettled;
         o.retractions = res.recoveries;
         for (const robot::GrowthEvent& e : res.events) o.burst = o.burst || e.kind == "burst";
         o.runtime_s = res.runtime_s;
@@ -1404,8 +1403,8 @@ void write_trial_outputs(const std::vector<TrialOutcome>& outcomes, const std::f
   for (const TrialOutcome& o : outcomes) {
     all << o.target << ',' << o.repeat << ',' << o.seed << ',' << (o.success ? 1 : 0) << ',' << (o.burst ? 1 : 0) << ','
         << (o.success ? std::to_string(o.time_to_target) : std::string()) << ',' << o.everted_length << ','
-        << o.final_error << ',' << o.max_normal << ',' << o.max_normal_unsettled << ','
-        << o.unsettled_steps << ',' << o.retractions << ',' << o.runtime_s << ','
+        << o.final_error << ',' << o.max_normal << ',' << o.unsettled.max_normal << ','
+        << o.unsettled.count << ',' << o.retractions << ',' << o.runtime_s << ','
         << quoted(o.reason) << '\n';
   }
   std::ostringstream csv;

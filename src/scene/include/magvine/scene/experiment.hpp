@@ -319,8 +319,7 @@ struct TrialOutcome {
   double everted_length = 0.0;   ///< [m]
   double final_error = 0.0;      ///< tip to target [m]
   double max_normal = 0.0;       ///< [N], over the steps whose contacts settled
-  double max_normal_unsettled = 0.0;  ///< [N], over the unsettled steps (robot::WallForces::unsettled)
-  int unsettled_steps = 0;
+  UnsettledSteps unsettled;      ///< the steps left out of max_normal
   int retractions = 0;           ///< the navigator's (ExperimentResult::recoveries)
   double runtime_s = 0.0;
   /// Why a failed trial failed, one line: the last event that stopped the tip (with its numbers), the branch it was
