@@ -30,7 +30,7 @@ file(WRITE ${WORK}/empty.csv "")
 file(WRITE ${WORK}/bad.yaml "units: {length: mm}\nmagnets:\n  - kind: cylinder\n    diameter: -5\n")
 file(WRITE ${WORK}/unknown.yaml "units: {length: mm}\nmagnets:\n  - kind: uniform\n    feild: [0, 0, 1]\n")
 foreach(case "nan.csv|epm_n52.yaml|nan.csv:3: column y" "empty.csv|epm_n52.yaml|empty.csv: empty file"
-             "probe|bad.yaml|bad.yaml:4: magnets[0].diameter: must be > 0"
+             "probe|bad.yaml|bad.yaml:4: magnets[0].diameter: must be in (0, 2000] mm"
              "probe|unknown.yaml|unknown.yaml:4: magnets[0].feild: unknown key (did you mean 'field'")
   string(REPLACE "|" ";" parts "${case}")
   list(GET parts 0 pts)

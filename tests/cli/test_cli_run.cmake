@@ -38,7 +38,7 @@ file(WRITE ${WORK}/negative.yaml "${negative}")
 file(WRITE ${WORK}/zero.yaml "${zero}")
 file(WRITE ${WORK}/unknown.yaml "${unknown}")
 file(WRITE ${WORK}/burst.yaml "${burst}")
-foreach(case "negative.yaml|robot.shear_modulus: must be > 0" "zero.yaml|robot.length: must be > 0"
+foreach(case "negative.yaml|robot.shear_modulus: must be in (0, " "zero.yaml|robot.length: must be in (0, "
              "unknown.yaml|robot.densty: unknown key (did you mean 'density'" "burst.yaml|robot.pressure: vine: pressure")
   string(REPLACE "|" ";" parts "${case}")
   list(GET parts 0 scene)

@@ -9,6 +9,8 @@
 
 #include "magvine/core/usage.hpp"
 #include "magvine/scene/experiment.hpp"
+#include "magvine/scene/navigator.hpp"
+#include "magvine/scene/trials.hpp"
 #include "magvine/scene/free_space.hpp"
 
 namespace magvine::scene {
@@ -37,11 +39,14 @@ TEST(Components, AFreeSpaceVineUnderTheEpmBuildsItsGradientButNoWorld) {
 }
 
 TEST(Components, AnExperimentBuildsOneWorldAndNoDistanceModelAndAGradientOnlyWithMagnets) {
+  // The collision world is built once, with the scene's anatomy when it loads; runs and trials share it.
+  usage::reset();
   ExperimentScene scene = load_experiment_scene(kScenes / "y_bifurcation_fluid_vine.yaml");
+  EXPECT_EQ(usage::count(Component::kCollisionWorld), 1u);
   scene.duration = 0.2;
   usage::reset();
   (void)run_experiment(scene);
-  EXPECT_EQ(usage::count(Component::kCollisionWorld), 1u);
+  EXPECT_EQ(usage::count(Component::kCollisionWorld), 0u);
   EXPECT_EQ(usage::count(Component::kDistanceModel), 0u);
   EXPECT_GE(usage::count(Component::kGradientField), 1u);  // one per magnet pose (it moves every step)
   EXPECT_EQ(usage::count(Component::kRenderer), 0u);       // no outputs.video (test_video_outputs: one with it)
@@ -49,9 +54,25 @@ TEST(Components, AnExperimentBuildsOneWorldAndNoDistanceModelAndAGradientOnlyWit
   scene.magnet_keyframes.clear();
   usage::reset();
   (void)run_experiment(scene);
-  EXPECT_EQ(usage::count(Component::kCollisionWorld), 1u);
+  EXPECT_EQ(usage::count(Component::kCollisionWorld), 0u);
   EXPECT_EQ(usage::count(Component::kDistanceModel), 0u);
   EXPECT_EQ(usage::count(Component::kGradientField), 0u);
+  // Four trials on two threads: no world of their own.
+  usage::reset();
+  (void)run_trials(scene, {}, 4, 2);
+  EXPECT_EQ(usage::count(Component::kCollisionWorld), 0u);
+}
+
+TEST(Components, ScenesLoadedThroughOneCacheShareOneAnatomy) {
+  usage::reset();
+  AnatomyCache cache;
+  const ExperimentScene a = load_experiment_scene(kScenes / "y_bifurcation_fluid_vine.yaml", &cache);
+  const ExperimentScene b = load_experiment_scene(kScenes / "y_bifurcation_magnetic_rod.yaml", &cache);
+  EXPECT_EQ(a.anatomy.get(), b.anatomy.get());
+  EXPECT_EQ(usage::count(Component::kCollisionWorld), 1u);
+  const ExperimentScene c = load_experiment_scene(kScenes / "constriction_skin_vine.yaml", &cache);
+  EXPECT_NE(a.anatomy.get(), c.anatomy.get());
+  EXPECT_EQ(usage::count(Component::kCollisionWorld), 2u);
 }
 
 }  // namespace

@@ -15,6 +15,8 @@
 #include "magvine/core/error.hpp"
 #include "magvine/core/usage.hpp"
 #include "magvine/scene/experiment.hpp"
+#include "magvine/scene/navigator.hpp"
+#include "magvine/scene/trials.hpp"
 
 namespace magvine::scene {
 namespace {

@@ -25,6 +25,7 @@
 #include "magvine/scene/field_map.hpp"
 #include "magvine/scene/field_study.hpp"
 #include "magvine/scene/experiment.hpp"
+#include "magvine/scene/trials.hpp"
 #if MAGVINE_WITH_MPM
 #include "magvine/scene/mpm_scene.hpp"
 #endif
@@ -203,8 +204,8 @@ std::function<void(double)> progress_bar() {
 int run_experiment_scene(const RunArgs& args, const std::filesystem::path& out) {
   const scene::ExperimentScene sc = scene::load_experiment_scene(args.scene);
   const bool rod = sc.growth.rod.has_value();
-  std::cerr << "magvine run: " << (rod ? "pushing a rod into " : "growing a vine in ") << sc.anatomy_label << " for "
-            << sc.duration << " s (" << sc.mesh.triangles.size() << " triangles)\n";
+  std::cerr << "magvine run: " << (rod ? "pushing a rod into " : "growing a vine in ") << sc.anatomy->label << " for "
+            << sc.duration << " s (" << sc.anatomy->mesh().triangles.size() << " triangles)\n";
   if (!config::kWithRender && !sc.videos.empty()) {
     std::cerr << "magvine run: warning: " << args.scene
               << ": outputs.video skipped: this magvine was built without the render module\n";
@@ -256,7 +257,7 @@ int run_scene(const RunArgs& args) {
   const scene::FreeSpaceResult result = scene::solve_free_space(sc);
   scene::write_free_space_outputs(sc, result, out);
   const Vec3 tip = result.state.tip() / kMmToM;
-  std::cerr << "magvine run: " << sc.kind << ", " << sc.model.edges + 1 << " nodes, "
+  std::cerr << "magvine run: " << (sc.kind == scene::FreeSpaceScene::Kind::kRod ? "rod" : "vine") << ", " << sc.model.edges + 1 << " nodes, "
             << (result.report.converged ? "converged" : "NOT converged") << " in " << result.report.iterations
             << " Newton iterations (" << result.runtime_s * 1e3 << " ms); tip at (" << tip.x() << ", " << tip.y()
             << ", " << tip.z() << ") mm -> " << (out / "metrics.json").string() << ", "

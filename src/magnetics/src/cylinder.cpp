@@ -6,6 +6,7 @@
 #include "magvine/core/elliptic.hpp"
 #include "magvine/core/units.hpp"
 #include "magvine/magnetics/dipole.hpp"
+#include "magvine/magnetics/magnetisation.hpp"
 
 namespace magvine::magnetics {
 
@@ -164,7 +165,7 @@ CylinderMagnet::CylinderMagnet(double radius, double length, const Vec3& polaris
   m_sin_t = m_j_transverse > 0.0 ? polarisation.y() / m_j_transverse : 0.0;
   const double far = kFarFieldDiameters * 2.0 * std::max(radius, m_half_length);
   m_far_radius2 = far * far;
-  m_dipole = m_j * volume() / kMu0;
+  m_dipole = hard_magnetic_moment<3>(m_j, volume());  // J·V/μ0
 }
 
 double CylinderMagnet::volume() const { return kPi * m_radius * m_radius * 2.0 * m_half_length; }

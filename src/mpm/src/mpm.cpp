@@ -1,4 +1,5 @@
 #include "magvine/mpm/mpm.hpp"
+#include "magvine/magnetics/magnetisation.hpp"
 
 #include <omp.h>
 
@@ -340,7 +341,7 @@ inline void scatter_particle(const StepContext<D>& c, std::size_t p) {
                    [&](std::int64_t k, double w, int, int, int) { b += w * ws.field_b[static_cast<std::size_t>(k)]; });
     }
     f_br = f * br;
-    tau.noalias() -= (1.0 / kMu0) * b * f_br.transpose();  // eq 3.13 times Fᵀ: −B (F B̃r)ᵀ/μ0
+    tau += magnetics::hard_magnetic_kirchhoff_stress<D>(b, f_br);  // eq 3.13 times Fᵀ: −B (F B̃r)ᵀ/μ0
   }
   const double m = model.mass[p];
   const MatD<D> affine = (-c.dt * model.volume[p] * c.d_inv) * tau + m * state.c[p];
@@ -353,7 +354,8 @@ inline void scatter_particle(const StepContext<D>& c, std::size_t p) {
     for (int o = 0; o < 3; ++o) along[a][o] = col * ((o - st.fx[a]) * dx);
   }
   const bool moments = c.general && magnetic;
-  const VecD<D> moment = moments ? VecD<D>(model.volume[p] / kMu0 * f_br) : VecD<D>::Zero();  // eq 3.15
+  const VecD<D> moment =
+      moments ? magnetics::hard_magnetic_moment<D>(f_br, model.volume[p]) : VecD<D>::Zero();  // eq 3.15
   const std::int64_t first = linear<D>(st.base, ws.lo, ws.n);
   if constexpr (D == 3) {
     // Node (i, j, k) gets w_i w_j w_k (r_ij + a_k): r_ij = base + a_i + a_j is formed once per (i, j).
@@ -517,7 +519,7 @@ void update_plane(const StepContext<D>& c, std::int64_t i0, double damp) {
     VecD<D> v = Eigen::Map<const VecD<D>>(rec) / m;
     if (c.general) {
       const auto fk = static_cast<std::size_t>(linear<D>(i, ws.field_lo, ws.field_n));
-      v += dt / m * (ws.field_g[fk].transpose() * ws.node_moment[k]);
+      v += dt / m * magnetics::gradient_force<D>(ws.field_g[fk], ws.node_moment[k]);  // eq 3.16
     }
     v += dt * model.gravity;
     v *= damp;

@@ -1,5 +1,4 @@
 #include "magvine/robot/elastica.hpp"
-#include "magvine/core/usage.hpp"
 
 #include <array>
 #include <cmath>
@@ -9,6 +8,7 @@
 
 #include "magvine/core/error.hpp"
 #include "magvine/core/units.hpp"
+#include "magvine/magnetics/magnetisation.hpp"
 
 namespace magvine::robot {
 namespace {
@@ -28,11 +28,12 @@ class Shooter {
     double tau = 0.0;
     if (m_p.field && m_p.remanence != 0.0 && m_p.area > 0.0) {
       const magnetics::FieldSample sample = m_p.field(Vec3(y[0], y[1], 0.0));
-      const double scale = m_p.area * m_p.remanence / kMu0;  // A·Br/μ0: moment per length per unit direction
+      // The moment per length A·Br/μ0 along the magnetisation d, and its wrench (torque about z, force in plane).
       const Vec3 d = m_p.magnetisation == PlanarMagnetisation::kAxial ? Vec3(c, s, 0.0) : Vec3(-s, c, 0.0);
-      tau = scale * (d.x() * sample.b.y() - d.y() * sample.b.x());
-      const Vec3 force = scale * sample.g.transpose() * d;  // F_j = Σ_i m_i ∂B_i/∂x_j
-      f += force.head<2>();
+      const magnetics::Wrench w =
+          magnetics::magnetic_wrench(magnetics::hard_magnetic_moment<3>(Vec3(m_p.remanence * d), m_p.area), sample);
+      tau = w.torque.z();
+      f += w.force.head<2>();
     }
     State out;
     out << c, s, y[5] / m_p.bending_stiffness, -lambda * f.x(), -lambda * f.y(), -(c * y[4] - s * y[3]) - lambda * tau;
@@ -126,30 +127,6 @@ void validate(const ElasticaProblem& p, const ElasticaOptions& o) {
 }
 
 }  // namespace
-
-FieldFunction field_function(const magnetics::FieldModel& model, std::vector<magnetics::Pose> poses) {
-  if (model.has_gradient()) {
-    usage::note(usage::Component::kGradientField);
-    // One copy of the magnets, shared by the sample and the curvature.
-    struct Posed {
-      magnetics::FieldModel model;
-      std::vector<magnetics::Pose> poses;
-    };
-    auto posed = std::make_shared<const Posed>(Posed{model, std::move(poses)});
-    FieldFunction::Sample sample = [posed](const Vec3& x) {
-      return magnetics::field_gradient(posed->model, posed->poses, x);
-    };
-    if (!model.has_analytic_curvature()) return sample;
-    return {std::move(sample), [posed](const Vec3& x, const Vec3& w) {
-              return magnetics::field_curvature(posed->model, posed->poses, x, w);
-            }};
-  }
-  return [model, poses = std::move(poses)](const Vec3& x) {
-    magnetics::FieldSample sample;
-    sample.b = magnetics::field(model, poses, x);
-    return sample;
-  };
-}
 
 ElasticaSolution solve_elastica(const ElasticaProblem& problem, const ElasticaOptions& options) {
   validate(problem, options);

@@ -14,6 +14,7 @@
 #include "magvine/core/error.hpp"
 #include "magvine/core/text.hpp"
 #include "magvine/core/units.hpp"
+#include "magvine/magnetics/magnetisation.hpp"
 
 namespace magvine::robot {
 namespace {
@@ -63,11 +64,18 @@ double ring_crush_load(const CatheterTube& c, double g) {
 
 }  // namespace
 
-double magnetorheological_yield_stress(double field_strength, double volume_fraction) {
-  const double h = std::abs(field_strength);
-  const double chains = std::sqrt(6.0) * volume_fraction * kMu0 * std::sqrt(kIronSaturation) * h * std::sqrt(h);
-  const double saturated = 0.086 * volume_fraction * kMu0 * kIronSaturation * kIronSaturation;
-  return std::min(chains, saturated);
+GrowthRate growth_rate(const GrowthLaw& law, double pressure, double length, double turning, double extra_yield) {
+  GrowthRate r;
+  r.length_term = law.length_yield * length;
+  r.turning_term = law.turning_yield * turning;
+  r.extra_yield = extra_yield;
+  r.yield = law.yield_pressure + r.length_term + r.turning_term + r.extra_yield;
+  r.speed = law.extensibility * std::max(0.0, pressure - r.yield);
+  return r;
+}
+
+double growth_force(double pressure, double yield, double radius) {
+  return std::max(0.0, pressure - yield) * kPi * radius * radius;
 }
 
 double VineGrowth::magnetorheological_yield() const {
@@ -75,7 +83,7 @@ double VineGrowth::magnetorheological_yield() const {
   double integral = 0.0;  // ∫τ_y ds, the field at each edge's midpoint
   for (std::size_t j = 0; j + 1 < m_state.x.size(); ++j) {
     const Vec3 mid = 0.5 * (m_state.x[j] + m_state.x[j + 1]);
-    integral += magnetorheological_yield_stress(m_field(mid).b.norm() / kMu0, m_vine.volume_fraction) * m_h;
+    integral += magnetics::magnetorheological_yield_stress(m_field(mid).b.norm() / kMu0, m_vine.volume_fraction) * m_h;
   }
   return 2.0 * integral / m_radius;
 }
@@ -93,7 +101,7 @@ int VineGrowth::retract_to(double length, GrowthStepReport& report) {
   m_anchor.resize(m_state.x.size());
   m_anchor_normal.resize(m_state.x.size());
   m_cache.resize(m_state.x.size());
-  if (!solve_with_wall(report)) add_event("solver", "after retracting: " + report.failure);
+  if (!solve_with_wall(report)) add_event(GrowthEventKind::kSolver, "after retracting: " + report.failure);
   return removed;
 }
 
@@ -177,6 +185,57 @@ RodModel inserted_part(const RodModel& body, double length, int edges) {
 
 }  // namespace
 
+void check_growth(const VineParameters& vine, const GrowthOptions& options, const Mat3& base_frame) {
+  const auto check = [](bool ok, const char* parameter, const std::string& what) {
+    if (!ok) throw VineParameterError(parameter, "vine growth: " + what);
+  };
+  const auto finite_non_negative = [](double x) { return x >= 0.0 && std::isfinite(x); };
+  const GrowthLaw& law = options.law;
+  check(finite_non_negative(law.extensibility), "extensibility", "extensibility must be finite and >= 0");
+  check(finite_non_negative(law.yield_pressure), "yield_pressure", "the yield must be finite and >= 0");
+  check(finite_non_negative(law.length_yield), "length_yield", "the length yield must be finite and >= 0");
+  check(finite_non_negative(law.turning_yield), "turning_yield", "the turning yield must be finite and >= 0");
+  check(finite_non_negative(options.friction), "friction", "friction must be finite and >= 0");
+  check(finite_non_negative(options.contact_stiffness), "contact_stiffness", "contact_stiffness must be >= 0");
+  check(finite_non_negative(options.edge_length), "edge_length", "edge_length must be finite and >= 0");
+  check(options.max_contact_passes >= 1, "max_contact_passes", "max_contact_passes must be >= 1");
+  check(options.max_incidence >= 0.0 && options.max_incidence < 0.5 * kPi, "max_incidence",
+        "max_incidence must be in [0, 90) degrees");
+  check(!options.magnetorheology || vine.fill == FillKind::kMagneticFluid, "magnetorheology",
+        "magnetorheology needs a magnetic-fluid fill");
+  check(std::isfinite(options.retraction_pressure), "retraction_pressure", "retraction_pressure must be finite");
+  check(std::isfinite(options.max_length) || options.max_length == std::numeric_limits<double>::infinity(),
+        "max_length", "the made length must not be NaN");
+  check(options.gravity.allFinite(), "gravity", "gravity must be finite");
+  check(base_frame.allFinite() && (base_frame.transpose() * base_frame).isApprox(Mat3::Identity(), 1e-9), "base",
+        "base_frame must be orthonormal");
+  check(vine.radius > 0.0 && std::isfinite(vine.radius), "diameter", "radius must be > 0");
+  check(vine.length > 0.0 && std::isfinite(vine.length), "length", "the starting length must be > 0");
+  if (options.catheter) {
+    const CatheterTube& c = *options.catheter;
+    check(options.mode == InsertionMode::kPushed, "mode", "a catheter tube is pushed: set mode to pushed");
+    check(c.inner_diameter >= 0.0 && c.outer_diameter > c.inner_diameter && std::isfinite(c.outer_diameter),
+          "catheter", "catheter: need 0 <= inner_diameter < outer_diameter");
+    check(c.modulus > 0.0 && std::isfinite(c.modulus) && finite_non_negative(c.density), "catheter",
+          "catheter: modulus must be > 0 and density >= 0");
+  }
+  if (options.rod) {
+    const PushedRod& r = *options.rod;
+    check(options.mode == InsertionMode::kPushed, "mode", "a rod is pushed: set mode to pushed");
+    check(!options.catheter, "catheter", "push a rod or a catheter, not both");
+    check(r.radius > 0.0 && std::isfinite(r.radius), "section", "rod: radius must be > 0");
+    check(r.body.length > 0.0 && r.body.edges >= 1, "length", "rod: the body needs a length and edges");
+    check(finite_non_negative(r.insertion_speed), "insertion_speed", "rod: insertion_speed must be >= 0");
+    check(r.body.rest_strain.empty(), "kind", "rod: a pre-curved rod is not supported in anatomy");
+    check(vine.length <= r.body.length * (1.0 + 1e-9), "inserted", "rod: the inserted length exceeds the rod's length");
+  }
+  // The edge length and the edges it makes of the starting length.
+  const double radius = options.catheter ? 0.5 * options.catheter->outer_diameter
+                                         : (options.rod ? options.rod->radius : vine.radius);
+  const double h = options.edge_length > 0.0 ? options.edge_length : radius;
+  check(vine.length / h <= 1e6, "edge_length", "the edges would number more than a million");
+}
+
 VineGrowth::VineGrowth(const VineParameters& vine, const GrowthOptions& options, const anatomy::CollisionWorld* world,
                        RodField field, const Vec3& base_position, const Mat3& base_frame)
     : m_vine(vine),
@@ -185,43 +244,10 @@ VineGrowth::VineGrowth(const VineParameters& vine, const GrowthOptions& options,
       m_field(std::move(field)),
       m_base_position(base_position),
       m_base_frame(base_frame) {
-  const GrowthLaw& law = options.law;
-  const auto check = [](bool ok, const std::string& what) {
-    if (!ok) throw InputError("vine growth: " + what);
-  };
-  check(law.extensibility >= 0.0 && std::isfinite(law.extensibility), "extensibility must be >= 0");
-  check(law.yield_pressure >= 0.0 && law.length_yield >= 0.0 && law.turning_yield >= 0.0,
-        "the yield terms must be >= 0");
-  check(options.friction >= 0.0 && std::isfinite(options.friction), "friction must be >= 0");
-  check(options.contact_stiffness >= 0.0, "contact_stiffness must be >= 0");
-  check(options.edge_length >= 0.0 && std::isfinite(options.edge_length), "edge_length must be >= 0");
-  check(options.max_contact_passes >= 1, "max_contact_passes must be >= 1");
-  check(options.max_incidence >= 0.0 && options.max_incidence < 0.5 * kPi, "max_incidence must be in [0, 90) degrees");
+  check_growth(vine, options, base_frame);
   m_max_incidence = options.max_incidence > 0.0 ? options.max_incidence : std::atan2(1.0, options.friction);
-  check(!options.magnetorheology || vine.fill == FillKind::kMagneticFluid,
-        "magnetorheology needs a magnetic-fluid fill");
-  check(std::isfinite(options.retraction_pressure), "retraction_pressure must be finite");
-  check((base_frame.transpose() * base_frame).isApprox(Mat3::Identity(), 1e-9), "base_frame must be orthonormal");
-  check(vine.radius > 0.0 && std::isfinite(vine.radius), "radius must be > 0");
-  if (options.catheter) {
-    const CatheterTube& c = *options.catheter;
-    check(options.mode == InsertionMode::kPushed, "a catheter tube is pushed: set mode to pushed");
-    check(c.inner_diameter >= 0.0 && c.outer_diameter > c.inner_diameter && std::isfinite(c.outer_diameter),
-          "catheter: need 0 <= inner_diameter < outer_diameter");
-    check(c.modulus > 0.0 && std::isfinite(c.modulus) && c.density >= 0.0, "catheter: modulus must be > 0");
-    m_vine.radius = 0.5 * c.outer_diameter;  // the edge length and contact radius follow the tube
-  }
-  if (options.rod) {
-    const PushedRod& r = *options.rod;
-    check(options.mode == InsertionMode::kPushed, "a rod is pushed: set mode to pushed");
-    check(!options.catheter, "push a rod or a catheter, not both");
-    check(r.radius > 0.0 && std::isfinite(r.radius), "rod: radius must be > 0");
-    check(r.body.length > 0.0 && r.body.edges >= 1, "rod: the body needs a length and edges");
-    check(r.insertion_speed >= 0.0 && std::isfinite(r.insertion_speed), "rod: insertion_speed must be >= 0");
-    check(r.body.rest_strain.empty(), "rod: a pre-curved rod is not supported in anatomy");
-    check(vine.length <= r.body.length * (1.0 + 1e-9), "rod: the inserted length exceeds the rod's length");
-    m_vine.radius = r.radius;  // the edge length and contact radius follow the rod
-  }
+  if (options.catheter) m_vine.radius = 0.5 * options.catheter->outer_diameter;  // edges and contacts follow the tube
+  if (options.rod) m_vine.radius = options.rod->radius;  // the edge length and contact radius follow the rod
   m_h = options.edge_length > 0.0 ? options.edge_length : m_vine.radius;
   const int edges = std::max(1, static_cast<int>(std::lround(vine.length / m_h)));
   m_vine.edges = edges;
@@ -232,18 +258,7 @@ VineGrowth::VineGrowth(const VineParameters& vine, const GrowthOptions& options,
   m_anchor_normal.assign(m_state.x.size(), Vec3::Zero());
   m_normal_force.assign(m_state.x.size(), 0.0);
   GrowthStepReport report;
-  if (!solve_with_wall(report)) add_event("solver", "initial equilibrium: " + report.failure);
-}
-
-double extended_radius(const VineParameters& v, double pressure) {
-  return v.radius * (1.0 + pressure * v.radius / (v.wall.thickness * v.wall.modulus));
-}
-
-double burst_pressure(const VineParameters& v) {
-  const double a = v.radius * v.radius / (v.wall.thickness * v.wall.thickness * v.wall.modulus);
-  const double b = v.radius / v.wall.thickness;
-  // 2S/(b + √(b² + 4aS)): the root without the cancellation of (−b + √(b² + 4aS))/(2a) for a small a.
-  return 2.0 * v.wall_strength / (b + std::sqrt(b * b + 4.0 * a * v.wall_strength));
+  if (!solve_with_wall(report)) add_event(GrowthEventKind::kSolver, "initial equilibrium: " + report.failure);
 }
 
 double VineGrowth::extended_radius(double pressure) const {
@@ -254,8 +269,7 @@ double VineGrowth::extended_radius(double pressure) const {
 
 void VineGrowth::rebuild_model(double pressure) {
   VineParameters v = m_vine;
-  v.pressure = pressure;
-  v.radius = extended_radius(pressure);  // diametric extension: the hoop strain PR/(tE) of the film
+  v.pressure = pressure;  // vine_rod extends the radius (diametric extension)
   v.edges = m_vine.edges;
   v.length = m_vine.edges * m_h;
   if (m_options.catheter) {
@@ -269,7 +283,7 @@ void VineGrowth::rebuild_model(double pressure) {
   m_model.base_position = m_base_position;
   m_model.base_frame = m_base_frame;
   m_model.gravity = m_options.gravity;
-  m_radius = v.radius;
+  m_radius = extended_radius(pressure);
   m_pressure = pressure;
   const double ei = m_model.bending_stiffness_3;
   // A solid rod presses the wall with its section's stiffness over an edge, E·h (E from EI = Eπr⁴/4).
@@ -285,8 +299,21 @@ double VineGrowth::turning() const {
   return std::accumulate(angles.begin(), angles.end(), 0.0);
 }
 
-void VineGrowth::add_event(std::string kind, std::string detail) {
-  m_events.push_back({m_time, m_model.length, std::move(kind), std::move(detail)});
+void VineGrowth::add_event(GrowthEventKind kind, std::string detail) {
+  m_events.push_back({m_time, m_model.length, kind, std::move(detail)});
+}
+
+std::string_view growth_event_name(GrowthEventKind kind) {
+  switch (kind) {
+    case GrowthEventKind::kStall: return "stall";
+    case GrowthEventKind::kResume: return "resume";
+    case GrowthEventKind::kBlocked: return "blocked";
+    case GrowthEventKind::kSqueeze: return "squeeze";
+    case GrowthEventKind::kBurst: return "burst";
+    case GrowthEventKind::kRetract: return "retract";
+    case GrowthEventKind::kSolver: return "solver";
+  }
+  return "unknown";
 }
 
 bool VineGrowth::solve_with_wall(GrowthStepReport& report) {
@@ -641,12 +668,12 @@ GrowthStepReport VineGrowth::advance(double dt, const GrowthControl& control) {
   }
   m_time += dt;
   const double p = control.pressure;
-  const double hoop = p * extended_radius(p) / m_vine.wall.thickness;
-  if (!solid_body() && hoop > m_vine.wall_strength) {
+  if (!solid_body() && bursts(m_vine, p)) {
+    const double hoop = hoop_stress(m_vine, p);
     m_burst = true;
     report.stalled = true;
     report.burst = true;
-    add_event("burst", printf_string("pressure %.1f kPa: hoop stress %.2f MPa above the film's strength %.2f MPa",
+    add_event(GrowthEventKind::kBurst, printf_string("pressure %.1f kPa: hoop stress %.2f MPa above the film's strength %.2f MPa",
                                      p / kKpaToPa, hoop / 1e6, m_vine.wall_strength / 1e6));
     return report;
   }
@@ -659,13 +686,14 @@ GrowthStepReport VineGrowth::advance(double dt, const GrowthControl& control) {
     report.speed = m_options.rod->insertion_speed;  // pushed up to the tether: no pressure, no growth law
   } else {
     const GrowthLaw& law = m_options.law;
-    const double sigma = turning();
     // The grown length, whole edges or not.
-    const double length_term = law.length_yield * (m_model.length + m_pending);
-    const double turning_term = law.turning_yield * sigma;
     report.magnetorheological_yield = magnetorheological_yield();
-    report.yield = law.yield_pressure + length_term + turning_term + report.magnetorheological_yield;
-    report.speed = law.extensibility * std::max(0.0, p - report.yield);
+    const GrowthRate rate =
+        growth_rate(law, p, m_model.length + m_pending, turning(), report.magnetorheological_yield);
+    const double length_term = rate.length_term;
+    const double turning_term = rate.turning_term;
+    report.yield = rate.yield;
+    report.speed = rate.speed;
     if (report.speed == 0.0 && !m_stalled) {
       m_stalled = true;
       std::string detail = printf_string(
@@ -676,10 +704,10 @@ GrowthStepReport VineGrowth::advance(double dt, const GrowthControl& control) {
       if (m_options.magnetorheology) {
         detail += printf_string(" + magnetorheological %.2f kPa", report.magnetorheological_yield / kKpaToPa);
       }
-      add_event("stall", detail + ")");
+      add_event(GrowthEventKind::kStall, detail + ")");
     } else if (report.speed > 0.0 && m_stalled) {
       m_stalled = false;
-      add_event("resume",
+      add_event(GrowthEventKind::kResume,
                 printf_string("pressure %.2f kPa above the yield %.2f kPa", p / kKpaToPa, report.yield / kKpaToPa));
     }
   }
@@ -693,12 +721,12 @@ GrowthStepReport VineGrowth::advance(double dt, const GrowthControl& control) {
       if (removed > 0) m_recent.clear();  // the energy window starts again from the new tip
       if (removed > 0 && !m_retracting) {
         m_retracting = true;
-        add_event("retract", printf_string("the tether pulls the deflated vine (%.2f kPa) back from %.1f mm",
+        add_event(GrowthEventKind::kRetract, printf_string("the tether pulls the deflated vine (%.2f kPa) back from %.1f mm",
                                            p / kKpaToPa, 1e3 * (m_model.length + removed * m_h)));
       }
     } else if (!m_retract_refused) {
       m_retract_refused = true;
-      add_event("retract",
+      add_event(GrowthEventKind::kRetract,
                 printf_string("the tether pulls back to %.1f mm but the vine is at %.2f kPa, above the "
                               "retraction pressure %.2f kPa: the length is held",
                               1e3 * control.tether_length, p / kKpaToPa, m_options.retraction_pressure / kKpaToPa));
@@ -735,7 +763,7 @@ GrowthStepReport VineGrowth::advance(double dt, const GrowthControl& control) {
     }
     if (!solved) {
       // Keep the last equilibrium (under the old loads), report the failure and try again later.
-      if (!m_loads_failed) add_event("solver", "new loads: " + report.failure);
+      if (!m_loads_failed) add_event(GrowthEventKind::kSolver, "new loads: " + report.failure);
       m_loads_failed = true;
       m_loads_failed_at = m_time;
       m_state = old_state;
@@ -829,7 +857,7 @@ GrowthStepReport VineGrowth::advance(double dt, const GrowthControl& control) {
     // oldest in part), not over one edge: an edge turned into a wall's plane puts the whole turn into one joint,
     // which the everting front, as long as the body is wide, spreads over its own length. Per edge, the finer the
     // edges the more a turn was blocked (generation-4 trials: 14/16 with h = R, 5/16 with h = 0.75R).
-    const double tip_force = std::max(0.0, p * squeeze - report.yield) * kPi * m_radius * m_radius;
+    const double tip_force = growth_force(p * squeeze, report.yield, m_radius);
     // (A pushed catheter has no such limit: the base pushes as hard as it takes.)
     const bool eversion = m_options.mode == InsertionMode::kEversion;
     const double stored = solved && eversion ? m_energy - old_energy : 0.0;
@@ -852,7 +880,7 @@ GrowthStepReport VineGrowth::advance(double dt, const GrowthControl& control) {
       if (flat) {
         if (!m_blocked) {
           m_blocked = true;
-          add_event("squeeze",
+          add_event(GrowthEventKind::kSqueeze,
                     printf_string("a %.2f mm gap is narrower than the catheter pressed flat (%.2f mm)",
                                   1e3 * tip_radius / kSlack,
                                   1e3 * (m_options.catheter->outer_diameter - m_options.catheter->inner_diameter)));
@@ -860,7 +888,7 @@ GrowthStepReport VineGrowth::advance(double dt, const GrowthControl& control) {
       } else if (squeezed_out) {
         if (!m_blocked) {
           m_blocked = true;
-          add_event("squeeze",
+          add_event(GrowthEventKind::kSqueeze,
                     printf_string("a %.2f mm gap leaves the tip %.0f %% of its section: %.2f kPa x %.2f is at or "
                                   "below the yield %.2f kPa",
                                   1e3 * tip_radius / kSlack, 100.0 * squeeze, p / kKpaToPa, squeeze,
@@ -869,19 +897,19 @@ GrowthStepReport VineGrowth::advance(double dt, const GrowthControl& control) {
       } else if (steep) {
         if (!m_blocked) {
           m_blocked = true;
-          add_event("blocked", printf_string("the tip meets the wall at %.1f deg, steeper than max_incidence %.1f deg",
+          add_event(GrowthEventKind::kBlocked, printf_string("the tip meets the wall at %.1f deg, steeper than max_incidence %.1f deg",
                                              incidence / kDegToRad, m_max_incidence / kDegToRad));
         }
       } else if (!solved) {
         if (!m_blocked) {
           m_blocked = true;
-          add_event("solver",
+          add_event(GrowthEventKind::kSolver,
                     "adding an edge at " + printf_string("%.1f mm", 1e3 * m_model.length) + ": " + report.failure);
         }
         report.converged = true;  // the step is reverted, the body keeps its last equilibrium
       } else if (!m_blocked) {
         m_blocked = true;
-        add_event("blocked",
+        add_event(GrowthEventKind::kBlocked,
                   printf_string("growing %.1f mm would store %.3g mJ over the last %.1f mm of growth, more than "
                                 "the growth force's work %.3g mJ (%.3f N)",
                                 1e3 * m_h, 1e3 * window_stored, 1e3 * window, 1e3 * window_work, tip_force));

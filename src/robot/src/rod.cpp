@@ -9,319 +9,36 @@
 #include "magvine/core/error.hpp"
 #include "magvine/core/multiversion.hpp"
 #include "magvine/core/units.hpp"
+#include "magvine/magnetics/magnetisation.hpp"
 #include "magvine/robot/inflated_beam.hpp"
+#include "rod_terms.hpp"
 
 namespace magvine::robot {
 namespace {
 
-using Mat6 = Eigen::Matrix<double, 6, 6>;
+using detail::FieldSamples;
+using detail::Inertia;
+using detail::Mat6;
+using detail::System;
+using detail::TermContext;
+using detail::Vec6;
+using detail::exp_rotation;
+using detail::joint_energy;
+using detail::joint_strain;
+using detail::rest_strain;
+using detail::skew_axis;
+
 constexpr double kMaxTurn = 0.5;  // [rad] largest frame rotation of one Newton step
 // [relative] the damping past which a step the line search keeps rejecting ends the solve ("line search failed")
 constexpr double kMaxRetryDamping = 1e-1;
-using Vec6 = Eigen::Matrix<double, 6, 1>;
 
-Mat3 skew(const Vec3& v) {
-  Mat3 s;
-  s << 0.0, -v.z(), v.y(), v.z(), 0.0, -v.x(), -v.y(), v.x(), 0.0;
-  return s;
-}
-
-/// vee((Q − Qᵀ)/2): the axial vector of Q's skew part (sin(angle)·axis for a rotation).
-Vec3 skew_axis(const Mat3& q) {
-  return 0.5 * Vec3(q(2, 1) - q(1, 2), q(0, 2) - q(2, 0), q(1, 0) - q(0, 1));
-}
-
-/// Where a 3-vector unknown lives: block (edge) and offset (0: the position of node block+1, 3: the rotation of
-/// edge block); block −1 is fixed (x_0, the clamp frame).
-struct Slot {
-  int block;
-  int offset;
-};
-
-/// Gradient and the block-tridiagonal Hessian: diag[i] = H(i, i), sub[i] = H(i, i − 1). Once factored (BlockFactor),
-/// only the lower triangle of each diag[i] is the Hessian's: the upper one holds the factor.
-struct System {
-  VecX gradient;
-  std::vector<Mat6> diag;
-  std::vector<Mat6> sub;
-
-  /// `with_hessian` false: the gradient only (the finite-difference columns need no blocks).
-  explicit System(int blocks, bool with_hessian = true)
-      : gradient(VecX::Zero(6 * blocks)),
-        diag(with_hessian ? static_cast<std::size_t>(blocks) : 0, Mat6::Zero()),
-        sub(with_hessian ? static_cast<std::size_t>(blocks) : 0, Mat6::Zero()) {}
-
-  void add_gradient(const Slot& s, const Vec3& g) {
-    if (s.block >= 0) gradient.segment<3>(6 * s.block + s.offset) += g;
-  }
-};
-
-/// The field at the edge midpoints of one state, sampled on first use: the gradient and the Hessian share one sample
-/// per midpoint instead of sampling it again (the field is a pure function of the point). Whoever moves the state
-/// resets it.
-struct FieldSamples {
-  std::vector<magnetics::FieldSample> value;
-  std::vector<unsigned char> known;
-
-  /// Forgets every sample (no allocation once sized).
-  void reset(std::size_t edges) {
-    value.resize(edges);
-    known.assign(edges, 0);
-  }
-
-  /// B and ∂B/∂x at the midpoint of edge j of `s`.
-  const magnetics::FieldSample& at(const RodField& field, const RodState& s, std::size_t j) {
-    if (known[j] == 0) {
-      value[j] = field(0.5 * (s.x[j] + s.x[j + 1]));
-      known[j] = 1;
-    }
-    return value[j];
-  }
-};
-
-/// Gradient of one strain element: `stress` = dW/ds, and ds = Σ P_k dq_k.
-template <std::size_t K>
-void add_stress(System* sys, const Vec3& stress, const std::array<Slot, K>& slots, const std::array<Mat3, K>& pieces) {
-  for (std::size_t k = 0; k < K; ++k) sys->add_gradient(slots[k], pieces[k].transpose() * stress);
-}
-
-/// ω = 2 tan(ψ/2)·axis/ℓ of the joint rotation Q (the Gibbs vector over ℓ/2).
-Vec3 joint_strain(const Mat3& q, double ell) { return 4.0 * skew_axis(q) / ((1.0 + q.trace()) * ell); }
-
-/// The rest strain of joint j (RodModel::rest_strain).
-Vec3 rest_strain(const RodModel& m, int j) {
-  return m.rest_strain.empty() ? Vec3::Zero() : m.rest_strain[static_cast<std::size_t>(j)];
-}
-
-/// The stored energy of one joint of length ℓ at curvature-twist ω (body frame of the joint's first edge), and
-/// `stress` = dW/dω: the linear law of a rod, or the inflated-beam law of a vine (InflatedBending).
-double joint_energy(const RodModel& m, double ell, const Vec3& omega, Vec3& stress) {
-  if (!m.inflated) {
-    const Vec3 k = ell * Vec3(m.torsional_stiffness, m.bending_stiffness_2, m.bending_stiffness_3);
-    stress = k.cwiseProduct(omega);
-    return 0.5 * omega.dot(stress);
-  }
-  const InflatedBending& law = *m.inflated;
-  const double ei = m.bending_stiffness_3;
-  const Vec3 bend(0.0, omega.y(), omega.z());
-  const double kappa = bend.norm();
-  double energy = 0.5 * ell * m.torsional_stiffness * omega.x() * omega.x();
-  stress = Vec3(ell * m.torsional_stiffness * omega.x(), 0.0, 0.0);
-  // dW/dκ / κ for each term, so the linear range needs no division by κ.
-  double per_kappa = ell * law.flat_bending_stiffness;
-  energy += 0.5 * ell * law.flat_bending_stiffness * kappa * kappa;
-  const double collapse = collapse_moment(law.radius, law.pressure);
-  if (collapse > 0.0) {
-    const double k = kappa * ei / collapse;
-    const NormalisedBending w = normalised_inflated_bending(k);
-    energy += ell * collapse * collapse / ei * w.energy;
-    per_kappa += k <= 0.5 ? ell * ei : ell * collapse * w.moment / kappa;
-  }
-  stress += per_kappa * bend;
-  return energy;
-}
-
-/// ln cosh z for z ≥ 0 without overflow.
-double log_cosh(double z) { return z + std::log1p(std::exp(-2.0 * z)) - std::log(2.0); }
-
-/// Energy density e(b) [J/m³] of a soft-magnetic fill at body-frame field b, de/db, and d²e/db² when `second` is
-/// given (InducedMagnetisation). Saturating: de/db = −s(y)Xb with y = √(χ_ref bᵀXb)/μ0 and s = M_s tanh(y/M_s)/(μ0 y).
-double fill_energy_density(const InducedMagnetisation& f, const Vec3& b, Vec3& derivative, Mat3* second = nullptr) {
-  const Vec3 chi(f.axial_susceptibility, f.transverse_susceptibility, f.transverse_susceptibility);
-  const Vec3 xb = chi.cwiseProduct(b);
-  const double quadratic = b.dot(xb) / kMu0;  // μ0 HᵀXH
-  const double y = std::sqrt(f.reference_susceptibility * quadratic / kMu0);  // √(χ_ref HᵀXH) [A/m]
-  const double z = y / f.saturation;
-  if (!std::isfinite(f.saturation) || z < 1e-8) {
-    derivative = -xb / kMu0;
-    if (second != nullptr) *second = Mat3((-chi / kMu0).asDiagonal());
-    return -0.5 * quadratic;
-  }
-  const double tanh_z = std::tanh(z);
-  const double scale = f.saturation * tanh_z / (kMu0 * y);
-  derivative = -scale * xb;
-  if (second != nullptr) {
-    // ds/dy · dy/db = [(1 − tanh² z) − tanh z/z]/(μ0 y) · χ_ref Xb/(μ0² y).
-    const double ds = ((1.0 - tanh_z * tanh_z) - tanh_z / z) / (kMu0 * y) * f.reference_susceptibility /
-                      (kMu0 * kMu0 * y);
-    *second = Mat3((-scale * chi).asDiagonal()) - ds * xb * xb.transpose();
-  }
-  return -kMu0 * f.saturation * f.saturation / f.reference_susceptibility * log_cosh(z);
-}
-
-/// Gradient of the rotational inertia term ½ k J |θ|², θ = vee(skew(P)), P = R R̃ᵀ, in δφ (R ← exp([δφ])R).
-Vec3 rotational_inertia_gradient(const Mat3& p, double k_j) {
-  return k_j * (0.5 * (p.trace() * Mat3::Identity() - p)).transpose() * skew_axis(p);
-}
-
-/// Gradient of the tip moment's potential −λM·φ, φ = log(R_N R_baseᵀ), in δφ of the last edge: −λ J_l⁻¹(φ)ᵀM with
-/// J_l⁻¹(φ) = I − ½[φ] + (1/θ² − (1 + cos θ)/(2θ sin θ))[φ]²; also returns φ.
-Vec3 tip_moment_gradient(const Mat3& last, const Mat3& base, const Vec3& moment, double load, Vec3& phi) {
-  const Eigen::AngleAxisd turn(last * base.transpose());
-  phi = turn.angle() * turn.axis();
-  const double theta = turn.angle();
-  const double c = theta < 1e-4 ? 1.0 / 12.0 + theta * theta / 720.0
-                                 : 1.0 / (theta * theta) - (1.0 + std::cos(theta)) / (2.0 * theta * std::sin(theta));
-  const Mat3 inverse_jacobian = Mat3::Identity() - 0.5 * skew(phi) + c * skew(phi) * skew(phi);
-  return -load * inverse_jacobian.transpose() * moment;
-}
-
-Slot position_slot(int node) {
-  return {node - 1, 0};
-}  // node 0 is clamped
-Slot rotation_slot(int edge) {
-  return {edge, 3};
-}
-
-/// Energy, force (−dE/d(depth) along the normal, ≥ 0) and stiffness of one wall contact at node position x.
-struct ContactLaw {
-  double energy = 0.0;
-  double force = 0.0;
-  double stiffness = 0.0;
-};
-ContactLaw contact_law(const NodeContact& c, const Vec3& x) {
-  const double depth = c.radius - c.normal.dot(x - c.point);
-  const double k = c.stiffness;
-  const double e = c.smoothing;
-  if (depth >= e) {
-    // ½k d² (+ the smoothing zone's offset kε²/6, which keeps the energy continuous).
-    return {0.5 * k * depth * depth + k * e * e / 6.0, k * depth, k};
-  }
-  if (depth <= -e) return {};
-  // Cubic blend on |d| < ε: stiffness rising linearly from 0 at d = −ε to k at d = ε (C² energy).
-  const double s = depth + e;
-  return {k * s * s * s / (12.0 * e), k * s * s / (4.0 * e), k * s / (2.0 * e)};
-}
-
-/// The inertial terms of one backward-Euler step written as an incremental potential: with predictions
-/// x̃_i = x_i + Δt v_i and R̃_j = exp(Δt [w_j]) R_j, the step minimises E + Σ m_i|x_i − x̃_i|²/(2Δt²) +
-/// Σ J_j|θ_j|²/(2Δt²), θ_j = vee((R_j R̃_jᵀ − R̃_j R_jᵀ)/2) (the rotation from the prediction, sin θ·axis).
-struct Inertia {
-  double dt = 0.0;
-  std::vector<Vec3> x;       ///< predicted nodes (x̃_0 unused: clamped)
-  std::vector<Mat3> frames;  ///< predicted frames
-  std::vector<double> mass;  ///< lumped node masses
-  double rotational = 0.0;   ///< J per edge [kg·m²]
-};
-
-/// Energy at load factor λ; adds its gradient to `sys` when given. `samples`, when given, holds (or receives) the
-/// field at this state's edge midpoints.
+/// Energy at load factor λ (the sum of the terms of rod_terms.hpp); adds its gradient to `sys` when given.
+/// `samples`, when given, holds (or receives) the field at this state's edge midpoints.
 double evaluate(const RodModel& m, const RodField& field, const RodState& s, double load, System* sys,
                 const Inertia* inertia = nullptr, const RodConstraints* constraints = nullptr,
                 FieldSamples* samples = nullptr) {
-  const int n = m.edges;
-  const double h = m.length / n;
-  double energy = 0.0;
-  // Stretch and shear.
-  const Vec3 ks = h * Vec3(m.axial_stiffness, m.shear_stiffness, m.shear_stiffness);
-  for (int j = 0; j < n; ++j) {
-    const Mat3& r = s.frames[static_cast<std::size_t>(j)];
-    const Vec3 e = s.x[static_cast<std::size_t>(j) + 1] - s.x[static_cast<std::size_t>(j)];
-    const Vec3 v = r.transpose() * e / h - Vec3::UnitX();
-    energy += 0.5 * v.dot(ks.cwiseProduct(v));
-    if (sys == nullptr) continue;
-    add_stress<3>(sys, ks.cwiseProduct(v), {position_slot(j), position_slot(j + 1), rotation_slot(j)},
-                  {Mat3(-r.transpose() / h), Mat3(r.transpose() / h), Mat3(r.transpose() * skew(e) / h)});
-  }
-  // Bending and twist; the clamp frame to the first edge over h/2.
-  for (int j = 0; j < n; ++j) {
-    const Mat3& ra = j == 0 ? m.base_frame : s.frames[static_cast<std::size_t>(j) - 1];
-    const Mat3& rb = s.frames[static_cast<std::size_t>(j)];
-    const double ell = j == 0 ? 0.5 * h : h;
-    const Mat3 q = ra.transpose() * rb;
-    const double c = 1.0 + q.trace();  // 2(1 + cos ψ)
-    if (!(c > 1e-12)) return std::numeric_limits<double>::infinity();  // a joint folded back on itself
-    const Vec3 half_sine = skew_axis(q);                               // sin ψ · axis
-    const Vec3 omega = joint_strain(q, ell);
-    Vec3 stress;
-    energy += joint_energy(m, ell, omega - rest_strain(m, j), stress);
-    if (sys == nullptr) continue;
-    // dω/dδφ_b = (2/ℓ)[(tr Q·I − Q)/c + 4 s sᵀ/c²] R_aᵀ, and the opposite for δφ_a.
-    const Mat3 d = (2.0 / ell) *
-                   ((q.trace() * Mat3::Identity() - q) / c + 4.0 * half_sine * half_sine.transpose() / (c * c)) *
-                   ra.transpose();
-    add_stress<2>(sys, stress, {Slot{j == 0 ? -1 : j - 1, 3}, rotation_slot(j)}, {Mat3(-d), d});
-  }
-  // Magnetic edges, with the field sampled once per edge midpoint: a hard moment m_j = R_j m̂_j h has U = −m·B; a
-  // soft-magnetic fill has U = V e(R_jᵀB). With w = dU/dB (world) = −m + V R de/db, the force on each end node is
-  // −½Gᵀw and the rotation gradient w × B (the torque m × B of the hard and the induced moment).
-  const bool hard = !m.moment_per_length.empty();
-  const double volume = m.induced ? load * m.induced->volume_per_length * h : 0.0;
-  if (field && (hard || volume > 0.0)) {
-    for (int j = 0; j < n; ++j) {
-      const auto ju = static_cast<std::size_t>(j);
-      const Mat3& r = s.frames[ju];
-      const Vec3 mj = hard ? Vec3(load * h * (r * m.moment_per_length[ju])) : Vec3::Zero();
-      if (mj.isZero() && volume == 0.0) continue;
-      const magnetics::FieldSample f =
-          samples != nullptr ? samples->at(field, s, ju) : field(0.5 * (s.x[ju] + s.x[ju + 1]));
-      energy -= mj.dot(f.b);
-      Vec3 w = -mj;
-      if (volume > 0.0) {
-        Vec3 de_db;
-        energy += volume * fill_energy_density(*m.induced, r.transpose() * f.b, de_db);
-        w += volume * (r * de_db);
-      }
-      if (sys == nullptr) continue;
-      const Vec3 half_gradient = 0.5 * f.g.transpose() * w;
-      sys->add_gradient(position_slot(j), half_gradient);
-      sys->add_gradient(position_slot(j + 1), half_gradient);
-      sys->add_gradient(rotation_slot(j), w.cross(f.b));
-    }
-  }
-  if (inertia != nullptr) {
-    const double k = 1.0 / (inertia->dt * inertia->dt);
-    for (int i = 1; i <= n; ++i) {
-      const auto iu = static_cast<std::size_t>(i);
-      const Vec3 d = s.x[iu] - inertia->x[iu];
-      energy += 0.5 * k * inertia->mass[iu] * d.squaredNorm();
-      if (sys != nullptr) sys->add_gradient(position_slot(i), k * inertia->mass[iu] * d);
-    }
-    for (int j = 0; j < n; ++j) {
-      const auto ju = static_cast<std::size_t>(j);
-      const Mat3 p = s.frames[ju] * inertia->frames[ju].transpose();
-      const Vec3 theta = skew_axis(p);
-      energy += 0.5 * k * inertia->rotational * theta.squaredNorm();
-      if (sys != nullptr) sys->add_gradient(rotation_slot(j), rotational_inertia_gradient(p, k * inertia->rotational));
-    }
-  }
-  // Wall contacts (frozen planes), tangential anchors and fixed node forces.
-  if (constraints != nullptr) {
-    for (const NodeContact& c : constraints->contacts) {
-      const ContactLaw law = contact_law(c, s.x[static_cast<std::size_t>(c.node)]);
-      energy += law.energy;
-      if (sys != nullptr && law.force > 0.0) sys->add_gradient(position_slot(c.node), -law.force * c.normal);
-    }
-    for (const NodeAnchor& a : constraints->anchors) {
-      const Vec3 d = s.x[static_cast<std::size_t>(a.node)] - a.anchor;
-      const Vec3 tangential = d - a.normal.dot(d) * a.normal;
-      // ½k·dᵀ(I − nnᵀ)d, whose gradient is k(I − nnᵀ)d also for a normal shorter than 1 (a pinched section's
-      // anchor, which holds it partly across the wall too); ½k·|(I − nnᵀ)d|² would not be.
-      energy += 0.5 * a.stiffness * d.dot(tangential);
-      if (sys != nullptr) sys->add_gradient(position_slot(a.node), a.stiffness * tangential);
-    }
-    for (const NodeForce& f : constraints->forces) {
-      energy -= f.force.dot(s.x[static_cast<std::size_t>(f.node)]);
-      if (sys != nullptr) sys->add_gradient(position_slot(f.node), -f.force);
-    }
-  }
-  // Gravity on lumped node masses, and the tip force.
-  for (int i = 1; i <= n; ++i) {
-    const double mass = m.mass_per_length * (i == n ? 0.5 * h : h);
-    Vec3 f = load * mass * m.gravity;
-    if (i == n) f += load * m.tip_force;
-    energy -= f.dot(s.x[static_cast<std::size_t>(i)]);
-    if (sys != nullptr) sys->add_gradient(position_slot(i), -f);
-  }
-  // A tip moment M (world frame) on the last edge: U = −M·φ with φ = log(R_N R_baseᵀ), the rotation vector from the
-  // clamp (exact for moments about a fixed axis, e.g. planar bending); tip_moment_gradient.
-  if (!m.tip_moment.isZero()) {
-    Vec3 phi;
-    const Vec3 g = tip_moment_gradient(s.frames.back(), m.base_frame, m.tip_moment, load, phi);
-    energy -= load * m.tip_moment.dot(phi);
-    if (sys != nullptr) sys->add_gradient(rotation_slot(n - 1), g);
-  }
-  return energy;
+  const TermContext c{m, field, s, load, inertia, constraints, samples};
+  return detail::rod_terms_energy(c, sys);
 }
 
 RodState apply(const RodState& s, const VecX& delta, double t);
@@ -377,230 +94,14 @@ void finite_difference_hessian(const RodModel& m, const RodField& field, const R
   }
 }
 
-/// Adds the block H(a, b) of one element to the block-tridiagonal store (a lower-triangle pair lands in `sub`;
-/// the upper pair is the transpose of its lower one and skipped; pairs with the clamp are dropped).
-void add_hessian(System& sys, const Slot& a, const Slot& b, const Mat3& h) {
-  if (a.block < 0 || b.block < 0 || a.block < b.block) return;
-  if (a.block == b.block) {
-    sys.diag[static_cast<std::size_t>(a.block)].block<3, 3>(a.offset, b.offset) += h;
-  } else {
-    sys.sub[static_cast<std::size_t>(a.block)].block<3, 3>(a.offset, b.offset) += h;
-  }
-}
-
-/// Adds the pair H(a, b) = h and H(b, a) = hᵀ of a symmetric element Hessian (a ≠ b).
-void add_hessian_pair(System& sys, const Slot& a, const Slot& b, const Mat3& h) {
-  add_hessian(sys, a, b, h);
-  add_hessian(sys, b, a, h.transpose());
-}
-
-/// How an edge element sees its two nodes: through the edge vector x_{j+1} − x_j (stretch) or the midpoint (magnets).
-enum class EdgeVector { difference, midpoint };
-
-/// The Hessian of an element on (x_j, x_{j+1}, δφ_j) whose energy depends on the nodes through one vector u, given
-/// H_uu, H_uφ (rows u) and H_φφ.
-void add_edge_element(System& sys, int j, EdgeVector u, const Mat3& uu, const Mat3& uphi, const Mat3& phiphi) {
-  const double a = u == EdgeVector::difference ? -1.0 : 0.5;  // du/dx_j
-  const double b = u == EdgeVector::difference ? 1.0 : 0.5;   // du/dx_{j+1}
-  const Slot xa = position_slot(j);
-  const Slot xb = position_slot(j + 1);
-  const Slot phi = rotation_slot(j);
-  add_hessian(sys, xa, xa, a * a * uu);
-  add_hessian(sys, xb, xb, b * b * uu);
-  add_hessian(sys, xb, xa, a * b * uu);  // sub block (x_j's block is the lower index)
-  add_hessian_pair(sys, xb, phi, b * uphi);
-  add_hessian(sys, phi, xa, a * uphi.transpose());
-  add_hessian(sys, phi, phi, phiphi);
-}
-
-/// The symmetric part of a ⊗ b minus (a·b)I: the Hessian of aᵀ[φ]²b/2 in φ (aᵀ[φ]²b = φᵀ(sym(abᵀ) − a·b I)φ).
-Mat3 cross_squared(const Vec3& a, const Vec3& b) {
-  return 0.5 * (a * b.transpose() + b * a.transpose()) - a.dot(b) * Mat3::Identity();
-}
-
-/// d²W/dω² of joint_energy.
-Mat3 joint_stiffness(const RodModel& m, double ell, const Vec3& omega) {
-  if (!m.inflated) return (ell * Vec3(m.torsional_stiffness, m.bending_stiffness_2, m.bending_stiffness_3)).asDiagonal();
-  const InflatedBending& law = *m.inflated;
-  const double ei = m.bending_stiffness_3;
-  const Vec3 bend(0.0, omega.y(), omega.z());
-  const double kappa = bend.norm();
-  Mat3 k = Mat3::Zero();
-  k(0, 0) = ell * m.torsional_stiffness;
-  double per_kappa = ell * law.flat_bending_stiffness;
-  double slope = 0.0;  // d(per_kappa)/dκ / κ
-  const double collapse = collapse_moment(law.radius, law.pressure);
-  if (collapse > 0.0) {
-    const double kn = kappa * ei / collapse;
-    if (kn <= 0.5) {
-      per_kappa += ell * ei;
-    } else {
-      const NormalisedBending w = normalised_inflated_bending(kn);
-      per_kappa += ell * collapse * w.moment / kappa;
-      slope = ell * (ei * w.stiffness - collapse * w.moment / kappa) / (kappa * kappa);
-    }
-  }
-  k(1, 1) = per_kappa;
-  k(2, 2) = per_kappa;
-  return k + slope * bend * bend.transpose();
-}
-
-/// Central differences of a local gradient g(φ) of one frame's rotation increment (the rotational inertia and the
-/// tip moment: one block each, cheap), symmetrised (see finite_difference_hessian).
-/// exp([φ]) (identity at φ = 0).
-Mat3 exp_rotation(const Vec3& phi) {
-  const double angle = phi.norm();
-  return angle > 0.0 ? Mat3(Eigen::AngleAxisd(angle, phi / angle).toRotationMatrix()) : Mat3::Identity();
-}
-
-template <class Gradient>
-Mat3 local_rotation_hessian(const Gradient& gradient) {
-  constexpr double step = 1e-6;
-  Mat3 h;
-  for (int k = 0; k < 3; ++k) h.col(k) = (gradient(step * Vec3::Unit(k)) - gradient(-step * Vec3::Unit(k))) / (2.0 * step);
-  return 0.5 * (h + h.transpose());
-}
-
 /// The analytic Hessian of `evaluate` (rotation increments R ← exp([δφ])R, positions x ← x + δx), into sys.diag and
-/// sys.sub:
-///   stretch: JᵀKJ plus the axial force's geometric terms (f = Rσ, e the edge): (δx, δφ) couple through [f]/h, and
-///     δφ·δφ through (sym(f eᵀ) − f·e I)/h;
-///   joints: with Q = R_aᵀR_b and its Gibbs vector b = ℓω/2, a left turn u (body of a) gives
-///     ω = ω0 + J u/ℓ + (bᵀu) J u/(2ℓ),  J = I − [b] + bbᵀ,
-///     so H̃ = R_a[JᵀKJ/ℓ² + (b vᵀ + v bᵀ)/(2ℓ)]R_aᵀ, v = Jᵀσ, for either frame, and H_ab = −H̃ + [g]/2 (the
-///     Baker–Campbell–Hausdorff term of exp(−[δφ_a])exp([δφ_b]), g the joint's gradient in δφ_b);
-///   magnets: with w = dU/dB = −m + R p (p = V de/db, P = V d²e/db², body frame), c the midpoint and G = ∂B/∂c,
-///     δφδφ: sym(w Bᵀ) − w·B I + [B]ᵀRPRᵀ[B];  δφδc: ([w] − [B]RPRᵀ)G;  δcδc: GᵀRPRᵀG + Σ_i w_i ∇²B_i,
-///     the last from the field's closed-form curvature where it has one (dipoles), else from forward differences of G
-///     (skipped when the field has no gradient at any midpoint: uniform);
-///   inertia and the tip moment: central differences of their one-block gradients.
-/// Checked against finite_difference_hessian (central differences of the whole gradient) in test_rod.
-/// `cache`, when given, holds (or receives) the field at this state's edge midpoints.
+/// sys.sub: each term's own (rod_terms.hpp). Checked against finite_difference_hessian (central differences of the
+/// whole gradient) in test_rod and term by term in test_rod_terms. `cache`, when given, holds (or receives) the field
+/// at this state's edge midpoints.
 void analytic_hessian(const RodModel& m, const RodField& field, const RodState& s, double load, System& sys,
                       const Inertia* inertia, const RodConstraints* constraints, FieldSamples* cache = nullptr) {
-  const int n = m.edges;
-  const double h = m.length / n;
-  for (Mat6& b : sys.diag) b.setZero();
-  for (Mat6& b : sys.sub) b.setZero();
-  const Vec3 ks = h * Vec3(m.axial_stiffness, m.shear_stiffness, m.shear_stiffness);
-  for (int j = 0; j < n; ++j) {
-    const auto ju = static_cast<std::size_t>(j);
-    const Mat3& r = s.frames[ju];
-    const Vec3 e = s.x[ju + 1] - s.x[ju];
-    const Vec3 v = r.transpose() * e / h - Vec3::UnitX();
-    const Vec3 f = r * ks.cwiseProduct(v);
-    const Mat3 k_world = r * ks.asDiagonal() * r.transpose() / (h * h);  // H_ee
-    const Mat3 jphi = skew(e);                                           // R J_φ h = [e]
-    const Mat3 h_ephi = k_world * jphi - skew(f) / h;                    // rows δe, columns δφ
-    const Mat3 h_phiphi = jphi.transpose() * k_world * jphi + cross_squared(f, e) / h;
-    add_edge_element(sys, j, EdgeVector::difference, k_world, h_ephi, h_phiphi);
-  }
-  for (int j = 0; j < n; ++j) {
-    const Mat3& ra = j == 0 ? m.base_frame : s.frames[static_cast<std::size_t>(j) - 1];
-    const Mat3& rb = s.frames[static_cast<std::size_t>(j)];
-    const double ell = j == 0 ? 0.5 * h : h;
-    const Mat3 q = ra.transpose() * rb;
-    const Vec3 omega = joint_strain(q, ell);
-    const Vec3 strain = omega - rest_strain(m, j);
-    Vec3 stress;
-    joint_energy(m, ell, strain, stress);
-    const Vec3 b = 0.5 * ell * omega;
-    const Mat3 jac = Mat3::Identity() - skew(b) + b * b.transpose();
-    const Vec3 vv = jac.transpose() * stress;
-    const Mat3 local = jac.transpose() * joint_stiffness(m, ell, strain) * jac / (ell * ell) +
-                       (b * vv.transpose() + vv * b.transpose()) / (2.0 * ell);
-    const Mat3 tilde = ra * local * ra.transpose();
-    const Slot sb = rotation_slot(j);
-    add_hessian(sys, sb, sb, tilde);
-    if (j == 0) continue;
-    const Slot sa = rotation_slot(j - 1);
-    const Vec3 g = ra * vv / ell;  // the joint's gradient in δφ_b
-    add_hessian(sys, sa, sa, tilde);
-    add_hessian(sys, sb, sa, -tilde - 0.5 * skew(g));  // H_ba = H_abᵀ
-  }
-  const bool hard = !m.moment_per_length.empty();
-  const double volume = m.induced ? load * m.induced->volume_per_length * h : 0.0;
-  if (field && (hard || volume > 0.0)) {
-    FieldSamples local;
-    FieldSamples& samples = cache != nullptr ? *cache : local;
-    if (cache == nullptr) local.reset(static_cast<std::size_t>(n));
-    bool uniform = true;
-    for (std::size_t j = 0; j < static_cast<std::size_t>(n); ++j) {
-      const bool flat = samples.at(field, s, j).g.isZero(0.0);  // sampled at every edge, even past the first gradient
-      uniform = uniform && flat;
-    }
-    // Without a closed-form curvature, forward differences of G: truncation ~step/d relative (d the distance to the
-    // magnet, ≫ L/1e6 here) and round-off ~ε·d/step, both far below what Newton's convergence notices; half the
-    // field samples of central ones. (For a dipole the closed form took a tenth off a cold 100-node solve.)
-    const double step = 1e-6 * m.length;
-    for (int j = 0; j < n; ++j) {
-      const auto ju = static_cast<std::size_t>(j);
-      const Mat3& r = s.frames[ju];
-      const magnetics::FieldSample& f = samples.value[ju];
-      Vec3 w = hard ? Vec3(-load * h * (r * m.moment_per_length[ju])) : Vec3::Zero();
-      Mat3 p_world = Mat3::Zero();  // R P Rᵀ
-      if (volume > 0.0) {
-        Vec3 de_db;
-        Mat3 d2e;
-        fill_energy_density(*m.induced, r.transpose() * f.b, de_db, &d2e);
-        w += volume * (r * de_db);
-        p_world = volume * r * d2e * r.transpose();
-      }
-      if (w.isZero(0.0) && volume == 0.0) continue;
-      Mat3 h_phiphi = cross_squared(w, f.b);
-      Mat3 h_phic = skew(w) * f.g;
-      Mat3 h_cc = Mat3::Zero();
-      if (volume > 0.0) {  // the induced moment's terms (a hard moment has P = 0)
-        const Mat3 bx = skew(f.b);
-        h_phiphi += bx.transpose() * p_world * bx;
-        h_phic -= bx * p_world * f.g;
-        h_cc = f.g.transpose() * p_world * f.g;
-      }
-      if (!uniform) {
-        const Vec3 c = 0.5 * (s.x[ju] + s.x[ju + 1]);
-        if (field.curvature()) {
-          h_cc += field.curvature()(c, w);
-        } else {
-          for (int k = 0; k < 3; ++k) h_cc.col(k) += (field(c + step * Vec3::Unit(k)).g - f.g).transpose() * w / step;
-          h_cc = 0.5 * (h_cc + h_cc.transpose()).eval();
-        }
-      }
-      add_edge_element(sys, j, EdgeVector::midpoint, h_cc, h_phic.transpose(), h_phiphi);
-    }
-  }
-  if (inertia != nullptr) {
-    const double k = 1.0 / (inertia->dt * inertia->dt);
-    for (int i = 1; i <= n; ++i) {
-      const Slot si = position_slot(i);
-      add_hessian(sys, si, si, k * inertia->mass[static_cast<std::size_t>(i)] * Mat3::Identity());
-    }
-    for (int j = 0; j < n; ++j) {
-      const auto ju = static_cast<std::size_t>(j);
-      const Mat3 p0 = s.frames[ju] * inertia->frames[ju].transpose();
-      add_hessian(sys, rotation_slot(j), rotation_slot(j), local_rotation_hessian([&](const Vec3& phi) {
-                    return rotational_inertia_gradient(exp_rotation(phi) * p0, k * inertia->rotational);
-                  }));
-    }
-  }
-  if (constraints != nullptr) {
-    for (const NodeContact& c : constraints->contacts) {
-      const ContactLaw law = contact_law(c, s.x[static_cast<std::size_t>(c.node)]);
-      if (law.stiffness > 0.0) {
-        add_hessian(sys, position_slot(c.node), position_slot(c.node), law.stiffness * c.normal * c.normal.transpose());
-      }
-    }
-    for (const NodeAnchor& a : constraints->anchors) {
-      add_hessian(sys, position_slot(a.node), position_slot(a.node),
-                  a.stiffness * (Mat3::Identity() - a.normal * a.normal.transpose()));
-    }
-  }
-  if (!m.tip_moment.isZero()) {
-    const Mat3 r0 = s.frames.back();
-    add_hessian(sys, rotation_slot(n - 1), rotation_slot(n - 1), local_rotation_hessian([&](const Vec3& phi) {
-                  Vec3 rotation;
-                  return tip_moment_gradient(exp_rotation(phi) * r0, m.base_frame, m.tip_moment, load, rotation);
-                }));
-  }
+  const TermContext c{m, field, s, load, inertia, constraints, cache};
+  detail::rod_terms_hessian(c, sys);
 }
 
 /// The LDLᵀ factor of a symmetric 6 × 6 block A (L unit lower triangular), read from the lower triangle of `a`: L
@@ -792,7 +293,9 @@ double noise_floor(const RodModel& m) {
          m.length / ei;
 }
 
-void validate(const RodModel& m) {
+}  // namespace
+
+void check_rod_model(const RodModel& m) {
   const auto positive = [](const char* field, double v) {
     if (!(v > 0.0) || !std::isfinite(v)) {
       throw InputError(std::string("rod: ") + field + " = " + std::to_string(v) + " (must be > 0)");
@@ -805,7 +308,12 @@ void validate(const RodModel& m) {
   positive("axial_stiffness", m.axial_stiffness);
   positive("shear_stiffness", m.shear_stiffness);
   if (m.edges < 1) throw InputError("rod: edges = " + std::to_string(m.edges) + " (must be >= 1)");
-  if (!(m.mass_per_length >= 0.0)) throw InputError("rod: mass_per_length must be >= 0");
+  if (!(m.mass_per_length >= 0.0) || !std::isfinite(m.mass_per_length)) {
+    throw InputError("rod: mass_per_length must be finite and >= 0");
+  }
+  if (!m.base_position.allFinite() || !m.gravity.allFinite() || !m.tip_force.allFinite() || !m.tip_moment.allFinite()) {
+    throw InputError("rod: base position, gravity, tip force and tip moment must be finite");
+  }
   if (!m.moment_per_length.empty() && m.moment_per_length.size() != static_cast<std::size_t>(m.edges)) {
     throw InputError("rod: moment_per_length needs one entry per edge");
   }
@@ -828,13 +336,15 @@ void validate(const RodModel& m) {
     }
   }
   if (m.induced) {
-    const InducedMagnetisation& f = *m.induced;
-    if (!(f.volume_per_length >= 0.0) || !(f.axial_susceptibility >= 0.0) || !(f.transverse_susceptibility >= 0.0) ||
-        !(f.saturation > 0.0) || !(f.reference_susceptibility > 0.0)) {
+    const magnetics::InducedMagnetisation& f = m.induced->law;
+    if (!(m.induced->volume_per_length >= 0.0) || !(f.axial_susceptibility >= 0.0) ||
+        !(f.transverse_susceptibility >= 0.0) || !(f.saturation > 0.0) || !(f.reference_susceptibility > 0.0)) {
       throw InputError("rod: induced magnetisation needs volume, susceptibilities >= 0 and saturation > 0");
     }
   }
 }
+
+namespace {
 
 /// The scratch of Newton's iterations, sized on first use: an iteration allocates nothing. States and field samples
 /// change hands by swapping their storage.
@@ -1085,7 +595,8 @@ RodModel rectangular_rod(double length, double width, double thickness, double s
   m.mass_per_length = density * area;
   m.rotational_inertia_per_length = density * (width * std::pow(thickness, 3) + thickness * std::pow(width, 3)) / 24.0;
   if (remanence != 0.0)
-    m.moment_per_length.assign(static_cast<std::size_t>(edges), remanence / kMu0 * area * direction.normalized());
+    m.moment_per_length.assign(static_cast<std::size_t>(edges),
+                               magnetics::hard_magnetic_moment<3>(Vec3(remanence * direction.normalized()), area));
   return m;
 }
 
@@ -1199,7 +710,7 @@ RodMotion rod_at_rest(const RodModel& model) {
 
 RodSolveReport step_rod_dynamics(const RodModel& model, const RodField& field, RodState& state, RodMotion& motion,
                                  double dt, const RodSolveOptions& options) {
-  validate(model);
+  check_rod_model(model);
   if (!(dt > 0.0) || !std::isfinite(dt)) throw InputError("rod dynamics: dt must be > 0");
   const auto n = static_cast<std::size_t>(model.edges);
   if (state.x.size() != n + 1 || motion.velocity.size() != n + 1 || motion.angular_velocity.size() != n) {
@@ -1286,7 +797,7 @@ RodSolveReport solve_rod_statics(const RodModel& model, const RodField& field, R
                                  const RodSolveOptions& options, RodWorkspace* workspace,
                                  const RodConstraints* constraints) {
   RodWorkspace::Impl* ws = workspace != nullptr ? workspace->impl.get() : nullptr;
-  validate(model);
+  check_rod_model(model);
   if (state.x.size() != static_cast<std::size_t>(model.edges) + 1 ||
       state.frames.size() != static_cast<std::size_t>(model.edges)) {
     throw InputError("rod: the state does not match the model's edge count");

@@ -1,11 +1,12 @@
 #include "magvine/robot/vine.hpp"
 
 #include <cmath>
-#include <limits>
 #include <string>
 
 #include "magvine/core/error.hpp"
+#include "magvine/core/text.hpp"
 #include "magvine/core/units.hpp"
+#include "magvine/magnetics/magnetisation.hpp"
 #include "magvine/robot/inflated_beam.hpp"
 
 namespace magvine::robot {
@@ -21,7 +22,7 @@ double fill_density_of(const VineParameters& v) {
     case FillKind::kAir: return 0.0;  // ~1.2 kg/m³ plus P/(R_s T): negligible against the wall
     case FillKind::kWater: return 1000.0;
     case FillKind::kMagneticFluid:
-      return (1.0 - v.volume_fraction) * 1000.0 + v.volume_fraction * kIronDensity;  // ≈ 2580 at φ = 0.23
+      return (1.0 - v.volume_fraction) * 1000.0 + v.volume_fraction * magnetics::kIronDensity;  // ≈ 2580 at φ = 0.23
   }
   return 0.0;
 }
@@ -56,9 +57,27 @@ VineParameters thesis_fluid_vine(double length, int edges) {
 
 bool has_magnetic_skin(const VineParameters& v) { return v.skin.thickness > 0.0 && v.skin_remanence != 0.0; }
 
-double hoop_stress(const VineParameters& v) { return v.pressure * v.radius / v.wall.thickness; }
+double extended_radius(const VineParameters& v, double pressure) {
+  return v.radius * (1.0 + pressure * v.radius / (v.wall.thickness * v.wall.modulus));
+}
 
-double pressure_tip_force(const VineParameters& v) { return v.pressure * kPi * v.radius * v.radius; }
+double hoop_stress(const VineParameters& v, double pressure) {
+  return pressure * extended_radius(v, pressure) / v.wall.thickness;
+}
+
+bool bursts(const VineParameters& v, double pressure) { return hoop_stress(v, pressure) > v.wall_strength; }
+
+double burst_pressure(const VineParameters& v) {
+  const double a = v.radius * v.radius / (v.wall.thickness * v.wall.thickness * v.wall.modulus);
+  const double b = v.radius / v.wall.thickness;
+  // 2S/(b + √(b² + 4aS)): the root without the cancellation of (−b + √(b² + 4aS))/(2a) for a small a.
+  return 2.0 * v.wall_strength / (b + std::sqrt(b * b + 4.0 * a * v.wall_strength));
+}
+
+double pressure_tip_force(const VineParameters& v) {
+  const double r = extended_radius(v, v.pressure);
+  return v.pressure * kPi * r * r;
+}
 
 RodModel vine_rod(const VineParameters& v, double stretch_shear_factor) {
   const auto finite_positive = [](double x) { return x > 0.0 && std::isfinite(x); };
@@ -74,13 +93,14 @@ RodModel vine_rod(const VineParameters& v, double stretch_shear_factor) {
   require(finite_positive(v.wall_strength), "wall", "wall strength must be > 0");
   require(v.edges >= 1, "nodes", "edges must be >= 1");
   require(v.volume_fraction > 0.0 && v.volume_fraction < 1.0, "fill", "fluid volume fraction must be in (0, 1)");
-  if (hoop_stress(v) > v.wall_strength) {
-    throw VineParameterError("pressure", "vine: pressure " + std::to_string(v.pressure / kKpaToPa) + " kPa is above burst: hoop stress " +
-                     std::to_string(hoop_stress(v) / 1e6) + " MPa exceeds the wall strength " +
-                     std::to_string(v.wall_strength / 1e6) + " MPa (burst at " +
-                     std::to_string(v.wall_strength * v.wall.thickness / v.radius / kKpaToPa) + " kPa)");
+  if (bursts(v, v.pressure)) {
+    throw VineParameterError(
+        "pressure", printf_string("vine: pressure %.4g kPa is above burst: hoop stress %.4g MPa exceeds the wall "
+                                  "strength %.4g MPa (burst at %.4g kPa, with the diametric extension)",
+                                  v.pressure / kKpaToPa, hoop_stress(v, v.pressure) / 1e6, v.wall_strength / 1e6,
+                                  burst_pressure(v) / kKpaToPa));
   }
-  const double r = v.radius;
+  const double r = extended_radius(v, v.pressure);
   const double r3 = r * r * r;
   const double et = v.wall.modulus * v.wall.thickness + v.skin.modulus * v.skin.thickness;
   const double et3 = v.wall.modulus * std::pow(v.wall.thickness, 3) + v.skin.modulus * std::pow(v.skin.thickness, 3);
@@ -104,26 +124,14 @@ RodModel vine_rod(const VineParameters& v, double stretch_shear_factor) {
     require(std::abs(d.x()) < 1e-6, "skin",
             "skin magnetisation must be orthogonal to the body axis (axial magnetisation cancels on eversion, "
             "thesis 4.4.2)");
-    m.moment_per_length.assign(static_cast<std::size_t>(v.edges),
-                               v.skin_remanence / kMu0 * 2.0 * kPi * r * v.skin.thickness * d);
+    const magnetics::SkinLaw skin{.radius = r, .thickness = v.skin.thickness, .br_body = v.skin_remanence * d};
+    m.moment_per_length.assign(static_cast<std::size_t>(v.edges), skin.moment_per_length(/*with_tail=*/true));
   }
   if (v.fill == FillKind::kMagneticFluid) {
-    InducedMagnetisation f;
+    InducedFill f;
     f.volume_per_length = inner_area;
-    if (v.law == FluidLaw::kThesis) {
-      const double chi = v.volume_fraction * kThesisIronSusceptibility;
-      f.axial_susceptibility = chi;
-      f.transverse_susceptibility = chi;
-      f.saturation = std::numeric_limits<double>::infinity();
-      f.reference_susceptibility = chi;
-    } else {
-      const double phi = v.volume_fraction;
-      const double chi = 3.0 * phi / (1.0 - phi);  // μ_s = (1 + 2φ)/(1 − φ)
-      f.axial_susceptibility = chi;
-      f.transverse_susceptibility = chi / (1.0 + 0.5 * chi);
-      f.saturation = phi * kIronSaturation;
-      f.reference_susceptibility = chi;
-    }
+    f.law = v.law == FluidLaw::kThesis ? magnetics::FluidThesisLaw{.volume_fraction = v.volume_fraction}.induced()
+                                       : magnetics::FluidBoundedLaw{.volume_fraction = v.volume_fraction}.induced();
     m.induced = f;
   }
   return m;

@@ -6,7 +6,7 @@
 
 namespace magvine::scene {
 
-/// Parses `parent`'s `magnets:` list (entries as in magnets_file.hpp), lengths in `unit` metres.
-magnetics::FieldModel parse_magnet_list(const YamlMap& parent, double unit);
+/// Parses `parent`'s `magnets:` list (entries as in docs/scenes.md: magnets), lengths in the file unit `length`.
+magnetics::FieldModel parse_magnet_list(const YamlMap& parent, const Unit& length);
 
 }  // namespace magvine::scene

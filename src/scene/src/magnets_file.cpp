@@ -4,7 +4,10 @@
 
 #include "magvine/core/error.hpp"
 #include "magvine/core/units.hpp"
+#include "magvine/magnetics/magnetisation.hpp"
 #include "magnet_entries.hpp"
+#include "ranges.hpp"
+#include "robot_entries.hpp"
 #include "yaml_reader.hpp"
 
 namespace magvine::scene {
@@ -25,19 +28,17 @@ double polarisation_of(const YamlMap& m) {
   if (m.has("polarisation") && m.has("remanence")) m.fail("remanence", "give either polarisation or remanence, not both");
   if (!m.has("polarisation") && !m.has("remanence")) m.fail("polarisation", "missing required key (J in tesla)");
   const std::string key = m.has("polarisation") ? "polarisation" : "remanence";
-  const double j = m.positive(key);
-  if (j > 3.0) m.fail(key, "is in tesla and must be <= 3 T (got " + std::to_string(j) + "); no magnet material exceeds ~1.5 T");
-  return j;
+  return m.quantity(key, kTesla, range::kPolarisation);  // no magnet material exceeds ~1.5 T
 }
 
-void add_cylinder(FieldModel& model, const YamlMap& m, double unit, const std::string& name) {
+void add_cylinder(FieldModel& model, const YamlMap& m, const Unit& unit, const std::string& name) {
   m.allow_only({"kind", "name", "model", "diameter", "length", "polarisation", "remanence", "magnetisation",
                 "position", "axis", "direction"});
-  const double diameter = m.positive("diameter") * unit;
-  const double length = m.positive("length") * unit;
+  const double diameter = m.quantity("diameter", unit, range::kMagnetSize);
+  const double length = m.quantity("length", unit, range::kMagnetSize);
   const double j = polarisation_of(m);
-  const Vec3 position = m.vec3("position") * unit;
-  const Vec3 axis = m.nonzero_vec3("axis").normalized();
+  const Vec3 position = m.vec3_quantity("position", unit, range::kCoordinate);
+  const Vec3 axis = m.direction("axis");
   const std::string magnetisation = m.has("magnetisation") ? m.text("magnetisation") : "axial";
   const std::string field_model = m.has("model") ? m.text("model") : "exact";
   if (field_model != "exact" && field_model != "dipole") m.fail("model", "must be exact or dipole (got '" + field_model + "')");
@@ -50,7 +51,7 @@ void add_cylinder(FieldModel& model, const YamlMap& m, double unit, const std::s
     j_local = Vec3(0.0, 0.0, j);
   } else if (magnetisation == "diametric") {
     if (!m.has("direction")) m.fail("direction", "missing required key for a diametric magnet (magnetisation direction, perpendicular to axis)");
-    const Vec3 direction = m.nonzero_vec3("direction").normalized();
+    const Vec3 direction = m.direction("direction");
     if (std::abs(direction.dot(axis)) > kMaxAxisDot) m.fail("direction", "must be perpendicular to axis (within 0.5°)");
     pose = Pose::from_axis_direction(position, axis, direction);
     j_local = Vec3(j, 0.0, 0.0);
@@ -65,38 +66,38 @@ void add_cylinder(FieldModel& model, const YamlMap& m, double unit, const std::s
   }
 }
 
-void add_dipole(FieldModel& model, const YamlMap& m, double unit, const std::string& name) {
+void add_dipole(FieldModel& model, const YamlMap& m, const Unit& unit, const std::string& name) {
   m.allow_only({"kind", "name", "position", "moment", "polarisation", "remanence", "axis", "volume", "diameter", "length"});
   Pose pose;
-  pose.position = m.vec3("position") * unit;
+  pose.position = m.vec3_quantity("position", unit, range::kCoordinate);
   Vec3 moment;
   if (m.has("moment")) {
     for (const char* k : {"polarisation", "remanence", "axis", "volume", "diameter", "length"}) {
       if (m.has(k)) m.fail(k, "give either moment or polarisation + axis + size, not both");
     }
-    moment = m.vec3("moment");
+    moment = m.vec3_quantity("moment", Unit{1.0, "A·m²"}, range::kMoment);
   } else {
     if (!m.has("polarisation") && !m.has("remanence")) {
       m.fail("moment", "missing required key (moment in A·m², or polarisation + axis + volume | diameter + length)");
     }
     const double j = polarisation_of(m);
-    const Vec3 axis = m.nonzero_vec3("axis").normalized();
+    const Vec3 axis = m.direction("axis");
     double volume = 0.0;
     if (m.has("volume")) {
       if (m.has("diameter") || m.has("length")) m.fail("volume", "give either volume or diameter + length, not both");
-      volume = m.positive("volume") * unit * unit * unit;
+      volume = m.quantity("volume", Unit{unit.si * unit.si * unit.si, unit.name + "³"}, range::kMagnetVolume);
     } else {
-      const double d = m.positive("diameter") * unit;
-      volume = kPi * 0.25 * d * d * m.positive("length") * unit;
+      const double d = m.quantity("diameter", unit, range::kMagnetSize);
+      volume = kPi * 0.25 * d * d * m.quantity("length", unit, range::kMagnetSize);
     }
-    moment = axis * (j * volume / kMu0);
+    moment = magnetics::hard_magnetic_moment<3>(Vec3(j * axis), volume);  // m = J·V/μ0
   }
   model.add(DipoleSource{moment}, pose, name);
 }
 
 void add_uniform(FieldModel& model, const YamlMap& m, const std::string& name) {
   m.allow_only({"kind", "name", "field"});
-  model.add(UniformSource{m.vec3("field")}, Pose{}, name);
+  model.add(UniformSource{m.vec3_quantity("field", kTesla, range::kField)}, Pose{}, name);
 }
 
 }  // namespace
@@ -111,12 +112,10 @@ FieldModel parse_magnets(const std::string& text, const std::string& file_label)
   const std::string length_unit = units.text("length");
   const auto lu = parse_length_unit(length_unit);
   if (!lu) units.fail("length", "must be mm, cm or m (got '" + length_unit + "')");
-  const double unit = metres_per(*lu);
-
-  return parse_magnet_list(top, unit);
+  return parse_magnet_list(top, Unit{metres_per(*lu), length_unit});
 }
 
-FieldModel parse_magnet_list(const YamlMap& parent, double unit) {
+FieldModel parse_magnet_list(const YamlMap& parent, const Unit& unit) {
   const YAML::Node list = parent.node("magnets");
   if (!list.IsSequence()) parent.fail("magnets", "must be a list of sources (- kind: cylinder | dipole | uniform)");
   if (list.size() == 0) parent.fail("magnets", "is empty: give at least one source");

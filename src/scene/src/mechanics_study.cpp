@@ -51,7 +51,7 @@ magnetics::FieldModel epm(const Vec3& position, const Vec3& moment_direction) {
 RodField uniform(const Vec3& b) {
   magnetics::FieldModel model;
   model.add(magnetics::UniformSource{b}, magnetics::Pose{}, "uniform");
-  return robot::field_function(model, model.rest_poses);
+  return magnetics::field_function(model, model.rest_poses);
 }
 
 /// The skin MVR of thesis 4.6 (robot::thesis_skin_mvr), 80 mm, at pressure p.
@@ -77,7 +77,7 @@ void run_rod_convergence_study(const std::filesystem::path& dir) {
   cases.push_back({"uniform 10 mT perpendicular", uniform(Vec3(0.0, 10e-3, 0.0))});
   cases.push_back({"uniform 20 mT at 135 deg", uniform(20e-3 * Vec3(std::cos(0.75 * kPi), std::sin(0.75 * kPi), 0.0))});
   const magnetics::FieldModel magnet = epm(Vec3(0.5 * length, -0.15, 0.0), Vec3::UnitY());
-  cases.push_back({"EPM at 150 mm", robot::field_function(magnet, magnet.rest_poses)});
+  cases.push_back({"EPM at 150 mm", magnetics::field_function(magnet, magnet.rest_poses)});
   std::ostringstream csv;
   csv.precision(9);
   csv << "case,nodes,spacing_m,tip_error_rel_L,seconds,iterations\n";
@@ -120,7 +120,7 @@ VineDeflectionPoint vine_deflection_point(bool torque, double pressure, double d
   // field at the body is along the skin's +y and pulls it towards the magnet.
   const magnetics::FieldModel magnet =
       epm(Vec3(distance, 0.0, kOffset), torque ? Vec3::UnitZ() : Vec3(-Vec3::UnitY()));
-  const RodField field = robot::field_function(magnet, magnet.rest_poses);
+  const RodField field = magnetics::field_function(magnet, magnet.rest_poses);
   RodState s = robot::straight_rod(m);
   const robot::RodSolveReport report = robot::solve_rod_statics(m, field, s);
   VineDeflectionPoint out;
@@ -210,7 +210,7 @@ void run_fluid_vine_study(const std::filesystem::path& dir) {
         for (double d_mm = far; d_mm >= 104.0; d_mm -= 4.0) {  // d > L + R_EPM: the body cannot reach the magnet
           // EPM at the tip's height, its axis pointing at the vine (thesis 5.6.1).
           const magnetics::FieldModel magnet = epm(Vec3(d_mm * kMmToM, 0.0, kLength), Vec3(-Vec3::UnitX()));
-          const RodField field = robot::field_function(magnet, magnet.rest_poses);
+          const RodField field = magnetics::field_function(magnet, magnet.rest_poses);
           RodState s = robot::straight_rod(m);
           const robot::RodSolveReport report = robot::solve_rod_statics(m, field, s);
           const double angle = chord_angle(s.tip());

@@ -20,6 +20,7 @@
 #include "magvine/mpm/sampling.hpp"
 #include "magvine/robot/elastica.hpp"
 #include "robot_entries.hpp"
+#include "ranges.hpp"
 #include "yaml_reader.hpp"
 
 namespace magvine::scene {
@@ -44,27 +45,23 @@ double friction_of(const YamlMap& m, mpm::Boundary b) {
     if (b == mpm::Boundary::kFriction) m.fail("friction", "missing required key (boundary: friction needs μ)");
     return 0.0;
   }
-  const double mu = m.number("friction");
-  if (mu < 0.0) m.fail("friction", "must be >= 0");
-  return mu;
+  return m.quantity("friction", kPlain, range::kFriction);
 }
 
-mpm::Material material_of(const YamlMap& m, double pascals) {
+mpm::Material material_of(const YamlMap& m, const Unit& stress) {
   m.allow_only({"shear_modulus", "bulk_modulus", "density"});
   mpm::Material mat;
-  mat.shear_modulus = m.positive("shear_modulus") * pascals;
-  mat.bulk_modulus = m.has("bulk_modulus") ? m.positive("bulk_modulus") * pascals
+  mat.shear_modulus = m.quantity("shear_modulus", stress, range::kModulus);
+  mat.bulk_modulus = m.has("bulk_modulus") ? m.quantity("bulk_modulus", stress, range::kModulus)
                                            : kDefaultBulkRatio * mat.shear_modulus;
-  mat.density = m.positive("density");
+  mat.density = m.quantity("density", kKgPerM3, Range{0.0, range::kDensity.max, true});
   return mat;
 }
 
 /// Remanence B̃r [T] from {remanence, direction}.
 Vec3 remanence_of(const YamlMap& m) {
   m.allow_only({"remanence", "direction", "axis", "from", "to"});
-  const double br = m.number("remanence");
-  if (std::abs(br) > 3.0) m.fail("remanence", "is in tesla and must be within ±3 T");
-  return br * m.nonzero_vec3("direction").normalized();
+  return m.quantity("remanence", kTesla, range::kRemanence) * m.direction("direction");
 }
 
 int axis_of(const YamlMap& m) {
@@ -82,36 +79,34 @@ MpmFieldSchedule field_of(const YamlMap& f) {
   if (kinds != 1) f.fail("b", "give exactly one of b (constant), keyframes or rotating");
   MpmFieldSchedule s;
   constexpr double kT = 1.0;  // tesla in files, as in the magnets file
-  if (f.has("b")) s.keyframes.push_back({0.0, f.vec3("b") * kT});
+  if (f.has("b")) s.keyframes.push_back({0.0, f.vec3_quantity("b", kTesla, range::kField) * kT});
   if (f.has("keyframes")) {
     const YAML::Node list = f.node("keyframes");
     if (!list.IsSequence() || list.size() == 0) f.fail("keyframes", "must be a list of {t, b}");
     for (std::size_t i = 0; i < list.size(); ++i) {
       const YamlMap k(list[i], f.file(), f.key_path("keyframes[" + std::to_string(i) + "]"));
       k.allow_only({"t", "b"});
-      const double t = k.number("t");
-      if (t < 0.0 || (!s.keyframes.empty() && t <= s.keyframes.back().first)) {
-        k.fail("t", "must be >= 0 and increase from keyframe to keyframe");
-      }
-      s.keyframes.push_back({t, k.vec3("b") * kT});
+      const double t = k.quantity("t", kSeconds, range::kTime);
+      if (!s.keyframes.empty() && t <= s.keyframes.back().first) k.fail("t", "must increase from keyframe to keyframe");
+      s.keyframes.push_back({t, k.vec3_quantity("b", kTesla, range::kField) * kT});
     }
   }
   if (f.has("rotating")) {
     const YamlMap r = f.map("rotating");
     r.allow_only({"amplitude", "frequency", "axis", "start"});
     s.rotating = true;
-    s.amplitude = r.number("amplitude") * kT;
-    s.frequency = r.number("frequency");
-    s.axis = r.nonzero_vec3("axis").normalized();
-    Vec3 start = r.nonzero_vec3("start");
+    s.amplitude = r.quantity("amplitude", kTesla, range::kField) * kT;
+    s.frequency = r.quantity("frequency", Unit{1.0, "Hz"}, Range{-1e6, 1e6});
+    s.axis = r.direction("axis");
+    Vec3 start = r.direction("start");
     start -= start.dot(s.axis) * s.axis;
-    if (start.norm() < 1e-9) r.fail("start", "must not be parallel to axis");
+    if (start.norm() < 1e-9) r.fail("start", "must not be parallel to " + r.key_path("axis"));
     s.start = start.normalized();
   }
   return s;
 }
 
-mpm::Obstacle obstacle_of(const YamlMap& o, double unit) {
+mpm::Obstacle obstacle_of(const YamlMap& o, const Unit& unit) {
   o.allow_only({"name", "shape", "min", "max", "centre", "radius", "point", "normal", "from", "to", "boundary",
                 "friction"});
   mpm::Obstacle ob;
@@ -119,22 +114,22 @@ mpm::Obstacle obstacle_of(const YamlMap& o, double unit) {
   const std::string shape = o.text("shape");
   if (shape == "box") {
     ob.shape = mpm::Obstacle::Shape::kBox;
-    ob.a = o.vec3("min") * unit;
-    ob.b = o.vec3("max") * unit;
+    ob.a = o.vec3_quantity("min", unit, range::kCoordinate);
+    ob.b = o.vec3_quantity("max", unit, range::kCoordinate);
     if ((ob.b.array() <= ob.a.array()).any()) o.fail("max", "must exceed min on every axis");
   } else if (shape == "sphere") {
     ob.shape = mpm::Obstacle::Shape::kSphere;
-    ob.a = o.vec3("centre") * unit;
-    ob.radius = o.positive("radius") * unit;
+    ob.a = o.vec3_quantity("centre", unit, range::kCoordinate);
+    ob.radius = o.quantity("radius", unit, range::kDistance);
   } else if (shape == "plane") {
     ob.shape = mpm::Obstacle::Shape::kHalfSpace;
-    ob.a = o.vec3("point") * unit;
-    ob.b = o.nonzero_vec3("normal").normalized();
+    ob.a = o.vec3_quantity("point", unit, range::kCoordinate);
+    ob.b = o.direction("normal");
   } else if (shape == "cylinder") {
     ob.shape = mpm::Obstacle::Shape::kCylinder;
-    ob.a = o.vec3("from") * unit;
-    ob.b = o.vec3("to") * unit;
-    ob.radius = o.positive("radius") * unit;
+    ob.a = o.vec3_quantity("from", unit, range::kCoordinate);
+    ob.b = o.vec3_quantity("to", unit, range::kCoordinate);
+    ob.radius = o.quantity("radius", unit, range::kDistance);
     if ((ob.b - ob.a).norm() <= 0.0) o.fail("to", "must differ from from");
   } else {
     o.fail("shape", "must be box, sphere, plane or cylinder (got '" + shape + "')");
@@ -152,29 +147,33 @@ struct BodyParticles {
   std::string name;
 };
 
-BodyParticles body_of(const YamlMap& b, double unit, double pascals, const mpm::LatticeOptions& lattice, int dim,
+BodyParticles body_of(const YamlMap& b, const FileUnits& units, const mpm::LatticeOptions& lattice, int dim,
                       const std::filesystem::path& base_dir) {
   b.allow_only({"name", "shape", "min", "max", "from", "to", "radius", "file", "material", "magnetisation",
                 "sections"});
   BodyParticles out;
   out.name = b.has("name") ? b.text("name") : b.path();
-  out.material = material_of(b.map("material"), pascals);
+  out.material = material_of(b.map("material"), units.stress);
+  const Unit& unit = units.len;
   const std::string shape = b.text("shape");
   if (shape == "box") {
-    const Vec3 lo = b.vec3("min") * unit, hi = b.vec3("max") * unit;
+    const Vec3 lo = b.vec3_quantity("min", unit, range::kCoordinate);
+    const Vec3 hi = b.vec3_quantity("max", unit, range::kCoordinate);
     for (int a = 0; a < dim; ++a) {
       if (hi[a] <= lo[a]) b.fail("max", "must exceed min on every axis of the simulation");
     }
     out.x = mpm::sample_box(lo, hi, lattice, dim);
   } else if (shape == "cylinder") {
     if (dim == 2) b.fail("shape", "a cylinder needs dimension: 3");
-    out.x = mpm::sample_cylinder(b.vec3("from") * unit, b.vec3("to") * unit, b.positive("radius") * unit, lattice);
+    out.x = mpm::sample_cylinder(b.vec3_quantity("from", unit, range::kCoordinate),
+                                 b.vec3_quantity("to", unit, range::kCoordinate),
+                                 b.quantity("radius", unit, range::kDistance), lattice);
   } else if (shape == "mesh") {
     if (dim == 2) b.fail("shape", "a mesh needs dimension: 3");
     std::filesystem::path file = b.text("file");
     if (file.is_relative()) file = base_dir / file;
     anatomy::MeshImportOptions options;
-    options.scale = unit;
+    options.scale = unit.si;
     options.units = LengthUnit::kM;
     try {
       out.x = mpm::sample_mesh(anatomy::import_mesh(file, options).mesh, lattice, file.string());
@@ -198,7 +197,8 @@ BodyParticles body_of(const YamlMap& b, double unit, double pascals, const mpm::
       const YamlMap s(list[i], b.file(), b.key_path("sections[" + std::to_string(i) + "]"));
       const Vec3 br = remanence_of(s);
       const int a = axis_of(s);
-      const double from = s.number("from") * unit, to = s.number("to") * unit;
+      const double from = s.quantity("from", unit, range::kCoordinate);
+      const double to = s.quantity("to", unit, range::kCoordinate);
       if (to <= from) s.fail("to", "must exceed from");
       for (std::size_t p = 0; p < out.x.size(); ++p) {
         if (out.x[p][a] >= from && out.x[p][a] < to) out.br[p] = br;
@@ -235,23 +235,6 @@ const mpm::MpmModel<D>& model_of(const MpmScene& s) {
 
 }  // namespace
 
-Vec3 MpmFieldSchedule::at(double t) const {
-  if (rotating) {
-    const double angle = 2.0 * kPi * frequency * t;
-    return amplitude * (std::cos(angle) * start + std::sin(angle) * axis.cross(start));
-  }
-  if (keyframes.empty()) return Vec3::Zero();
-  if (t <= keyframes.front().first) return keyframes.front().second;
-  for (std::size_t i = 1; i < keyframes.size(); ++i) {
-    if (t < keyframes[i].first) {
-      const auto& [t0, b0] = keyframes[i - 1];
-      const auto& [t1, b1] = keyframes[i];
-      return b0 + (t - t0) / (t1 - t0) * (b1 - b0);
-    }
-  }
-  return keyframes.back().second;
-}
-
 bool is_mpm_scene(const std::filesystem::path& file) {
   const YAML::Node root = parse_yaml(read_text_file(file.string(), "scene file"), file.string());
   return root.IsMap() && static_cast<bool>(root["mpm"]);
@@ -265,33 +248,28 @@ MpmScene parse_mpm_scene(const std::string& text, const std::string& label, cons
   const YamlMap top(parse_yaml(text, label), label, "");
   top.allow_only({"units", "seed", "mpm", "bodies", "clamps", "field", "magnets", "obstacles", "probes"});
   const FileUnits units = file_units(top);
-  const double unit = units.metres;
+  const Unit& unit = units.len;
   MpmScene sc;
   sc.file = label;
   const YamlMap m = top.map("mpm");
   m.allow_only({"dimension", "cell", "particles_per_cell", "jitter", "courant", "time_step", "duration", "damping",
                 "gravity", "domain", "settle", "snapshots", "video"});
-  const double dim = m.has("dimension") ? m.number("dimension") : 3.0;
-  if (dim != 2.0 && dim != 3.0) m.fail("dimension", "must be 2 (plane strain, x–y) or 3");
+  const long dim = m.has("dimension") ? m.whole("dimension", 2, 3) : 3;
   sc.dimension = static_cast<int>(dim);
-  const double cell = m.positive("cell") * unit;
-  const double ppc = m.has("particles_per_cell") ? m.number("particles_per_cell") : kDefaultParticlesPerCell;
-  if (ppc != std::floor(ppc) || ppc < 1 || ppc > 8) m.fail("particles_per_cell", "must be a whole number from 1 to 8");
+  const double cell = m.quantity("cell", unit, range::kSectionSize);
+  const double ppc =
+      m.has("particles_per_cell") ? static_cast<double>(m.whole("particles_per_cell", 1, 8)) : kDefaultParticlesPerCell;
   mpm::LatticeOptions lattice;
   lattice.spacing = cell / ppc;
-  lattice.jitter = m.has("jitter") && m.node("jitter").as<bool>();
-  if (top.has("seed")) {
-    const double seed = top.number("seed");
-    if (seed != std::floor(seed) || seed < 0 || seed > 9.007e15) top.fail("seed", "must be a whole number >= 0");
-    lattice.seed = static_cast<std::uint64_t>(seed);
-  }
-  sc.duration = m.positive("duration");
-  const double damping = m.has("damping") ? m.number("damping") : 0.0;
-  if (damping < 0.0) m.fail("damping", "must be >= 0 (1/s)");
-  const Vec3 gravity = m.has("gravity") ? m.vec3("gravity") : Vec3::Zero();
+  lattice.jitter = m.has("jitter") && m.flag("jitter");
+  if (top.has("seed")) lattice.seed = static_cast<std::uint64_t>(top.whole("seed", 0, 9007199254740991L));
+  sc.duration = m.quantity("duration", kSeconds, range::kDuration);
+  const double damping = m.has("damping") ? m.quantity("damping", Unit{1.0, "1/s"}, Range{0.0, 1e6}) : 0.0;
+  const Vec3 gravity = m.has("gravity") ? m.vec3_quantity("gravity", kMetresPerS2, range::kGravity) : Vec3::Zero();
   const YamlMap domain = m.map("domain");
   domain.allow_only({"min", "max", "walls", "friction"});
-  const Vec3 dmin = domain.vec3("min") * unit, dmax = domain.vec3("max") * unit;
+  const Vec3 dmin = domain.vec3_quantity("min", unit, range::kCoordinate);
+  const Vec3 dmax = domain.vec3_quantity("max", unit, range::kCoordinate);
   double cells = 1.0;
   for (int a = 0; a < sc.dimension; ++a) {
     if (dmax[a] <= dmin[a]) domain.fail("max", "must exceed min on every axis of the simulation");
@@ -303,28 +281,33 @@ MpmScene parse_mpm_scene(const std::string& text, const std::string& label, cons
   if (m.has("settle")) {
     const YamlMap s = m.map("settle");
     s.allow_only({"window", "tolerance"});
-    sc.settle_window = s.positive("window");
-    sc.settle_tolerance = s.positive("tolerance") * unit;
+    sc.settle_window = s.quantity("window", kSeconds, range::kDuration);
+    sc.settle_tolerance = s.quantity("tolerance", unit, range::kDistance);
   }
-  if (m.has("snapshots")) sc.snapshot_interval = m.positive("snapshots");
+  if (m.has("snapshots")) sc.snapshot_interval = m.quantity("snapshots", kSeconds, range::kDuration);
   if (m.has("video")) {
     const YamlMap v = m.map("video");
     v.allow_only({"view", "up", "size", "fps", "speed"});
     MpmVideo video;
-    if (v.has("view")) video.view = v.nonzero_vec3("view").normalized();
-    if (v.has("up")) video.up = v.nonzero_vec3("up").normalized();
-    if (video.view.cross(video.up).norm() < 1e-6) v.fail("up", "must not be parallel to view");
+    if (v.has("view")) video.view = v.direction("view");
+    if (v.has("up")) video.up = v.direction("up");
+    if (video.view.cross(video.up).norm() < 1e-6) v.fail("up", "must not be parallel to " + v.key_path("view"));
     if (v.has("size")) {
       const YAML::Node size = v.node("size");
       if (!size.IsSequence() || size.size() != 2) v.fail("size", "must be [width, height] in pixels");
-      video.width = size[0].as<int>();
-      video.height = size[1].as<int>();
-      if (video.width < 16 || video.height < 16 || video.width > 4096 || video.height > 4096) {
-        v.fail("size", "must be 16 to 4096 pixels each way");
+      for (std::size_t i = 0; i < 2; ++i) {
+        double x = 0.0;
+        try {
+          x = size[i].as<double>();
+        } catch (const YAML::Exception&) {
+          v.fail("size", "must be [width, height] in pixels");
+        }
+        if (!(x == std::floor(x) && x >= 16 && x <= 4096)) v.fail("size", "must be whole 16 to 4096 pixels each way");
+        (i == 0 ? video.width : video.height) = static_cast<int>(x);
       }
     }
-    if (v.has("fps")) video.fps = v.positive("fps");
-    if (v.has("speed")) video.speed = v.positive("speed");
+    if (v.has("fps")) video.fps = v.quantity("fps", Unit{1.0, "frames/s"}, Range{0.0, 240.0, true});
+    if (v.has("speed")) video.speed = v.quantity("speed", kPlain, Range{0.0, 1e3, true});
     sc.video = video;
   }
 
@@ -335,7 +318,7 @@ MpmScene parse_mpm_scene(const std::string& text, const std::string& label, cons
   std::size_t total = 0;
   for (std::size_t i = 0; i < blist.size(); ++i) {
     const YamlMap b(blist[i], label, "bodies[" + std::to_string(i) + "]");
-    bodies.push_back(body_of(b, unit, units.pascals, lattice, sc.dimension, base_dir));
+    bodies.push_back(body_of(b, units, lattice, sc.dimension, base_dir));
     sc.body_names.push_back(bodies.back().name);
     total += bodies.back().x.size();
     if (static_cast<double>(total) > kMaxParticles) b.fail("shape", "gives more than 2e7 particles (make cell larger)");
@@ -351,6 +334,7 @@ MpmScene parse_mpm_scene(const std::string& text, const std::string& label, cons
   for (const BodyParticles& b : bodies) sc.positions.insert(sc.positions.end(), b.x.begin(), b.x.end());
   const double v0 = std::pow(lattice.spacing, sc.dimension);
 
+  const double courant = m.has("courant") ? m.quantity("courant", kPlain, Range{0.0, 1.0, true}) : kDefaultCourant;
   auto common = [&](auto& model) {
     using V = std::decay_t<decltype(model.gravity)>;
     constexpr int D = V::RowsAtCompileTime;
@@ -368,7 +352,8 @@ MpmScene parse_mpm_scene(const std::string& text, const std::string& label, cons
       for (std::size_t i = 0; i < list.size(); ++i) {
         const YamlMap c(list[i], label, "clamps[" + std::to_string(i) + "]");
         c.allow_only({"min", "max"});
-        const Vec3 lo = c.vec3("min") * unit, hi = c.vec3("max") * unit;
+        const Vec3 lo = c.vec3_quantity("min", unit, range::kCoordinate);
+        const Vec3 hi = c.vec3_quantity("max", unit, range::kCoordinate);
         if ((hi.head<D>().array() < lo.head<D>().array()).any()) c.fail("max", "must not be below min");
         model.clamps.push_back({lo.head<D>(), hi.head<D>()});
       }
@@ -380,14 +365,13 @@ MpmScene parse_mpm_scene(const std::string& text, const std::string& label, cons
         model.obstacles.push_back(obstacle_of(YamlMap(list[i], label, "obstacles[" + std::to_string(i) + "]"), unit));
       }
     }
-    sc.stable_step = model.stable_step(m.has("courant") ? m.positive("courant") : kDefaultCourant);
+    sc.stable_step = model.stable_step(courant);
   };
   if (sc.dimension == 2) common(sc.model2);
   else common(sc.model3);
-  if (m.has("courant") && m.positive("courant") > 1.0) m.fail("courant", "must be <= 1 (0.4 by default)");
   sc.time_step = sc.stable_step;
   if (m.has("time_step")) {
-    const double dt = m.positive("time_step");
+    const double dt = m.quantity("time_step", kSeconds, range::kDuration);
     if (dt > sc.stable_step) {
       m.fail("time_step", "is above the stable step " + std::to_string(sc.stable_step) +
                               " s (courant · cell / P-wave speed); leave it out to use that step");
@@ -397,6 +381,7 @@ MpmScene parse_mpm_scene(const std::string& text, const std::string& label, cons
 
   if (top.has("field")) sc.field = field_of(top.map("field"));
   if (top.has("magnets")) sc.magnets = parse_magnet_list(top, unit);
+  if (sc.duration / sc.time_step > 1e9) m.fail("duration", "would take more than a billion steps");
 
   if (top.has("probes")) {
     const YAML::Node list = top.node("probes");
@@ -406,13 +391,17 @@ MpmScene parse_mpm_scene(const std::string& text, const std::string& label, cons
       p.allow_only({"name", "at", "radius"});
       MpmProbe probe;
       probe.name = p.text("name");
-      probe.at = p.vec3("at") * unit;
+      probe.at = p.vec3_quantity("at", unit, range::kCoordinate);
       if (sc.dimension == 2) probe.at.z() = 0.0;
-      const double r = p.has("radius") ? p.positive("radius") * unit : cell;
+      const double r = p.has("radius") ? p.quantity("radius", unit, range::kDistance) : cell;
       for (std::size_t k = 0; k < sc.positions.size(); ++k) {
         if ((sc.positions[k] - probe.at).norm() <= r) probe.particles.push_back(static_cast<std::uint32_t>(k));
       }
-      if (probe.particles.empty()) p.fail("at", "has no particle within its radius (one cell by default)");
+      if (probe.particles.empty()) {
+        std::string names;
+        for (std::size_t b = 0; b < sc.body_names.size(); ++b) names += (b > 0 ? ", " : "") + std::string("bodies[") + std::to_string(b) + "]";
+        p.fail("at", "has no particle of " + names + " within its radius (one cell by default)");
+      }
       sc.probes.push_back(std::move(probe));
     }
   }
@@ -440,8 +429,8 @@ MpmResult run_dim(const MpmScene& sc, const std::function<void(double)>& progres
   mpm::MpmWorkspace<D> ws;
 
   mpm::AppliedField applied;
-  robot::FieldFunction magnets;
-  if (sc.magnets) magnets = robot::field_function(*sc.magnets, sc.magnets->rest_poses);
+  magnetics::FieldFunction magnets;
+  if (sc.magnets) magnets = magnetics::field_function(*sc.magnets, sc.magnets->rest_poses);
   Vec3 uniform_now = sc.field.at(0.0);  // the uniform part at the current step (read by applied.sample)
   if (magnets) {
     applied.kind = mpm::AppliedField::Kind::kGeneral;

@@ -8,6 +8,7 @@
 #include "magvine/core/units.hpp"
 #include "magvine/robot/rod.hpp"
 #include "magvine/robot/vine.hpp"
+#include "ranges.hpp"
 #include "yaml_reader.hpp"
 
 namespace magvine::scene {
@@ -17,19 +18,30 @@ struct FileUnits {
   LengthUnit length = LengthUnit::kMm;
   double metres = 1e-3;  ///< per file length unit
   double pascals = 1.0;  ///< per file pressure unit (Pa default; kPa, MPa)
+  Unit len{1e-3, "mm"};  ///< the length unit, for range checks and messages
+  Unit stress{1.0, "Pa"};  ///< the pressure unit (every stress: moduli, pressure, strength)
 };
+/// Units without a file unit: SI as it stands, named for messages.
+inline const Unit kSeconds{1.0, "s"};
+inline const Unit kTesla{1.0, "T"};
+inline const Unit kKgPerM3{1.0, "kg/m³"};
+inline const Unit kMetresPerS2{1.0, "m/s²"};
+inline const Unit kPlain{1.0, ""};
 /// `top`'s `units: {length, pressure}` (length required).
 FileUnits file_units(const YamlMap& top);
-/// Pascals per one pressure unit of `units:`.
-double pascals_per(const YamlMap& units);
+/// The pressure unit of `units:` (Pa when absent).
+Unit pressure_unit_of(const YamlMap& units);
 /// The base entry's frame: columns tangent (direction), normal, tangent × normal.
 Mat3 base_frame_of(const YamlMap& base);
 /// A `robot: {kind: vine, ...}` entry (free_space.hpp).
-robot::VineParameters parse_vine(const YamlMap& robot, double unit, double stress_unit);
+robot::VineParameters parse_vine(const YamlMap& robot, const FileUnits& units);
 /// A `robot: {kind: rod, ...}` entry (free_space.hpp), also allowing `extra_keys`; `contact_radius`, if given,
 /// receives the section's circumscribed radius [m].
-robot::RodModel parse_rod(const YamlMap& robot, double unit, double stress_unit,
+robot::RodModel parse_rod(const YamlMap& robot, const FileUnits& units,
                           std::initializer_list<std::string_view> extra_keys, double* contact_radius);
+/// The vine's own derived checks (robot::vine_rod: burst, walls thinner than the radius, ...) as the error of the
+/// robot key they concern.
+void check_vine(const YamlMap& robot, const robot::VineParameters& vine);
 /// The number at `key`, which must be ≥ 0 (else the one-line error naming it).
 double non_negative(const YamlMap& m, const std::string& key);
 

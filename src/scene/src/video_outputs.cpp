@@ -74,7 +74,7 @@ nlohmann::json write_videos(const ExperimentScene& scene, const ExperimentResult
   nlohmann::json entries = nlohmann::json::array();
   if (scene.videos.empty() || result.frames.empty()) return entries;
   const int threads = static_cast<int>(std::clamp(std::thread::hardware_concurrency(), 1u, 8u));
-  const render::AirwayRenderer renderer(scene.mesh, threads);
+  const render::AirwayRenderer renderer(scene.anatomy->mesh(), threads);
   create_output_directory(dir);
   const double last = result.frames.back().time;
 
@@ -85,7 +85,7 @@ nlohmann::json write_videos(const ExperimentScene& scene, const ExperimentResult
       // One camera for the whole video, framing the anatomy and the body wherever it went (a magnet 10 cm out
       // would shrink the airway to a few pixels; it enters the picture where it comes close), from the side away
       // from the magnets so that they stay behind the body.
-      const anatomy::Aabb anatomy_box = anatomy::bounding_box(scene.mesh);
+      const anatomy::Aabb anatomy_box = anatomy::bounding_box(scene.anatomy->mesh());
       anatomy::Aabb box = anatomy_box;
       Vec3 magnets_mean = Vec3::Zero();
       double count = 0.0;

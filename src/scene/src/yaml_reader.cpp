@@ -106,8 +106,61 @@ Vec3 YamlMap::vec3(const std::string& key) const {
 
 Vec3 YamlMap::nonzero_vec3(const std::string& key) const {
   const Vec3 v = vec3(key);
-  if (v.norm() == 0.0) fail(key, "must not be the zero vector");
+  if (v.cwiseAbs().maxCoeff() == 0.0) fail(key, "must not be the zero vector");
   return v;
+}
+
+std::string describe(const Range& r, const Unit& u) {
+  std::string out = printf_string("%c%.6g, %.6g%c", r.open_min ? '(' : '[', r.min / u.si, r.max / u.si,
+                                  r.open_max ? ')' : ']');
+  if (!u.name.empty()) out.append(" ").append(u.name);
+  return out;
+}
+
+double checked_quantity(double v, const Unit& u, const Range& range, const std::string& file, const YAML::Node& node,
+                        const std::string& path) {
+  const double si = v * u.si;
+  if (!std::isfinite(v) || !std::isfinite(si) || !range.contains(si)) {
+    throw InputError(file, line_of(node), path,
+                     "must be in " + describe(range, u) + " (got " + printf_string("%.6g", v) + ")");
+  }
+  return si;
+}
+
+Vec3 unit_vector(const Vec3& v) {
+  const double largest = v.cwiseAbs().maxCoeff();
+  return (v / largest).normalized();
+}
+
+double YamlMap::quantity(const std::string& key, const Unit& u, const Range& range) const {
+  return checked_quantity(number(key), u, range, m_file, node(key), key_path(key));
+}
+
+Vec3 YamlMap::vec3_quantity(const std::string& key, const Unit& u, const Range& range) const {
+  const Vec3 v = vec3(key);
+  const YAML::Node n = node(key);
+  Vec3 out;
+  for (int i = 0; i < 3; ++i) {
+    out[i] = checked_quantity(v[i], u, range, m_file, n[i], key_path(key) + "[" + std::to_string(i) + "]");
+  }
+  return out;
+}
+
+Vec3 YamlMap::direction(const std::string& key) const { return unit_vector(nonzero_vec3(key)); }
+
+long YamlMap::whole(const std::string& key, long min, long max) const {
+  const double v = number(key);
+  if (v != std::floor(v) || v < static_cast<double>(min) || v > static_cast<double>(max)) {
+    fail(key, "must be a whole number from " + std::to_string(min) + " to " + std::to_string(max) + " (got " +
+                  node(key).Scalar() + ")");
+  }
+  return static_cast<long>(v);
+}
+
+bool YamlMap::flag(const std::string& key) const {
+  const std::string t = text(key);
+  if (t != "true" && t != "false") fail(key, "must be true or false (got '" + t + "')");
+  return t == "true";
 }
 
 YamlMap YamlMap::map(const std::string& key) const { return YamlMap(node(key), m_file, key_path(key)); }

@@ -13,6 +13,26 @@
 
 namespace magvine::scene {
 
+/// A quantity's unit in the file: one file unit is `si` SI units, named `name` in messages ("mm", "kPa", "T", "").
+struct Unit {
+  double si = 1.0;
+  std::string name;
+};
+
+/// The plausible range of a quantity, SI (ranges.hpp lists them; docs/scenes.md: validation of inputs).
+struct Range {
+  double min = 0.0;
+  double max = 0.0;
+  bool open_min = false;  ///< min itself is excluded: (min, max]
+  bool open_max = false;  ///< max itself is excluded: [min, max)
+  bool contains(double v) const {
+    return (open_min ? v > min : v >= min) && (open_max ? v < max : v <= max);
+  }
+};
+
+/// "(0, 10000] mm": `r` in file units `u`.
+std::string describe(const Range& r, const Unit& u);
+
 class YamlMap {
  public:
   /// `node` must be a map (InputError otherwise). `path` is the key path used in messages ("magnets[0]").
@@ -30,6 +50,18 @@ class YamlMap {
   Vec3 vec3(const std::string& key) const;
   /// A 3-vector that must not be zero.
   Vec3 nonzero_vec3(const std::string& key) const;
+  /// The number at `key` (in file units `u`) as SI, within `range`: InputError naming the key and the range in file
+  /// units otherwise.
+  double quantity(const std::string& key, const Unit& u, const Range& range) const;
+  /// A 3-vector in file units `u` as SI, each component within `range`.
+  Vec3 vec3_quantity(const std::string& key, const Unit& u, const Range& range) const;
+  /// A direction: a 3-vector of finite numbers, not zero, of any magnitude, scaled to unit length without overflow
+  /// or underflow.
+  Vec3 direction(const std::string& key) const;
+  /// A whole number within [min, max].
+  long whole(const std::string& key, long min, long max) const;
+  /// `true` or `false`.
+  bool flag(const std::string& key) const;
   YamlMap map(const std::string& key) const;
   /// The node at `key`, which must exist.
   YAML::Node node(const std::string& key) const;
@@ -56,5 +88,12 @@ std::string read_text_file(const std::string& file, const std::string& what);
 YAML::Node parse_yaml(const std::string& text, const std::string& file);
 /// Line (1-based) of a node, 0 when unknown.
 int line_of(const YAML::Node& node);
+
+/// `v` [file units] times u.si, checked against `range`; InputError at `node` (path `path`, file `file`) otherwise.
+double checked_quantity(double v, const Unit& u, const Range& range, const std::string& file, const YAML::Node& node,
+                        const std::string& path);
+
+/// v / |v| for a finite non-zero v of any magnitude (scaled by its largest component first).
+Vec3 unit_vector(const Vec3& v);
 
 }  // namespace magvine::scene

@@ -23,7 +23,7 @@
 #include "magvine/core/eigen_types.hpp"
 #include "magvine/magnetics/field_model.hpp"
 #include "magvine/magnetics/field_sample.hpp"
-#include "magvine/robot/field_function.hpp"
+#include "magvine/magnetics/field_function.hpp"
 
 namespace magvine::robot {
 
@@ -43,7 +43,7 @@ struct ElasticaProblem {
   Eigen::Vector2d gravity = Eigen::Vector2d::Zero();  ///< g [m/s²]
   double remanence = 0.0;                             ///< Br [T]
   PlanarMagnetisation magnetisation = PlanarMagnetisation::kAxial;
-  FieldFunction field;                                  ///< empty: no field; only the x–y parts are used
+  magnetics::FieldFunction field;                                ///< empty: no field; only the x–y parts are used
   Eigen::Vector2d tip_force = Eigen::Vector2d::Zero();  ///< F_tip [N]
   double tip_moment = 0.0;                              ///< M_tip about +z [N·m]
 };

@@ -24,8 +24,8 @@
 /// Σθ the total turning along the body (the sum of the joint angles). Growth stalls when Y ≥ P (an event naming the
 /// three terms) and when the wall in front of the tip pushes back along the tangent by more than the growth force
 /// (P − Y)·πR² (a "blocked" event; the edge is not added). The tether caps the length. Burst: a pressure whose
-/// hoop stress PR/t exceeds the film's strength is an event and ends growth. Diametric extension: the radius is
-/// R(1 + PR/(tE)) (the hoop strain), used for the contacts and the inflated-beam law.
+/// hoop stress exceeds the film's strength (vine.hpp, bursts) is an event and ends growth. Diametric extension: the
+/// radius is R(1 + PR/(tE)) (vine.hpp, extended_radius), used for the contacts and the inflated-beam law.
 ///
 /// Squeezing (thesis 4.7.2, 5.6.2): where the lumen across the body (its narrowest width w through a node, by ray
 /// casts in the plane normal to the body, also R ahead and behind) is narrower than the diameter, the section
@@ -42,10 +42,10 @@
 /// holds, including a pinch, removed) or μ·F_n (pushed).
 
 #include <array>
-#include <array>
 #include <limits>
 #include <optional>
 #include <string>
+#include <string_view>
 #include <vector>
 
 #include "magvine/core/eigen_types.hpp"
@@ -135,8 +135,7 @@ struct GrowthOptions {
   /// growth stopped until the magnet was withdrawn). Growth feeds the tip with fluid flowing along the body; a
   /// Bingham fluid of yield stress τ_y flows through a tube of radius R only where the pressure gradient exceeds
   /// 2τ_y/R, so growing needs the extra pressure ΔP = (2/R)∫τ_y(|B(s)|/μ0) ds over the body (added to the yield Y).
-  /// τ_y(H) = min(√6·φ·μ0·M_s^½·H^{3/2}, 0.086·φ·μ0·M_s²) (Ginder & Davis 1994: chains of saturating iron spheres,
-  /// intermediate fields and saturation), φ the iron fraction, M_s = 1.7 MA/m. Off by default; only for a
+  /// τ_y(H) is magnetics::magnetorheological_yield_stress (Ginder & Davis 1994). Off by default; only for a
   /// magnetic-fluid fill.
   bool magnetorheology = false;
   /// Retraction by deflating and pulling: at or below this pressure [Pa] a tether pulled back below the everted
@@ -149,15 +148,35 @@ struct GrowthOptions {
   RodSolveOptions solver = growth_solver_options();
 };
 
-/// The yield stress τ_y [Pa] of a magnetorheological fluid of iron volume fraction φ in an applied field H [A/m]
-/// (GrowthOptions::magnetorheology: Ginder & Davis 1994, intermediate fields, capped at saturation).
-double magnetorheological_yield_stress(double field_strength, double volume_fraction);
+/// The growth law's terms at one step (growth_rate).
+struct GrowthRate {
+  double length_term = 0.0;   ///< c_L·L [Pa]
+  double turning_term = 0.0;  ///< c_θ·Σθ [Pa]
+  double extra_yield = 0.0;   ///< further yield, e.g. the magnetorheological ΔP [Pa]
+  double yield = 0.0;         ///< Y = Y0 + c_L·L + c_θ·Σθ + extra [Pa]
+  double speed = 0.0;         ///< L̇ = K·max(0, P − Y) [m/s]
+};
+
+/// The growth law (PHYSICS.md §3, Blumenschein et al. 2017's form): L̇ = K·max(0, P − Y), Y = Y0 + c_L·L + c_θ·Σθ
+/// (+ `extra_yield`), at pressure P [Pa], everted length L [m] and total turning Σθ [rad].
+GrowthRate growth_rate(const GrowthLaw& law, double pressure, double length, double turning, double extra_yield = 0.0);
+
+/// The force a growing tip drives forward, (P − Y)·πR² [N] (0 at or below the yield): what an obstacle in front of a
+/// stalled tip carries, and the work per length that the growth test weighs against the energy a new edge stores.
+double growth_force(double pressure, double yield, double radius);
+
+/// What happened (GrowthEvent): the yield stalled growth, growth resumed, the wall blocked the tip, a narrowing
+/// squeezed it out, the film burst, the tether retracted the tip (or was refused), the body's solve failed.
+enum class GrowthEventKind { kStall, kResume, kBlocked, kSqueeze, kBurst, kRetract, kSolver };
+
+/// "stall", "resume", "blocked", "squeeze", "burst", "retract", "solver": the only place this text is made.
+std::string_view growth_event_name(GrowthEventKind kind);
 
 /// Something that happened during growth.
 struct GrowthEvent {
   double time = 0.0;    ///< [s]
   double length = 0.0;  ///< everted length then [m]
-  std::string kind;     ///< "stall", "resume", "blocked", "squeeze", "burst", "retract", "solver"
+  GrowthEventKind kind = GrowthEventKind::kStall;
   std::string detail;   ///< human-readable cause with numbers (kPa, mm, N)
 };
 
@@ -202,12 +221,10 @@ struct GrowthControl {
   double tether_length = std::numeric_limits<double>::infinity();  ///< the length the tether has released [m]
 };
 
-/// The vine's radius at `pressure` with its diametric extension, R(1 + PR/(tE)) (the film's hoop strain) [m].
-double extended_radius(const VineParameters& v, double pressure);
-
-/// The pressure at which the hoop stress P·R(P)/t, with the diametric extension, reaches the wall strength S: the
-/// positive root of (R²/(t²E))·P² + (R/t)·P − S = 0 [Pa]. What VineGrowth's burst event tests.
-double burst_pressure(const VineParameters& v);
+/// Checks what VineGrowth needs of its vine, options and base frame (the constructor calls it; scene loaders call it
+/// first, so that a bad value is an input error before any run): VineParameterError naming the option (friction,
+/// edge_length, catheter, rod, base, …) otherwise. The vine's own parameters are vine_rod's to check.
+void check_growth(const VineParameters& vine, const GrowthOptions& options, const Mat3& base_frame);
 
 /// A vine growing through one anatomy. The world and the field are borrowed (the world must outlive this).
 class VineGrowth {
@@ -270,7 +287,7 @@ class VineGrowth {
   bool solve_with_wall(GrowthStepReport& report);
   /// solve_with_wall with the loads ramped up from the current state (the slower, surer path after a failure).
   bool solve_with_wall_ramped(GrowthStepReport& report);
-  void add_event(std::string kind, std::string detail);
+  void add_event(GrowthEventKind kind, std::string detail);
 
   VineParameters m_vine;
   GrowthOptions m_options;

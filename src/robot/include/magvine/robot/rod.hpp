@@ -10,8 +10,9 @@
 /// as a joint folds back (ψ → π). A vine replaces the bending part (about d2, d3) by the inflated-beam law
 /// (InflatedBending). The loads are potentials: a hard-magnetic edge of moment m_j = R_j m̂_j (m̂_j = M_j A h in the
 /// body frame) has U = −m_j·B(midpoint), so its torque is m × B and its force Gᵀm (PHYSICS.md §2); a soft-magnetic
-/// fill (InducedMagnetisation) has U = −V∫M·dB; gravity acts on lumped node masses; a tip force on x_N and a tip
-/// moment on the last edge.
+/// fill (InducedFill) has U = −V∫M·dB; gravity acts on lumped node masses; a tip force on x_N and a tip
+/// moment on the last edge. Each term's energy, gradient and Hessian live together (src/robot/src/terms/); the body
+/// frame is magnetics' convention (magnetisation.hpp: x = d1 along the body).
 /// Equilibrium minimises the total potential energy.
 ///
 /// Solver: Newton steps on the increments (δx_i, δφ_j) (frames updated by R ← exp([δφ]) R). The Hessian is block
@@ -29,12 +30,13 @@
 
 #include "magvine/core/eigen_types.hpp"
 #include "magvine/magnetics/field_sample.hpp"
-#include "magvine/robot/field_function.hpp"
+#include "magvine/magnetics/field_function.hpp"
+#include "magvine/magnetics/magnetisation.hpp"
 
 namespace magvine::robot {
 
-/// Field and gradient at a world point [T, T/m].
-using RodField = FieldFunction;
+/// Field and gradient at a world point [T, T/m] (magnetics::field_function makes one from magnets and their poses).
+using RodField = magnetics::FieldFunction;
 
 /// Bending of a pressurised thin-walled tube (PHYSICS.md §3, inflated_beam.hpp), per joint of bend angle ψ over ℓ
 /// with curvature κ = |ω_bend| = 2 tan(ψ/2)/ℓ:
@@ -49,16 +51,12 @@ struct InflatedBending {
   double flat_bending_stiffness = 0.0;   ///< EI_flat of the collapsed film [N·m²] (> 0 when P = 0)
 };
 
-/// A soft-magnetic fill (magnetic fluid) that magnetises along the local field (PHYSICS.md §2). With H = B/μ0 in
-/// the body frame and X = diag(χ_axial, χ_transverse, χ_transverse), the energy density is
-///   e = −μ0 (M_s²/χ_ref) ln cosh(√(χ_ref HᵀXH)/M_s),
-/// which is −½μ0 HᵀXH (linear, M = XH) in weak fields and saturates at |M| → M_s; M_s = ∞ gives the linear law.
-struct InducedMagnetisation {
+/// A soft-magnetic fill (magnetic fluid) that magnetises along the local field: its law (magnetics::
+/// InducedMagnetisation, a co-energy density in the body frame) over the fill's cross-section; edge j stores
+/// U = V e(R_jᵀB) with V = volume_per_length·h.
+struct InducedFill {
   double volume_per_length = 0.0;        ///< fill cross-section [m²]
-  double axial_susceptibility = 0.0;     ///< effective χ along d1 (demagnetisation included)
-  double transverse_susceptibility = 0.0;///< effective χ along d2, d3
-  double saturation = 0.0;               ///< M_s [A/m]; ∞: linear
-  double reference_susceptibility = 1.0; ///< χ_ref of the saturation form
+  magnetics::InducedMagnetisation law;   ///< susceptibilities (demagnetisation included) and saturation
 };
 
 /// Parameters of a rod, SI units, immutable.
@@ -83,7 +81,7 @@ struct RodModel {
   Vec3 tip_moment = Vec3::Zero();
   /// A vine: the inflated-beam law replaces the linear bending about d2 and d3 (EI_2 = EI_3 = the wall's EI).
   std::optional<InflatedBending> inflated;
-  std::optional<InducedMagnetisation> induced;  ///< a soft-magnetic fill
+  std::optional<InducedFill> induced;  ///< a soft-magnetic fill
   /// Rest strain of each joint (joint j between edge j − 1 and edge j, joint 0 at the clamp), the curvature–twist ω
   /// (= 2 tan(ψ/2)·axis/ℓ, body frame of the joint's first edge, ℓ = h/2 at the clamp, h elsewhere) at which it stores
   /// no energy: a pre-curved rod (a catheter with a shaped tip). The laws above act on ω − ω_rest. Empty: straight at rest; otherwise one entry per edge.
@@ -119,6 +117,11 @@ struct RodState {
   const Vec3& tip() const { return x.back(); }
   Vec3 tip_tangent() const { return frames.back().col(0); }
 };
+
+/// Checks a rod model (the solvers call it): stiffnesses, length and mass finite and positive, one magnetisation
+/// and rest strain per edge, an orthonormal base frame, a vine's and a fill's laws well formed. InputError naming the
+/// parameter otherwise.
+void check_rod_model(const RodModel& model);
 
 /// The straight, unloaded rod along the base tangent.
 RodState straight_rod(const RodModel& model);

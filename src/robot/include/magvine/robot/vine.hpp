@@ -1,20 +1,20 @@
 #pragma once
-/// The everting vine body in free space (PHYSICS.md §2–3): a thin-walled pressurised tube, optionally with a
-/// magnetic skin and a fill, turned into the discretised rod of rod.hpp with the inflated-beam bending law.
+/// The everting vine body (PHYSICS.md §2–3): a thin-walled pressurised tube, optionally with a magnetic skin and a
+/// fill, turned into the discretised rod of rod.hpp with the inflated-beam bending law. Free-space scenes and growth
+/// build it the same way (vine_rod).
 ///
-/// Geometry and stiffness (thin walls, radius R to the outer surface, layers of thickness t_i and modulus E_i):
+/// Geometry and stiffness (thin walls, radius R(P) to the outer surface, layers of thickness t_i and modulus E_i):
+///   diametric extension (thesis 5.8.2): the film's hoop strain ε = σ/E = PR/(t_wall E_wall), R(P) = R(1 + ε), R the
+///     radius as made (VineParameters::radius, unpressurised); everything below uses R(P) (the layers' thicknesses
+///     are kept: the film's thinning as it stretches is not modelled);
 ///   EI = πR³ Σ E_i t_i (Comer & Levy's wall rigidity, skin included),  GJ = 2πR³ Σ G_i t_i (G = E/3),
 ///   EI_flat = (πR/6) Σ E_i t_i³ (the collapsed tube: two flat sheets of width πR), what is left at P = 0.
-/// Skin magnetisation (thesis 4.4.2): only orthogonal magnetisation survives eversion; the moment per unit everted
-/// length is (Br/μ0)·2πR·w along a body-fixed transverse direction. Fill (thesis 5.4.2, 5.8.1; PHYSICS.md §2):
-///   bounded (default): χ_s = 3φ/(1 − φ) (Maxwell-Garnett, highly permeable spheres at volume fraction φ), shape
-///     demagnetisation of a long cylinder (N = 0 along the axis, ½ across): χ_eff = χ_s/(1 + Nχ_s), saturating at
-///     φ·M_s(iron), M_s = 1.7 MA/m;
-///   thesis: m = σχHV with χ = 4999, isotropic, no demagnetisation or saturation (overestimates by ~10³; kept to
-///     reproduce the thesis's figures).
-/// Pressure: the tip force PπR² is carried by the axial wall tension of the same size (reported, not applied:
-/// in free space they cancel; the growth issue applies it where the tip meets the anatomy). Burst: hoop stress
-/// PR/t_wall above the wall's strength is refused.
+/// Magnetisation from magnetics/magnetisation.hpp: the skin (SkinLaw, its tail inside the everted body: only
+/// orthogonal magnetisation survives eversion, (Br/μ0)·2πR·w per unit everted length, body-fixed); the fill
+/// (FluidBoundedLaw by default, or FluidThesisLaw) as an induced magnetisation over the fill's section π(R − t)².
+/// Pressure: the tip force PπR² is carried by the axial wall tension of the same size (reported, not applied: in
+/// free space they cancel; growth applies it where the tip meets the anatomy). Burst: a hoop stress P·R(P)/t_wall
+/// above the wall's strength (bursts, burst_pressure) is refused.
 
 #include <string>
 #include <utility>
@@ -35,16 +35,13 @@ struct WallLayer {
   double density = 0.0;    ///< [kg/m³]
 };
 
-inline constexpr double kIronSaturation = 1.7e6;      ///< M_s of carbonyl iron [A/m] (PHYSICS.md §2)
-inline constexpr double kIronDensity = 7870.0;        ///< [kg/m³]
-inline constexpr double kThesisIronSusceptibility = 4999.0;  ///< bulk iron χ of the thesis law
 /// Default wall strength [Pa]: the hoop stress at which the thesis's Ø3 mm, 38 µm TPE vine burst at 75 kPa
 /// (thesis 5.5: P·R/t = 75 kPa × 1.5 mm / 38 µm ≈ 2.96 MPa); override with the film's datasheet value.
 inline constexpr double kDefaultWallStrength = 2.9e6;
 
 struct VineParameters {
   double length = 0.0;    ///< everted length [m]
-  double radius = 0.0;    ///< outer radius R [m]
+  double radius = 0.0;    ///< outer radius R as made (unpressurised) [m]; pressurised: extended_radius
   double pressure = 0.0;  ///< P [Pa]
   WallLayer wall;         ///< the film (LDPE, TPE)
   double wall_strength = kDefaultWallStrength;  ///< tensile strength of the film [Pa]
@@ -67,9 +64,16 @@ VineParameters thesis_fluid_vine(double length, int edges = 0);
 
 /// Whether the vine carries a magnetised skin (a skin layer with a remanence).
 bool has_magnetic_skin(const VineParameters& v);
-/// Hoop stress at pressure P [Pa].
-double hoop_stress(const VineParameters& v);
-/// The axial wall tension PπR² [N] that balances the pressure on the tip.
+/// The radius at `pressure` with the diametric extension, R(1 + PR/(tE)) (the film's hoop strain, thesis 5.8.2) [m].
+double extended_radius(const VineParameters& v, double pressure);
+/// Hoop stress of the film at `pressure`, with the extension: σ = P·R(P)/t_wall [Pa].
+double hoop_stress(const VineParameters& v, double pressure);
+/// Whether `pressure` bursts the vine: its hoop stress exceeds the wall strength. The one burst criterion.
+bool bursts(const VineParameters& v, double pressure);
+/// The pressure at which the hoop stress reaches the wall strength S: the positive root of
+/// (R²/(t²E))·P² + (R/t)·P − S = 0 [Pa] (bursts(v, P) ⟺ P > burst_pressure(v)).
+double burst_pressure(const VineParameters& v);
+/// The axial wall tension P·πR(P)² [N] that balances the pressure on the tip (at v.pressure).
 double pressure_tip_force(const VineParameters& v);
 
 /// Where a vine's wall has wrinkled and whether it has creased, from its joint moments (joint_bending_moments).
@@ -90,9 +94,9 @@ class VineParameterError : public InputError {
   std::string m_parameter;
 };
 
-/// Builds the rod model of a vine (base frame, gravity, tip force left at their defaults). Throws
-/// VineParameterError for bad parameters (non-positive sizes, walls thicker than the radius, a skin direction along
-/// the tangent, a pressure above burst).
+/// Builds the rod model of a vine at v.pressure (base frame, gravity, tip force left at their defaults; the radius
+/// extended). Throws VineParameterError for bad parameters (non-positive or non-finite sizes, walls thicker than the
+/// radius, a skin direction along the tangent, a pressure above burst).
 RodModel vine_rod(const VineParameters& v, double stretch_shear_factor = kNearInextensible);
 
 }  // namespace magvine::robot

@@ -12,24 +12,13 @@
 #include <vector>
 
 #include "magvine/magnetics/field_model.hpp"
+#include "magvine/magnetics/magnet_motion.hpp"
 #include "magvine/mpm/mpm.hpp"
 
 namespace magvine::scene {
 
-/// A uniform applied field over time [T; tesla in files, like the magnets file]: keyframes linearly interpolated (held after the last), or a field of
-/// constant magnitude rotating about an axis.
-struct MpmFieldSchedule {
-  std::vector<std::pair<double, Vec3>> keyframes;  ///< (t [s], B [T]), t increasing; empty: no uniform field
-  bool rotating = false;
-  double amplitude = 0.0;        ///< |B| [T]
-  double frequency = 0.0;        ///< [Hz]
-  Vec3 axis = Vec3::UnitX();     ///< rotation axis (unit)
-  Vec3 start = Vec3::UnitZ();    ///< direction at t = 0 (unit, ⟂ axis)
-
-  bool any() const { return rotating || !keyframes.empty(); }
-  /// B(t) [T].
-  Vec3 at(double t) const;
-};
+/// The applied uniform field of an MPM scene (magnetics/magnet_motion.hpp: keyframed or rotating).
+using MpmFieldSchedule = magnetics::UniformFieldSchedule;
 
 /// A point followed through the run: the mean of the particles that start within `radius` of it.
 struct MpmProbe {

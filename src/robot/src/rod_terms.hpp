@@ -1,0 +1,39 @@
+#pragma once
+// The rod's energy as a list of terms (rod.hpp): each term's energy, gradient and Hessian live together in one file
+// under terms/, and the solver's energy and Hessian are loops over this list. A new term is one new file and one
+// entry here. The order is the summation order (kept fixed: it decides the last bits of the energy).
+
+#include <tuple>
+
+#include "rod_system.hpp"
+#include "terms/anchors.hpp"
+#include "terms/bend_twist.hpp"
+#include "terms/gravity.hpp"
+#include "terms/inertia.hpp"
+#include "terms/magnetic.hpp"
+#include "terms/node_forces.hpp"
+#include "terms/stretch_shear.hpp"
+#include "terms/tip_moment.hpp"
+#include "terms/wall_contact.hpp"
+
+namespace magvine::robot::detail {
+
+using RodTerms = std::tuple<StretchShear, BendTwist, Magnetic, InertiaTerm, WallContactTerm, AnchorTerm, NodeForceTerm,
+                            GravityTerm, TipMomentTerm>;
+
+/// The energy at load factor λ (c.load); adds its gradient to `sys` when given. Infinite when a joint has folded
+/// back on itself (the gradient is then incomplete).
+inline double rod_terms_energy(const TermContext& c, System* sys) {
+  double energy = 0.0;
+  std::apply([&](auto... term) { (decltype(term)::add_energy(c, energy, sys), ...); }, RodTerms{});
+  return energy;
+}
+
+/// The analytic Hessian of rod_terms_energy into sys.diag and sys.sub (zeroed first).
+inline void rod_terms_hessian(const TermContext& c, System& sys) {
+  for (Mat6& b : sys.diag) b.setZero();
+  for (Mat6& b : sys.sub) b.setZero();
+  std::apply([&](auto... term) { (decltype(term)::add_hessian(c, sys), ...); }, RodTerms{});
+}
+
+}  // namespace magvine::robot::detail

@@ -1,0 +1,112 @@
+#pragma once
+// The magnetic energy of each edge (rod.hpp, PHYSICS.md §2), energy, gradient and Hessian together, with the field
+// sampled once per edge midpoint c: a hard moment m_j = R_j m̂_j h (m̂_j the moment per length, body frame) has
+// U = −m·B(c); a soft-magnetic fill U = V e(R_jᵀB(c)) (magnetics::InducedMagnetisation, V = A_fill·h). Their
+// gradient is the wrench of the effective moment m = m_hard + V R M (magnetics::magnetic_wrench): −τ on the frame's
+// rotation, −½F on each end node.
+
+#include "../rod_system.hpp"
+#include "magvine/magnetics/magnetisation.hpp"
+
+namespace magvine::robot::detail {
+
+struct Magnetic {
+  static bool active(const TermContext& c) {
+    const RodModel& m = c.model;
+    return c.field && (!m.moment_per_length.empty() || fill_volume(c) > 0.0);
+  }
+  /// V = λ A_fill h of each edge's fill [m³].
+  static double fill_volume(const TermContext& c) {
+    return c.model.induced ? c.load * c.model.induced->volume_per_length * c.h() : 0.0;
+  }
+
+  static void add_energy(const TermContext& c, double& energy, System* sys) {
+    if (!active(c)) return;
+    const RodModel& m = c.model;
+    const bool hard = !m.moment_per_length.empty();
+    const double volume = fill_volume(c);
+    const double h = c.h();
+    for (int j = 0; j < c.edges(); ++j) {
+      const auto ju = static_cast<std::size_t>(j);
+      const Mat3& r = c.state.frames[ju];
+      const Vec3 mj = hard ? Vec3(c.load * h * (r * m.moment_per_length[ju])) : Vec3::Zero();
+      if (mj.isZero() && volume == 0.0) continue;
+      const magnetics::FieldSample f =
+          c.samples != nullptr ? c.samples->at(c.field, c.state, ju) : c.field(0.5 * (c.state.x[ju] + c.state.x[ju + 1]));
+      energy -= mj.dot(f.b);
+      Vec3 moment = mj;  // the effective moment m = −dU/dB (world)
+      if (volume > 0.0) {
+        Vec3 de_db;
+        energy += volume * m.induced->law.energy_density(r.transpose() * f.b, de_db);
+        moment -= volume * (r * de_db);
+      }
+      if (sys == nullptr) continue;
+      const magnetics::Wrench wrench = magnetics::magnetic_wrench(moment, f);
+      const Vec3 half_gradient = -0.5 * wrench.force;
+      sys->add_gradient(position_slot(j), half_gradient);
+      sys->add_gradient(position_slot(j + 1), half_gradient);
+      sys->add_gradient(rotation_slot(j), -wrench.torque);
+    }
+  }
+
+  /// With w = dU/dB (world) = −m + R p (p = V de/db, P = V d²e/db², body frame), c the midpoint and G = ∂B/∂c:
+  ///   δφδφ: sym(w Bᵀ) − w·B I + [B]ᵀRPRᵀ[B];  δφδc: ([w] − [B]RPRᵀ)G;  δcδc: GᵀRPRᵀG + Σ_i w_i ∇²B_i,
+  /// the last from the field's closed-form curvature where it has one (dipoles), else from forward differences of G
+  /// (skipped when the field has no gradient at any midpoint: uniform).
+  static void add_hessian(const TermContext& c, System& sys) {
+    if (!active(c)) return;
+    const RodModel& m = c.model;
+    const bool hard = !m.moment_per_length.empty();
+    const double volume = fill_volume(c);
+    const double h = c.h();
+    const auto n = static_cast<std::size_t>(c.edges());
+    FieldSamples local;
+    FieldSamples& samples = c.samples != nullptr ? *c.samples : local;
+    if (c.samples == nullptr) local.reset(n);
+    bool uniform = true;
+    for (std::size_t j = 0; j < n; ++j) {
+      const bool flat = samples.at(c.field, c.state, j).g.isZero(0.0);  // sampled at every edge, even past the first gradient
+      uniform = uniform && flat;
+    }
+    // Without a closed-form curvature, forward differences of G: truncation ~step/d relative (d the distance to the
+    // magnet, ≫ L/1e6 here) and round-off ~ε·d/step, both far below what Newton's convergence notices; half the
+    // field samples of central ones. (For a dipole the closed form took a tenth off a cold 100-node solve.)
+    const double step = 1e-6 * m.length;
+    for (std::size_t ju = 0; ju < n; ++ju) {
+      const int j = static_cast<int>(ju);
+      const Mat3& r = c.state.frames[ju];
+      const magnetics::FieldSample& f = samples.value[ju];
+      Vec3 w = hard ? Vec3(-c.load * h * (r * m.moment_per_length[ju])) : Vec3::Zero();
+      Mat3 p_world = Mat3::Zero();  // R P Rᵀ
+      if (volume > 0.0) {
+        Vec3 de_db;
+        Mat3 d2e;
+        m.induced->law.energy_density(r.transpose() * f.b, de_db, &d2e);
+        w += volume * (r * de_db);
+        p_world = volume * r * d2e * r.transpose();
+      }
+      if (w.isZero(0.0) && volume == 0.0) continue;
+      Mat3 h_phiphi = cross_squared(w, f.b);
+      Mat3 h_phic = skew(w) * f.g;
+      Mat3 h_cc = Mat3::Zero();
+      if (volume > 0.0) {  // the induced moment's terms (a hard moment has P = 0)
+        const Mat3 bx = skew(f.b);
+        h_phiphi += bx.transpose() * p_world * bx;
+        h_phic -= bx * p_world * f.g;
+        h_cc = f.g.transpose() * p_world * f.g;
+      }
+      if (!uniform) {
+        const Vec3 mid = 0.5 * (c.state.x[ju] + c.state.x[ju + 1]);
+        if (c.field.curvature()) {
+          h_cc += c.field.curvature()(mid, w);
+        } else {
+          for (int k = 0; k < 3; ++k) h_cc.col(k) += (c.field(mid + step * Vec3::Unit(k)).g - f.g).transpose() * w / step;
+          h_cc = 0.5 * (h_cc + h_cc.transpose()).eval();
+        }
+      }
+      add_edge_element(sys, j, EdgeVector::midpoint, h_cc, h_phic.transpose(), h_phiphi);
+    }
+  }
+};
+
+}  // namespace magvine::robot::detail

@@ -1,0 +1,85 @@
+#pragma once
+/// The automatic navigator of an experiment (control.navigator; docs/experiments.md): one controller with its own
+/// state that places its magnet from the tip and the planned path, and regulates the pressure and the tether for a
+/// held tip (boost), at junctions (deflation) and out of wrong turns (recovery).
+
+#include <optional>
+#include <vector>
+
+#include "magvine/core/eigen_types.hpp"
+#include "magvine/robot/growth.hpp"
+#include "magvine/scene/events.hpp"
+#include "magvine/scene/experiment_scene.hpp"
+
+namespace magvine::scene {
+
+/// The navigator's pose for its magnet: `path` is the planned centreline as one polyline; the aim point lies `lead`
+/// along it past the tip's nearest point on it (so a short branch does not hide the turn after it); the magnet sits
+/// `distance` from the tip on the line towards the aim (less the `lateral` share of its component along the tangent)
+/// plus `offset`, its axis along that line for a fill, or set by `skin_mode` for a magnetic skin whose moment is
+/// `skin` in the body frame. `line` returns that unit line.
+MagnetKeyframe navigate(const Navigator& nav, const std::vector<Vec3>& path, const Vec3& tip, const Mat3& tip_frame,
+                        const std::optional<Vec3>& skin, double time, const Vec3& offset, Vec3& line);
+
+/// The planned path to branch `branch` as one polyline: the centrelines of the branches from the root joined [m].
+std::vector<Vec3> planned_path(const anatomy::AirwayGraph& graph, int branch);
+
+/// Arc length [m] along a polyline of its nearest point to x.
+double arc_length_of_nearest(const std::vector<Vec3>& path, const Vec3& x);
+
+/// The navigator of one run. Each step: `place` (before the magnets' poses are updated), then `regulate` (after the
+/// schedules set the control, before the growth advances).
+class NavigatorController {
+ public:
+  /// `scene` must have a navigator (and so an airway graph and magnets); borrowed, it must outlive the controller.
+  /// Places the magnet from the straight body's tip.
+  explicit NavigatorController(const ExperimentScene& scene);
+
+  /// Re-places the magnet at time t when an interval has passed, from the tip of the last equilibrium; moves it out
+  /// along its line while it overlaps the anatomy (a "workspace" event, once, when even max_distance overlaps).
+  void place(double t, const Vec3& tip, const Mat3& tip_frame, double length, std::vector<RunEvent>& events);
+
+  /// Regulates `control` at time t: `length` the everted length, `branch` the last sample's branch (−1: none yet),
+  /// `reached` whether the target has been reached. Boost for a held tip, deflation at a junction on the path,
+  /// recovery from a wrong turn or a long hold ("recover" events).
+  void regulate(double t, double length, int branch, bool reached, const Vec3& tip, robot::GrowthControl& control,
+                std::vector<RunEvent>& events);
+
+  /// The magnet it steers (index in magnets:) and its current pose.
+  int magnet() const { return m_nav.magnet; }
+  const MagnetKeyframe& pose() const { return m_pose; }
+  /// Times it backed the vine out (Navigator::Recovery).
+  int recoveries() const { return m_recovery_used; }
+
+ private:
+  bool keep_clear(const Vec3& tip);
+  void recover(double t, double length, int branch, robot::GrowthControl& control, std::vector<RunEvent>& events);
+
+  const ExperimentScene& m_scene;
+  const Navigator& m_nav;
+  std::vector<int> m_plan;           ///< branches from the root to the target
+  std::vector<Vec3> m_path;          ///< their centrelines joined
+  std::optional<Vec3> m_skin;        ///< a magnetic skin's moment direction, body frame (skin modes)
+  MagnetKeyframe m_pose;             ///< the magnet's current pose
+  Vec3 m_line = Vec3::UnitX();       ///< the line from the tip it was placed on
+  double m_next_placement = 0.0;     ///< [s]
+  bool m_workspace_warned = false;
+  // Held tip (boost and recovery): the everted length and when it last changed.
+  double m_grown_at = 0.0;
+  double m_grown_length = -1.0;
+  double m_boost_until = -1.0;       ///< boosting until the everted length reaches this [m] (< 0: not boosting)
+  std::vector<int> m_deflated_at;    ///< branches whose end junction the vine was deflated for
+  double m_deflate_until = -1.0;     ///< [s]
+  // Recovery (Navigator::Recovery).
+  double m_shortest = 0.0;           ///< the vine's starting length: no retraction goes below it [m]
+  double m_on_path = 0.0;            ///< the everted length at the last sample on the path [m]
+  bool m_retracting = false;
+  double m_from = 0.0;               ///< the retraction: from this length [m]
+  double m_to = 0.0;                 ///< to this length [m]
+  double m_since = 0.0;              ///< since this time [s]
+  double m_last = 0.0;               ///< the everted length at the last step of the retraction [m]
+  double m_last_tether = 0.0;        ///< and the tether it set then [m]
+  int m_recovery_used = 0;
+};
+
+}  // namespace magvine::scene

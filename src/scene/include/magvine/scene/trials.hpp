@@ -1,0 +1,54 @@
+#pragma once
+/// Trial batches (`magvine trials`): seeded perturbed repeats of an experiment towards each target, in parallel, with
+/// a summary in the form of thesis table 5.2 (docs/experiments.md: trials).
+
+#include <cstdint>
+#include <filesystem>
+#include <functional>
+#include <string>
+#include <vector>
+
+#include "magvine/scene/experiment.hpp"
+
+namespace magvine::scene {
+
+/// The scene with its navigator aimed at branch `target` (its end the target point). InputError when the scene has no
+/// navigator or no such branch.
+ExperimentScene with_target(const ExperimentScene& scene, const std::string& target);
+
+/// The scene perturbed for one trial (TrialPerturbation), deterministic in `seed`.
+ExperimentScene perturbed(const ExperimentScene& scene, std::uint64_t seed);
+
+struct TrialOutcome {
+  std::string target;
+  int repeat = 0;
+  std::uint64_t seed = 0;
+  bool success = false;
+  bool burst = false;            ///< the perturbed pressure burst the vine
+  double time_to_target = -1.0;  ///< [s]
+  double everted_length = 0.0;   ///< [m]
+  double final_error = 0.0;      ///< tip to target [m]
+  double max_normal = 0.0;       ///< [N], over the steps whose contacts settled
+  UnsettledSteps unsettled;      ///< the steps left out of max_normal
+  int retractions = 0;           ///< the navigator's (ExperimentResult::recoveries)
+  double runtime_s = 0.0;
+  /// Why a failed trial failed, one line: the last event that stopped the tip (with its numbers), the branch it was
+  /// in, how far from the target it ended and after how many retractions; empty on success.
+  std::string reason;
+};
+
+/// Runs `repeats` perturbed trials towards each target (branch names; empty: the scene's own target) on `jobs`
+/// threads; outcomes in (target, repeat) order whatever the threads. `progress` gets (done, total). With `runs_dir`,
+/// each trial's own outputs (write_experiment_outputs, without videos) go to runs_dir/<target>_r<repeat>: its events,
+/// trajectories and metrics, to see why a trial failed.
+std::vector<TrialOutcome> run_trials(const ExperimentScene& scene, const std::vector<std::string>& targets,
+                                     int repeats, int jobs, const std::function<void(int, int)>& progress = nullptr,
+                                     const std::filesystem::path& runs_dir = {});
+
+/// trials.csv (every trial, with the reason of each failure) and summary.csv + summary.md in the form of thesis
+/// table 5.2 (target, path length = the everted length at the target [mm], success rate, mean time to target and its
+/// SD [s], over the successes; summary.md lists the failures with their reasons below the table), atomically into
+/// `dir`.
+void write_trial_outputs(const std::vector<TrialOutcome>& outcomes, const std::filesystem::path& dir);
+
+}  // namespace magvine::scene

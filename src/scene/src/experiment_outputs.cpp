@@ -1,0 +1,219 @@
+#include <nlohmann/json.hpp>
+
+#include <algorithm>
+#include <cmath>
+#include <optional>
+#include <sstream>
+
+#include "experiment_internal.hpp"
+#include "magvine/anatomy/airway_graph.hpp"
+#include "magvine/config.hpp"
+#include "magvine/core/atomic_file.hpp"
+#include "magvine/scene/experiment.hpp"
+#include "magvine/scene/navigator.hpp"
+#if MAGVINE_WITH_RENDER
+#include "video_outputs.hpp"
+#endif
+
+namespace magvine::scene {
+namespace detail {
+
+RunFigures figures_of(const ExperimentScene& scene, const ExperimentResult& result) {
+  RunFigures f;
+  f.unsettled = unsettled_steps(result);
+  const Vec3 tip = result.final_state.tip();
+  f.everted_length = result.samples.empty() ? scene.vine.length : result.samples.back().length;
+  if (scene.target) f.final_error = (tip - *scene.target).norm();
+  Vec3 last = result.samples.empty() ? tip : result.samples.front().tip;
+  int last_branch = -1;
+  for (const ExperimentSample& s : result.samples) {
+    f.path += (s.tip - last).norm();
+    last = s.tip;
+    if (!s.unsettled) {
+      f.max_normal = std::max(f.max_normal, s.max_normal);
+      f.max_shear = std::max(f.max_shear, s.total_shear);
+    }
+    f.mean_normal += s.total_normal / static_cast<double>(result.samples.size());
+    if (scene.anatomy->graph && s.branch >= 0 && s.branch != last_branch) {
+      f.branches.push_back(scene.anatomy->graph->branches[static_cast<std::size_t>(s.branch)].name);
+      f.generation = std::max(f.generation, scene.anatomy->graph->branches[static_cast<std::size_t>(s.branch)].generation);
+      last_branch = s.branch;
+    }
+  }
+  if (scene.anatomy->graph) {
+    f.centreline = anatomy::nearest_centreline_point(*scene.anatomy->graph, tip).distance;
+    double sum = 0.0;
+    for (const ExperimentSample& s : result.samples) sum += anatomy::nearest_centreline_point(*scene.anatomy->graph, s.tip).distance;
+    f.mean_centreline = result.samples.empty() ? *f.centreline : sum / static_cast<double>(result.samples.size());
+  }
+  if (scene.navigator && scene.target) {
+    // Arc length along the planned path of the tip's and the target's nearest points on it.
+    const std::vector<Vec3> path = planned_path(*scene.anatomy->graph, scene.navigator->target_branch);
+    const double goal = arc_length_of_nearest(path, *scene.target);
+    f.progress = goal > 0.0 ? std::clamp(arc_length_of_nearest(path, tip) / goal, 0.0, 1.0) : 1.0;
+  }
+  return f;
+}
+
+/// Why a run did not reach its target, in one line: the last event that stopped the tip (stall, blocked, squeeze,
+/// burst, solver), where the tip was, or that the time ran out while it was still moving.
+std::string failure_reason(const ExperimentResult& result, const RunFigures& figures) {
+  std::ostringstream why;
+  why.precision(3);
+  // The last event that stopped the tip since the navigator last backed it out of a wrong turn (which dealt with
+  // the stops before it).
+  const RunEvent* last = nullptr;
+  for (const RunEvent& e : result.events) {
+    if (e.kind == EventKind::kRecover) {
+      last = nullptr;
+    } else if (e.kind != EventKind::kResume && e.kind != EventKind::kRetract) {
+      last = &e;
+    }
+  }
+  const std::string branch =
+      figures.branches.empty() ? std::string() : ", last in branch " + figures.branches.back();
+  if (last != nullptr) {
+    why << event_name(last->kind) << " at " << last->time << " s, " << 1e3 * last->length << " mm everted: " << last->detail;
+  } else {
+    why << "the time ran out";
+  }
+  why << branch;
+  if (figures.final_error) why << ", " << 1e3 * *figures.final_error << " mm from the target";
+  if (result.recoveries > 0) {
+    why << ", after " << result.recoveries << (result.recoveries == 1 ? " retraction" : " retractions")
+        << " by the navigator";
+  }
+  return why.str();
+}
+
+}  // namespace detail
+
+void write_experiment_outputs(const ExperimentScene& scene, const ExperimentResult& result,
+                              const std::filesystem::path& dir) {
+  const auto vec = [](const Vec3& v) { return nlohmann::json::array({v.x(), v.y(), v.z()}); };
+  nlohmann::json j;
+  const Vec3 tip = result.final_state.tip();
+  j["scene"] = scene.file;
+  j["anatomy"] = scene.anatomy->label;
+  j["seed"] = scene.seed;
+  j["success"] = result.success;
+  j["time_to_target_s"] = result.time_to_target >= 0.0 ? nlohmann::json(result.time_to_target) : nlohmann::json();
+  const detail::RunFigures f = detail::figures_of(scene, result);
+  j["final_tip_error_m"] = f.final_error ? nlohmann::json(*f.final_error) : nlohmann::json();
+  j["tip_position_m"] = vec(tip);
+  j["everted_length_m"] = f.everted_length;
+  j["tip_path_length_m"] = f.path;
+  j["branches_reached"] = f.branches;
+  const auto optional = [](const std::optional<double>& v) { return v ? nlohmann::json(*v) : nlohmann::json(); };
+  j["generation_reached"] = f.generation >= 0 ? nlohmann::json(f.generation) : nlohmann::json();
+  j["tip_to_centreline_m"] = optional(f.centreline);
+  j["mean_tip_to_centreline_m"] = optional(f.mean_centreline);
+  j["path_progress"] = optional(f.progress);
+  j["max_wall_normal_N"] = f.max_normal;
+  j["mean_wall_normal_N"] = f.mean_normal;
+  j["max_wall_shear_N"] = f.max_shear;
+  j["unsettled_steps"] = f.unsettled.count;
+  j["max_wall_normal_unsettled_N"] = f.unsettled.max_normal;
+  int stalls = 0;
+  int blocked = 0;
+  nlohmann::json events = nlohmann::json::array();
+  for (const RunEvent& e : result.events) {
+    stalls += e.kind == EventKind::kStall || e.kind == EventKind::kSqueeze;
+    blocked += e.kind == EventKind::kBlocked;
+    events.push_back(
+        {{"time_s", e.time}, {"length_m", e.length}, {"kind", std::string(event_name(e.kind))}, {"detail", e.detail}});
+  }
+  j["stalls"] = stalls;
+  j["blocked"] = blocked;
+  j["retractions"] = result.recoveries;  // the navigator's, out of wrong turns (control.navigator.recover)
+  j["events"] = static_cast<int>(result.events.size());
+  double travel = 0.0;
+  std::vector<std::optional<Vec3>> previous(scene.magnets ? scene.magnets->size() : 0);
+  for (const MagnetSample& m : result.magnet_samples) {
+    auto& p = previous[static_cast<std::size_t>(m.magnet)];
+    if (p) travel += (m.position - *p).norm();
+    p = m.position;
+  }
+  j["magnet_travel_m"] = travel;
+  const double simulated = result.samples.empty() ? 0.0 : result.samples.back().time;
+  j["simulated_s"] = simulated;
+  j["runtime_s"] = result.runtime_s;
+  j["real_time_factor"] = result.runtime_s > 0.0 ? nlohmann::json(simulated / result.runtime_s) : nlohmann::json();
+  j["converged"] = result.converged;
+  j["failed_steps"] = result.failed_steps;
+  j["failure"] = result.failure;
+
+  std::ostringstream tips;
+  tips.precision(10);
+  tips << "t_s,x_m,y_m,z_m,length_m,pressure_Pa,max_normal_N,mean_normal_N,total_normal_N,total_shear_N,branch,"
+          "unsettled\n";
+  for (const ExperimentSample& s : result.samples) {
+    tips << s.time << ',' << s.tip.x() << ',' << s.tip.y() << ',' << s.tip.z() << ',' << s.length << ','
+         << s.pressure << ',' << s.max_normal << ',' << s.mean_normal << ',' << s.total_normal << ',' << s.total_shear
+         << ','
+         << (s.branch >= 0 ? scene.anatomy->graph->branches[static_cast<std::size_t>(s.branch)].name : std::string()) << ','
+         << (s.unsettled ? 1 : 0) << '\n';
+  }
+  std::ostringstream shape;
+  shape.precision(10);
+  // Per node: the position and the wall's forces on the tissue there (0 where a run's forces have fewer nodes).
+  const auto node_row = [](std::ostream& o, const Vec3& x, const std::vector<double>& normal,
+                           const std::vector<double>& shear, std::size_t i) {
+    o << x.x() << ',' << x.y() << ',' << x.z() << ',' << (i < normal.size() ? normal[i] : 0.0) << ','
+      << (i < shear.size() ? shear[i] : 0.0) << '\n';
+  };
+  shape << "x_m,y_m,z_m,normal_N,shear_N\n";
+  for (std::size_t i = 0; i < result.final_state.x.size(); ++i) {
+    node_row(shape, result.final_state.x[i], result.final_forces.normal, result.final_forces.shear, i);
+  }
+
+  create_output_directory(dir);
+  write_file_atomically(dir / "tip_trajectory.csv", tips.str());
+  write_file_atomically(dir / "shape.csv", shape.str());
+  if (scene.shape_interval > 0.0) {
+    std::ostringstream shapes;
+    shapes.precision(10);
+    shapes << "t_s,node,x_m,y_m,z_m,normal_N,shear_N\n";
+    for (const ShapeSample& sample : result.shapes) {
+      for (std::size_t i = 0; i < sample.nodes.size(); ++i) {
+        shapes << sample.time << ',' << i << ',';
+        node_row(shapes, sample.nodes[i], sample.normal, sample.shear, i);
+      }
+    }
+    write_file_atomically(dir / "shapes.csv", shapes.str());
+  }
+  write_file_atomically(dir / "events.json", events.dump(2) + "\n");
+  if (scene.anatomy->graph) anatomy::write_graph(dir / "graph.json", *scene.anatomy->graph);
+  if (scene.magnets) {
+    std::ostringstream mags;
+    mags.precision(10);
+    mags << "t_s,magnet,x_m,y_m,z_m,axis_x,axis_y,axis_z\n";
+    for (const MagnetSample& m : result.magnet_samples) {
+      mags << m.time << ',' << m.magnet << ',' << m.position.x() << ',' << m.position.y() << ',' << m.position.z()
+           << ',' << m.axis.x() << ',' << m.axis.y() << ',' << m.axis.z() << '\n';
+    }
+    write_file_atomically(dir / "magnet_trajectory.csv", mags.str());
+  }
+#if MAGVINE_WITH_RENDER
+  if (!scene.videos.empty()) {
+    VideoInputs in;
+    if (scene.navigator) {
+      in.planned_path = planned_path(*scene.anatomy->graph, scene.navigator->target_branch);
+    }
+    for (std::size_t i = 0; scene.magnets && i < scene.magnets->size(); ++i) {
+      const std::optional<detail::MagnetBody> body = detail::magnet_body(*scene.magnets, i);
+      in.magnet_diameters.push_back(body ? 2.0 * body->radius : 0.0);
+      in.magnet_lengths.push_back(body ? 2.0 * body->half_length : 0.0);
+    }
+    j["videos"] = write_videos(scene, result, in, dir);
+  }
+#else
+  if (!scene.videos.empty()) {
+    j["videos"] = nlohmann::json::array();
+    j["videos_skipped"] = "this magvine was built without the render module (cmake -DMAGVINE_WITH_RENDER=ON)";
+  }
+#endif
+  write_file_atomically(dir / "metrics.json", j.dump(2) + "\n");
+}
+
+}  // namespace magvine::scene
