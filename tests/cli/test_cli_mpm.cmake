@@ -57,3 +57,37 @@ foreach(bad "shear_modulus: 100000;shear_modulus: -3;bodies[0].material.shear_mo
     message(FATAL_ERROR "mpm bad scene: want one line with '${message}' and no output, got '${err}'")
   endif()
 endforeach()
+
+# A step that fails (a 5 T field against a 1 T remanence in a 1 kPa body inverts a particle in the first step): exit 3
+# with the cause on stderr, and, by the rule for failed runs (docs/cli.md), metrics.json only, saying failed: true.
+file(WRITE ${WORK}/inverting.yaml "units: {length: mm}
+mpm:
+  dimension: 2
+  cell: 0.5
+  duration: 0.01
+  domain: {min: [-5, -15, 0], max: [15, 5, 0]}
+bodies:
+  - {name: beam, shape: box, min: [-1, -0.75, 0], max: [10, 0.75, 0],
+     material: {shear_modulus: 1000, density: 1000}, magnetisation: {remanence: 1, direction: [1, 0, 0]}}
+clamps:
+  - {min: [-5, -2, 0], max: [0, 2, 0]}
+field: {b: [-5, 3, 0]}
+probes:
+  - {name: tip, at: [9.9, 0, 0], radius: 0.5}
+")
+file(REMOVE_RECURSE ${WORK}/inverting)
+execute_process(COMMAND ${MAGVINE} mpm ${WORK}/inverting.yaml --out ${WORK}/inverting RESULT_VARIABLE rc ERROR_VARIABLE err)
+expect_rc(${rc} 3 "mpm inverting: ${err}")
+string(FIND "${err}" "inverted (det F" pos)
+if(pos EQUAL -1)
+  message(FATAL_ERROR "mpm inverting: stderr does not name the inverted particle: '${err}'")
+endif()
+file(GLOB left RELATIVE ${WORK}/inverting ${WORK}/inverting/*)
+if(NOT left STREQUAL "metrics.json")
+  message(FATAL_ERROR "mpm inverting: a failed run left more than metrics.json: ${left}")
+endif()
+file(READ ${WORK}/inverting/metrics.json metrics)
+string(FIND "${metrics}" "\"failed\": true" pos)
+if(pos EQUAL -1)
+  message(FATAL_ERROR "mpm inverting: metrics.json does not say failed: true")
+endif()

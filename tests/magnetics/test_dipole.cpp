@@ -91,5 +91,16 @@ TEST(Dipole, SingularPointIsZeroNotNan) {
   EXPECT_TRUE(dipole_field_gradient(Vec3(1, 2, 3), Vec3(1e-8, 0, 0)).g.allFinite());
 }
 
+TEST(Dipole, TheMomentForAFieldDirectionInvertsTheDipoleLaw) {
+  // dipole_moment_for_field(r̂, b): the dipole's field at r̂ then points along b, for b along, across and oblique to r̂.
+  const Vec3 r = Vec3(0.3, -0.5, 0.8).normalized();
+  for (const Vec3& b : {r, Vec3(r.unitOrthogonal()), Vec3(Vec3(1, 2, -1).normalized())}) {
+    const Vec3 m = dipole_moment_for_field(r, b);
+    const Vec3 field = dipole_field(m, 0.2 * r);
+    EXPECT_NEAR(field.normalized().dot(b), 1.0, 1e-12) << b.transpose();
+    EXPECT_GE(m.norm(), 0.5 - 1e-12);
+  }
+}
+
 }  // namespace
 }  // namespace magvine::magnetics

@@ -252,6 +252,32 @@ TEST(Experiment, TrialsPerturbEachRunAndGiveTheSameOutcomesOnOneThreadOrTwo) {
   std::filesystem::remove_all(dir);
 }
 
+TEST(Experiment, AFailedRunLeavesItsCompleteMetricsOnly) {
+  // The rule for failed runs (docs/cli.md): a run whose last step has no equilibrium writes metrics.json alone, with
+  // every key and "failed": true; a run that succeeded writes every file and "failed": false.
+  ExperimentScene scene = load_experiment_scene(kDemo);
+  scene.duration = 0.1;
+  ExperimentResult r = run_experiment(scene);
+  const std::filesystem::path dir = std::filesystem::temp_directory_path() / "magvine_test_failed_run";
+  std::filesystem::remove_all(dir);
+  write_experiment_outputs(scene, r, dir);
+  const nlohmann::json ok = nlohmann::json::parse(text_of(dir / "metrics.json"));
+  EXPECT_FALSE(ok.at("failed").get<bool>());
+  EXPECT_TRUE(std::filesystem::exists(dir / "tip_trajectory.csv"));
+  r.converged = false;
+  r.failure = "at 0.1 s: Newton did not converge in 200 iterations";
+  std::filesystem::remove_all(dir);
+  write_experiment_outputs(scene, r, dir);
+  std::vector<std::string> files;
+  for (const auto& e : std::filesystem::directory_iterator(dir)) files.push_back(e.path().filename().string());
+  EXPECT_EQ(files, std::vector<std::string>{"metrics.json"});
+  const nlohmann::json failed = nlohmann::json::parse(text_of(dir / "metrics.json"));
+  EXPECT_TRUE(failed.at("failed").get<bool>());
+  EXPECT_EQ(failed.at("failure").get<std::string>(), r.failure);
+  for (const auto& [key, value] : ok.items()) EXPECT_TRUE(failed.contains(key)) << key << " missing";
+  std::filesystem::remove_all(dir);
+}
+
 TEST(Experiment, EveryBundledSceneLoads) {
   // docs/scenes.md points at these as the examples of each feature: each must load as what it claims to be.
   int experiments = 0;
@@ -567,7 +593,7 @@ TEST(Experiment, TheNavigatorDeflatesTheSkinVineAtTheCarinaAndSteersItIntoAMainB
   // assets/scenes/bronchial_tree_skin_navigator.yaml: the navigator's pressure regulation and gradient mode for a
   // magnetic skin. Asserted: the pressure held at 1 kPa for 2 s exactly once (at the carina, the only junction before
   // 0-0's end), at 12 kPa otherwise, and the tip pulled to the magnet's side of the carina (+x). Whether it then
-  // reaches 0-0's end turns on round-off (1 of 4 perturbed trials does, none towards 0-1: README), so it is printed,
+  // reaches 0-0's end turns on round-off (1 of 4 perturbed trials does, none towards 0-1: docs/experiments.md), so it is printed,
   // not asserted.
   const std::filesystem::path file =
       std::filesystem::path(MAGVINE_SOURCE_DIR) / "assets/scenes/bronchial_tree_skin_navigator.yaml";
@@ -653,7 +679,7 @@ TEST(Experiment, TheNavigatorsTorqueModeTurnsASkinTowardsTheAimAndItsGradientMod
 TEST(Experiment, TheNavigatorSteersTheSkinVineByTorqueIntoEitherMainBronchus) {
   // assets/scenes/bronchial_tree_skin_torque_navigator.yaml (thesis 4.7.4's skin MVR, steered automatically in
   // torque mode): unperturbed, it reaches the end of 0-0 and of 0-1 (7 of 8 perturbed trials with seed 1, 8 of 8
-  // with seed 0, README), every node inside the lumen.
+  // with seed 0, docs/experiments.md), every node inside the lumen.
   const std::filesystem::path file =
       std::filesystem::path(MAGVINE_SOURCE_DIR) / "assets/scenes/bronchial_tree_skin_torque_navigator.yaml";
   const ExperimentScene loaded = load_experiment_scene(file);

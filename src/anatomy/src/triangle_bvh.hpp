@@ -167,6 +167,23 @@ inline float float_up(double x) {
 /// far below `margin` (1e-6 of the coordinates' size), so children within r − margin are in and beyond r + margin
 /// are out; a leaf child in between gets the exact double test, an inner one is entered. The leaves reached are
 /// then exactly sphere_mask's, in the same order (entering an extra inner node only costs a test).
+/// The walk mask of a conservative single-precision test: `maybe` the children it may admit, `sure` those it surely
+/// admits; a leaf child admitted only maybe is decided by `exact` (the double-precision mask of that node), so the
+/// walk visits exactly the leaves the exact test admits.
+template <class Exact>
+unsigned refine_mask(const TriangleBvh::Node& node, unsigned maybe, unsigned sure, const Exact& exact) {
+  unsigned unsure = maybe & ~sure;
+  unsigned mask = maybe;
+  while (unsure != 0) {
+    const int k = __builtin_ctz(unsure);
+    unsure &= unsure - 1;
+    if ((node.child[static_cast<std::size_t>(k)] & TriangleBvh::kLeafBit) != 0 && (exact() & (1u << k)) == 0) {
+      mask &= ~(1u << k);
+    }
+  }
+  return mask;
+}
+
 class SphereBoxTest {
  public:
   SphereBoxTest(const Vec3& c, double r) : m_c(c), m_r2(r * r) {
@@ -191,18 +208,8 @@ class SphereBoxTest {
     const Float4 dy = gap(node.lo_y, node.hi_y, m_y);
     const Float4 dz = gap(node.lo_z, node.hi_z, m_z);
     const Float4 d2 = dx * dx + dy * dy + dz * dz;
-    const unsigned maybe = lane_mask(d2 <= m_out2);
-    unsigned unsure = maybe & ~lane_mask(d2 <= m_in2);
-    unsigned mask = maybe;
-    while (unsure != 0) {
-      const int k = __builtin_ctz(unsure);
-      unsure &= unsure - 1;
-      if ((node.child[static_cast<std::size_t>(k)] & TriangleBvh::kLeafBit) != 0 &&
-          (sphere_mask(node, m_c, m_r2) & (1u << k)) == 0) {
-        mask &= ~(1u << k);
-      }
-    }
-    return mask;
+    return refine_mask(node, lane_mask(d2 <= m_out2), lane_mask(d2 <= m_in2),
+                       [&] { return sphere_mask(node, m_c, m_r2); });
   }
 
  private:
@@ -232,18 +239,8 @@ class BoxBoxTest {
       return lane_mask((load4(node.lo_x) <= hi[0]) & (load4(node.hi_x) >= lo[0]) & (load4(node.lo_y) <= hi[1]) &
                        (load4(node.hi_y) >= lo[1]) & (load4(node.lo_z) <= hi[2]) & (load4(node.hi_z) >= lo[2]));
     };
-    const unsigned maybe = overlap(m_outer_lo, m_outer_hi);
-    unsigned unsure = maybe & ~overlap(m_inner_lo, m_inner_hi);
-    unsigned mask = maybe;
-    while (unsure != 0) {
-      const int k = __builtin_ctz(unsure);
-      unsure &= unsure - 1;
-      if ((node.child[static_cast<std::size_t>(k)] & TriangleBvh::kLeafBit) != 0 &&
-          (box_mask(node, m_lo, m_hi) & (1u << k)) == 0) {
-        mask &= ~(1u << k);
-      }
-    }
-    return mask;
+    return refine_mask(node, overlap(m_outer_lo, m_outer_hi), overlap(m_inner_lo, m_inner_hi),
+                       [&] { return box_mask(node, m_lo, m_hi); });
   }
 
  private:

@@ -12,28 +12,25 @@
 #include "magvine/anatomy/mesh_io.hpp"
 #include "magvine/anatomy/mesh_report.hpp"
 #include "magvine/config.hpp"
-#if MAGVINE_WITH_RENDER
-#include "magvine/render/renderer.hpp"
-#include "magvine/render/video.hpp"
-#endif
 #include "magvine/core/atomic_file.hpp"
 #include "magvine/core/error.hpp"
 #include "magvine/core/text.hpp"
 #include "magvine/core/units.hpp"
 #include "magvine/magnetics/field_model.hpp"
-#include "magvine/scene/centerline_study.hpp"
+#include "magvine/studies/centerline_study.hpp"
 #include "magvine/scene/field_map.hpp"
-#include "magvine/scene/field_study.hpp"
+#include "magvine/studies/field_study.hpp"
 #include "magvine/scene/experiment.hpp"
 #include "magvine/scene/trials.hpp"
 #if MAGVINE_WITH_MPM
 #include "magvine/scene/mpm_scene.hpp"
 #endif
 #include "magvine/scene/free_space.hpp"
-#include "magvine/scene/mechanics_study.hpp"
+#include "magvine/studies/mechanics_study.hpp"
 #include "magvine/scene/magnets_file.hpp"
-#include "magvine/scene/meshing_study.hpp"
+#include "magvine/studies/meshing_study.hpp"
 #include "magvine/scene/points_csv.hpp"
+#include "magvine/scene/video_plugin.hpp"
 
 namespace magvine::cli {
 
@@ -101,7 +98,7 @@ int run_study_field_models(const StudyArgs& args) {
   }
   if (!magnet) throw InputError(args.magnets, 0, "magnets", "contains no cylinder (with model: exact) to study");
   create_output_directory(args.out_dir);
-  scene::run_field_model_study(*magnet, scene::FieldStudySpec{}, args.out_dir);
+  studies::run_field_model_study(*magnet, studies::FieldStudySpec{}, args.out_dir);
   std::cerr << "magvine study field-models: " << args.out_dir << "/field_models.csv, " << args.out_dir
             << "/field_model_distance.csv\n";
   return 0;
@@ -109,14 +106,14 @@ int run_study_field_models(const StudyArgs& args) {
 
 int run_study_phantom_meshing(const std::string& out_dir) {
   create_output_directory(out_dir);
-  scene::run_meshing_study(out_dir);
+  studies::run_meshing_study(out_dir);
   std::cerr << "magvine study phantom-meshing: " << out_dir << "/meshing_study.csv\n";
   return 0;
 }
 
 int run_study_centerline(const std::string& out_dir) {
   create_output_directory(out_dir);
-  scene::run_centerline_study(out_dir);
+  studies::run_centerline_study(out_dir);
   std::cerr << "magvine study centerline: " << out_dir << "/centerline_study.csv\n";
   return 0;
 }
@@ -143,14 +140,11 @@ int run_mesh_graph(const MeshGraphArgs& args) {
   if (std::filesystem::path(args.out).extension() != ".json") {
     throw InputError("--out", 0, "", args.out + " is not a .json path");
   }
-  if (!args.png.empty()) {
-    if (std::filesystem::path(args.png).extension() != ".png") {
-      throw InputError("--png", 0, "", args.png + " is not a .png path");
-    }
-    if (!config::kWithRender) {
-      throw InputError("--png", 0, "", "this magvine was built without the render module (cmake -DMAGVINE_WITH_RENDER=ON)");
-    }
+  if (!args.png.empty() && std::filesystem::path(args.png).extension() != ".png") {
+    throw InputError("--png", 0, "", args.png + " is not a .png path");
   }
+  // Loaded before the work starts: a missing render module is an input error, with nothing written.
+  const scene::VideoPlugin* plugin = args.png.empty() ? nullptr : &scene::video_plugin("--png");
   if (!(args.voxel >= 0.0 && std::isfinite(args.voxel))) throw InputError("--voxel", 0, "", "must be a length > 0");
   anatomy::CenterlineOptions options;
   options.voxel = args.voxel * unit;
@@ -158,28 +152,9 @@ int run_mesh_graph(const MeshGraphArgs& args) {
   const anatomy::ImportedMesh imported = anatomy::import_mesh(args.file, {.units = units});
   anatomy::CenterlineReport report;
   const anatomy::AirwayGraph graph = anatomy::extract_airway_graph(imported.mesh, options, &report);
-#if MAGVINE_WITH_RENDER
-  cv::Mat picture;
-  if (!args.png.empty()) {
-    const anatomy::Aabb box = anatomy::bounding_box(imported.mesh);
-    const Vec3 size = box.max - box.min;
-    const auto [axis, up] = render::face_on_view(box);
-    const render::Camera cam =
-        render::framing_camera(box, -axis, up, render::Lens::kPinhole, 40.0 * kDegToRad, 800, 800);
-    render::OverviewContent content;
-    for (const anatomy::AirwayBranch& b : graph.branches) {
-      std::vector<Vec3> line;
-      for (const std::uint32_t n : b.nodes) line.push_back(graph.nodes[n].position);
-      content.lines.push_back(std::move(line));
-    }
-    content.line_radius = 0.0015 * size.maxCoeff();
-    picture = render::AirwayRenderer(imported.mesh, 2).render_overview(cam, content);
-  }
-#endif
+  const std::string picture = plugin != nullptr ? plugin->graph_picture(imported.mesh, graph).png : std::string();
   anatomy::write_graph(args.out, graph);
-#if MAGVINE_WITH_RENDER
-  if (!args.png.empty()) render::write_png(args.png, picture);
-#endif
+  if (plugin != nullptr) write_file_atomically(args.png, picture);
   int deepest = 0;
   for (const auto& b : graph.branches) deepest = std::max(deepest, b.generation);
   std::cout << args.file << ": " << graph.branches.size() << " branches, " << anatomy::leaves(graph).size()
@@ -210,13 +185,21 @@ int run_experiment_scene(const RunArgs& args, const std::filesystem::path& out) 
     std::cerr << "magvine run: warning: " << args.scene
               << ": outputs.video skipped: this magvine was built without the render module\n";
   }
+  // The video plugin is loaded before the run: a build that has it but cannot load it is an input error (exit 2,
+  // nothing written), not a failure after the run.
+  if (!sc.videos.empty() && scene::video_plugin_built()) (void)scene::video_plugin(args.scene + ": outputs.video");
   const scene::ExperimentResult result = scene::run_experiment(sc, progress_bar());
   std::cerr << '\n';
-  if (!sc.videos.empty()) {
+  if (!sc.videos.empty() && result.converged) {
     std::cerr << "magvine run: rendering " << sc.videos.size() << (sc.videos.size() == 1 ? " video" : " videos")
               << " of " << result.frames.size() << " frames\n";
   }
   scene::write_experiment_outputs(sc, result, out);
+  if (!result.converged) {
+    std::cerr << "magvine: numerical failure: " << result.failure << " (" << (out / "metrics.json").string()
+              << " says why; no other file is written)\n";
+    return static_cast<int>(ExitCode::kNumericalFailure);
+  }
   const Vec3 tip = result.final_state.tip() / kMmToM;
   std::cerr << "magvine run: " << result.samples.back().length / kMmToM << (rod ? " mm inserted" : " mm everted")
             << ", tip at (" << tip.x() << ", "
@@ -237,10 +220,6 @@ int run_experiment_scene(const RunArgs& args, const std::filesystem::path& out) 
               << "); their wall forces are not an equilibrium and are left out of the maxima (tip_trajectory.csv: "
                  "unsettled)\n";
   }
-  if (!result.converged) {
-    std::cerr << "magvine: numerical failure: " << result.failure << '\n';
-    return static_cast<int>(ExitCode::kNumericalFailure);
-  }
   return 0;
 }
 
@@ -256,16 +235,17 @@ int run_scene(const RunArgs& args) {
   const scene::FreeSpaceScene sc = scene::load_free_space_scene(args.scene);
   const scene::FreeSpaceResult result = scene::solve_free_space(sc);
   scene::write_free_space_outputs(sc, result, out);
+  if (!result.report.converged) {
+    std::cerr << "magvine: numerical failure: static equilibrium: " << result.report.failure << " ("
+              << (out / "metrics.json").string() << " says why; no other file is written)\n";
+    return static_cast<int>(ExitCode::kNumericalFailure);
+  }
   const Vec3 tip = result.state.tip() / kMmToM;
   std::cerr << "magvine run: " << (sc.kind == scene::FreeSpaceScene::Kind::kRod ? "rod" : "vine") << ", " << sc.model.edges + 1 << " nodes, "
             << (result.report.converged ? "converged" : "NOT converged") << " in " << result.report.iterations
             << " Newton iterations (" << result.runtime_s * 1e3 << " ms); tip at (" << tip.x() << ", " << tip.y()
             << ", " << tip.z() << ") mm -> " << (out / "metrics.json").string() << ", "
             << (out / "shape.csv").string() << '\n';
-  if (!result.report.converged) {
-    std::cerr << "magvine: numerical failure: static equilibrium: " << result.report.failure << '\n';
-    return static_cast<int>(ExitCode::kNumericalFailure);
-  }
   return 0;
 }
 
@@ -299,11 +279,11 @@ int run_trials(const TrialsArgs& args) {
 int run_validate(const std::string& out_dir) {
   create_output_directory(out_dir);
   std::cerr << "magvine validate: rod against the elastica (error against runtime)\n";
-  scene::run_rod_convergence_study(out_dir);
+  studies::run_rod_convergence_study(out_dir);
   std::cerr << "magvine validate: skin MVR against the two-stage model\n";
-  scene::run_vine_deflection_study(out_dir);
+  studies::run_vine_deflection_study(out_dir);
   std::cerr << "magvine validate: magnetic-fluid vines against EPM distance\n";
-  scene::run_fluid_vine_study(out_dir);
+  studies::run_fluid_vine_study(out_dir);
   std::cerr << "magvine validate: " << out_dir << "/{rod_convergence,vine_deflection,fluid_vine,fluid_vine_summary}.csv"
             << " (plots: tools/plot_mechanics.py " << out_dir << ")\n";
   return 0;

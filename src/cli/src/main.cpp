@@ -9,9 +9,7 @@
 #include "phantom_command.hpp"
 #include "magvine/config.hpp"
 #include "magvine/core/error.hpp"
-#if MAGVINE_WITH_RENDER
 #include "render_command.hpp"
-#endif
 
 namespace {
 
@@ -116,10 +114,8 @@ int main(int argc, char** argv) {
   phantom.attach(app);
   magvine::cli::MpmCommand mpm_cmd;
   mpm_cmd.attach(app, *study_cmd);
-#if MAGVINE_WITH_RENDER
   magvine::cli::RenderCommand render_cmd;
   render_cmd.attach(app);
-#endif
 
   try {
     app.parse(argc, argv);
@@ -144,9 +140,7 @@ int main(int argc, char** argv) {
     if (mesh_graph_cmd->parsed()) return magvine::cli::run_mesh_graph(mesh_graph);
     if (phantom.parsed()) return phantom.run();
     if (mpm_cmd.parsed()) return mpm_cmd.run();
-#if MAGVINE_WITH_RENDER
     if (render_cmd.parsed()) return render_cmd.run();
-#endif
     if (run_cmd->parsed()) return magvine::cli::run_scene(run);
     if (validate_cmd->parsed()) return magvine::cli::run_validate(validate_out);
     if (trials_cmd->parsed()) return magvine::cli::run_trials(trials);

@@ -11,7 +11,7 @@
 #if MAGVINE_WITH_MPM
 #include "magvine/core/units.hpp"
 #include "magvine/scene/mpm_scene.hpp"
-#include "magvine/scene/mpm_study.hpp"
+#include "magvine/studies/mpm_study.hpp"
 #endif
 
 namespace magvine::cli {
@@ -48,11 +48,12 @@ int MpmCommand::run_scene() {
             << " s simulated\n";
   const scene::MpmResult r = scene::run_mpm_scene(sc, progress_bar());
   std::cerr << '\n';
+  scene::write_mpm_outputs(sc, r, out);  // a failed run: metrics.json only, saying so
   if (!r.ok) {
-    std::cerr << "magvine: numerical failure: " << r.failure << '\n';
+    std::cerr << "magvine: numerical failure: " << r.failure << " (" << (out / "metrics.json").string()
+              << " says why)\n";
     return static_cast<int>(ExitCode::kNumericalFailure);
   }
-  scene::write_mpm_outputs(sc, r, out);
   std::cerr << "magvine mpm: " << r.steps << " steps, " << r.time << " s simulated" << (r.settled ? " (at rest)" : "")
             << " in " << r.runtime_s << " s ("
             << static_cast<double>(sc.positions.size()) * static_cast<double>(r.steps) / r.runtime_s / 1e6
@@ -67,9 +68,9 @@ int MpmCommand::run_scene() {
 
 int MpmCommand::run_study() {
   const int jobs = m_jobs > 0 ? m_jobs : static_cast<int>(std::max(1u, std::thread::hardware_concurrency()));
-  std::cerr << "magvine study mpm-beam: " << 5 * scene::zhao_study_fields().size() << " beams on " << jobs
+  std::cerr << "magvine study mpm-beam: " << 5 * studies::zhao_study_fields().size() << " beams on " << jobs
             << " threads\n";
-  scene::run_mpm_beam_study(m_study_out, jobs, [](const scene::ZhaoPoint& p) {
+  studies::run_mpm_beam_study(m_study_out, jobs, [](const studies::ZhaoPoint& p) {
     std::fprintf(stderr, "  %d cells x %d particles/cell, %4.1f mT: delta/L %.4f (elastica %.4f) in %.1f s%s\n",
                  p.cells, p.particles_per_cell, p.field * 1e3, p.deflection, p.reference, p.seconds,
                  p.ok ? (p.settled ? "" : " NOT at rest") : " FAILED");

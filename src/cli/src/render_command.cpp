@@ -4,14 +4,12 @@
 #include <filesystem>
 #include <iostream>
 
-#include <opencv2/core.hpp>
-
 #include "commands.hpp"
 #include "magvine/anatomy/mesh_io.hpp"
+#include "magvine/core/atomic_file.hpp"
 #include "magvine/core/error.hpp"
 #include "magvine/core/units.hpp"
-#include "magvine/render/renderer.hpp"
-#include "magvine/render/video.hpp"
+#include "magvine/scene/video_plugin.hpp"
 
 namespace magvine::cli {
 
@@ -50,35 +48,36 @@ int RenderCommand::run() {
     if (!endoscope) throw InputError("--depth", 0, "", "depth maps are the endoscope view's");
   }
   if (!(m_depth_range > 0.0 && std::isfinite(m_depth_range))) throw InputError("--depth-range", 0, "", "must be > 0");
-  render::Camera cam;
-  cam.position = Vec3(m_eye[0], m_eye[1], m_eye[2]) * unit;
-  cam.forward = Vec3(m_look[0], m_look[1], m_look[2]) * unit - cam.position;
-  cam.up = Vec3(m_up[0], m_up[1], m_up[2]);
-  cam.lens = (m_lens.empty() ? endoscope : m_lens == "fisheye") ? render::Lens::kFisheye : render::Lens::kPinhole;
-  cam.fov = (m_fov > 0.0 ? m_fov : endoscope ? 110.0 : 40.0) * kDegToRad;
-  cam.width = m_size.empty() ? (endoscope ? 320 : 640) : m_size[0];
-  cam.height = m_size.empty() ? (endoscope ? 320 : 480) : m_size[1];
-  if (cam.width < 16 || cam.height < 16 || cam.width > 8192 || cam.height > 8192) {
+  scene::MeshImageRequest request;
+  request.eye = Vec3(m_eye[0], m_eye[1], m_eye[2]) * unit;
+  request.look = Vec3(m_look[0], m_look[1], m_look[2]) * unit;
+  request.up = Vec3(m_up[0], m_up[1], m_up[2]);
+  request.endoscope = endoscope;
+  request.fisheye = m_lens.empty() ? endoscope : m_lens == "fisheye";
+  request.fov = (m_fov > 0.0 ? m_fov : endoscope ? 110.0 : 40.0) * kDegToRad;
+  request.width = m_size.empty() ? (endoscope ? 320 : 640) : m_size[0];
+  request.height = m_size.empty() ? (endoscope ? 320 : 480) : m_size[1];
+  request.depth = !m_depth.empty();
+  request.depth_range = m_depth_range * unit;
+  if (request.width < 16 || request.height < 16 || request.width > 8192 || request.height > 8192) {
     throw InputError("--size", 0, "", "each side must lie between 16 and 8192 px");
   }
   if (m_fov < 0.0 || !std::isfinite(m_fov)) throw InputError("--fov", 0, "", "must be a positive angle in degrees");
-  (void)render::focal_pixels(cam);  // checks the field of view for the lens before the mesh is read
-  (void)render::camera_frame(cam);
+  const scene::VideoPlugin& plugin = scene::video_plugin("magvine render");
   const anatomy::ImportedMesh imported = anatomy::import_mesh(m_mesh, {.units = parse_units_option(m_units)});
-  const render::AirwayRenderer renderer(imported.mesh, 2);
+  request.mesh = &imported.mesh;
+  const scene::EncodedImages images = plugin.mesh_image(request);
+  write_file_atomically(m_out, images.png);
+  if (request.depth) write_file_atomically(m_depth, images.depth_png);
   if (endoscope) {
-    const render::EndoscopeFrame f = renderer.render_endoscope(cam, render::EndoscopeLook{});
-    const double hits = cv::countNonZero(f.depth) / static_cast<double>(f.depth.total());
-    render::write_png(m_out, f.color);
-    if (!m_depth.empty()) render::write_png(m_depth, render::depth_to_u16(f.depth, m_depth_range * unit));
-    std::cerr << "magvine render: " << imported.mesh.triangles.size() << " triangles, " << cam.width << " x "
-              << cam.height << " endoscope view -> " << m_out << (m_depth.empty() ? "" : " + " + m_depth) << "; "
-              << 100.0 * hits << " % of the rays hit the wall"
-              << (hits < 0.999 ? " (the eye is outside the lumen or the mesh has openings)" : "") << "\n";
+    std::cerr << "magvine render: " << imported.mesh.triangles.size() << " triangles, " << request.width << " x "
+              << request.height << " endoscope view -> " << m_out << (m_depth.empty() ? "" : " + " + m_depth) << "; "
+              << 100.0 * images.hit_fraction << " % of the rays hit the wall"
+              << (images.hit_fraction < 0.999 ? " (the eye is outside the lumen or the mesh has openings)" : "")
+              << "\n";
   } else {
-    render::write_png(m_out, renderer.render_overview(cam, render::OverviewContent{}));
-    std::cerr << "magvine render: " << imported.mesh.triangles.size() << " triangles, overview " << cam.width << " x "
-              << cam.height << " -> " << m_out << "\n";
+    std::cerr << "magvine render: " << imported.mesh.triangles.size() << " triangles, overview " << request.width
+              << " x " << request.height << " -> " << m_out << "\n";
   }
   return 0;
 }

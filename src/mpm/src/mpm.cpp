@@ -65,6 +65,14 @@ Index<D> strides(const Index<D>& n) {
   return s;
 }
 
+/// The nine (i, j) rows of a 3D stencil: fn(i, j, row index of node (i, j, 0), w_i w_j); the kernels below walk the
+/// three nodes along k of each row themselves.
+template <class Fn>
+void for_rows(const Stencil<3>& s, std::int64_t first, const Index<3>& st, Fn&& fn) {
+  for (int i = 0; i < 3; ++i)
+    for (int j = 0; j < 3; ++j) fn(i, j, static_cast<std::size_t>(first + i * st[0] + j * st[1]), s.w[0][i] * s.w[1][j]);
+}
+
 /// Visits the 3^D stencil nodes as (linear index, weight, offset per axis 0..2) for a box with strides `st` whose
 /// first node is the stencil's base at linear index `first`; the last axis fastest.
 template <int D, typename Fn>
@@ -75,12 +83,9 @@ void for_nodes(const Stencil<D>& s, std::int64_t first, const Index<D>& st, Fn&&
       for (int j = 0; j < 3; ++j) fn(ki + j, s.w[0][i] * s.w[1][j], i, j, 0);
     }
   } else {
-    for (int i = 0; i < 3; ++i)
-      for (int j = 0; j < 3; ++j) {
-        const std::int64_t kij = first + i * st[0] + j * st[1];
-        const double wij = s.w[0][i] * s.w[1][j];
-        for (int k = 0; k < 3; ++k) fn(kij + k, wij * s.w[2][k], i, j, k);
-      }
+    for_rows(s, first, st, [&](int i, int j, std::size_t row, double wij) {
+      for (int k = 0; k < 3; ++k) fn(static_cast<std::int64_t>(row) + k, wij * s.w[2][k], i, j, k);
+    });
   }
 }
 
@@ -361,18 +366,15 @@ inline void scatter_particle(const StepContext<D>& c, std::size_t p) {
     // Node (i, j, k) gets w_i w_j w_k (r_ij + a_k): r_ij = base + a_i + a_j is formed once per (i, j).
     std::array<Lanes, 3> wa2;
     for (int k = 0; k < 3; ++k) wa2[k] = st.w[2][k] * along[2][k];
-    for (int i = 0; i < 3; ++i)
-      for (int j = 0; j < 3; ++j) {
-        const double wij = st.w[0][i] * st.w[1][j];
-        const Lanes r = base_rec + along[0][i] + along[1][j];
-        const auto row = static_cast<std::size_t>(first + i * c.stride[0] + j * c.stride[1]);
-        NodeRecord* node = &ws.node[row];
-        for (int k = 0; k < 3; ++k) store(node[k], load(node[k]) + wij * (st.w[2][k] * r + wa2[k]));
-        if (moments) {
-          VecD<D>* mo = &ws.node_moment[row];
-          for (int k = 0; k < 3; ++k) mo[k] += (wij * st.w[2][k]) * moment;
-        }
+    for_rows(st, first, c.stride, [&](int i, int j, std::size_t row, double wij) {
+      const Lanes r = base_rec + along[0][i] + along[1][j];
+      NodeRecord* node = &ws.node[row];
+      for (int k = 0; k < 3; ++k) store(node[k], load(node[k]) + wij * (st.w[2][k] * r + wa2[k]));
+      if (moments) {
+        VecD<D>* mo = &ws.node_moment[row];
+        for (int k = 0; k < 3; ++k) mo[k] += (wij * st.w[2][k]) * moment;
       }
+    });
   } else {
     for_nodes<D>(st, first, c.stride, [&](std::int64_t k, double w, int i, int j, int) {
       NodeRecord& node = ws.node[static_cast<std::size_t>(k)];
@@ -404,18 +406,16 @@ inline bool gather_particle(const StepContext<D>& c, std::size_t p) {
     // Sum along k first: s = Σ_k w_k v, t = Σ_k w_k d_k v; then the (i, j) weights and offsets apply once.
     std::array<double, 3> wd2;
     for (int k = 0; k < 3; ++k) wd2[k] = st.w[2][k] * d[2][k];
-    for (int i = 0; i < 3; ++i)
-      for (int j = 0; j < 3; ++j) {
-        const NodeRecord* node = &ws.node[static_cast<std::size_t>(first + i * c.stride[0] + j * c.stride[1])];
-        const Lanes n0 = load(node[0]), n1 = load(node[1]), n2 = load(node[2]);
-        const Lanes sum = st.w[2][0] * n0 + st.w[2][1] * n1 + st.w[2][2] * n2;
-        const Lanes moment_k = wd2[0] * n0 + wd2[1] * n1 + wd2[2] * n2;
-        const double wij = st.w[0][i] * st.w[1][j];
-        v += wij * sum;
-        b[0] += (wij * d[0][i]) * sum;
-        b[1] += (wij * d[1][j]) * sum;
-        b[2] += wij * moment_k;
-      }
+    for_rows(st, first, c.stride, [&](int i, int j, std::size_t row, double wij) {
+      const NodeRecord* node = &ws.node[row];
+      const Lanes n0 = load(node[0]), n1 = load(node[1]), n2 = load(node[2]);
+      const Lanes sum = st.w[2][0] * n0 + st.w[2][1] * n1 + st.w[2][2] * n2;
+      const Lanes moment_k = wd2[0] * n0 + wd2[1] * n1 + wd2[2] * n2;
+      v += wij * sum;
+      b[0] += (wij * d[0][i]) * sum;
+      b[1] += (wij * d[1][j]) * sum;
+      b[2] += wij * moment_k;
+    });
   } else {
     for_nodes<D>(st, first, c.stride, [&](std::int64_t k, double w, int i, int j, int) {
       const Lanes wv = w * load(ws.node[static_cast<std::size_t>(k)]);

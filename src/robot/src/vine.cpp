@@ -30,29 +30,18 @@ double fill_density_of(const VineParameters& v) {
 }  // namespace
 
 VineParameters thesis_skin_mvr(double length, int edges) {
-  VineParameters v;
-  v.length = length;
-  v.radius = 4e-3;
-  v.pressure = 12e3;
-  v.wall = {.thickness = 20e-6, .modulus = 0.2e9, .density = 920.0};
-  v.wall_strength = 10e6;
-  v.skin = {.thickness = 0.2e-3, .modulus = 99e3, .density = 1840.0};
-  v.skin_remanence = 0.101;
-  v.skin_direction = Vec3::UnitY();
-  v.edges = edges;
-  return v;
+  return {.length = length, .radius = 4e-3, .pressure = 12e3,
+          .wall = {.thickness = 20e-6, .modulus = 0.2e9, .density = 920.0}, .wall_strength = 10e6,
+          .skin = {.thickness = 0.2e-3, .modulus = 99e3, .density = 1840.0}, .skin_remanence = 0.101,
+          .skin_direction = Vec3::UnitY(), .edges = edges};
 }
 
 VineParameters thesis_fluid_vine(double length, int edges) {
-  VineParameters v;
-  v.length = length;
-  v.radius = 2.5e-3;
-  v.pressure = 35e3;
-  v.wall = {.thickness = 38e-6, .modulus = 10e6, .density = 1000.0};
-  v.wall_strength = kDefaultWallStrength;  // the TPE film's, from the thesis's Ø3 mm burst
-  v.fill = FillKind::kMagneticFluid;
-  v.edges = edges;
-  return v;
+  // The TPE film's strength is kDefaultWallStrength, from the thesis's Ø3 mm burst.
+  return {.length = length, .radius = 2.5e-3, .pressure = 35e3,
+          .wall = {.thickness = 38e-6, .modulus = 10e6, .density = 1000.0}, .wall_strength = kDefaultWallStrength,
+          .skin = {},
+          .fill = FillKind::kMagneticFluid, .edges = edges};
 }
 
 bool has_magnetic_skin(const VineParameters& v) { return v.skin.thickness > 0.0 && v.skin_remanence != 0.0; }

@@ -11,9 +11,8 @@
 #include "magvine/core/atomic_file.hpp"
 #include "magvine/scene/experiment.hpp"
 #include "magvine/scene/navigator.hpp"
-#if MAGVINE_WITH_RENDER
-#include "video_outputs.hpp"
-#endif
+#include "magvine/core/usage.hpp"
+#include "magvine/scene/video_plugin.hpp"
 
 namespace magvine::scene {
 namespace detail {
@@ -142,7 +141,15 @@ void write_experiment_outputs(const ExperimentScene& scene, const ExperimentResu
   j["converged"] = result.converged;
   j["failed_steps"] = result.failed_steps;
   j["failure"] = result.failure;
+  j["failed"] = !result.converged;
 
+  if (!result.converged) {
+    // A failed run (its last step has no equilibrium) leaves its metrics.json only (docs/cli.md: failed runs).
+    if (!scene.videos.empty()) j["videos"] = nlohmann::json::array();
+    create_output_directory(dir);
+    write_file_atomically(dir / "metrics.json", j.dump(2) + "\n");
+    return;
+  }
   std::ostringstream tips;
   tips.precision(10);
   tips << "t_s,x_m,y_m,z_m,length_m,pressure_Pa,max_normal_N,mean_normal_N,total_normal_N,total_shear_N,branch,"
@@ -194,8 +201,7 @@ void write_experiment_outputs(const ExperimentScene& scene, const ExperimentResu
     }
     write_file_atomically(dir / "magnet_trajectory.csv", mags.str());
   }
-#if MAGVINE_WITH_RENDER
-  if (!scene.videos.empty()) {
+  if (!scene.videos.empty() && video_plugin_built()) {
     VideoInputs in;
     if (scene.navigator) {
       in.planned_path = planned_path(*scene.anatomy->graph, scene.navigator->target_branch);
@@ -205,14 +211,14 @@ void write_experiment_outputs(const ExperimentScene& scene, const ExperimentResu
       in.magnet_diameters.push_back(body ? 2.0 * body->radius : 0.0);
       in.magnet_lengths.push_back(body ? 2.0 * body->half_length : 0.0);
     }
-    j["videos"] = write_videos(scene, result, in, dir);
-  }
-#else
-  if (!scene.videos.empty()) {
+    const nlohmann::json written =
+        nlohmann::json::parse(video_plugin("outputs.video").experiment_videos(scene, result, in, dir));
+    for (int k = 0; k < written.at("renderers").get<int>(); ++k) usage::note(usage::Component::kRenderer);
+    j["videos"] = written.at("videos");
+  } else if (!scene.videos.empty()) {
     j["videos"] = nlohmann::json::array();
     j["videos_skipped"] = "this magvine was built without the render module (cmake -DMAGVINE_WITH_RENDER=ON)";
   }
-#endif
   write_file_atomically(dir / "metrics.json", j.dump(2) + "\n");
 }
 

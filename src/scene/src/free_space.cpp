@@ -91,6 +91,7 @@ void write_free_space_outputs(const FreeSpaceScene& scene, const FreeSpaceResult
   j["nodes"] = m.edges + 1;
   j["gradient_norm"] = result.report.gradient_norm;
   j["failure"] = result.report.failure;
+  j["failed"] = !result.report.converged;
   j["max_bending_moment_Nm"] = *std::max_element(moments.begin(), moments.end());
   if (scene.vine) {
     const robot::VineParameters& v = *scene.vine;
@@ -105,6 +106,10 @@ void write_free_space_outputs(const FreeSpaceScene& scene, const FreeSpaceResult
     j["creased"] = bend.creased;
   }
   create_output_directory(dir);
+  if (!result.report.converged) {  // a failed run leaves its metrics.json only (docs/cli.md: failed runs)
+    write_file_atomically(dir / "metrics.json", j.dump(2) + "\n");
+    return;
+  }
   std::ostringstream csv;
   csv.precision(12);
   csv << "s_m,x,y,z\n";

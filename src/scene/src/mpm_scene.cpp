@@ -9,7 +9,7 @@
 #include <sstream>
 
 #include "magnet_entries.hpp"
-#include "mpm_video.hpp"
+#include "magvine/scene/video_plugin.hpp"
 #include "magvine/anatomy/mesh_io.hpp"
 #include "magvine/core/atomic_file.hpp"
 #include "magvine/core/error.hpp"
@@ -26,7 +26,7 @@
 namespace magvine::scene {
 namespace {
 
-constexpr double kDefaultCourant = 0.4;  // of the P-wave CFL step; stable in every test and scene (README)
+constexpr double kDefaultCourant = 0.4;  // of the P-wave CFL step; stable in every test and scene (docs/mpm.md)
 constexpr int kDefaultParticlesPerCell = 2;
 constexpr double kDefaultBulkRatio = 20.0;  // K = 20 G (thesis eq 3.10)
 constexpr double kMaxParticles = 2e7;
@@ -536,7 +536,6 @@ MpmResult run_mpm_scene(const MpmScene& sc, const std::function<void(double)>& p
 
 void write_mpm_outputs(const MpmScene& sc, const MpmResult& r, const std::filesystem::path& dir) {
   create_output_directory(dir);
-  create_output_directory(dir / "snapshots");
   const std::size_t n = sc.positions.size();
   const std::vector<std::uint16_t>& body = sc.dimension == 2 ? sc.model2.section : sc.model3.section;
   const double cell = sc.dimension == 2 ? sc.model2.cell : sc.model3.cell;
@@ -553,11 +552,12 @@ void write_mpm_outputs(const MpmScene& sc, const MpmResult& r, const std::filesy
   j["particle_steps_per_s"] = r.runtime_s > 0.0 ? static_cast<double>(n) * static_cast<double>(r.steps) / r.runtime_s
                                                 : 0.0;
   j["ok"] = r.ok;
-  if (!r.ok) j["failure"] = r.failure;
+  j["failed"] = !r.ok;
+  j["failure"] = r.failure;
   j["settled"] = r.settled;
   j["bodies"] = sc.body_names;
   nlohmann::json probes = nlohmann::json::object();
-  for (std::size_t q = 0; q < sc.probes.size(); ++q) {
+  for (std::size_t q = 0; q < sc.probes.size() && !r.samples.empty(); ++q) {
     const Vec3 a = r.samples.front().probes[q] / kMmToM, b = r.samples.back().probes[q] / kMmToM;
     probes[sc.probes[q].name] = {{"start_mm", {a.x(), a.y(), a.z()}},
                                  {"end_mm", {b.x(), b.y(), b.z()}},
@@ -565,7 +565,13 @@ void write_mpm_outputs(const MpmScene& sc, const MpmResult& r, const std::filesy
                                  {"particles", sc.probes[q].particles.size()}};
   }
   j["probes"] = probes;
-  j["kinetic_energy_final_J"] = r.samples.back().kinetic_energy;
+  j["kinetic_energy_final_J"] = r.samples.empty() ? 0.0 : r.samples.back().kinetic_energy;
+  if (!r.ok) {  // a failed run leaves its metrics.json only (docs/cli.md: failed runs)
+    j["snapshots"] = nlohmann::json::array();
+    write_file_atomically(dir / "metrics.json", j.dump(2) + "\n");
+    return;
+  }
+  create_output_directory(dir / "snapshots");
   std::ostringstream csv;
   csv << "t_s";
   for (const MpmProbe& p : sc.probes) csv << ',' << p.name << "_x_mm," << p.name << "_y_mm," << p.name << "_z_mm";
@@ -585,9 +591,20 @@ void write_mpm_outputs(const MpmScene& sc, const MpmResult& r, const std::filesy
   }
   j["snapshots"] = snaps;
   if (sc.video) {
-    const std::filesystem::path video = write_mpm_video(*sc.video, r.frames, body, cell / 4.0, dir / "particles");
-    if (video.empty()) j["video_skipped"] = "built without the render module";
-    else j["video"] = video.filename().string();
+    if (video_plugin_built()) {
+      ParticleVideoRequest request;
+      request.view = sc.video->view;
+      request.up = sc.video->up;
+      request.width = sc.video->width;
+      request.height = sc.video->height;
+      request.fps = sc.video->fps;
+      request.radius = cell / 4.0;
+      request.frames = &r.frames;
+      request.body = &body;
+      j["video"] = video_plugin("mpm.video").particle_video(request, dir / "particles").filename().string();
+    } else {
+      j["video_skipped"] = "built without the render module";
+    }
   }
   write_file_atomically(dir / "probes.csv", csv.str());
   write_file_atomically(dir / "metrics.json", j.dump(2) + "\n");

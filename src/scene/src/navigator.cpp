@@ -6,6 +6,7 @@
 
 #include "experiment_internal.hpp"
 #include "magvine/anatomy/airway_graph.hpp"
+#include "magvine/magnetics/dipole.hpp"
 #include "magvine/core/text.hpp"
 #include "magvine/core/units.hpp"
 
@@ -84,8 +85,7 @@ MagnetKeyframe navigate(const Navigator& nav, const std::vector<Vec3>& path, con
         if (reachable.norm() > 0.5 * omega.norm()) b = reachable.cross(m).normalized();
       }
     }
-    const Vec3 r = -u;
-    const Vec3 axis = 1.5 * b.dot(r) * r - b;
+    const Vec3 axis = magnetics::dipole_moment_for_field(-u, b);  // -u: from the magnet to the tip
     if (axis.norm() > 1e-9) k.axis = axis.normalized();
   }
   return k;

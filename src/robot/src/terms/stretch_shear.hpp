@@ -12,14 +12,24 @@ struct StretchShear {
     return c.h() * Vec3(m.axial_stiffness, m.shear_stiffness, m.shear_stiffness);
   }
 
+  /// Edge j's frame R, edge vector e and strain v = Rᵀe/h − e1.
+  struct Edge {
+    const Mat3& r;
+    Vec3 e;
+    Vec3 v;
+  };
+  static Edge edge(const TermContext& c, int j) {
+    const auto ju = static_cast<std::size_t>(j);
+    const Mat3& r = c.state.frames[ju];
+    const Vec3 e = c.state.x[ju + 1] - c.state.x[ju];
+    return {r, e, Vec3(r.transpose() * e / c.h() - Vec3::UnitX())};
+  }
+
   static void add_energy(const TermContext& c, double& energy, System* sys) {
     const double h = c.h();
     const Vec3 ks = stiffness(c);
     for (int j = 0; j < c.edges(); ++j) {
-      const auto ju = static_cast<std::size_t>(j);
-      const Mat3& r = c.state.frames[ju];
-      const Vec3 e = c.state.x[ju + 1] - c.state.x[ju];
-      const Vec3 v = r.transpose() * e / h - Vec3::UnitX();
+      const auto [r, e, v] = edge(c, j);
       energy += 0.5 * v.dot(ks.cwiseProduct(v));
       if (sys == nullptr) continue;
       add_stress<3>(sys, ks.cwiseProduct(v), {position_slot(j), position_slot(j + 1), rotation_slot(j)},
@@ -33,10 +43,7 @@ struct StretchShear {
     const double h = c.h();
     const Vec3 ks = stiffness(c);
     for (int j = 0; j < c.edges(); ++j) {
-      const auto ju = static_cast<std::size_t>(j);
-      const Mat3& r = c.state.frames[ju];
-      const Vec3 e = c.state.x[ju + 1] - c.state.x[ju];
-      const Vec3 v = r.transpose() * e / h - Vec3::UnitX();
+      const auto [r, e, v] = edge(c, j);
       const Vec3 f = r * ks.cwiseProduct(v);
       const Mat3 k_world = r * ks.asDiagonal() * r.transpose() / (h * h);  // H_ee
       const Mat3 jphi = skew(e);                                           // R J_φ h = [e]

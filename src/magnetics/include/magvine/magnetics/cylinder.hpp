@@ -7,7 +7,7 @@
 /// `cel`. Gradient: the axial ∂B/∂z is the field of the two end-face current loops (Ortner et al.,
 /// Magnetism 3, 11, 2023); the transverse ∂B/∂z follows from it by the symmetry of the third derivatives
 /// of the cylinder's Newtonian potential (∂_z H_i[J x̂] = ∂_x H_i[J ẑ]); the remaining derivatives come from
-/// curl B = 0 and div B = 0 in cylindrical coordinates. Derivation notes: fields.md §3–4 and README.
+/// curl B = 0 and div B = 0 in cylindrical coordinates. Derivation notes: fields.md §3–4 and docs/magnetics.md.
 ///
 /// Degenerate places (all finite, never NaN):
 ///  - on the axis: exact limits (B_r = 0; the gradient uses the axis limit for B_r/ρ below ρ/R = kAxisLimit);

@@ -37,6 +37,10 @@ inline FieldSample dipole_field_gradient(const Vec3& m, const Vec3& r) {
   return out;
 }
 
+/// The direction of a dipole's moment (unnormalised) whose field at unit offset r̂ (from the dipole) points along b:
+/// B ∝ (3r̂r̂ᵀ − I)m, whose inverse is (3r̂r̂ᵀ − I)⁻¹ = (3/2)r̂r̂ᵀ − I, so m ∝ (3/2)(b·r̂)r̂ − b. Zero never (|m| ≥ |b|/2).
+inline Vec3 dipole_moment_for_field(const Vec3& r_hat, const Vec3& b) { return 1.5 * b.dot(r_hat) * r_hat - b; }
+
 /// The Hessian of w·B in x (w a fixed vector), Σ_i w_i ∂²B_i/∂x∂x, of a dipole: with a = m·r̂, c = w·r̂ and d = |r|,
 ///   μ0/(4πd⁵)[3(m wᵀ + w mᵀ + (m·w)I) − 15((c m + a w)r̂ᵀ + r̂(c m + a w)ᵀ + ac I + (m·w)r̂r̂ᵀ) + 105 ac r̂r̂ᵀ],
 /// symmetric and traceless (w·B is harmonic away from the dipole). The curvature term of a magnet's energy −m·B.

@@ -186,8 +186,8 @@ struct NodeContact {
 };
 
 /// A node held against sliding along a wall (static friction, the everted vine's no-shear condition): energy
-/// ½ k |(I − nnᵀ)(x − a)|², the tangential part of its offset from the anchor a. The shear force on the wall is
-/// k (I − nnᵀ)(x − a).
+/// ½ k dᵀ(I − nnᵀ)d, d = x − a its offset from the anchor a (terms/anchors.hpp: its gradient is the applied force
+/// also for a normal shorter than 1). The shear force on the wall is k (I − nnᵀ)(x − a).
 struct NodeAnchor {
   int node = 0;
   Vec3 anchor = Vec3::Zero();

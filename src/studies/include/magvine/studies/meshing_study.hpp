@@ -6,11 +6,11 @@
 
 #include <filesystem>
 
-namespace magvine::scene {
+namespace magvine::studies {
 
 /// Writes `dir/meshing_study.csv` with columns
 /// case,spacing_m,triangles,seconds,volume_rel_err,area_rel_err,max_surface_err_m
 /// (area and surface errors only for the capsule; NaN for the tree), atomically. Progress lines go to stderr.
 void run_meshing_study(const std::filesystem::path& dir);
 
-}  // namespace magvine::scene
+}  // namespace magvine::studies

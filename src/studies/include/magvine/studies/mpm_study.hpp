@@ -13,7 +13,7 @@
 
 #include "magvine/mpm/mpm.hpp"
 
-namespace magvine::scene {
+namespace magvine::studies {
 
 /// Plane-strain Young's modulus E/(1 − ν²) of a material's small-strain limit [Pa].
 double plane_strain_modulus(const mpm::Material& m);
@@ -48,4 +48,4 @@ std::vector<double> zhao_study_fields();
 void run_mpm_beam_study(const std::filesystem::path& dir, int jobs,
                         const std::function<void(const ZhaoPoint&)>& progress = {});
 
-}  // namespace magvine::scene
+}  // namespace magvine::studies

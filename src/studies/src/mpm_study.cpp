@@ -1,4 +1,4 @@
-#include "magvine/scene/mpm_study.hpp"
+#include "magvine/studies/mpm_study.hpp"
 
 #include <algorithm>
 #include <atomic>
@@ -13,7 +13,7 @@
 #include "magvine/core/units.hpp"
 #include "magvine/mpm/cantilever.hpp"
 
-namespace magvine::scene {
+namespace magvine::studies {
 namespace {
 
 // The Zhao beam as in the public reference code's 2D script (notes §5): Br 0.143 T, G 303 kPa. The density only
@@ -148,4 +148,4 @@ void run_mpm_beam_study(const std::filesystem::path& dir, int jobs, const std::f
   write_file_atomically(dir / "mpm_beam_summary.csv", summary.str());
 }
 
-}  // namespace magvine::scene
+}  // namespace magvine::studies

@@ -8,7 +8,7 @@
 
 #include "magvine/magnetics/cylinder.hpp"
 
-namespace magvine::scene {
+namespace magvine::studies {
 
 struct FieldStudySpec {
   /// Distances from the magnet centre [m] at which the error is measured (19 polar angles 0–90° each, and the
@@ -22,4 +22,4 @@ struct FieldStudySpec {
 void run_field_model_study(const magnetics::CylinderMagnet& magnet, const FieldStudySpec& spec,
                            const std::filesystem::path& dir);
 
-}  // namespace magvine::scene
+}  // namespace magvine::studies

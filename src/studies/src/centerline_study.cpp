@@ -1,4 +1,4 @@
-#include "magvine/scene/centerline_study.hpp"
+#include "magvine/studies/centerline_study.hpp"
 
 #include <array>
 #include <cstdio>
@@ -9,7 +9,7 @@
 #include "magvine/core/atomic_file.hpp"
 #include "magvine/scene/points_csv.hpp"
 
-namespace magvine::scene {
+namespace magvine::studies {
 
 void run_centerline_study(const std::filesystem::path& dir) {
   std::string csv = "voxel_m,seconds,lumen_voxels,branches,reference_branches,same_topology,mean_distance_rel,"
@@ -22,7 +22,7 @@ void run_centerline_study(const std::filesystem::path& dir) {
     anatomy::CenterlineReport report;
     const anatomy::AirwayGraph graph = anatomy::extract_airway_graph(tree.mesh, options, &report);
     const anatomy::GraphComparison c = anatomy::compare_graphs(graph, tree.graph);
-    append_csv_row(csv, std::array{h, report.seconds, static_cast<double>(report.inside_voxels),
+    scene::append_csv_row(csv, std::array{h, report.seconds, static_cast<double>(report.inside_voxels),
                                    static_cast<double>(c.branches), static_cast<double>(c.reference_branches),
                                    c.same_topology ? 1.0 : 0.0, c.mean_distance, c.mean_radius_error,
                                    c.p95_radius_error, c.p95_radius_error_away});
@@ -34,4 +34,4 @@ void run_centerline_study(const std::filesystem::path& dir) {
   write_file_atomically(dir / "centerline_study.csv", csv);
 }
 
-}  // namespace magvine::scene
+}  // namespace magvine::studies

@@ -1,4 +1,4 @@
-#include "magvine/scene/mechanics_study.hpp"
+#include "magvine/studies/mechanics_study.hpp"
 
 #include <algorithm>
 #include <array>
@@ -12,12 +12,13 @@
 #include "magvine/core/stopwatch.hpp"
 #include "magvine/core/units.hpp"
 #include "magvine/magnetics/field_model.hpp"
+#include "magvine/magnetics/magnetisation.hpp"
 #include "magvine/robot/elastica.hpp"
 #include "magvine/robot/inflated_beam.hpp"
 #include "magvine/robot/rod.hpp"
 #include "magvine/robot/vine.hpp"
 
-namespace magvine::scene {
+namespace magvine::studies {
 namespace {
 
 using robot::RodField;
@@ -144,15 +145,16 @@ VineDeflectionPoint vine_deflection_point(bool torque, double pressure, double d
     for (int i = 0; i <= n; ++i) {
       const double u = v.length * i / n;
       const Vec3 p = u * axis;
-      const magnetics::FieldSample f = field(p);
-      const Vec3 force = f.g.transpose() * (moment * mh) + m.mass_per_length * m.gravity;
-      const double per_length = p.cross(force).y() + (moment * mh).cross(f.b).y();
+      const magnetics::Wrench w = magnetics::magnetic_wrench(moment * mh, field(p));  // per length
+      const Vec3 force = w.force + m.mass_per_length * m.gravity;
+      const double per_length = p.cross(force).y() + w.torque.y();
       total += (i == 0 || i == n ? 0.5 : 1.0) * per_length * v.length / n;
     }
     return total;
   };
   const robot::TwoStageResult ref = robot::solve_two_stage(
-      {.radius = v.radius, .pressure = v.pressure, .bending_stiffness = m.bending_stiffness_3, .length = v.length},
+      {.radius = m.inflated->radius, .pressure = v.pressure, .bending_stiffness = m.bending_stiffness_3,
+       .length = v.length},
       loads, 400);
   out.two_stage_angle_deg = ref.angle / kDegToRad;
   out.two_stage_stage = ref.stage;
@@ -249,4 +251,4 @@ void run_fluid_vine_study(const std::filesystem::path& dir) {
   write_file_atomically(dir / "fluid_vine_summary.csv", summary.str());
 }
 
-}  // namespace magvine::scene
+}  // namespace magvine::studies

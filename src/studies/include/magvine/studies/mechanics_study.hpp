@@ -13,7 +13,7 @@
 
 #include <filesystem>
 
-namespace magvine::scene {
+namespace magvine::studies {
 
 void run_rod_convergence_study(const std::filesystem::path& dir);
 
@@ -30,4 +30,4 @@ VineDeflectionPoint vine_deflection_point(bool torque_setup, double pressure, do
 void run_vine_deflection_study(const std::filesystem::path& dir);
 void run_fluid_vine_study(const std::filesystem::path& dir);
 
-}  // namespace magvine::scene
+}  // namespace magvine::studies

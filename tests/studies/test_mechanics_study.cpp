@@ -1,13 +1,13 @@
-// The skin MVR of thesis 4.7.1 (scene/mechanics_study.hpp): the discretised vine's snap against the thesis's
+// The skin MVR of thesis 4.7.1 (studies/mechanics_study.hpp): the discretised vine's snap against the thesis's
 // two-stage model — both straight-ish before the crease, both creased and at the same angle after it.
 
 #include <gtest/gtest.h>
 
 #include <cstdio>
 
-#include "magvine/scene/mechanics_study.hpp"
+#include "magvine/studies/mechanics_study.hpp"
 
-namespace magvine::scene {
+namespace magvine::studies {
 namespace {
 
 TEST(MechanicsStudy, SkinVineSnapsWhereTheTwoStageModelCreases) {
@@ -33,4 +33,4 @@ TEST(MechanicsStudy, SkinVineSnapsWhereTheTwoStageModelCreases) {
 }
 
 }  // namespace
-}  // namespace magvine::scene
+}  // namespace magvine::studies

@@ -5,7 +5,7 @@
 
 #include <filesystem>
 
-namespace magvine::scene {
+namespace magvine::studies {
 
 /// Writes `dir/centerline_study.csv` with columns
 /// voxel_m,seconds,lumen_voxels,branches,reference_branches,same_topology,mean_distance_rel,mean_radius_err,
@@ -13,4 +13,4 @@ namespace magvine::scene {
 /// from junctions and ends), atomically. Progress on stderr.
 void run_centerline_study(const std::filesystem::path& dir);
 
-}  // namespace magvine::scene
+}  // namespace magvine::studies

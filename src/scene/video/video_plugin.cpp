@@ -1,4 +1,7 @@
-#include "video_outputs.hpp"
+// The video plugin (video_plugin.hpp), libmagvine_video.so: the render module's images and videos for the scene and
+// the command line, loaded on demand. Only magvine_video_plugin() is exported.
+
+#include <nlohmann/json.hpp>
 
 #include <unistd.h>
 
@@ -12,7 +15,12 @@
 #include "magvine/core/atomic_file.hpp"
 #include "magvine/core/error.hpp"
 #include "magvine/render/renderer.hpp"
+#include "magvine/render/particles.hpp"
 #include "magvine/render/video.hpp"
+#include "magvine/scene/experiment.hpp"
+#include "magvine/scene/video_plugin.hpp"
+#include <opencv2/core.hpp>
+#include <opencv2/imgcodecs.hpp>
 
 namespace magvine::scene {
 namespace {
@@ -67,12 +75,10 @@ render::Camera tip_camera(const VideoOutput& v, const FrameSample& f) {
   return c;
 }
 
-}  // namespace
-
-nlohmann::json write_videos(const ExperimentScene& scene, const ExperimentResult& result, const VideoInputs& in,
-                            const fs::path& dir) {
+std::string experiment_videos(const ExperimentScene& scene, const ExperimentResult& result, const VideoInputs& in,
+                              const fs::path& dir) {
   nlohmann::json entries = nlohmann::json::array();
-  if (scene.videos.empty() || result.frames.empty()) return entries;
+  if (scene.videos.empty() || result.frames.empty()) return nlohmann::json{{"videos", entries}, {"renderers", 0}}.dump();
   const int threads = static_cast<int>(std::clamp(std::thread::hardware_concurrency(), 1u, 8u));
   const render::AirwayRenderer renderer(scene.anatomy->mesh(), threads);
   create_output_directory(dir);
@@ -165,7 +171,71 @@ nlohmann::json write_videos(const ExperimentScene& scene, const ExperimentResult
     if (v.depth) e["depth_dir"] = v.name() + "_depth";
     entries.push_back(e);
   }
-  return entries;
+  return nlohmann::json{{"videos", entries}, {"renderers", 1}}.dump();
 }
 
+fs::path particle_video(const ParticleVideoRequest& r, const fs::path& stem) {
+  const render::ParticleView view =
+      render::frame_particles(*r.frames, r.view, r.up, static_cast<double>(r.width) / r.height, r.radius);
+  render::VideoFile file(stem, r.fps, r.width, r.height);
+  for (const std::vector<Vec3>& f : *r.frames) file.write(render::draw_particles(f, *r.body, view, r.width, r.height));
+  return file.finish();
+}
+
+/// PNG bytes of an 8- or 16-bit image.
+std::string encode_png(const cv::Mat& image) {
+  std::vector<unsigned char> bytes;
+  if (!cv::imencode(".png", image, bytes)) throw InputError("png", 0, "", "cannot encode the image as PNG");
+  return std::string(bytes.begin(), bytes.end());
+}
+
+EncodedImages mesh_image(const MeshImageRequest& r) {
+  render::Camera cam;
+  cam.position = r.eye;
+  cam.forward = r.look - r.eye;
+  cam.up = r.up;
+  cam.lens = r.fisheye ? render::Lens::kFisheye : render::Lens::kPinhole;
+  cam.fov = r.fov;
+  cam.width = r.width;
+  cam.height = r.height;
+  (void)render::focal_pixels(cam);  // checks the field of view for the lens
+  (void)render::camera_frame(cam);
+  const render::AirwayRenderer renderer(*r.mesh, 2);
+  EncodedImages out;
+  if (r.endoscope) {
+    const render::EndoscopeFrame f = renderer.render_endoscope(cam, render::EndoscopeLook{});
+    out.hit_fraction = cv::countNonZero(f.depth) / static_cast<double>(f.depth.total());
+    out.png = encode_png(f.color);
+    if (r.depth) out.depth_png = encode_png(render::depth_to_u16(f.depth, r.depth_range));
+  } else {
+    out.png = encode_png(renderer.render_overview(cam, render::OverviewContent{}));
+  }
+  return out;
+}
+
+EncodedImages graph_picture(const anatomy::TriangleMesh& mesh, const anatomy::AirwayGraph& graph) {
+  const anatomy::Aabb box = anatomy::bounding_box(mesh);
+  const Vec3 size = box.max - box.min;
+  const auto [axis, up] = render::face_on_view(box);
+  const render::Camera cam = render::framing_camera(box, -axis, up, render::Lens::kPinhole, 40.0 * kDegToRad, 800, 800);
+  render::OverviewContent content;
+  for (const anatomy::AirwayBranch& b : graph.branches) {
+    std::vector<Vec3> line;
+    for (const std::uint32_t n : b.nodes) line.push_back(graph.nodes[n].position);
+    content.lines.push_back(std::move(line));
+  }
+  content.line_radius = 0.0015 * size.maxCoeff();
+  EncodedImages out;
+  out.png = encode_png(render::AirwayRenderer(mesh, 2).render_overview(cam, content));
+  return out;
+}
+
+const VideoPlugin kPlugin{VideoPlugin::kAbi, experiment_videos, particle_video, mesh_image, graph_picture};
+
+}  // namespace
 }  // namespace magvine::scene
+
+/// The plugin's one exported symbol (video_plugin.hpp).
+extern "C" __attribute__((visibility("default"))) const magvine::scene::VideoPlugin* magvine_video_plugin() {
+  return &magvine::scene::kPlugin;
+}

@@ -1,0 +1,196 @@
+// The rod's energy terms one by one (src/robot/src/terms/): each term's gradient against central differences of its
+// own energy, and its Hessian against central differences of its own gradient, on a bent, twisted, slightly
+// stretched rod or vine with every load a term reads (a dipole field, gravity, tip loads, an inertial prediction,
+// wall planes, anchors, node forces). The whole rod's derivatives are checked in test_rod and test_vine; here a term
+// that is wrong cannot hide behind a stiffer one.
+
+#include <gtest/gtest.h>
+
+#include <cmath>
+#include <random>
+#include <string>
+
+#include "magvine/magnetics/field_function.hpp"
+#include "magvine/robot/vine.hpp"
+#include "rod_terms.hpp"
+
+namespace magvine::robot::detail {
+namespace {
+
+/// A term's energy and gradient at state s.
+template <class Term>
+double term_energy(const TermContext& c, System* sys) {
+  double e = 0.0;
+  Term::add_energy(c, e, sys);
+  return e;
+}
+
+/// The state moved along unknown k by d (positions by δx, rotations by exp([δφ])R).
+RodState moved(const RodState& s, Eigen::Index k, double d) {
+  RodState t = s;
+  const auto block = static_cast<std::size_t>(k / 6);
+  const int axis = static_cast<int>(k % 3);
+  if ((k % 6) >= 3) {
+    t.frames[block] = Eigen::AngleAxisd(d, Vec3::Unit(axis)).toRotationMatrix() * t.frames[block];
+  } else {
+    t.x[block + 1][axis] += d;
+  }
+  return t;
+}
+
+/// The inputs every term reads, kept alive for the contexts.
+struct TermSetup {
+  RodModel model;
+  RodField field;
+  RodState state;
+  Inertia inertia;
+  RodConstraints constraints;
+};
+
+TermSetup make_setup(bool vine) {
+  TermSetup s;
+  const int edges = 6;
+  if (vine) {
+    VineParameters v = thesis_skin_mvr(60e-3, edges);
+    v.fill = FillKind::kMagneticFluid;
+    s.model = vine_rod(v);
+  } else {
+    s.model = rectangular_rod(60e-3, 3e-3, 3e-3, 120e3, 1882.0, 0.125, Vec3(1.0, 0.3, 0.0), edges);
+    s.model.tip_moment = Vec3(1e-4, -2e-4, 3e-4);
+    for (int j = 0; j < edges; ++j) s.model.rest_strain.push_back(Vec3(0.5, -1.0, 2.0) * (j + 1));
+  }
+  // Stretch and shear as soft as the bending, so their derivatives are of the same size as the rest (not a
+  // requirement of the check, which is per term, but it keeps the differences' round-off small).
+  const double h = s.model.length / s.model.edges;
+  s.model.axial_stiffness = s.model.bending_stiffness_3 / (h * h);
+  s.model.shear_stiffness = s.model.axial_stiffness;
+  s.model.gravity = Vec3(0.5, -9.81, 1.0);
+  s.model.tip_force = Vec3(1e-3, 2e-3, -1e-3);
+  magnetics::FieldModel magnets;
+  magnets.add(magnetics::DipoleSource{Vec3(0.0, 0.0, 300.0)},
+              magnetics::Pose::from_axis(Vec3(0.04, -0.05, 0.02), Vec3(0.2, 1.0, 0.1)));
+  s.field = magnetics::field_function(magnets, magnets.rest_poses);
+  s.state = straight_rod(s.model);
+  std::mt19937 rng(11);
+  std::uniform_real_distribution<double> u(-1.0, 1.0);
+  for (std::size_t j = 0; j < s.state.frames.size(); ++j) {
+    // Joints in a vine's linear, wrinkled and creased ranges; a rod bent and twisted.
+    const double angle = vine ? (j % 3 == 0 ? 1e-4 : (j % 3 == 1 ? 0.05 : 0.8)) : 0.3;
+    s.state.frames[j] = Eigen::AngleAxisd(angle, Vec3(u(rng), u(rng), u(rng)).normalized()).toRotationMatrix() *
+                        (j > 0 ? s.state.frames[j - 1] : s.state.frames[j]);
+    s.state.x[j + 1] = s.state.x[j] + h * s.state.frames[j].col(0) + 0.02 * h * Vec3(u(rng), u(rng), u(rng));
+  }
+  // An inertial prediction near the state, a wall plane at every node (some deep, some in the smooth zone, some
+  // clear), anchors with unit and short normals, node forces.
+  s.inertia.dt = 1e-2;
+  s.inertia.rotational = 1e-9;
+  for (std::size_t i = 0; i < s.state.x.size(); ++i) {
+    s.inertia.x.push_back(s.state.x[i] + 1e-4 * Vec3(u(rng), u(rng), u(rng)));
+    s.inertia.mass.push_back(1e-4 * (1.0 + 0.1 * i));
+  }
+  for (const Mat3& r : s.state.frames) {
+    s.inertia.frames.push_back(Eigen::AngleAxisd(0.05, Vec3(u(rng), u(rng), u(rng)).normalized()).toRotationMatrix() * r);
+  }
+  const double k = 100.0 * s.model.bending_stiffness_3 / (h * h * h);
+  for (int i = 1; i <= edges; ++i) {
+    const Vec3 n = Vec3(u(rng), u(rng), u(rng)).normalized();
+    const double depth = (i % 3 == 0 ? 2e-4 : (i % 3 == 1 ? 2e-6 : -1e-3));  // beyond ε, inside it, clear
+    NodeContact c;
+    c.node = i;
+    c.normal = n;
+    c.radius = 1e-3;
+    c.smoothing = 1e-5;
+    c.stiffness = k;
+    c.point = s.state.x[static_cast<std::size_t>(i)] - (c.radius - depth) * n;
+    s.constraints.contacts.push_back(c);
+    s.constraints.anchors.push_back(
+        {i, s.state.x[static_cast<std::size_t>(i)] + 1e-4 * Vec3(u(rng), u(rng), u(rng)), (i % 2 == 0 ? 1.0 : 0.4) * n, k});
+    s.constraints.forces.push_back({i, 1e-3 * Vec3(u(rng), u(rng), u(rng))});
+  }
+  return s;
+}
+
+template <class Term>
+void expect_term_derivatives(const TermSetup& s, const std::string& label) {
+  const int n = s.model.edges;
+  const auto context = [&](const RodState& state) {
+    return TermContext{s.model, s.field, state, 0.8, &s.inertia, &s.constraints, nullptr};
+  };
+  System analytic(n);
+  const double e0 = term_energy<Term>(context(s.state), &analytic);
+  ASSERT_TRUE(std::isfinite(e0)) << label;
+  Term::add_hessian(context(s.state), analytic);
+  const double g_scale = analytic.gradient.cwiseAbs().maxCoeff();
+  const VecX& g = analytic.gradient;
+  for (Eigen::Index k = 0; k < g.size(); ++k) {
+    const double step = (k % 6) >= 3 ? 1e-6 : 1e-8;
+    // Gradient: central differences of the term's energy.
+    const RodState plus = moved(s.state, k, step);
+    const RodState minus = moved(s.state, k, -step);
+    const double fd = (term_energy<Term>(context(plus), nullptr) - term_energy<Term>(context(minus), nullptr)) /
+                      (2.0 * step);
+    EXPECT_NEAR(g[k], fd, 1e-6 * std::abs(fd) + 1e-8 * g_scale) << label << ": gradient, unknown " << k;
+  }
+  // The Hessian: central differences of the term's gradient, symmetrised (with world-frame rotation increments the
+  // derivative of the gradient differs from the Hessian by an antisymmetric part), against the analytic blocks
+  // entry by entry.
+  MatX fd_h(g.size(), g.size());
+  for (Eigen::Index k = 0; k < g.size(); ++k) {
+    const double step = (k % 6) >= 3 ? 1e-6 : 1e-8;
+    System gp(n, false);
+    System gm(n, false);
+    (void)term_energy<Term>(context(moved(s.state, k, step)), &gp);
+    (void)term_energy<Term>(context(moved(s.state, k, -step)), &gm);
+    fd_h.col(k) = (gp.gradient - gm.gradient) / (2.0 * step);
+  }
+  fd_h = (0.5 * (fd_h + fd_h.transpose())).eval();
+  MatX h(g.size(), g.size());
+  h.setZero();
+  for (Eigen::Index j = 0; j < n; ++j) {
+    const Mat6 d = analytic.diag[static_cast<std::size_t>(j)].selfadjointView<Eigen::Lower>();
+    h.block<6, 6>(6 * j, 6 * j) = d;
+    if (j > 0) {
+      h.block<6, 6>(6 * j, 6 * (j - 1)) = analytic.sub[static_cast<std::size_t>(j)];
+      h.block<6, 6>(6 * (j - 1), 6 * j) = analytic.sub[static_cast<std::size_t>(j)].transpose();
+    }
+  }
+  const double h_scale = fd_h.cwiseAbs().maxCoeff();
+  for (Eigen::Index i = 0; i < g.size(); ++i) {
+    for (Eigen::Index k = 0; k < g.size(); ++k) {
+      EXPECT_NEAR(h(i, k), fd_h(i, k), 1e-5 * std::abs(fd_h(i, k)) + 1e-7 * h_scale)
+          << label << ": Hessian entry (" << i << ", " << k << ")";
+    }
+  }
+}
+
+template <class Term>
+void expect_for_rod_and_vine(const std::string& name) {
+  for (const bool vine : {false, true}) {
+    const TermSetup s = make_setup(vine);
+    expect_term_derivatives<Term>(s, name + (vine ? " (vine)" : " (rod)"));
+  }
+}
+
+TEST(RodTerms, StretchShear) { expect_for_rod_and_vine<StretchShear>("stretch-shear"); }
+TEST(RodTerms, BendTwist) { expect_for_rod_and_vine<BendTwist>("bend-twist"); }
+TEST(RodTerms, Magnetic) { expect_for_rod_and_vine<Magnetic>("magnetic"); }
+TEST(RodTerms, Inertia) { expect_for_rod_and_vine<InertiaTerm>("inertia"); }
+TEST(RodTerms, WallContact) { expect_for_rod_and_vine<WallContactTerm>("wall contact"); }
+TEST(RodTerms, Anchors) { expect_for_rod_and_vine<AnchorTerm>("anchors"); }
+TEST(RodTerms, NodeForces) { expect_for_rod_and_vine<NodeForceTerm>("node forces"); }
+TEST(RodTerms, Gravity) { expect_for_rod_and_vine<GravityTerm>("gravity and tip force"); }
+TEST(RodTerms, TipMoment) { expect_for_rod_and_vine<TipMomentTerm>("tip moment"); }
+
+TEST(RodTerms, TheSolversEnergyIsTheSumOfTheTerms) {
+  // rod_terms.hpp: evaluate is the fold over the list; the public rod_energy is that sum.
+  const TermSetup s = make_setup(true);
+  const TermContext c{s.model, s.field, s.state, 1.0, nullptr, &s.constraints, nullptr};
+  const double sum = term_energy<StretchShear>(c, nullptr) + term_energy<BendTwist>(c, nullptr) +
+                     term_energy<Magnetic>(c, nullptr) + term_energy<WallContactTerm>(c, nullptr) +
+                     term_energy<AnchorTerm>(c, nullptr) + term_energy<NodeForceTerm>(c, nullptr) +
+                     term_energy<GravityTerm>(c, nullptr) + term_energy<TipMomentTerm>(c, nullptr);
+  EXPECT_NEAR(rod_energy(s.model, s.field, s.state, 1.0, &s.constraints), sum, 1e-12 * std::abs(sum));
+}
+
+}  // namespace
+}  // namespace magvine::robot::detail
