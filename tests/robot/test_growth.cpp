@@ -67,6 +67,19 @@ struct Tube {
   explicit Tube(const anatomy::TubeParams& p) : phantom(anatomy::make_tube_phantom(p)), world(phantom.mesh) {}
 };
 
+TEST(GrowthLaw, SpeedYieldAndForceByHand) {
+  // L̇ = K·max(0, P − Y), Y = Y0 + c_L·L + c_θ·Σθ (+ extra); the tip's force (P − Y)·πR² (growth.hpp).
+  const GrowthLaw law{.extensibility = 2e-6, .yield_pressure = 5e3, .length_yield = 12e3, .turning_yield = 1e3};
+  const GrowthRate r = growth_rate(law, 12e3, 0.1, 1.5, 0.25e3);
+  EXPECT_NEAR(r.length_term, 1.2e3, 1e-9);
+  EXPECT_NEAR(r.turning_term, 1.5e3, 1e-9);
+  EXPECT_NEAR(r.yield, 5e3 + 1.2e3 + 1.5e3 + 0.25e3, 1e-9);
+  EXPECT_NEAR(r.speed, 2e-6 * (12e3 - 7.95e3), 1e-15);  // 8.1 mm/s
+  EXPECT_EQ(growth_rate(law, 7e3, 0.1, 1.5).speed, 0.0);  // at or below the yield: stalled, never negative
+  EXPECT_NEAR(growth_force(35e3, 20e3, 2.5e-3), 15e3 * kPi * 2.5e-3 * 2.5e-3, 1e-12);  // 0.295 N
+  EXPECT_EQ(growth_force(10e3, 20e3, 2.5e-3), 0.0);
+}
+
 TEST(Growth, FollowsTheGrowthLawToWhereTheYieldReachesThePressureAndStallsBelowIt) {
   // Free space, no gravity, straight: Y = Y0 + c_L L, so dL/dt = K (P − Y0 − c_L L) and
   // L(t) = L* − (L* − L0) e^(−K c_L t), L* = (P − Y0)/c_L = 125 mm, time constant 1/(K c_L) = 50 s. Whole edges
@@ -205,6 +218,10 @@ TEST(Growth, BurstsWhenTheHoopStressPassesTheFilmStrength) {
               1e-12 * skin_mvr().wall_strength);
   EXPECT_GT(p, 47e3);
   EXPECT_LT(p, 48.5e3);
+  // The one criterion (vine.hpp): bursts ⟺ P > burst_pressure, and hoop_stress includes the extension.
+  EXPECT_FALSE(bursts(skin_mvr(), 0.999 * p));
+  EXPECT_TRUE(bursts(skin_mvr(), 1.001 * p));
+  EXPECT_NEAR(hoop_stress(skin_mvr(), p), skin_mvr().wall_strength, 1e-12 * skin_mvr().wall_strength);
   VineGrowth below(skin_mvr(), o, nullptr, {}, Vec3::Zero(), Mat3::Identity());
   EXPECT_FALSE(below.advance(0.1, {.pressure = 0.999 * p}).burst);
   VineGrowth above(skin_mvr(), o, nullptr, {}, Vec3::Zero(), Mat3::Identity());

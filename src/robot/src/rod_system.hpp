@@ -7,6 +7,7 @@
 
 #include <array>
 #include <cstddef>
+#include <span>
 #include <vector>
 
 #include <Eigen/Geometry>
@@ -168,6 +169,13 @@ struct TermContext {
 
   int edges() const { return model.edges; }
   double h() const { return model.length / model.edges; }
+
+  /// The entries of one list of the constraints (RodConstraints::contacts, anchors, forces); none without them.
+  template <class T>
+  std::span<const T> entries(std::vector<T> RodConstraints::*list) const {
+    if (constraints == nullptr) return {};
+    return (constraints->*list);
+  }
 };
 
 }  // namespace magvine::robot::detail

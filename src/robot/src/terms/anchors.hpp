@@ -10,8 +10,7 @@ namespace magvine::robot::detail {
 
 struct AnchorTerm {
   static void add_energy(const TermContext& c, double& energy, System* sys) {
-    if (c.constraints == nullptr) return;
-    for (const NodeAnchor& a : c.constraints->anchors) {
+    for (const NodeAnchor& a : c.entries(&RodConstraints::anchors)) {
       const Vec3 d = c.state.x[static_cast<std::size_t>(a.node)] - a.anchor;
       const Vec3 tangential = d - a.normal.dot(d) * a.normal;
       energy += 0.5 * a.stiffness * d.dot(tangential);
@@ -20,8 +19,7 @@ struct AnchorTerm {
   }
 
   static void add_hessian(const TermContext& c, System& sys) {
-    if (c.constraints == nullptr) return;
-    for (const NodeAnchor& a : c.constraints->anchors) {
+    for (const NodeAnchor& a : c.entries(&RodConstraints::anchors)) {
       add_block(sys, position_slot(a.node), position_slot(a.node),
                   a.stiffness * (Mat3::Identity() - a.normal * a.normal.transpose()));
     }

@@ -8,8 +8,7 @@ namespace magvine::robot::detail {
 
 struct NodeForceTerm {
   static void add_energy(const TermContext& c, double& energy, System* sys) {
-    if (c.constraints == nullptr) return;
-    for (const NodeForce& f : c.constraints->forces) {
+    for (const NodeForce& f : c.entries(&RodConstraints::forces)) {
       energy -= f.force.dot(c.state.x[static_cast<std::size_t>(f.node)]);
       if (sys != nullptr) sys->add_gradient(position_slot(f.node), -f.force);
     }

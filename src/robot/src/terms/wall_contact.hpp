@@ -29,8 +29,7 @@ inline ContactLaw contact_law(const NodeContact& c, const Vec3& x) {
 
 struct WallContactTerm {
   static void add_energy(const TermContext& c, double& energy, System* sys) {
-    if (c.constraints == nullptr) return;
-    for (const NodeContact& k : c.constraints->contacts) {
+    for (const NodeContact& k : c.entries(&RodConstraints::contacts)) {
       const ContactLaw law = contact_law(k, c.state.x[static_cast<std::size_t>(k.node)]);
       energy += law.energy;
       if (sys != nullptr && law.force > 0.0) sys->add_gradient(position_slot(k.node), -law.force * k.normal);
@@ -38,8 +37,7 @@ struct WallContactTerm {
   }
 
   static void add_hessian(const TermContext& c, System& sys) {
-    if (c.constraints == nullptr) return;
-    for (const NodeContact& k : c.constraints->contacts) {
+    for (const NodeContact& k : c.entries(&RodConstraints::contacts)) {
       const ContactLaw law = contact_law(k, c.state.x[static_cast<std::size_t>(k.node)]);
       if (law.stiffness > 0.0) {
         add_block(sys, position_slot(k.node), position_slot(k.node), law.stiffness * k.normal * k.normal.transpose());
