@@ -163,10 +163,6 @@ inline float float_up(double x) {
   return static_cast<double>(f) >= x ? f : std::nextafter(f, std::numeric_limits<float>::infinity());
 }
 
-/// sphere_mask evaluated on four children at once in single precision. The float distances carry a rounding error
-/// far below `margin` (1e-6 of the coordinates' size), so children within r − margin are in and beyond r + margin
-/// are out; a leaf child in between gets the exact double test, an inner one is entered. The leaves reached are
-/// then exactly sphere_mask's, in the same order (entering an extra inner node only costs a test).
 /// The walk mask of a conservative single-precision test: `maybe` the children it may admit, `sure` those it surely
 /// admits; a leaf child admitted only maybe is decided by `exact` (the double-precision mask of that node), so the
 /// walk visits exactly the leaves the exact test admits.
@@ -174,16 +170,25 @@ template <class Exact>
 unsigned refine_mask(const TriangleBvh::Node& node, unsigned maybe, unsigned sure, const Exact& exact) {
   unsigned unsure = maybe & ~sure;
   unsigned mask = maybe;
+  unsigned exact_mask = 0;
+  bool exact_known = false;  // `exact` is pure: evaluated once, on the first unsure leaf
   while (unsure != 0) {
     const int k = __builtin_ctz(unsure);
     unsure &= unsure - 1;
-    if ((node.child[static_cast<std::size_t>(k)] & TriangleBvh::kLeafBit) != 0 && (exact() & (1u << k)) == 0) {
-      mask &= ~(1u << k);
+    if ((node.child[static_cast<std::size_t>(k)] & TriangleBvh::kLeafBit) == 0) continue;
+    if (!exact_known) {
+      exact_mask = exact();
+      exact_known = true;
     }
+    if ((exact_mask & (1u << k)) == 0) mask &= ~(1u << k);
   }
   return mask;
 }
 
+/// sphere_mask evaluated on four children at once in single precision. The float distances carry a rounding error
+/// far below `margin` (1e-6 of the coordinates' size), so children within r − margin are in and beyond r + margin
+/// are out; a leaf child in between gets the exact double test, an inner one is entered. The leaves reached are
+/// then exactly sphere_mask's, in the same order (entering an extra inner node only costs a test).
 class SphereBoxTest {
  public:
   SphereBoxTest(const Vec3& c, double r) : m_c(c), m_r2(r * r) {

@@ -1,10 +1,7 @@
 #include "magvine/robot/elastica.hpp"
 
-#include <array>
 #include <cmath>
-#include <memory>
 #include <string>
-#include <utility>
 
 #include "magvine/core/error.hpp"
 #include "magvine/core/units.hpp"

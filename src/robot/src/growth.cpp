@@ -62,6 +62,14 @@ double ring_crush_load(const CatheterTube& c, double g) {
   return std::max(0.0, c.outer_diameter - g) * c.modulus * t * t * t / (12.0 * 0.149 * r * r * r);
 }
 
+/// The body's radius as made: the catheter tube's or the pushed rod's when there is one, else the vine's. The edge
+/// length and the contacts follow it.
+double made_radius(const VineParameters& vine, const GrowthOptions& options) {
+  if (options.catheter) return 0.5 * options.catheter->outer_diameter;
+  if (options.rod) return options.rod->radius;
+  return vine.radius;
+}
+
 }  // namespace
 
 GrowthRate growth_rate(const GrowthLaw& law, double pressure, double length, double turning, double extra_yield) {
@@ -230,9 +238,7 @@ void check_growth(const VineParameters& vine, const GrowthOptions& options, cons
     check(vine.length <= r.body.length * (1.0 + 1e-9), "inserted", "rod: the inserted length exceeds the rod's length");
   }
   // The edge length and the edges it makes of the starting length.
-  const double radius = options.catheter ? 0.5 * options.catheter->outer_diameter
-                                         : (options.rod ? options.rod->radius : vine.radius);
-  const double h = options.edge_length > 0.0 ? options.edge_length : radius;
+  const double h = options.edge_length > 0.0 ? options.edge_length : made_radius(vine, options);
   check(vine.length / h <= 1e6, "edge_length", "the edges would number more than a million");
 }
 
@@ -246,8 +252,7 @@ VineGrowth::VineGrowth(const VineParameters& vine, const GrowthOptions& options,
       m_base_frame(base_frame) {
   check_growth(vine, options, base_frame);
   m_max_incidence = options.max_incidence > 0.0 ? options.max_incidence : std::atan2(1.0, options.friction);
-  if (options.catheter) m_vine.radius = 0.5 * options.catheter->outer_diameter;  // edges and contacts follow the tube
-  if (options.rod) m_vine.radius = options.rod->radius;  // the edge length and contact radius follow the rod
+  m_vine.radius = made_radius(vine, options);  // the edge length and the contacts follow a tube's or rod's radius
   m_h = options.edge_length > 0.0 ? options.edge_length : m_vine.radius;
   const int edges = std::max(1, static_cast<int>(std::lround(vine.length / m_h)));
   m_vine.edges = edges;
@@ -259,12 +264,6 @@ VineGrowth::VineGrowth(const VineParameters& vine, const GrowthOptions& options,
   m_normal_force.assign(m_state.x.size(), 0.0);
   GrowthStepReport report;
   if (!solve_with_wall(report)) add_event(GrowthEventKind::kSolver, "initial equilibrium: " + report.failure);
-}
-
-double VineGrowth::extended_radius(double pressure) const {
-  if (m_options.catheter) return 0.5 * m_options.catheter->outer_diameter;
-  if (m_options.rod) return m_options.rod->radius;
-  return robot::extended_radius(m_vine, pressure);
 }
 
 void VineGrowth::rebuild_model(double pressure) {
@@ -283,7 +282,7 @@ void VineGrowth::rebuild_model(double pressure) {
   m_model.base_position = m_base_position;
   m_model.base_frame = m_base_frame;
   m_model.gravity = m_options.gravity;
-  m_radius = extended_radius(pressure);
+  m_radius = solid_body() ? m_vine.radius : extended_radius(m_vine, pressure);  // a solid body does not extend
   m_pressure = pressure;
   const double ei = m_model.bending_stiffness_3;
   // A solid rod presses the wall with its section's stiffness over an edge, E·h (E from EI = Eπr⁴/4).
@@ -686,10 +685,9 @@ GrowthStepReport VineGrowth::advance(double dt, const GrowthControl& control) {
     report.speed = m_options.rod->insertion_speed;  // pushed up to the tether: no pressure, no growth law
   } else {
     const GrowthLaw& law = m_options.law;
-    // The grown length, whole edges or not.
     report.magnetorheological_yield = magnetorheological_yield();
-    const GrowthRate rate =
-        growth_rate(law, p, m_model.length + m_pending, turning(), report.magnetorheological_yield);
+    const GrowthRate rate = growth_rate(law, p, m_model.length + m_pending /* the grown length, whole edges or not */,
+                                        turning(), report.magnetorheological_yield);
     const double length_term = rate.length_term;
     const double turning_term = rate.turning_term;
     report.yield = rate.yield;

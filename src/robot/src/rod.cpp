@@ -1,7 +1,6 @@
 #include "magvine/robot/rod.hpp"
 
 #include <algorithm>
-#include <array>
 #include <cmath>
 #include <limits>
 #include <string>
@@ -64,7 +63,7 @@ void finite_difference_hessian(const RodModel& m, const RodField& field, const R
   VecX delta(6 * n);
   // Rotation columns move no node: the field at the midpoints is the base state's, sampled once here.
   FieldSamples samples;
-  const bool magnetic = field && (!m.moment_per_length.empty() || m.induced);
+  const bool magnetic = detail::Magnetic::active(TermContext{m, field, s, load});
   if (magnetic) {
     samples.reset(static_cast<std::size_t>(n));
     for (std::size_t j = 0; j < static_cast<std::size_t>(n); ++j) samples.at(field, s, j);
@@ -638,7 +637,7 @@ std::vector<double> joint_angles(const RodModel& model, const RodState& state) {
   std::vector<double> out;
   out.reserve(state.frames.size());
   for (std::size_t j = 0; j < state.frames.size(); ++j) {
-    const Mat3 q = (j == 0 ? model.base_frame : state.frames[j - 1]).transpose() * state.frames[j];
+    const Mat3 q = detail::joint_first_frame(model, state, static_cast<int>(j)).transpose() * state.frames[j];
     out.push_back(std::atan2(skew_axis(q).norm(), 0.5 * (q.trace() - 1.0)));
   }
   return out;
@@ -648,8 +647,8 @@ std::vector<double> joint_bending_moments(const RodModel& model, const RodState&
   const double h = model.length / model.edges;
   std::vector<double> out;
   for (int j = 0; j < model.edges; ++j) {
-    const Mat3& ra = j == 0 ? model.base_frame : state.frames[static_cast<std::size_t>(j) - 1];
-    const double ell = j == 0 ? 0.5 * h : h;
+    const Mat3& ra = detail::joint_first_frame(model, state, j);
+    const double ell = detail::joint_length(h, j);
     const Mat3 q = ra.transpose() * state.frames[static_cast<std::size_t>(j)];
     Vec3 stress;
     const Vec3 omega = joint_strain(q, ell);
@@ -725,7 +724,7 @@ RodSolveReport step_rod_dynamics(const RodModel& model, const RodField& field, R
   inertia.frames.resize(n);
   for (std::size_t i = 0; i <= n; ++i) {
     inertia.x[i] = state.x[i] + dt * motion.velocity[i];
-    inertia.mass[i] = model.mass_per_length * (i == n ? 0.5 * h : h);
+    inertia.mass[i] = detail::lumped_mass(model, h, i);
   }
   for (std::size_t j = 0; j < n; ++j) {
     inertia.frames[j] = exp_rotation(dt * motion.angular_velocity[j]) * state.frames[j];

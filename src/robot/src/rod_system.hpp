@@ -21,6 +21,14 @@ namespace magvine::robot::detail {
 using Mat6 = Eigen::Matrix<double, 6, 6>;
 using Vec6 = Eigen::Matrix<double, 6, 1>;
 
+/// The midpoint of edge j, where its magnetic loads are sampled.
+inline Vec3 edge_midpoint(const RodState& s, std::size_t j) { return 0.5 * (s.x[j] + s.x[j + 1]); }
+
+/// The lumped mass of node i of N [kg]: ρA·h, half at the tip (node 0 is clamped).
+inline double lumped_mass(const RodModel& m, double h, std::size_t i) {
+  return m.mass_per_length * (i == static_cast<std::size_t>(m.edges) ? 0.5 * h : h);
+}
+
 /// [v]: the cross-product matrix, [v]u = v × u.
 inline Mat3 skew(const Vec3& v) {
   Mat3 s;
@@ -138,7 +146,7 @@ struct FieldSamples {
   /// B and ∂B/∂x at the midpoint of edge j of `s`.
   const magnetics::FieldSample& at(const RodField& field, const RodState& s, std::size_t j) {
     if (known[j] == 0) {
-      value[j] = field(0.5 * (s.x[j] + s.x[j + 1]));
+      value[j] = field(edge_midpoint(s, j));
       known[j] = 1;
     }
     return value[j];
@@ -166,9 +174,10 @@ struct TermContext {
   const Inertia* inertia = nullptr;
   const RodConstraints* constraints = nullptr;
   FieldSamples* samples = nullptr;
+  double edge_length = model.length / model.edges;  ///< h, once per context (not per edge)
 
   int edges() const { return model.edges; }
-  double h() const { return model.length / model.edges; }
+  double h() const { return edge_length; }
 
   /// The entries of one list of the constraints (RodConstraints::contacts, anchors, forces); none without them.
   template <class T>

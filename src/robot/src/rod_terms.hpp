@@ -3,6 +3,7 @@
 // under terms/, and the solver's energy and Hessian are loops over this list. A new term is one new file and one
 // entry here. The order is the summation order (kept fixed: it decides the last bits of the energy).
 
+#include <cmath>
 #include <tuple>
 
 #include "rod_system.hpp"
@@ -22,10 +23,12 @@ using RodTerms = std::tuple<StretchShear, BendTwist, Magnetic, InertiaTerm, Wall
                             GravityTerm, TipMomentTerm>;
 
 /// The energy at load factor λ (c.load); adds its gradient to `sys` when given. Infinite when a joint has folded
-/// back on itself (the gradient is then incomplete).
+/// back on itself: the terms after the first non-finite energy are skipped (the gradient is then incomplete, and
+/// every caller rejects the state), so a rejected line-search trial samples no field.
 inline double rod_terms_energy(const TermContext& c, System* sys) {
   double energy = 0.0;
-  std::apply([&](auto... term) { (decltype(term)::add_energy(c, energy, sys), ...); }, RodTerms{});
+  std::apply([&](auto... term) { ((decltype(term)::add_energy(c, energy, sys), std::isfinite(energy)) && ...); },
+             RodTerms{});
   return energy;
 }
 

@@ -132,11 +132,11 @@ VineDeflectionPoint vine_deflection_point(bool torque, double pressure, double d
   // The two-stage reference: loads of the straight body (the same field), stage 2 with the body turned.
   const Vec3 m_hat = torque ? Vec3::UnitX() : Vec3::UnitY();
   robot::TwoStageLoads loads;
-  loads.force = [&](double u) {
-    const magnetics::FieldSample f = field(Vec3(0.0, 0.0, u));
-    return (f.g.transpose() * (moment * m_hat)).x();
+  const auto straight_wrench = [&](double u) {
+    return magnetics::magnetic_wrench(moment * m_hat, field(Vec3(0.0, 0.0, u)));
   };
-  loads.torque = [&](double u) { return (moment * m_hat).cross(field(Vec3(0.0, 0.0, u)).b).y(); };
+  loads.force = [&](double u) { return straight_wrench(u).force.x(); };
+  loads.torque = [&](double u) { return straight_wrench(u).torque.y(); };
   loads.creased_base_moment = [&](double theta) {
     const Vec3 axis(std::sin(theta), 0.0, std::cos(theta));
     const Vec3 mh = torque ? Vec3(std::cos(theta), 0.0, -std::sin(theta)) : Vec3::UnitY();

@@ -77,19 +77,21 @@ inline Mat3 joint_stiffness(const RodModel& m, double ell, const Vec3& omega) {
   return k + slope * bend * bend.transpose();
 }
 
-struct BendTwist {
-  /// The frames of joint j: the clamp frame or edge j − 1's, then edge j's; and its length ℓ.
-  static const Mat3& first_frame(const TermContext& c, int j) {
-    return j == 0 ? c.model.base_frame : c.state.frames[static_cast<std::size_t>(j) - 1];
-  }
-  static double joint_length(const TermContext& c, int j) { return j == 0 ? 0.5 * c.h() : c.h(); }
+/// The first frame of joint j (the clamp frame or edge j − 1's; the second is edge j's) and its length ℓ (h/2 at the
+/// clamp, else h).
+inline const Mat3& joint_first_frame(const RodModel& m, const RodState& s, int j) {
+  return j == 0 ? m.base_frame : s.frames[static_cast<std::size_t>(j) - 1];
+}
+inline double joint_length(double h, int j) { return j == 0 ? 0.5 * h : h; }
 
-  /// A joint folded back on itself makes the energy infinite (and the gradient incomplete).
+struct BendTwist {
+  /// A joint folded back on itself makes the energy infinite (and the gradient incomplete; rod_terms_energy then
+  /// stops).
   static void add_energy(const TermContext& c, double& energy, System* sys) {
     for (int j = 0; j < c.edges(); ++j) {
-      const Mat3& ra = first_frame(c, j);
+      const Mat3& ra = joint_first_frame(c.model, c.state, j);
       const Mat3& rb = c.state.frames[static_cast<std::size_t>(j)];
-      const double ell = joint_length(c, j);
+      const double ell = joint_length(c.h(), j);
       const Mat3 q = ra.transpose() * rb;
       const double cq = 1.0 + q.trace();  // 2(1 + cos ψ)
       if (!(cq > 1e-12)) {
@@ -115,9 +117,9 @@ struct BendTwist {
   /// Baker–Campbell–Hausdorff term of exp(−[δφ_a])exp([δφ_b]), g the joint's gradient in δφ_b).
   static void add_hessian(const TermContext& c, System& sys) {
     for (int j = 0; j < c.edges(); ++j) {
-      const Mat3& ra = first_frame(c, j);
+      const Mat3& ra = joint_first_frame(c.model, c.state, j);
       const Mat3& rb = c.state.frames[static_cast<std::size_t>(j)];
-      const double ell = joint_length(c, j);
+      const double ell = joint_length(c.h(), j);
       const Mat3 q = ra.transpose() * rb;
       const Vec3 omega = joint_strain(q, ell);
       const Vec3 strain = omega - rest_strain(c.model, j);

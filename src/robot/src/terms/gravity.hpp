@@ -12,7 +12,7 @@ struct GravityTerm {
     const int n = c.edges();
     const double h = c.h();
     for (int i = 1; i <= n; ++i) {
-      const double mass = m.mass_per_length * (i == n ? 0.5 * h : h);
+      const double mass = lumped_mass(m, h, static_cast<std::size_t>(i));
       Vec3 f = c.load * mass * m.gravity;
       if (i == n) f += c.load * m.tip_force;
       energy -= f.dot(c.state.x[static_cast<std::size_t>(i)]);

@@ -15,6 +15,10 @@ struct Magnetic {
     const RodModel& m = c.model;
     return c.field && (!m.moment_per_length.empty() || fill_volume(c) > 0.0);
   }
+  /// The hard moment λ h R_j m̂_j of edge j (world) [A·m²].
+  static Vec3 hard_moment(const TermContext& c, std::size_t j) {
+    return c.load * c.h() * (c.state.frames[j] * c.model.moment_per_length[j]);
+  }
   /// V = λ A_fill h of each edge's fill [m³].
   static double fill_volume(const TermContext& c) {
     return c.model.induced ? c.load * c.model.induced->volume_per_length * c.h() : 0.0;
@@ -25,14 +29,13 @@ struct Magnetic {
     const RodModel& m = c.model;
     const bool hard = !m.moment_per_length.empty();
     const double volume = fill_volume(c);
-    const double h = c.h();
     for (int j = 0; j < c.edges(); ++j) {
       const auto ju = static_cast<std::size_t>(j);
       const Mat3& r = c.state.frames[ju];
-      const Vec3 mj = hard ? Vec3(c.load * h * (r * m.moment_per_length[ju])) : Vec3::Zero();
+      const Vec3 mj = hard ? hard_moment(c, ju) : Vec3::Zero();
       if (mj.isZero() && volume == 0.0) continue;
       const magnetics::FieldSample f =
-          c.samples != nullptr ? c.samples->at(c.field, c.state, ju) : c.field(0.5 * (c.state.x[ju] + c.state.x[ju + 1]));
+          c.samples != nullptr ? c.samples->at(c.field, c.state, ju) : c.field(edge_midpoint(c.state, ju));
       energy -= mj.dot(f.b);
       Vec3 moment = mj;  // the effective moment m = −dU/dB (world)
       if (volume > 0.0) {
@@ -58,7 +61,6 @@ struct Magnetic {
     const RodModel& m = c.model;
     const bool hard = !m.moment_per_length.empty();
     const double volume = fill_volume(c);
-    const double h = c.h();
     const auto n = static_cast<std::size_t>(c.edges());
     FieldSamples local;
     FieldSamples& samples = c.samples != nullptr ? *c.samples : local;
@@ -76,7 +78,7 @@ struct Magnetic {
       const int j = static_cast<int>(ju);
       const Mat3& r = c.state.frames[ju];
       const magnetics::FieldSample& f = samples.value[ju];
-      Vec3 w = hard ? Vec3(-c.load * h * (r * m.moment_per_length[ju])) : Vec3::Zero();
+      Vec3 w = hard ? Vec3(-hard_moment(c, ju)) : Vec3::Zero();  // dU/dB of the hard moment
       Mat3 p_world = Mat3::Zero();  // R P Rᵀ
       if (volume > 0.0) {
         Vec3 de_db;
@@ -96,7 +98,7 @@ struct Magnetic {
         h_cc = f.g.transpose() * p_world * f.g;
       }
       if (!uniform) {
-        const Vec3 mid = 0.5 * (c.state.x[ju] + c.state.x[ju + 1]);
+        const Vec3 mid = edge_midpoint(c.state, ju);
         if (c.field.curvature()) {
           h_cc += c.field.curvature()(mid, w);
         } else {

@@ -3,7 +3,6 @@
 /// the great circle, held beyond the ends) and a uniform field that follows keyframes or rotates. Experiments (the
 /// rod and vine) and MPM scenes read their fields through these.
 
-#include <optional>
 #include <utility>
 #include <vector>
 

@@ -21,7 +21,6 @@
 #include <vector>
 
 #include "magvine/core/eigen_types.hpp"
-#include "magvine/magnetics/field_model.hpp"
 #include "magvine/magnetics/field_sample.hpp"
 #include "magvine/magnetics/field_function.hpp"
 

@@ -268,7 +268,6 @@ class VineGrowth {
   double magnetorheological_yield() const;
   /// Inverts whole edges at the tip down to `length` (keeps one edge) and solves again; returns how many.
   int retract_to(double length, GrowthStepReport& report);
-  double extended_radius(double pressure) const;
   /// Narrowest width of the lumen across the body at x (4 lines through x in the plane ⟂ frame.col(0), ray casts
   /// up to 2R each way) [m]. With `recentrings` > 0, where that would squeeze the body the lines are cast again from
   /// the mean of the chords' midpoints, up to that many times, so that a point off a round lumen's axis does not
