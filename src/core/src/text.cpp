@@ -1,6 +1,7 @@
 #include "magvine/core/text.hpp"
 
 #include <algorithm>
+#include <charconv>
 #include <numeric>
 #include <vector>
 
@@ -32,6 +33,20 @@ std::string closest_match(std::string_view word, std::span<const std::string_vie
     }
   }
   return best;
+}
+
+void append_number(std::string& s, double v) {
+  char buf[32];
+  const auto res = std::to_chars(buf, buf + sizeof(buf), v);
+  s.append(buf, res.ptr);
+}
+
+void append_csv_row(std::string& s, std::span<const double> values) {
+  for (std::size_t i = 0; i < values.size(); ++i) {
+    if (i) s += ',';
+    append_number(s, values[i]);
+  }
+  s += '\n';
 }
 
 }  // namespace magvine

@@ -7,6 +7,7 @@
 
 #include "magvine/core/atomic_file.hpp"
 #include "magvine/core/error.hpp"
+#include "magvine/core/text.hpp"
 #include "magvine/core/units.hpp"
 #include "magvine/scene/points_csv.hpp"
 

@@ -8,6 +8,7 @@
 #include <sstream>
 
 #include "magvine/core/error.hpp"
+#include "magvine/core/text.hpp"
 
 namespace magvine::scene {
 
@@ -89,20 +90,6 @@ std::vector<Vec3> read_points_csv(const std::filesystem::path& file) {
   std::ostringstream ss;
   ss << in.rdbuf();
   return parse_points_csv(ss.str(), file.string());
-}
-
-void append_number(std::string& s, double v) {
-  char buf[32];
-  const auto res = std::to_chars(buf, buf + sizeof(buf), v);
-  s.append(buf, res.ptr);
-}
-
-void append_csv_row(std::string& s, std::span<const double> values) {
-  for (std::size_t i = 0; i < values.size(); ++i) {
-    if (i) s += ',';
-    append_number(s, values[i]);
-  }
-  s += '\n';
 }
 
 std::string field_csv_header() { return "x,y,z,Bx,By,Bz,G11,G12,G13,G21,G22,G23,G31,G32,G33"; }

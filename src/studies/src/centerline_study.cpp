@@ -7,7 +7,7 @@
 #include "magvine/anatomy/centerline.hpp"
 #include "magvine/anatomy/phantom.hpp"
 #include "magvine/core/atomic_file.hpp"
-#include "magvine/scene/points_csv.hpp"
+#include "magvine/core/text.hpp"
 
 namespace magvine::studies {
 
@@ -22,7 +22,7 @@ void run_centerline_study(const std::filesystem::path& dir) {
     anatomy::CenterlineReport report;
     const anatomy::AirwayGraph graph = anatomy::extract_airway_graph(tree.mesh, options, &report);
     const anatomy::GraphComparison c = anatomy::compare_graphs(graph, tree.graph);
-    scene::append_csv_row(csv, std::array{h, report.seconds, static_cast<double>(report.inside_voxels),
+    append_csv_row(csv, std::array{h, report.seconds, static_cast<double>(report.inside_voxels),
                                    static_cast<double>(c.branches), static_cast<double>(c.reference_branches),
                                    c.same_topology ? 1.0 : 0.0, c.mean_distance, c.mean_radius_error,
                                    c.p95_radius_error, c.p95_radius_error_away});

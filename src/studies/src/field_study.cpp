@@ -12,7 +12,7 @@
 #include "magvine/core/units.hpp"
 #include "magvine/magnetics/dipole.hpp"
 #include "magvine/magnetics/reference.hpp"
-#include "magvine/scene/points_csv.hpp"
+#include "magvine/core/text.hpp"
 
 namespace magvine::studies {
 
@@ -76,7 +76,7 @@ void run_field_model_study(const CylinderMagnet& magnet, const FieldStudySpec& s
   std::string models = "model,resolution,max_rel_err_B,ns_per_eval\n";
   auto add_row = [&](const std::string& name, const std::string& res, double err, double ns) {
     models += name + "," + res + ",";
-    scene::append_csv_row(models, std::array{err, ns});
+    append_csv_row(models, std::array{err, ns});
     std::fprintf(stderr, "  %-10s %-12s max error %.3e  %.1f ns/eval\n", name.c_str(), res.c_str(), err, ns);
   };
   add_row("exact", "closed-form", max_rel_error(pts, ref, exact), ns_per_eval(pts, exact));
@@ -101,7 +101,7 @@ void run_field_model_study(const CylinderMagnet& magnet, const FieldStudySpec& s
   }
   std::string by_distance = "distance_m,dipole_err_B,dipole_err_G,exact_err_B\n";
   for (std::size_t k = 0; k < spec.distances.size(); ++k) {
-    scene::append_csv_row(by_distance, std::array{spec.distances[k], worst[k][0], worst[k][1], worst[k][2]});
+    append_csv_row(by_distance, std::array{spec.distances[k], worst[k][0], worst[k][1], worst[k][2]});
   }
   write_file_atomically(dir / "field_models.csv", models);
   write_file_atomically(dir / "field_model_distance.csv", by_distance);

@@ -12,7 +12,7 @@
 #include "magvine/core/atomic_file.hpp"
 #include "magvine/core/stopwatch.hpp"
 #include "magvine/core/units.hpp"
-#include "magvine/scene/points_csv.hpp"
+#include "magvine/core/text.hpp"
 
 namespace magvine::studies {
 
@@ -39,7 +39,7 @@ void run_meshing_study(const std::filesystem::path& dir) {
     const double volume_err = std::abs(anatomy::signed_volume(mesh) - volume) / volume;
     const double area_err = std::abs(anatomy::surface_area(mesh) - area) / area;
     csv += "capsule,";
-    scene::append_csv_row(csv, std::array{h, static_cast<double>(mesh.triangles.size()), seconds, volume_err, area_err,
+    append_csv_row(csv, std::array{h, static_cast<double>(mesh.triangles.size()), seconds, volume_err, area_err,
                                    surface});
     std::fprintf(stderr, "  capsule  h %.2f mm  %8zu triangles  %.3f s  volume %.2e  area %.2e  surface %.2e m\n",
                  h * 1e3, mesh.triangles.size(), seconds, volume_err, area_err, surface);
@@ -62,7 +62,7 @@ void run_meshing_study(const std::filesystem::path& dir) {
   }
   for (std::size_t i = 0; i + 1 < tree.size(); ++i) {
     csv += "bronchial_tree,";
-    scene::append_csv_row(csv, std::array{tree[i][0], tree[i][1], tree[i][2],
+    append_csv_row(csv, std::array{tree[i][0], tree[i][1], tree[i][2],
                                    std::abs(volumes[i] - volumes.back()) / volumes.back(), nan, nan});
   }
   write_file_atomically(dir / "meshing_study.csv", csv);

@@ -1,5 +1,5 @@
 #pragma once
-/// Small text helpers for error messages and event details.
+/// Small text helpers for error messages, event details and CSV rows.
 
 #include <cstdio>
 #include <span>
@@ -13,6 +13,11 @@ std::size_t edit_distance(std::string_view a, std::string_view b);
 
 /// The candidate closest to `word` by edit distance ("" when `candidates` is empty).
 std::string closest_match(std::string_view word, std::span<const std::string_view> candidates);
+
+/// Appends the shortest round-trip decimal form of v.
+void append_number(std::string& s, double v);
+/// Appends `values` comma-separated (shortest round-trip form) and a newline.
+void append_csv_row(std::string& s, std::span<const double> values);
 
 /// printf into a string, any length (numbers with units in events and messages: printf_string("%.1f mm", x)).
 template <typename... Args>

@@ -27,9 +27,4 @@ std::string field_csv_header();
 /// Writes the header and one row per point.
 void write_field_csv(std::ostream& out, std::span<const Vec3> points, std::span<const magnetics::FieldSample> samples);
 
-/// Appends the shortest round-trip decimal form of v.
-void append_number(std::string& s, double v);
-/// Appends `values` comma-separated (shortest round-trip form) and a newline.
-void append_csv_row(std::string& s, std::span<const double> values);
-
 }  // namespace magvine::scene
