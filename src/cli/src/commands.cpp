@@ -11,7 +11,6 @@
 #include "magvine/anatomy/centerline.hpp"
 #include "magvine/anatomy/mesh_io.hpp"
 #include "magvine/anatomy/mesh_report.hpp"
-#include "magvine/config.hpp"
 #include "magvine/core/atomic_file.hpp"
 #include "magvine/core/error.hpp"
 #include "magvine/core/text.hpp"
@@ -166,6 +165,19 @@ int run_mesh_graph(const MeshGraphArgs& args) {
   return 0;
 }
 
+int failed_run(const std::string& cause, const std::filesystem::path& out) {
+  std::cerr << "magvine: numerical failure: " << cause << " (" << (out / "metrics.json").string()
+            << " says why; no other file is written)\n";
+  return static_cast<int>(ExitCode::kNumericalFailure);
+}
+
+void preload_videos(bool wanted, const std::string& scene, const std::string& what) {
+  if (wanted && !scene::preload_video_plugin(wanted, scene + ": " + what)) {
+    std::cerr << "magvine: warning: " << scene << ": " << what
+              << " skipped: this magvine was built without the render module\n";
+  }
+}
+
 std::function<void(double)> progress_bar() {
   return [shown = -1](double done) mutable {
     const int percent = static_cast<int>(100.0 * done);
@@ -181,13 +193,7 @@ int run_experiment_scene(const RunArgs& args, const std::filesystem::path& out) 
   const bool rod = sc.growth.rod.has_value();
   std::cerr << "magvine run: " << (rod ? "pushing a rod into " : "growing a vine in ") << sc.anatomy->label << " for "
             << sc.duration << " s (" << sc.anatomy->mesh().triangles.size() << " triangles)\n";
-  if (!config::kWithRender && !sc.videos.empty()) {
-    std::cerr << "magvine run: warning: " << args.scene
-              << ": outputs.video skipped: this magvine was built without the render module\n";
-  }
-  // The video plugin is loaded before the run: a build that has it but cannot load it is an input error (exit 2,
-  // nothing written), not a failure after the run.
-  if (!sc.videos.empty() && scene::video_plugin_built()) (void)scene::video_plugin(args.scene + ": outputs.video");
+  preload_videos(!sc.videos.empty(), args.scene, "outputs.video");
   const scene::ExperimentResult result = scene::run_experiment(sc, progress_bar());
   std::cerr << '\n';
   if (!sc.videos.empty() && result.converged) {
@@ -195,11 +201,7 @@ int run_experiment_scene(const RunArgs& args, const std::filesystem::path& out) 
               << " of " << result.frames.size() << " frames\n";
   }
   scene::write_experiment_outputs(sc, result, out);
-  if (!result.converged) {
-    std::cerr << "magvine: numerical failure: " << result.failure << " (" << (out / "metrics.json").string()
-              << " says why; no other file is written)\n";
-    return static_cast<int>(ExitCode::kNumericalFailure);
-  }
+  if (!result.converged) return failed_run(result.failure, out);
   const Vec3 tip = result.final_state.tip() / kMmToM;
   std::cerr << "magvine run: " << result.samples.back().length / kMmToM << (rod ? " mm inserted" : " mm everted")
             << ", tip at (" << tip.x() << ", "
@@ -235,14 +237,9 @@ int run_scene(const RunArgs& args) {
   const scene::FreeSpaceScene sc = scene::load_free_space_scene(args.scene);
   const scene::FreeSpaceResult result = scene::solve_free_space(sc);
   scene::write_free_space_outputs(sc, result, out);
-  if (!result.report.converged) {
-    std::cerr << "magvine: numerical failure: static equilibrium: " << result.report.failure << " ("
-              << (out / "metrics.json").string() << " says why; no other file is written)\n";
-    return static_cast<int>(ExitCode::kNumericalFailure);
-  }
+  if (!result.report.converged) return failed_run("static equilibrium: " + result.report.failure, out);
   const Vec3 tip = result.state.tip() / kMmToM;
-  std::cerr << "magvine run: " << (sc.kind == scene::FreeSpaceScene::Kind::kRod ? "rod" : "vine") << ", " << sc.model.edges + 1 << " nodes, "
-            << (result.report.converged ? "converged" : "NOT converged") << " in " << result.report.iterations
+  std::cerr << "magvine run: " << sc.kind() << ", " << sc.model.edges + 1 << " nodes, converged in " << result.report.iterations
             << " Newton iterations (" << result.runtime_s * 1e3 << " ms); tip at (" << tip.x() << ", " << tip.y()
             << ", " << tip.z() << ") mm -> " << (out / "metrics.json").string() << ", "
             << (out / "shape.csv").string() << '\n';

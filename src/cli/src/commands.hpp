@@ -1,6 +1,7 @@
 #pragma once
 // The verbs of the magvine executable. Each returns the process exit code and throws InputError for bad input.
 
+#include <filesystem>
 #include <functional>
 #include <optional>
 #include <string>
@@ -75,6 +76,14 @@ struct TrialsArgs {
 };
 /// `magvine trials`: seeded perturbed repeats of an experiment towards each target, in parallel (scene/experiment.hpp).
 int run_trials(const TrialsArgs& args);
+
+/// The one report of a failed run (docs/cli.md: failed runs; its metrics.json is written): the cause on stderr,
+/// exit 3.
+int failed_run(const std::string& cause, const std::filesystem::path& out);
+
+/// For a scene that asks for video (`wanted`, the key `what` of `scene`): loads the video plugin before the run (a
+/// plugin that cannot be loaded is an input error, nothing written), or warns that this build skips the videos.
+void preload_videos(bool wanted, const std::string& scene, const std::string& what);
 
 /// A progress callback for a run: a ten-step bar with the percentage on stderr, redrawn only when a tenth passes.
 std::function<void(double)> progress_bar();

@@ -46,14 +46,11 @@ int MpmCommand::run_scene() {
             << (sc.body_names.size() == 1 ? " body" : " bodies") << ", " << sc.dimension << "D, step "
             << sc.time_step * 1e6 << " us (stable bound " << sc.stable_step * 1e6 << " us), " << sc.duration
             << " s simulated\n";
+  preload_videos(sc.video.has_value(), m_scene, "mpm.video");
   const scene::MpmResult r = scene::run_mpm_scene(sc, progress_bar());
   std::cerr << '\n';
   scene::write_mpm_outputs(sc, r, out);  // a failed run: metrics.json only, saying so
-  if (!r.ok) {
-    std::cerr << "magvine: numerical failure: " << r.failure << " (" << (out / "metrics.json").string()
-              << " says why)\n";
-    return static_cast<int>(ExitCode::kNumericalFailure);
-  }
+  if (!r.ok) return failed_run(r.failure, out);
   std::cerr << "magvine mpm: " << r.steps << " steps, " << r.time << " s simulated" << (r.settled ? " (at rest)" : "")
             << " in " << r.runtime_s << " s ("
             << static_cast<double>(sc.positions.size()) * static_cast<double>(r.steps) / r.runtime_s / 1e6

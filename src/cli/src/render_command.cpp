@@ -64,6 +64,7 @@ int RenderCommand::run() {
   }
   if (m_fov < 0.0 || !std::isfinite(m_fov)) throw InputError("--fov", 0, "", "must be a positive angle in degrees");
   const scene::VideoPlugin& plugin = scene::video_plugin("magvine render");
+  plugin.check_mesh_image(request);  // the camera before the mesh is read
   const anatomy::ImportedMesh imported = anatomy::import_mesh(m_mesh, {.units = parse_units_option(m_units)});
   request.mesh = &imported.mesh;
   const scene::EncodedImages images = plugin.mesh_image(request);

@@ -102,12 +102,14 @@ std::filesystem::path VideoFile::finish() {
   return m_final;
 }
 
-void write_png(const std::filesystem::path& file, const cv::Mat& image) {
+std::string encode_png(const cv::Mat& image, const std::string& what) {
   std::vector<std::uint8_t> bytes;
-  if (image.empty() || !cv::imencode(".png", image, bytes)) {
-    throw InputError(file.string(), 0, "", "cannot encode the image as PNG");
-  }
-  write_file_atomically(file, std::string(bytes.begin(), bytes.end()));
+  if (image.empty() || !cv::imencode(".png", image, bytes)) throw InputError(what, 0, "", "cannot encode the image as PNG");
+  return std::string(bytes.begin(), bytes.end());
+}
+
+void write_png(const std::filesystem::path& file, const cv::Mat& image) {
+  write_file_atomically(file, encode_png(image, file.string()));
 }
 
 cv::Mat depth_to_u16(const cv::Mat& depth_m, double range_m) {

@@ -145,7 +145,11 @@ ExperimentResult run_experiment(const ExperimentScene& scene, const std::functio
     s.total_normal = growth.wall_forces().total_normal;
     s.total_shear = growth.wall_forces().total_shear;
     s.unsettled = growth.wall_forces().unsettled;
-    if (anatomy.graph) s.branch = anatomy::nearest_centreline_point(*anatomy.graph, s.tip).branch;
+    if (anatomy.graph) {
+      const anatomy::CentrelinePoint near = anatomy::nearest_centreline_point(*anatomy.graph, s.tip);
+      s.branch = near.branch;
+      s.centreline = near.distance;
+    }
     out.samples.push_back(s);
     record_frame(t);
     if (scene.shape_interval > 0.0 && t >= next_shape - 1e-9) {

@@ -6,6 +6,7 @@
 #include <sstream>
 
 #include "experiment_internal.hpp"
+#include "failed_run.hpp"
 #include "magvine/anatomy/airway_graph.hpp"
 #include "magvine/config.hpp"
 #include "magvine/core/atomic_file.hpp"
@@ -42,7 +43,7 @@ RunFigures figures_of(const ExperimentScene& scene, const ExperimentResult& resu
   if (scene.anatomy->graph) {
     f.centreline = anatomy::nearest_centreline_point(*scene.anatomy->graph, tip).distance;
     double sum = 0.0;
-    for (const ExperimentSample& s : result.samples) sum += anatomy::nearest_centreline_point(*scene.anatomy->graph, s.tip).distance;
+    for (const ExperimentSample& s : result.samples) sum += s.centreline;
     f.mean_centreline = result.samples.empty() ? *f.centreline : sum / static_cast<double>(result.samples.size());
   }
   if (scene.navigator && scene.target) {
@@ -146,8 +147,7 @@ void write_experiment_outputs(const ExperimentScene& scene, const ExperimentResu
   if (!result.converged) {
     // A failed run (its last step has no equilibrium) leaves its metrics.json only (docs/cli.md: failed runs).
     if (!scene.videos.empty()) j["videos"] = nlohmann::json::array();
-    create_output_directory(dir);
-    write_file_atomically(dir / "metrics.json", j.dump(2) + "\n");
+    detail::write_failed_run(dir, j);
     return;
   }
   std::ostringstream tips;

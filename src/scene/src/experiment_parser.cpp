@@ -4,7 +4,6 @@
 
 #include <algorithm>
 #include <cmath>
-#include <cstdio>
 #include <initializer_list>
 #include <sstream>
 
@@ -18,6 +17,7 @@
 #include "magvine/anatomy/phantom.hpp"
 #include "magvine/core/error.hpp"
 #include "magvine/core/keyframes.hpp"
+#include "magvine/core/text.hpp"
 #include "magvine/core/units.hpp"
 #include "magvine/scene/experiment_scene.hpp"
 #include "ranges.hpp"
@@ -48,16 +48,10 @@ Schedule schedule_of(const YamlMap& parent, const std::string& key, const Unit& 
     const YAML::Node k = list[i];
     const std::string at = path + "[" + std::to_string(i) + "]";
     if (!k.IsSequence() || k.size() != 2) parent.fail_at(k, at, "must be [time, value]");
-    double t = 0.0;
-    double v = 0.0;
-    try {
-      t = k[0].as<double>();
-      v = k[1].as<double>();
-    } catch (const YAML::Exception&) {
-      parent.fail_at(k, at, "must be two numbers [time, value]");
-    }
-    t = checked_quantity(t, kSeconds, range::kTime, parent.file(), k[0], at + "[0]");
-    v = checked_quantity(v, unit, value_range, parent.file(), k[1], at + "[1]");
+    const double t = checked_quantity(checked_number(k[0], parent.file(), at + "[0]"), kSeconds, range::kTime,
+                                      parent.file(), k[0], at + "[0]");
+    const double v = checked_quantity(checked_number(k[1], parent.file(), at + "[1]"), unit, value_range,
+                                      parent.file(), k[1], at + "[1]");
     if (!s.times.empty() && !(t > s.times.back())) parent.fail_at(k, at, "times must increase");
     s.times.push_back(t);
     s.values.push_back(v);
@@ -99,10 +93,7 @@ std::shared_ptr<const SceneAnatomy> phantom_anatomy(const YamlMap& entry, Anatom
 /// anatomy.mesh (+ mesh_units, graph, graph_root): an imported mesh and its airway graph.
 std::shared_ptr<const SceneAnatomy> mesh_anatomy(const YamlMap& entry, const FileUnits& units,
                                                  const std::filesystem::path& directory, AnatomyCache* cache) {
-  if (entry.has("mesh_units") && !parse_length_unit(entry.text("mesh_units"))) {
-    entry.fail("mesh_units", "must be mm, cm or m (got '" + entry.text("mesh_units") + "')");
-  }
-  const LengthUnit mesh_units = entry.has("mesh_units") ? *parse_length_unit(entry.text("mesh_units")) : units.length;
+  const LengthUnit mesh_units = entry.has("mesh_units") ? length_unit_of(entry, "mesh_units") : units.length;
   const std::filesystem::path mesh = directory / entry.text("mesh");
   std::optional<Vec3> root;
   std::string graph;
@@ -188,10 +179,9 @@ std::optional<robot::PushedRod> parse_robot(const YamlMap& robot, const FileUnit
   } else {
     robot.fail("kind", "an experiment grows a vine (kind: vine) or pushes a rod (kind: rod); got '" + kind + "'");
   }
-  const YamlMap base = robot.map("base");
-  base.allow_only({"position", "direction", "normal"});
-  scene.base_position = base.vec3_quantity("position", units.len, range::kCoordinate);
-  scene.base_frame = base_frame_of(base);
+  const BasePose base = base_of(robot, units);
+  scene.base_position = base.position;
+  scene.base_frame = base.frame;
   return pushed_rod;
 }
 
@@ -288,20 +278,9 @@ VideoOutput video_of(const YamlMap& v, const FileUnits& units) {
     v.fail("camera", "must be tip or overview, not '" + camera + "'");
   }
   if (v.has("size")) {
-    const YAML::Node n = v.node("size");
-    if (!n.IsSequence() || n.size() != 2) v.fail("size", "must be [width, height] in pixels");
-    const auto side = [&](std::size_t i) {
-      double x = 0.0;
-      try {
-        x = n[i].as<double>();
-      } catch (const YAML::Exception&) {
-        v.fail("size", "must be [width, height] in pixels");
-      }
-      if (!(x == std::floor(x) && x >= 16 && x <= 4096)) v.fail("size", "each side must be a whole 16 to 4096 px");
-      return static_cast<int>(x);
-    };
-    out.width = side(0);
-    out.height = side(1);
+    const std::array<int, 2> size = v.pixel_size("size");
+    out.width = size[0];
+    out.height = size[1];
     if (out.width % 2 != 0 || out.height % 2 != 0) v.fail("size", "video codecs need even sides");
   }
   if (v.has("lens")) {
@@ -316,8 +295,8 @@ VideoOutput video_of(const YamlMap& v, const FileUnits& units) {
     v.fail("fov", out.fisheye ? "a fisheye's field of view must be below 360 degrees"
                               : "a pinhole's field of view must be below 180 degrees");
   }
-  if (v.has("fps")) out.fps = v.quantity("fps", Unit{1.0, "frames/s"}, Range{0.0, 240.0, true});
-  if (v.has("speed")) out.speed = v.quantity("speed", kPlain, Range{0.0, 1e3, true});
+  if (v.has("fps")) out.fps = v.quantity("fps", kFramesPerSecond, range::kFrameRate);
+  if (v.has("speed")) out.speed = v.quantity("speed", kPlain, range::kPlaybackSpeed);
   if (v.has("frames")) out.frames = v.flag("frames");
   if (v.has("depth")) {
     out.depth = v.flag("depth");
@@ -529,7 +508,7 @@ Navigator::Recovery parse_recovery(const YamlMap& r, const FileUnits& units, con
   if (r.has("past")) rec.past = r.quantity("past", units.len, range::kDistance);
   if (r.has("after")) rec.after = r.quantity("after", kSeconds, range::kDuration);
   if (r.has("back")) rec.back = r.quantity("back", units.len, range::kDistance);
-  if (r.has("speed")) rec.speed = r.quantity("speed", Unit{units.len.si, units.len.name + "/s"}, Range{0.0, 10.0, true});
+  if (r.has("speed")) rec.speed = r.quantity("speed", Unit{units.len.si, units.len.name + "/s"}, range::kPositiveSpeed);
   if (scene.growth.rod) r.fail("retries", "a pushed rod is withdrawn by its tether schedule, not by the navigator");
   if (rec.retries > 0 && scene.growth.retraction_pressure < 0.0) {
     r.fail("retries", "the navigator retracts a deflated vine: set growth.retraction_pressure (e.g. 5 kPa)");
@@ -593,11 +572,9 @@ void parse_navigator(const YamlMap& n, const FileUnits& units, ExperimentScene& 
     nav.boost_pressure = n.quantity("boost_pressure", units.stress, range::kPositivePressure);
     const double burst = robot::burst_pressure(scene.vine);
     if (!scene.growth.catheter && nav.boost_pressure >= burst) {
-      char message[160];
-      std::snprintf(message, sizeof message,
-                    "must be below the vine's burst pressure, %.1f kPa (hoop stress P·R/t at the wall strength)",
-                    burst / kKpaToPa);
-      n.fail("boost_pressure", message);
+      n.fail("boost_pressure",
+             printf_string("must be below the vine's burst pressure, %.1f kPa (hoop stress P·R/t at the wall strength)",
+                           burst / kKpaToPa));
     }
   }
   if (n.has("boost_after")) nav.boost_after = n.quantity("boost_after", kSeconds, range::kDuration);
@@ -679,7 +656,7 @@ ExperimentScene parse_experiment_scene(const std::string& text, const std::strin
 
   ExperimentScene scene;
   scene.file = file_label;
-  if (top.has("seed")) scene.seed = static_cast<std::uint64_t>(top.whole("seed", 0, 9007199254740991L));
+  scene.seed = seed_of(top, scene.seed);
   scene.anatomy = parse_anatomy(top.map("anatomy"), units, directory, cache);
   const std::optional<robot::PushedRod> rod = parse_robot(top.map("robot"), units, scene);
   if (top.has("growth")) parse_growth(top.map("growth"), units, rod.has_value(), scene);

@@ -6,6 +6,7 @@
 #include <cmath>
 #include <sstream>
 
+#include "failed_run.hpp"
 #include "magnet_entries.hpp"
 #include "magvine/core/atomic_file.hpp"
 #include "magvine/core/error.hpp"
@@ -25,25 +26,22 @@ FreeSpaceScene parse_free_space_scene(const std::string& text, const std::string
   const YamlMap top(root, file_label, "");
   top.allow_only({"units", "seed", "robot", "magnets", "simulation"});
   const FileUnits units = file_units(top);
-  if (top.has("seed")) (void)top.whole("seed", 0, 9007199254740991L);  // accepted (statics draws nothing)
+  (void)seed_of(top, 0);  // accepted (statics draws nothing)
 
   FreeSpaceScene scene;
   const YamlMap robot = top.map("robot");
   const std::string kind = robot.text("kind");
   if (kind == "rod") {
-    scene.kind = FreeSpaceScene::Kind::kRod;
     scene.model = parse_rod(robot, units, {}, nullptr);
   } else if (kind == "vine") {
-    scene.kind = FreeSpaceScene::Kind::kVine;
     scene.vine = parse_vine(robot, units);
     scene.model = robot::vine_rod(*scene.vine);  // checked by parse_vine
   } else {
     robot.fail("kind", "must be rod or vine (got '" + kind + "')");
   }
-  const YamlMap base = robot.map("base");
-  base.allow_only({"position", "direction", "normal"});
-  scene.model.base_position = base.vec3_quantity("position", units.len, range::kCoordinate);
-  scene.model.base_frame = base_frame_of(base);
+  const BasePose base = base_of(robot, units);
+  scene.model.base_position = base.position;
+  scene.model.base_frame = base.frame;
 
   if (top.has("magnets")) scene.magnets = parse_magnet_list(top, units.len);
   if (top.has("simulation")) {
@@ -80,7 +78,7 @@ void write_free_space_outputs(const FreeSpaceScene& scene, const FreeSpaceResult
   const double cosine = std::clamp(tangent.dot(m.base_frame.col(0)), -1.0, 1.0);
   const std::vector<double> moments = robot::joint_bending_moments(m, s);
   nlohmann::json j;
-  j["kind"] = scene.kind == FreeSpaceScene::Kind::kRod ? "rod" : "vine";
+  j["kind"] = scene.kind();
   j["tip_position_m"] = vec(s.tip());
   j["tip_tangent"] = vec(tangent);
   j["bend_angle_deg"] = std::acos(cosine) / kDegToRad;
@@ -105,11 +103,11 @@ void write_free_space_outputs(const FreeSpaceScene& scene, const FreeSpaceResult
     j["wrinkled_length_m"] = bend.wrinkled_length;
     j["creased"] = bend.creased;
   }
-  create_output_directory(dir);
   if (!result.report.converged) {  // a failed run leaves its metrics.json only (docs/cli.md: failed runs)
-    write_file_atomically(dir / "metrics.json", j.dump(2) + "\n");
+    detail::write_failed_run(dir, j);
     return;
   }
+  create_output_directory(dir);
   std::ostringstream csv;
   csv.precision(12);
   csv << "s_m,x,y,z\n";

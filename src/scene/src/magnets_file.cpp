@@ -109,10 +109,7 @@ FieldModel parse_magnets(const std::string& text, const std::string& file_label)
   top.allow_only({"units", "magnets"});
   const YamlMap units = top.map("units");
   units.allow_only({"length"});
-  const std::string length_unit = units.text("length");
-  const auto lu = parse_length_unit(length_unit);
-  if (!lu) units.fail("length", "must be mm, cm or m (got '" + length_unit + "')");
-  return parse_magnet_list(top, Unit{metres_per(*lu), length_unit});
+  return parse_magnet_list(top, unit_of(length_unit_of(units, "length")));
 }
 
 FieldModel parse_magnet_list(const YamlMap& parent, const Unit& unit) {

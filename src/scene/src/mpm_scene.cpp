@@ -8,6 +8,7 @@
 #include <fstream>
 #include <sstream>
 
+#include "failed_run.hpp"
 #include "magnet_entries.hpp"
 #include "magvine/scene/video_plugin.hpp"
 #include "magvine/anatomy/mesh_io.hpp"
@@ -78,8 +79,7 @@ MpmFieldSchedule field_of(const YamlMap& f) {
                     static_cast<int>(f.has("rotating"));
   if (kinds != 1) f.fail("b", "give exactly one of b (constant), keyframes or rotating");
   MpmFieldSchedule s;
-  constexpr double kT = 1.0;  // tesla in files, as in the magnets file
-  if (f.has("b")) s.keyframes.push_back({0.0, f.vec3_quantity("b", kTesla, range::kField) * kT});
+  if (f.has("b")) s.keyframes.push_back({0.0, f.vec3_quantity("b", kTesla, range::kField)});
   if (f.has("keyframes")) {
     const YAML::Node list = f.node("keyframes");
     if (!list.IsSequence() || list.size() == 0) f.fail("keyframes", "must be a list of {t, b}");
@@ -88,14 +88,14 @@ MpmFieldSchedule field_of(const YamlMap& f) {
       k.allow_only({"t", "b"});
       const double t = k.quantity("t", kSeconds, range::kTime);
       if (!s.keyframes.empty() && t <= s.keyframes.back().first) k.fail("t", "must increase from keyframe to keyframe");
-      s.keyframes.push_back({t, k.vec3_quantity("b", kTesla, range::kField) * kT});
+      s.keyframes.push_back({t, k.vec3_quantity("b", kTesla, range::kField)});
     }
   }
   if (f.has("rotating")) {
     const YamlMap r = f.map("rotating");
     r.allow_only({"amplitude", "frequency", "axis", "start"});
     s.rotating = true;
-    s.amplitude = r.quantity("amplitude", kTesla, range::kField) * kT;
+    s.amplitude = r.quantity("amplitude", kTesla, range::kField);
     s.frequency = r.quantity("frequency", Unit{1.0, "Hz"}, Range{-1e6, 1e6});
     s.axis = r.direction("axis");
     Vec3 start = r.direction("start");
@@ -262,7 +262,7 @@ MpmScene parse_mpm_scene(const std::string& text, const std::string& label, cons
   mpm::LatticeOptions lattice;
   lattice.spacing = cell / ppc;
   lattice.jitter = m.has("jitter") && m.flag("jitter");
-  if (top.has("seed")) lattice.seed = static_cast<std::uint64_t>(top.whole("seed", 0, 9007199254740991L));
+  lattice.seed = seed_of(top, lattice.seed);
   sc.duration = m.quantity("duration", kSeconds, range::kDuration);
   const double damping = m.has("damping") ? m.quantity("damping", Unit{1.0, "1/s"}, Range{0.0, 1e6}) : 0.0;
   const Vec3 gravity = m.has("gravity") ? m.vec3_quantity("gravity", kMetresPerS2, range::kGravity) : Vec3::Zero();
@@ -293,21 +293,12 @@ MpmScene parse_mpm_scene(const std::string& text, const std::string& label, cons
     if (v.has("up")) video.up = v.direction("up");
     if (video.view.cross(video.up).norm() < 1e-6) v.fail("up", "must not be parallel to " + v.key_path("view"));
     if (v.has("size")) {
-      const YAML::Node size = v.node("size");
-      if (!size.IsSequence() || size.size() != 2) v.fail("size", "must be [width, height] in pixels");
-      for (std::size_t i = 0; i < 2; ++i) {
-        double x = 0.0;
-        try {
-          x = size[i].as<double>();
-        } catch (const YAML::Exception&) {
-          v.fail("size", "must be [width, height] in pixels");
-        }
-        if (!(x == std::floor(x) && x >= 16 && x <= 4096)) v.fail("size", "must be whole 16 to 4096 pixels each way");
-        (i == 0 ? video.width : video.height) = static_cast<int>(x);
-      }
+      const std::array<int, 2> size = v.pixel_size("size");
+      video.width = size[0];
+      video.height = size[1];
     }
-    if (v.has("fps")) video.fps = v.quantity("fps", Unit{1.0, "frames/s"}, Range{0.0, 240.0, true});
-    if (v.has("speed")) video.speed = v.quantity("speed", kPlain, Range{0.0, 1e3, true});
+    if (v.has("fps")) video.fps = v.quantity("fps", kFramesPerSecond, range::kFrameRate);
+    if (v.has("speed")) video.speed = v.quantity("speed", kPlain, range::kPlaybackSpeed);
     sc.video = video;
   }
 
@@ -568,7 +559,8 @@ void write_mpm_outputs(const MpmScene& sc, const MpmResult& r, const std::filesy
   j["kinetic_energy_final_J"] = r.samples.empty() ? 0.0 : r.samples.back().kinetic_energy;
   if (!r.ok) {  // a failed run leaves its metrics.json only (docs/cli.md: failed runs)
     j["snapshots"] = nlohmann::json::array();
-    write_file_atomically(dir / "metrics.json", j.dump(2) + "\n");
+    if (sc.video) j["video"] = nullptr;  // not rendered
+    detail::write_failed_run(dir, j);
     return;
   }
   create_output_directory(dir / "snapshots");

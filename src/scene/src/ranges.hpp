@@ -1,6 +1,8 @@
 #pragma once
-// The plausible range of every number a scene, magnets or MPM file gives, SI. One place: every parser checks its
-// numbers against these (YamlMap::quantity), and docs/scenes.md (validation of inputs) lists them. They are wide
+// The plausible range of every number a scene, magnets or MPM file gives, SI. Every range that more than one key
+// shares lives here (a range that belongs to one key alone, e.g. a volume fraction or a field of view, sits beside
+// that key in its parser); every parser checks its numbers with YamlMap::quantity, and docs/scenes.md (validation
+// of inputs) lists them. They are wide
 // (a value outside is a typo or a unit slip, not an unusual experiment) and finite, so that nothing derived from
 // them (stiffnesses, masses, fields, step counts) overflows. Private to the scene module.
 
@@ -36,11 +38,16 @@ inline constexpr Range kLengthYield{0.0, 1e9};                   ///< c_L [Pa/m]
 inline constexpr Range kTurningYield{0.0, 1e7};                  ///< c_θ [Pa/rad]
 inline constexpr Range kExtensibility{0.0, 1.0};                 ///< K [m/(s·Pa)]
 inline constexpr Range kSpeed{0.0, 10.0};                        ///< insertion and retraction speeds [m/s]
+inline constexpr Range kPositiveSpeed{0.0, 10.0, true};          ///< the navigator's retraction speed [m/s]
 
 // Time [s] and loads.
 inline constexpr Range kTime{0.0, 1e6};                          ///< keyframe and command times
 inline constexpr Range kDuration{0.0, 1e6, true};                ///< durations, intervals, step sizes
 inline constexpr Range kGravity{-1e3, 1e3};                      ///< gravity components [m/s²]
 inline constexpr Range kSolverTolerance{0.0, 1.0, true};         ///< scaled-gradient tolerance
+
+// Videos.
+inline constexpr Range kFrameRate{0.0, 240.0, true};             ///< frames per second of a video
+inline constexpr Range kPlaybackSpeed{0.0, 1e3, true};           ///< simulated seconds per video second
 
 }  // namespace magvine::scene::range

@@ -92,6 +92,17 @@ robot::WallLayer layer_of(const YamlMap& m, const FileUnits& units) {
 
 }  // namespace
 
+LengthUnit length_unit_of(const YamlMap& m, const std::string& key) {
+  const std::string name = m.text(key);
+  const auto lu = parse_length_unit(name);
+  if (!lu) m.fail(key, "must be mm, cm or m (got '" + name + "')");
+  return *lu;
+}
+
+Unit unit_of(LengthUnit u) {
+  return {metres_per(u), u == LengthUnit::kMm ? "mm" : (u == LengthUnit::kCm ? "cm" : "m")};
+}
+
 Unit pressure_unit_of(const YamlMap& units) {
   if (!units.has("pressure")) return {1.0, "Pa"};
   const std::string u = units.text("pressure");
@@ -115,20 +126,21 @@ Mat3 base_frame_of(const YamlMap& base) {
   return r;
 }
 
+BasePose base_of(const YamlMap& robot, const FileUnits& units) {
+  const YamlMap base = robot.map("base");
+  base.allow_only({"position", "direction", "normal"});
+  return {base.vec3_quantity("position", units.len, range::kCoordinate), base_frame_of(base)};
+}
+
+std::uint64_t seed_of(const YamlMap& top, std::uint64_t fallback) {
+  return top.has("seed") ? static_cast<std::uint64_t>(top.whole("seed", 0, 9007199254740991L)) : fallback;
+}
+
 FileUnits file_units(const YamlMap& top) {
   const YamlMap units = top.map("units");
   units.allow_only({"length", "pressure"});
-  const std::string length_unit = units.text("length");
-  const auto lu = parse_length_unit(length_unit);
-  if (!lu) units.fail("length", "must be mm, cm or m (got '" + length_unit + "')");
-  const Unit stress = pressure_unit_of(units);
-  return {*lu, metres_per(*lu), stress.si, Unit{metres_per(*lu), length_unit}, stress};
-}
-
-double non_negative(const YamlMap& m, const std::string& key) {
-  const double v = m.number(key);
-  if (v < 0.0) m.fail(key, "must be >= 0 (got " + m.node(key).Scalar() + ")");
-  return v;
+  const LengthUnit length = length_unit_of(units, "length");
+  return {length, unit_of(length), pressure_unit_of(units)};
 }
 
 robot::RodModel parse_rod(const YamlMap& robot, const FileUnits& units,

@@ -1,6 +1,7 @@
 #pragma once
 // Entries shared by the free-space and experiment scene files (units, the vine, its base). Private to the scene module.
 
+#include <cstdint>
 #include <initializer_list>
 #include <string>
 #include <string_view>
@@ -16,8 +17,6 @@ namespace magvine::scene {
 /// The `units:` entry of a scene file.
 struct FileUnits {
   LengthUnit length = LengthUnit::kMm;
-  double metres = 1e-3;  ///< per file length unit
-  double pascals = 1.0;  ///< per file pressure unit (Pa default; kPa, MPa)
   Unit len{1e-3, "mm"};  ///< the length unit, for range checks and messages
   Unit stress{1.0, "Pa"};  ///< the pressure unit (every stress: moduli, pressure, strength)
 };
@@ -27,12 +26,25 @@ inline const Unit kTesla{1.0, "T"};
 inline const Unit kKgPerM3{1.0, "kg/m³"};
 inline const Unit kMetresPerS2{1.0, "m/s²"};
 inline const Unit kPlain{1.0, ""};
+inline const Unit kFramesPerSecond{1.0, "frames/s"};
 /// `top`'s `units: {length, pressure}` (length required).
 FileUnits file_units(const YamlMap& top);
+/// The length unit at `key` of `m` (mm, cm or m).
+LengthUnit length_unit_of(const YamlMap& m, const std::string& key);
+/// A length unit for range checks and messages ("mm": 1e-3 m).
+Unit unit_of(LengthUnit u);
 /// The pressure unit of `units:` (Pa when absent).
 Unit pressure_unit_of(const YamlMap& units);
 /// The base entry's frame: columns tangent (direction), normal, tangent × normal.
 Mat3 base_frame_of(const YamlMap& base);
+/// `robot.base: {position, direction, normal}`: where the body is clamped.
+struct BasePose {
+  Vec3 position = Vec3::Zero();  ///< [m]
+  Mat3 frame = Mat3::Identity();
+};
+BasePose base_of(const YamlMap& robot, const FileUnits& units);
+/// `seed:` of a scene file (a whole number below 2^53), or `fallback` without one.
+std::uint64_t seed_of(const YamlMap& top, std::uint64_t fallback);
 /// A `robot: {kind: vine, ...}` entry (free_space.hpp).
 robot::VineParameters parse_vine(const YamlMap& robot, const FileUnits& units);
 /// A `robot: {kind: rod, ...}` entry (free_space.hpp), also allowing `extra_keys`; `contact_radius`, if given,
@@ -42,7 +54,5 @@ robot::RodModel parse_rod(const YamlMap& robot, const FileUnits& units,
 /// The vine's own derived checks (robot::vine_rod: burst, walls thinner than the radius, ...) as the error of the
 /// robot key they concern.
 void check_vine(const YamlMap& robot, const robot::VineParameters& vine);
-/// The number at `key`, which must be ≥ 0 (else the one-line error naming it).
-double non_negative(const YamlMap& m, const std::string& key);
 
 }  // namespace magvine::scene

@@ -77,6 +77,7 @@ std::vector<TrialOutcome> run_trials(const ExperimentScene& scene, const std::ve
       names.push_back(t);
     }
   }
+  for (ExperimentScene& a : aimed) a.videos.clear();  // trials write no videos (nor record their frames)
   const int total = static_cast<int>(aimed.size()) * repeats;
   if (!runs_dir.empty()) create_output_directory(runs_dir);  // before the threads create their folders in it
   std::vector<TrialOutcome> outcomes(static_cast<std::size_t>(total));
@@ -109,11 +110,7 @@ std::vector<TrialOutcome> run_trials(const ExperimentScene& scene, const std::ve
         for (const RunEvent& e : res.events) o.burst = o.burst || e.kind == EventKind::kBurst;
         o.runtime_s = res.runtime_s;
         if (!o.success) o.reason = detail::failure_reason(res, f);
-        if (!runs_dir.empty()) {
-          ExperimentScene kept = trial;
-          kept.videos.clear();  // trials write no videos
-          write_experiment_outputs(kept, res, runs_dir / (names[t] + "_r" + std::to_string(r)));
-        }
+        if (!runs_dir.empty()) write_experiment_outputs(trial, res, runs_dir / (names[t] + "_r" + std::to_string(r)));
       } catch (...) {
         const std::lock_guard lock(report);
         if (!failure) failure = std::current_exception();

@@ -74,6 +74,12 @@ Loaded load() {
 
 bool video_plugin_built() { return config::kWithRender; }
 
+bool preload_video_plugin(bool wanted, const std::string& what) {
+  if (!wanted || !video_plugin_built()) return false;
+  (void)video_plugin(what);
+  return true;
+}
+
 const VideoPlugin& video_plugin(const std::string& what) {
   static std::once_flag once;
   static Loaded loaded;

@@ -61,24 +61,19 @@ YAML::Node YamlMap::node(const std::string& key) const {
   return n;
 }
 
-double YamlMap::number(const std::string& key) const {
-  const YAML::Node n = node(key);
-  if (!n.IsScalar()) fail_at(n, key_path(key), "must be a number");
+double checked_number(const YAML::Node& n, const std::string& file, const std::string& path) {
+  if (!n.IsScalar()) throw InputError(file, line_of(n), path, "must be a number");
   double v = 0.0;
   try {
     v = n.as<double>();
   } catch (const YAML::Exception&) {
-    fail_at(n, key_path(key), "'" + n.Scalar() + "' is not a number");
+    throw InputError(file, line_of(n), path, "'" + n.Scalar() + "' is not a number");
   }
-  if (!std::isfinite(v)) fail_at(n, key_path(key), "must be finite (got " + n.Scalar() + ")");
+  if (!std::isfinite(v)) throw InputError(file, line_of(n), path, "must be finite (got " + n.Scalar() + ")");
   return v;
 }
 
-double YamlMap::positive(const std::string& key) const {
-  const double v = number(key);
-  if (!(v > 0.0)) fail_at(m_node[key], key_path(key), "must be > 0 (got " + m_node[key].Scalar() + ")");
-  return v;
-}
+double YamlMap::number(const std::string& key) const { return checked_number(node(key), m_file, key_path(key)); }
 
 std::string YamlMap::text(const std::string& key) const {
   const YAML::Node n = node(key);
@@ -90,17 +85,7 @@ Vec3 YamlMap::vec3(const std::string& key) const {
   const YAML::Node n = node(key);
   if (!n.IsSequence() || n.size() != 3) fail_at(n, key_path(key), "must be a list of 3 numbers [a, b, c]");
   Vec3 v;
-  for (int i = 0; i < 3; ++i) {
-    const YAML::Node e = n[i];
-    const std::string where = key_path(key) + "[" + std::to_string(i) + "]";
-    if (!e.IsScalar()) fail_at(e, where, "must be a number");
-    try {
-      v[i] = e.as<double>();
-    } catch (const YAML::Exception&) {
-      fail_at(e, where, "'" + e.Scalar() + "' is not a number");
-    }
-    if (!std::isfinite(v[i])) fail_at(e, where, "must be finite (got " + e.Scalar() + ")");
-  }
+  for (int i = 0; i < 3; ++i) v[i] = checked_number(n[i], m_file, key_path(key) + "[" + std::to_string(i) + "]");
   return v;
 }
 
@@ -148,13 +133,28 @@ Vec3 YamlMap::vec3_quantity(const std::string& key, const Unit& u, const Range& 
 
 Vec3 YamlMap::direction(const std::string& key) const { return unit_vector(nonzero_vec3(key)); }
 
-long YamlMap::whole(const std::string& key, long min, long max) const {
-  const double v = number(key);
+long checked_whole(const YAML::Node& n, long min, long max, const std::string& file, const std::string& path) {
+  const double v = checked_number(n, file, path);
   if (v != std::floor(v) || v < static_cast<double>(min) || v > static_cast<double>(max)) {
-    fail(key, "must be a whole number from " + std::to_string(min) + " to " + std::to_string(max) + " (got " +
-                  node(key).Scalar() + ")");
+    throw InputError(file, line_of(n), path,
+                     "must be a whole number from " + std::to_string(min) + " to " + std::to_string(max) + " (got " +
+                         n.Scalar() + ")");
   }
   return static_cast<long>(v);
+}
+
+long YamlMap::whole(const std::string& key, long min, long max) const {
+  return checked_whole(node(key), min, max, m_file, key_path(key));
+}
+
+std::array<int, 2> YamlMap::pixel_size(const std::string& key) const {
+  const YAML::Node n = node(key);
+  if (!n.IsSequence() || n.size() != 2) fail_at(n, key_path(key), "must be [width, height] in pixels");
+  std::array<int, 2> size{};
+  for (std::size_t i = 0; i < 2; ++i) {
+    size[i] = static_cast<int>(checked_whole(n[i], 16, 4096, m_file, key_path(key) + "[" + std::to_string(i) + "]"));
+  }
+  return size;
 }
 
 bool YamlMap::flag(const std::string& key) const {

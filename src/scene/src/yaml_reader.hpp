@@ -4,6 +4,7 @@
 
 #include <yaml-cpp/yaml.h>
 
+#include <array>
 #include <initializer_list>
 #include <string>
 #include <string_view>
@@ -44,7 +45,6 @@ class YamlMap {
   bool has(const std::string& key) const;
 
   double number(const std::string& key) const;
-  double positive(const std::string& key) const;
   std::string text(const std::string& key) const;
   /// A 3-vector `[a, b, c]` of finite numbers.
   Vec3 vec3(const std::string& key) const;
@@ -60,6 +60,8 @@ class YamlMap {
   Vec3 direction(const std::string& key) const;
   /// A whole number within [min, max].
   long whole(const std::string& key, long min, long max) const;
+  /// An image size `[width, height]`: whole numbers of pixels, 16 to 4096 each.
+  std::array<int, 2> pixel_size(const std::string& key) const;
   /// `true` or `false`.
   bool flag(const std::string& key) const;
   YamlMap map(const std::string& key) const;
@@ -88,6 +90,11 @@ std::string read_text_file(const std::string& file, const std::string& what);
 YAML::Node parse_yaml(const std::string& text, const std::string& file);
 /// Line (1-based) of a node, 0 when unknown.
 int line_of(const YAML::Node& node);
+
+/// The finite number a scalar node holds; InputError at `node` (path `path`, file `file`) otherwise.
+double checked_number(const YAML::Node& node, const std::string& file, const std::string& path);
+/// A whole number within [min, max] at `node`.
+long checked_whole(const YAML::Node& node, long min, long max, const std::string& file, const std::string& path);
 
 /// `v` [file units] times u.si, checked against `range`; InputError at `node` (path `path`, file `file`) otherwise.
 double checked_quantity(double v, const Unit& u, const Range& range, const std::string& file, const YAML::Node& node,

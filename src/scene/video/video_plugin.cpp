@@ -183,13 +183,11 @@ fs::path particle_video(const ParticleVideoRequest& r, const fs::path& stem) {
 }
 
 /// PNG bytes of an 8- or 16-bit image.
-std::string encode_png(const cv::Mat& image) {
-  std::vector<unsigned char> bytes;
-  if (!cv::imencode(".png", image, bytes)) throw InputError("png", 0, "", "cannot encode the image as PNG");
-  return std::string(bytes.begin(), bytes.end());
-}
+std::string encode_png(const cv::Mat& image) { return render::encode_png(image, "png"); }
 
-EncodedImages mesh_image(const MeshImageRequest& r) {
+/// The camera of a mesh image, checked: the field of view for the lens, a viewing direction and an up that is not
+/// along it (InputError otherwise).
+render::Camera camera_of(const MeshImageRequest& r) {
   render::Camera cam;
   cam.position = r.eye;
   cam.forward = r.look - r.eye;
@@ -198,8 +196,15 @@ EncodedImages mesh_image(const MeshImageRequest& r) {
   cam.fov = r.fov;
   cam.width = r.width;
   cam.height = r.height;
-  (void)render::focal_pixels(cam);  // checks the field of view for the lens
+  (void)render::focal_pixels(cam);
   (void)render::camera_frame(cam);
+  return cam;
+}
+
+void check_mesh_image(const MeshImageRequest& r) { (void)camera_of(r); }
+
+EncodedImages mesh_image(const MeshImageRequest& r) {
+  const render::Camera cam = camera_of(r);
   const render::AirwayRenderer renderer(*r.mesh, 2);
   EncodedImages out;
   if (r.endoscope) {
@@ -230,7 +235,8 @@ EncodedImages graph_picture(const anatomy::TriangleMesh& mesh, const anatomy::Ai
   return out;
 }
 
-const VideoPlugin kPlugin{VideoPlugin::kAbi, experiment_videos, particle_video, mesh_image, graph_picture};
+const VideoPlugin kPlugin{VideoPlugin::kAbi, experiment_videos, particle_video, check_mesh_image, mesh_image,
+                          graph_picture};
 
 }  // namespace
 }  // namespace magvine::scene

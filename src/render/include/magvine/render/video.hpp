@@ -45,6 +45,8 @@ class VideoFile {
   bool m_finished = false;
 };
 
+/// The PNG bytes of an image (8- or 16-bit). InputError naming `what` (the file it is for) on failure.
+std::string encode_png(const cv::Mat& image, const std::string& what);
 /// Writes an image (PNG, 8- or 16-bit) atomically. InputError naming the file on failure.
 void write_png(const std::filesystem::path& file, const cv::Mat& image);
 

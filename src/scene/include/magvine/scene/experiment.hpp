@@ -26,6 +26,7 @@ struct ExperimentSample {
   double total_normal = 0.0;   ///< [N]
   double total_shear = 0.0;    ///< [N]
   int branch = -1;             ///< nearest branch of the phantom's graph to the tip (−1: no graph)
+  double centreline = 0.0;     ///< the tip's distance from that branch's centreline [m] (0: no graph)
   bool unsettled = false;      ///< its wall forces are not an equilibrium (robot::WallForces::unsettled)
 };
 

@@ -14,12 +14,13 @@
 namespace magvine::scene {
 
 struct FreeSpaceScene {
-  enum class Kind { kRod, kVine };
-  Kind kind = Kind::kRod;
   robot::RodModel model;                        ///< SI, base pose and gravity set
-  std::optional<robot::VineParameters> vine;    ///< the vine's parameters (kind vine)
+  std::optional<robot::VineParameters> vine;    ///< the vine's parameters (kind vine; none: a rod)
   std::optional<magnetics::FieldModel> magnets; ///< none: no field evaluated at all
   robot::RodSolveOptions solver;
+
+  /// "vine" or "rod", as in the file and metrics.json.
+  const char* kind() const { return vine ? "vine" : "rod"; }
 };
 
 FreeSpaceScene load_free_space_scene(const std::filesystem::path& file);

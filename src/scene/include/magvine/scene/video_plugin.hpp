@@ -63,7 +63,7 @@ struct EncodedImages {
 
 /// The plugin's entry points (C++ types; the plugin is built from this tree with the same compiler).
 struct VideoPlugin {
-  static constexpr int kAbi = 1;
+  static constexpr int kAbi = 2;
   int abi = kAbi;
   /// Renders every video of scene.videos from result.frames into `dir` (each file, and each PNG folder, appears
   /// complete or not at all). Returns JSON text {"videos": [{camera, file, codec, frames, fps, size}, ...],
@@ -74,7 +74,10 @@ struct VideoPlugin {
   /// Writes `stem`.mp4 (or .avi); returns the file.
   std::filesystem::path (*particle_video)(const ParticleVideoRequest& request, const std::filesystem::path& stem) =
       nullptr;
-  /// One image of a mesh.
+  /// Checks a mesh image's camera (field of view for the lens, viewing direction, up) before the mesh is read:
+  /// InputError naming what is wrong.
+  void (*check_mesh_image)(const MeshImageRequest& request) = nullptr;
+  /// One image of a mesh (its camera checked as check_mesh_image does).
   EncodedImages (*mesh_image)(const MeshImageRequest& request) = nullptr;
   /// A picture of an airway graph over its semi-transparent mesh (800 × 800, face-on).
   EncodedImages (*graph_picture)(const anatomy::TriangleMesh& mesh, const anatomy::AirwayGraph& graph) = nullptr;
@@ -82,6 +85,11 @@ struct VideoPlugin {
 
 /// Whether this magvine was built with the render module (and so has the plugin).
 bool video_plugin_built();
+
+/// For a run that asks for video (`wanted`): loads the plugin before the run, so that a build that has it but
+/// cannot load it fails with an InputError (exit 2) before anything is written. Returns whether the videos will be
+/// made: false when this build has no render module (the run then skips them, as its metrics.json says).
+bool preload_video_plugin(bool wanted, const std::string& what);
 
 /// The plugin, loaded on first use (thread-safe) from $MAGVINE_VIDEO_PLUGIN, else libmagvine_video.so beside the
 /// executable, else the build tree's. InputError naming what is missing when this build has no render module or the
