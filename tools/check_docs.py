@@ -23,6 +23,7 @@ import re
 import sys
 import unicodedata
 from pathlib import Path
+from urllib.parse import unquote
 
 README_LIMIT = 16384  # bytes: the front page stays short (DESIGN.md)
 MIN_DOCS_PAGES = 5
@@ -192,8 +193,6 @@ def check(root: Path) -> tuple[list[str], str]:
             path_part, _, fragment = target.partition("#")
             path_part = path_part.split("?", 1)[0]
             if path_part:
-                from urllib.parse import unquote
-
                 dest = (root / unquote(path_part).lstrip("/")) if path_part.startswith("/") else (f.parent / unquote(path_part))
                 if not dest.exists():
                     problems.append(f"{where}: {kind} to '{target}': {rel(dest)} does not exist")
@@ -201,8 +200,6 @@ def check(root: Path) -> tuple[list[str], str]:
             else:
                 dest = f
             if fragment:
-                from urllib.parse import unquote
-
                 anchor = unquote(fragment)
                 if dest.is_file() and dest.suffix.lower() in (".md", ".markdown"):
                     if anchor not in page(dest).anchors and anchor.lower() not in page(dest).anchors:

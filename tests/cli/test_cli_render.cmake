@@ -7,6 +7,20 @@ include(${CMAKE_CURRENT_LIST_DIR}/cli_common.cmake)
 execute_process(COMMAND ${MAGVINE} phantom tube --out ${WORK}/tube.stl RESULT_VARIABLE rc ERROR_VARIABLE err)
 expect_rc(${rc} 0 "phantom tube: ${err}")
 
+# 0. The render module is a plugin (docs/rendering.md): the executable itself loads no OpenCV library (ldd lists
+#    every library the dynamic loader maps at start, direct or not); the plugin does.
+execute_process(COMMAND ldd ${MAGVINE} OUTPUT_VARIABLE libs RESULT_VARIABLE rc)
+expect_rc(${rc} 0 "ldd magvine")
+if(libs MATCHES "libopencv")
+  message(FATAL_ERROR "magvine loads OpenCV at start:\n${libs}")
+endif()
+get_filename_component(bin ${MAGVINE} DIRECTORY)
+execute_process(COMMAND ldd ${bin}/libmagvine_video.so OUTPUT_VARIABLE plugin_libs RESULT_VARIABLE rc)
+expect_rc(${rc} 0 "ldd libmagvine_video.so")
+if(NOT plugin_libs MATCHES "libopencv_videoio")
+  message(FATAL_ERROR "the video plugin does not link OpenCV's video writer:\n${plugin_libs}")
+endif()
+
 # 1. The endoscope inside the tube (Ø12 mm along +x, 120 mm long): every ray hits the wall; the 16-bit depth map
 #    holds the far end cap at 110 mm ahead, beyond the 100 mm range, so the centre reads 65535 (clamped).
 execute_process(COMMAND ${MAGVINE} render ${WORK}/tube.stl --eye 10,0,0 --look 50,0,0 --out ${WORK}/view.png

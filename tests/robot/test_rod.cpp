@@ -19,18 +19,16 @@
 namespace magvine::robot {
 namespace {
 
-// The acceptance beam: 60 × 3 × 3 mm NdFeB–Dragon Skin, G = 120 kPa, Br = 0.125 T, ρ = 1882 kg/m³.
-constexpr double kLength = 60e-3;
-constexpr double kSide = 3e-3;
-constexpr double kG = 120e3;
-constexpr double kRho = 1882.0;
-constexpr double kBr = 0.125;
+// The acceptance beam (support/rod_derivatives.hpp).
+constexpr double kLength = testing::kBeamLength;
+constexpr double kSide = testing::kBeamSide;
+constexpr double kG = testing::kBeamShearModulus;
+constexpr double kRho = testing::kBeamDensity;
+constexpr double kBr = testing::kBeamRemanence;
 constexpr int kEdges = 50;  // the default resolution of these tests
 
 RodModel acceptance_rod(const Vec3& magnetisation = Vec3::UnitX(), int edges = kEdges) {
-  RodModel m = rectangular_rod(kLength, kSide, kSide, kG, kRho, kBr, magnetisation, edges);
-  m.base_frame = Mat3::Identity();  // tangent +x, normal +y
-  return m;
+  return testing::acceptance_rod(magnetisation, edges);
 }
 
 RodField uniform(const Vec3& b) {
@@ -297,7 +295,7 @@ TEST(Rod, PhysicalStretchAndShearMoveTheTipByAboutOnePercentUnderTheEpm) {
               magnetics::Pose::from_axis(Vec3(0.5 * kLength, -0.15, 0.0), Vec3::UnitY()));
   const RodField field = field_function(magnets, magnets.rest_poses);
   const auto tip_error = [&](double factor) {
-    RodModel m = rectangular_rod(kLength, kSide, kSide, kG, kRho, kBr, Vec3::UnitX(), kEdges, factor);
+    RodModel m = testing::acceptance_rod(Vec3::UnitX(), kEdges, factor);
     m.gravity = Vec3(0.0, -9.81, 0.0);
     RodState s = straight_rod(m);
     EXPECT_TRUE(solve_rod_statics(m, field, s).converged);

@@ -13,6 +13,7 @@
 #include "magvine/magnetics/field_function.hpp"
 #include "magvine/robot/vine.hpp"
 #include "rod_terms.hpp"
+#include "support/rod_derivatives.hpp"
 
 namespace magvine::robot::detail {
 namespace {
@@ -25,18 +26,7 @@ double term_energy(const TermContext& c, System* sys) {
   return e;
 }
 
-/// The state moved along unknown k by d (positions by δx, rotations by exp([δφ])R).
-RodState moved(const RodState& s, Eigen::Index k, double d) {
-  RodState t = s;
-  const auto block = static_cast<std::size_t>(k / 6);
-  const int axis = static_cast<int>(k % 3);
-  if ((k % 6) >= 3) {
-    t.frames[block] = Eigen::AngleAxisd(d, Vec3::Unit(axis)).toRotationMatrix() * t.frames[block];
-  } else {
-    t.x[block + 1][axis] += d;
-  }
-  return t;
-}
+using testing::moved_state;
 
 /// The inputs every term reads, kept alive for the contexts.
 struct TermSetup {
@@ -55,7 +45,7 @@ TermSetup make_setup(bool vine) {
     v.fill = FillKind::kMagneticFluid;
     s.model = vine_rod(v);
   } else {
-    s.model = rectangular_rod(60e-3, 3e-3, 3e-3, 120e3, 1882.0, 0.125, Vec3(1.0, 0.3, 0.0), edges);
+    s.model = testing::acceptance_rod(Vec3(1.0, 0.3, 0.0), edges);
     s.model.tip_moment = Vec3(1e-4, -2e-4, 3e-4);
     for (int j = 0; j < edges; ++j) s.model.rest_strain.push_back(Vec3(0.5, -1.0, 2.0) * (j + 1));
   }
@@ -125,8 +115,8 @@ void expect_term_derivatives(const TermSetup& s, const std::string& label) {
   for (Eigen::Index k = 0; k < g.size(); ++k) {
     const double step = (k % 6) >= 3 ? 1e-6 : 1e-8;
     // Gradient: central differences of the term's energy.
-    const RodState plus = moved(s.state, k, step);
-    const RodState minus = moved(s.state, k, -step);
+    const RodState plus = moved_state(s.state, k, step);
+    const RodState minus = moved_state(s.state, k, -step);
     const double fd = (term_energy<Term>(context(plus), nullptr) - term_energy<Term>(context(minus), nullptr)) /
                       (2.0 * step);
     EXPECT_NEAR(g[k], fd, 1e-6 * std::abs(fd) + 1e-8 * g_scale) << label << ": gradient, unknown " << k;
@@ -139,8 +129,8 @@ void expect_term_derivatives(const TermSetup& s, const std::string& label) {
     const double step = (k % 6) >= 3 ? 1e-6 : 1e-8;
     System gp(n, false);
     System gm(n, false);
-    (void)term_energy<Term>(context(moved(s.state, k, step)), &gp);
-    (void)term_energy<Term>(context(moved(s.state, k, -step)), &gm);
+    (void)term_energy<Term>(context(moved_state(s.state, k, step)), &gp);
+    (void)term_energy<Term>(context(moved_state(s.state, k, -step)), &gm);
     fd_h.col(k) = (gp.gradient - gm.gradient) / (2.0 * step);
   }
   fd_h = (0.5 * (fd_h + fd_h.transpose())).eval();

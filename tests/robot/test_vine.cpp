@@ -160,7 +160,8 @@ TEST(Vine, BoundedFluidLawIsLinearInWeakFieldsAndSaturates) {
   EXPECT_NEAR(energy(Vec3(b, 0, 0)), -0.5 * volume * chi * b * b / kMu0, 1e-6 * volume * chi * b * b / kMu0);
   const double chi_t = chi / (1.0 + 0.5 * chi);
   EXPECT_NEAR(energy(Vec3(0, b, 0)), -0.5 * volume * chi_t * b * b / kMu0, 1e-6 * volume * chi_t * b * b / kMu0);
-  // Deep saturation: dU/d|B| → −V M_s (the moment saturates at φ·M_s(iron)·V).
+  // Deep saturation: dU/d|B| → −V M_s (the moment saturates at φ·M_s·V, M_s of iron 1.7 MA/m as PHYSICS.md gives it:
+  // a literal here, independent of the code's constant).
   const double big = 50.0;
   const double slope = (energy(Vec3(big + 1e-3, 0, 0)) - energy(Vec3(big - 1e-3, 0, 0))) / 2e-3;
   EXPECT_NEAR(-slope, volume * 0.23 * 1.7e6, 1e-3 * volume * 0.23 * 1.7e6);

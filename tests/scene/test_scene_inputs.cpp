@@ -23,6 +23,7 @@
 #include "magvine/core/error.hpp"
 #include "magvine/scene/experiment.hpp"
 #include "magvine/scene/free_space.hpp"
+#include "support/text_file.hpp"
 #include "magvine/scene/magnets_file.hpp"
 #if MAGVINE_WITH_MPM
 #include "magvine/scene/mpm_scene.hpp"
@@ -46,12 +47,7 @@ struct NumericValue {
   std::set<int> lines;      ///< 1-based lines of the value and of the nodes on its path (where an error may point)
 };
 
-std::string text_of(const std::filesystem::path& file) {
-  std::ifstream in(file, std::ios::binary);
-  std::ostringstream s;
-  s << in.rdbuf();
-  return s.str();
-}
+using test::text_of;
 
 bool is_number(const std::string& s) {
   std::istringstream in(s);
@@ -92,14 +88,13 @@ using Check = std::function<void(const std::string& text, const std::string& lab
 
 /// The loader of `file`'s kind, with a short run after a successful load.
 Check check_for(const std::filesystem::path& file, AnatomyCache& cache) {
-  const std::string text = text_of(file);
-  const YAML::Node root = YAML::Load(text);
+  const YAML::Node root = YAML::Load(text_of(file));
   const std::filesystem::path dir = file.parent_path();
-  if (root["magnets"] && !root["robot"] && !root["mpm"]) {
+  if (root["magnets"] && !root["robot"] && !root["mpm"]) {  // a magnets file
     return [](const std::string& t, const std::string& label) { (void)parse_magnets(t, label); };
   }
 #if MAGVINE_WITH_MPM
-  if (root["mpm"]) {
+  if (is_mpm_scene(file)) {
     return [dir](const std::string& t, const std::string& label) {
       MpmScene s = parse_mpm_scene(t, label, dir);
       s.duration = 3.0 * s.time_step;  // the first steps: no crash, no exception
@@ -108,7 +103,7 @@ Check check_for(const std::filesystem::path& file, AnatomyCache& cache) {
     };
   }
 #endif
-  if (root["anatomy"]) {
+  if (is_experiment_scene(file)) {
     return [dir, &cache](const std::string& t, const std::string& label) {
       ExperimentScene s = parse_experiment_scene(t, label, dir, &cache);
       s.duration = std::min(s.duration, 2.0 * s.dt);

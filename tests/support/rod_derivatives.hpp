@@ -1,6 +1,7 @@
 #pragma once
-// Shared by the rod and vine tests: the analytic gradient of the rod energy against central differences of the
-// energy along every unknown (positions by δx, rotations by exp([δφ])R).
+// Shared by the rod and vine tests: the acceptance beam, a state moved along one unknown, and the analytic gradient
+// and Hessian of the rod energy against central differences along every unknown (positions by δx, rotations by
+// exp([δφ])R).
 
 #include <gtest/gtest.h>
 
@@ -13,6 +14,35 @@
 #include "magvine/robot/rod.hpp"
 
 namespace magvine::robot::testing {
+
+/// The acceptance beam of issue 4: 60 × 3 × 3 mm NdFeB–Dragon Skin, G = 120 kPa, ρ = 1882 kg/m³, Br = 0.125 T along
+/// `magnetisation` (body frame), clamped with tangent +x and normal +y.
+constexpr double kBeamLength = 60e-3;
+constexpr double kBeamSide = 3e-3;
+constexpr double kBeamShearModulus = 120e3;
+constexpr double kBeamDensity = 1882.0;
+constexpr double kBeamRemanence = 0.125;
+inline RodModel acceptance_rod(const Vec3& magnetisation, int edges,
+                               double stretch_shear_factor = kNearInextensible) {
+  RodModel m = rectangular_rod(kBeamLength, kBeamSide, kBeamSide, kBeamShearModulus, kBeamDensity, kBeamRemanence,
+                               magnetisation, edges, stretch_shear_factor);
+  m.base_frame = Mat3::Identity();
+  return m;
+}
+
+/// The state moved along unknown k by d: the position of node k/6 + 1 (k % 6 < 3) or the frame k/6 turned by
+/// exp([d e_axis]).
+inline RodState moved_state(const RodState& s, Eigen::Index k, double d) {
+  RodState t = s;
+  const auto block = static_cast<std::size_t>(k / 6);
+  const int axis = static_cast<int>(k % 3);
+  if ((k % 6) >= 3) {
+    t.frames[block] = Eigen::AngleAxisd(d, Vec3::Unit(axis)).toRotationMatrix() * t.frames[block];
+  } else {
+    t.x[block + 1][axis] += d;
+  }
+  return t;
+}
 
 /// Rebuilds the nodes along the frames (edge j = h R_j e1) plus `noise`·h of random offset: strains stay small, so
 /// the stiff stretch and shear terms (EA ≫ EI/L²) do not dominate the gradient and hide errors in the others.
@@ -32,19 +62,8 @@ inline void expect_gradient_matches_energy(const RodModel& m, const RodField& fi
                                            const std::string& label, const RodConstraints* constraints = nullptr) {
   const VecX g = rod_gradient(m, field, s, 1.0, constraints);
   for (Eigen::Index k = 0; k < g.size(); ++k) {
-    const auto block = static_cast<std::size_t>(k / 6);
-    const int axis = static_cast<int>(k % 3);
-    const bool rotation = (k % 6) >= 3;
-    const double step = rotation ? 1e-6 : 3e-9;
-    const auto shifted = [&](double d) {
-      RodState t = s;
-      if (rotation) {
-        t.frames[block] = Eigen::AngleAxisd(d, Vec3::Unit(axis)).toRotationMatrix() * t.frames[block];
-      } else {
-        t.x[block + 1][axis] += d;
-      }
-      return rod_energy(m, field, t, 1.0, constraints);
-    };
+    const double step = (k % 6) >= 3 ? 1e-6 : 3e-9;
+    const auto shifted = [&](double d) { return rod_energy(m, field, moved_state(s, k, d), 1.0, constraints); };
     const double fd = (shifted(step) - shifted(-step)) / (2.0 * step);
     EXPECT_NEAR(g[k], fd, 1e-6 * (std::abs(fd) + g.cwiseAbs().maxCoeff() * 1e-3)) << label << ": unknown " << k;
   }
