@@ -10,6 +10,7 @@
 #include <random>
 #include <string>
 
+#include "magvine/anatomy/collision_world.hpp"
 #include "magvine/magnetics/field_function.hpp"
 #include "magvine/robot/vine.hpp"
 #include "rod_terms.hpp"
@@ -96,7 +97,21 @@ TermSetup make_setup(bool vine) {
     s.constraints.anchors.push_back(
         {i, s.state.x[static_cast<std::size_t>(i)] + 1e-4 * Vec3(u(rng), u(rng), u(rng)), (i % 2 == 0 ? 1.0 : 0.4) * n, k});
     s.constraints.forces.push_back({i, 1e-3 * Vec3(u(rng), u(rng), u(rng))});
+    // Friction: static (slip below ε) at odd nodes, sliding at even ones.
+    const double slip = i % 2 == 1 ? 1e-3 : 1e-6;
+    s.constraints.friction.push_back(
+        {i, s.state.x[static_cast<std::size_t>(i)] + 1e-5 * Vec3(u(rng), u(rng), u(rng)), n, 0.05 * i, 0.3, slip});
   }
+  // The growth law on the tip edge (TipGrowth), its limit inside the tip edge's extension so the tether branch is
+  // read too; the tip edge 1.2 h long.
+  s.model.tip_edge_length = 1.2 * h;
+  s.model.length += 0.2 * h;
+  const Vec3 tip_edge = s.state.x.back() - s.state.x[s.state.x.size() - 2];
+  s.state.x.back() += 0.23 * h * s.state.frames.back().col(0);
+  const double extension = s.state.frames.back().col(0).dot(s.state.x.back() - s.state.x[s.state.x.size() - 2]) -
+                           1.2 * h;
+  (void)tip_edge;
+  s.constraints.growth = TipGrowth{0.2, 50.0, 0.5 * extension};
   return s;
 }
 
@@ -170,6 +185,35 @@ TEST(RodTerms, Anchors) { expect_for_rod_and_vine<AnchorTerm>("anchors"); }
 TEST(RodTerms, NodeForces) { expect_for_rod_and_vine<NodeForceTerm>("node forces"); }
 TEST(RodTerms, Gravity) { expect_for_rod_and_vine<GravityTerm>("gravity and tip force"); }
 TEST(RodTerms, TipMoment) { expect_for_rod_and_vine<TipMomentTerm>("tip moment"); }
+TEST(RodTerms, Friction) { expect_for_rod_and_vine<FrictionTerm>("friction"); }
+
+TEST(RodTerms, WallBarrier) {
+  // One large triangle below the body; each node's radius set so that its gap lies in (0, d̂), all closest points
+  // inside the face (where the dropped curvature term is exactly zero): gradient and Hessian exact.
+  for (const bool vine : {false, true}) {
+    TermSetup s = make_setup(vine);
+    const Vec3 n = Vec3(0.1, 0.2, 1.0).normalized();
+    const Vec3 p0 = Vec3(0.0, 0.0, -0.05);
+    const Vec3 a = n.unitOrthogonal();
+    const Vec3 b = n.cross(a);
+    anatomy::TriangleMesh mesh;
+    mesh.vertices = {p0 - 1.0 * a - 1.0 * b, p0 + 2.0 * a - 1.0 * b, p0 - 1.0 * a + 2.0 * b};
+    mesh.triangles = {anatomy::Triangle{0, 1, 2}};
+    const anatomy::CollisionWorld world(mesh);
+    WallBarrier w;
+    w.world = &world;
+    w.activation = 1e-4;
+    w.stiffness = 50.0;
+    w.radius.assign(s.state.x.size(), 0.0);
+    for (std::size_t i = 1; i < s.state.x.size(); ++i) {
+      const double distance = n.dot(s.state.x[i] - p0);
+      w.radius[i] = distance - 1e-4 * (0.15 + 0.12 * static_cast<double>(i));
+    }
+    s.constraints = RodConstraints{};
+    s.constraints.wall = w;
+    expect_term_derivatives<WallBarrierTerm>(s, vine ? "wall barrier (vine)" : "wall barrier (rod)");
+  }
+}
 
 TEST(RodTerms, TheSolversEnergyIsTheSumOfTheTerms) {
   // rod_terms.hpp: evaluate is the fold over the list; the public rod_energy is that sum.
@@ -178,7 +222,8 @@ TEST(RodTerms, TheSolversEnergyIsTheSumOfTheTerms) {
   const double sum = term_energy<StretchShear>(c, nullptr) + term_energy<BendTwist>(c, nullptr) +
                      term_energy<Magnetic>(c, nullptr) + term_energy<WallContactTerm>(c, nullptr) +
                      term_energy<AnchorTerm>(c, nullptr) + term_energy<NodeForceTerm>(c, nullptr) +
-                     term_energy<GravityTerm>(c, nullptr) + term_energy<TipMomentTerm>(c, nullptr);
+                     term_energy<GravityTerm>(c, nullptr) + term_energy<TipMomentTerm>(c, nullptr) +
+                     term_energy<FrictionTerm>(c, nullptr);
   EXPECT_NEAR(rod_energy(s.model, s.field, s.state, 1.0, &s.constraints), sum, 1e-12 * std::abs(sum));
 }
 

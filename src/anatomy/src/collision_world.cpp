@@ -968,6 +968,37 @@ MAGVINE_HOT_KERNEL std::size_t CollisionWorld::capsule_contacts(const Vec3& a, c
   return sink.finish();
 }
 
+MAGVINE_HOT_KERNEL std::size_t CollisionWorld::triangles_within(const Vec3& point, double radius,
+                                                                 std::span<NearTriangle> out) const {
+  MAGVINE_ASSERT(radius > 0.0 && point.allFinite());
+  const Tables& w = m_impl->tables;
+  std::size_t found = 0;
+  std::size_t kept = 0;
+  m_impl->bvh->visit_slots(detail::SphereBoxTest(point, radius), [&](std::uint32_t slot) {
+    const TriangleData& d = w.data[slot];
+    if (!std::isfinite(d.offset)) return;  // degenerate
+    if ((w.centroid(d) - point).norm() > d.bound_radius + radius) return;
+    const auto v = w.corners(d);
+    const Vec3 q = closest_point_on_triangle(point, *v[0], *v[1], *v[2]);
+    const double distance = (q - point).norm();
+    if (distance > radius) return;
+    ++found;
+    if (out.empty()) return;
+    // Insertion by distance; when full, the farthest kept one makes room (or the new one is dropped).
+    std::size_t i = kept;
+    if (kept < out.size()) {
+      ++kept;
+    } else if (out[kept - 1].distance <= distance) {
+      return;
+    } else {
+      i = kept - 1;
+    }
+    for (; i > 0 && out[i - 1].distance > distance; --i) out[i] = out[i - 1];
+    out[i] = {q, distance, d.triangle};
+  });
+  return found;
+}
+
 namespace {
 
 /// Walks the leaves a ray segment origin + s·dir, s ∈ [0, length()], passes through; `length` is re-read at every

@@ -31,36 +31,6 @@ constexpr double kInf = std::numeric_limits<double>::infinity();
 // Exact closest-point primitives.
 // ---------------------------------------------------------------------------------------------------------------
 
-/// Closest point to p on triangle abc: Ericson, Real-Time Collision Detection (2005), §5.1.5, by Voronoi regions of
-/// the vertices, then the edges, then the face. A zero-area triangle (collinear corners) never reaches the face
-/// region with a positive denominator; it falls back to the closest of its three edges.
-Vec3 closest_on_triangle(const Vec3& p, const Vec3& a, const Vec3& b, const Vec3& c) {
-  const Vec3 ab = b - a, ac = c - a, ap = p - a;
-  const double d1 = ab.dot(ap), d2 = ac.dot(ap);
-  if (d1 <= 0.0 && d2 <= 0.0) return a;  // vertex a
-  const Vec3 bp = p - b;
-  const double d3 = ab.dot(bp), d4 = ac.dot(bp);
-  if (d3 >= 0.0 && d4 <= d3) return b;  // vertex b
-  const double vc = d1 * d4 - d3 * d2;
-  if (vc <= 0.0 && d1 >= 0.0 && d3 <= 0.0) return a + ab * (d1 / (d1 - d3));  // edge ab
-  const Vec3 cp = p - c;
-  const double d5 = ab.dot(cp), d6 = ac.dot(cp);
-  if (d6 >= 0.0 && d5 <= d6) return c;  // vertex c
-  const double vb = d5 * d2 - d1 * d6;
-  if (vb <= 0.0 && d2 >= 0.0 && d6 <= 0.0) return a + ac * (d2 / (d2 - d6));  // edge ac
-  const double va = d3 * d6 - d5 * d4;
-  if (va <= 0.0 && d4 - d3 >= 0.0 && d5 - d6 >= 0.0) return b + (c - b) * ((d4 - d3) / ((d4 - d3) + (d5 - d6)));  // bc
-  const double sum = va + vb + vc;  // = |ab × ac|², zero only for a degenerate triangle
-  if (!(sum > 0.0)) {
-    Vec3 best = closest_point_on_segment(p, a, b);
-    for (const Vec3& q : {closest_point_on_segment(p, b, c), closest_point_on_segment(p, c, a)}) {
-      if ((q - p).squaredNorm() < (best - p).squaredNorm()) best = q;
-    }
-    return best;
-  }
-  return a + ab * (vb / sum) + ac * (vc / sum);  // face, barycentric (u, v, w) = (va, vb, vc)/sum
-}
-
 /// Closest points c1 on p1–q1 and c2 on p2–q2 (segment_geometry.hpp).
 void closest_segment_segment(const Vec3& p1, const Vec3& q1, const Vec3& p2, const Vec3& q2, Vec3& c1, Vec3& c2) {
   const SegmentParameters c = closest_segment_parameters(p1, q1 - p1, p2, q2 - p2);
@@ -97,7 +67,7 @@ double segment_triangle_sq(const Vec3& a, const Vec3& b, const Vec3& p0, const V
     }
   }
   for (const Vec3* e : {&a, &b}) {
-    const Vec3 c = closest_on_triangle(*e, p0, p1, p2);
+    const Vec3 c = closest_point_on_triangle(*e, p0, p1, p2);
     const double d = (c - *e).squaredNorm();
     if (d < best) {
       best = d;
@@ -332,7 +302,7 @@ class BvhTree final : public Tree {
     double best_sq = kInf;
     PointDistance out;
     const auto leaf = [&](std::int64_t t) {
-      const Vec3 c = closest_on_triangle(p, vertex(t, 0), vertex(t, 1), vertex(t, 2));
+      const Vec3 c = closest_point_on_triangle(p, vertex(t, 0), vertex(t, 1), vertex(t, 2));
       const double d = (c - p).squaredNorm();
       if (d < best_sq) {
         best_sq = d;
@@ -373,7 +343,7 @@ class BvhTree final : public Tree {
     const fcl::DistanceRequestd request(true);  // nearest points; rel_err = abs_err = 0: exact traversal
     fcl::DistanceResultd result;
     if (const std::int64_t h = usable_hint(scratch); h >= 0) {
-      const Vec3 c = closest_on_triangle(p, vertex(h, 0), vertex(h, 1), vertex(h, 2));
+      const Vec3 c = closest_point_on_triangle(p, vertex(h, 0), vertex(h, 1), vertex(h, 2));
       result.update((c - p).norm(), &m_model, &point, static_cast<int>(h), fcl::DistanceResultd::NONE, c, p);
     }
     fcl::distance(&m_model, fcl::Transform3d::Identity(), &point, pose, request, result);

@@ -105,10 +105,16 @@ int VineGrowth::retract_to(double length, GrowthStepReport& report) {
     ++removed;
   }
   if (removed == 0) return 0;
+  m_tip_length = m_h;
   rebuild_model(m_pressure);
   m_anchor.resize(m_state.x.size());
   m_anchor_normal.resize(m_state.x.size());
   m_cache.resize(m_state.x.size());
+  if (m_options.contact == ContactModel::kBarrier) {
+    m_wall_force.resize(m_state.x.size());
+    if (!barrier_step(0.0, m_pressure, 0.0, report)) add_event(GrowthEventKind::kSolver, "after retracting: " + report.failure);
+    return removed;
+  }
   if (!solve_with_wall(report)) add_event(GrowthEventKind::kSolver, "after retracting: " + report.failure);
   return removed;
 }
@@ -257,12 +263,23 @@ VineGrowth::VineGrowth(const VineParameters& vine, const GrowthOptions& options,
   const int edges = std::max(1, static_cast<int>(std::lround(vine.length / m_h)));
   m_vine.edges = edges;
   m_vine.length = edges * m_h;
+  m_tip_length = m_h;
+  m_dhat = options.contact_distance > 0.0 ? options.contact_distance : 0.02 * m_vine.radius;
+  m_slip = options.friction_slip > 0.0 ? options.friction_slip : 0.01 * m_vine.radius;
   rebuild_model(vine.pressure);  // validates the vine (VineParameterError)
   m_state = straight_rod(m_model);
   m_anchor.assign(m_state.x.size(), Vec3::Constant(kNone));
   m_anchor_normal.assign(m_state.x.size(), Vec3::Zero());
   m_normal_force.assign(m_state.x.size(), 0.0);
   GrowthStepReport report;
+  if (options.contact == ContactModel::kBarrier) {
+    m_wall_force.assign(m_state.x.size(), Vec3::Zero());
+    m_anchor_normal.assign(m_state.x.size(), Vec3::Zero());
+    if (!barrier_step(0.0, vine.pressure, 0.0, report)) {
+      add_event(GrowthEventKind::kSolver, "initial equilibrium: " + report.failure);
+    }
+    return;
+  }
   if (!solve_with_wall(report)) add_event(GrowthEventKind::kSolver, "initial equilibrium: " + report.failure);
 }
 
@@ -278,6 +295,10 @@ void VineGrowth::rebuild_model(double pressure) {
     m_model = inserted_part(m_options.rod->body, v.length, v.edges);
   } else {
     m_model = vine_rod(v);
+  }
+  if (m_options.contact == ContactModel::kBarrier) {  // the tip edge keeps its own made length
+    m_model.length = (m_vine.edges - 1) * m_h + m_tip_length;
+    m_model.tip_edge_length = m_vine.edges > 1 ? m_tip_length : 0.0;
   }
   m_model.base_position = m_base_position;
   m_model.base_frame = m_base_frame;
@@ -730,6 +751,20 @@ GrowthStepReport VineGrowth::advance(double dt, const GrowthControl& control) {
                               1e3 * control.tether_length, p / kKpaToPa, m_options.retraction_pressure / kKpaToPa));
     }
   }
+  if (m_options.contact == ContactModel::kBarrier) {
+    const double cap = std::max(0.0, std::min(control.tether_length, m_options.max_length) - m_model.length);
+    const double before = m_model.length;
+    if (!barrier_steps(dt, p, cap, report)) {
+      report.converged = false;
+      report.stalled = true;
+      add_event(GrowthEventKind::kSolver, "step failed: " + report.failure);
+      return report;
+    }
+    report.stalled = m_model.length <= before;
+    if (report.edges_added > 0) m_retracting = false;
+    m_dirty = false;
+    return report;
+  }
   const double cap = std::min(control.tether_length, m_options.max_length) - (m_model.length + m_pending);
   m_pending += std::clamp(report.speed * dt, 0.0, std::max(0.0, cap));
   if (m_blocked) m_pending = std::min(m_pending, m_h);  // a blocked tip does not store growth
@@ -929,6 +964,264 @@ GrowthStepReport VineGrowth::advance(double dt, const GrowthControl& control) {
   report.stalled = report.edges_added == 0;
   m_dirty = false;
   return report;
+}
+
+}  // namespace magvine::robot
+
+namespace magvine::robot {
+namespace {
+
+/// The point at arc length s [m] along a body whose edges have the lengths `lengths` (nodes x); before the base, on
+/// the line of `base_tangent` (material still in the introducer).
+Vec3 point_at_arc(const RodState& body, const std::vector<double>& lengths, const Vec3& base_tangent, double s) {
+  if (s <= 0.0) return body.x.front() + s * base_tangent;
+  for (std::size_t j = 0; j < lengths.size(); ++j) {
+    if (s <= lengths[j] || j + 1 == lengths.size()) {
+      const double f = std::min(1.0, s / lengths[j]);
+      return body.x[j] + f * (body.x[j + 1] - body.x[j]);
+    }
+    s -= lengths[j];
+  }
+  return body.x.back();
+}
+
+}  // namespace
+
+bool VineGrowth::barrier_steps(double dt, double pressure, double cap, GrowthStepReport& report, int depth) {
+  constexpr int kMaxHalvings = 4;
+  if (barrier_step(dt, pressure, cap, report)) return true;
+  if (depth == kMaxHalvings || dt == 0.0) return false;
+  const double before = m_model.length;
+  if (!barrier_steps(0.5 * dt, pressure, cap, report, depth + 1)) return false;
+  if (!barrier_steps(0.5 * dt, pressure, std::max(0.0, cap - (m_model.length - before)), report, depth + 1)) {
+    return false;
+  }
+  ++report.retries;
+  report.converged = true;
+  report.failure.clear();
+  return true;
+}
+
+bool VineGrowth::barrier_step(double dt, double pressure, double cap, GrowthStepReport& report) {
+  const std::size_t nodes = m_state.x.size();
+  const std::size_t tip = nodes - 1;
+  const double area = kPi * m_radius * m_radius;
+  const bool pushed = m_options.mode == InsertionMode::kPushed;
+  const Vec3 tangent = m_state.frames.back().col(0);
+  // The growth load on the tip edge (TipGrowth): the growth law's incremental potential for a vine that everts, a
+  // prescribed insertion (stiff, up to the tether) for a pushed body.
+  TipGrowth growth;
+  const double axial = m_model.axial_stiffness / robot::edge_length(m_model, m_model.edges - 1);
+  double squeeze = 1.0;
+  double push = 0.0;  // a pushed body's insertion in this step [m]
+  // (At the tether, cap = 0, the tether takes the tip's pressure force: nothing pushes the body.)
+  if (dt > 0.0 && cap > 0.0) {
+    if (pushed || solid_body()) {
+      push = std::min(report.speed * dt, cap);
+      growth = {axial * push, axial, push};
+    } else if (m_options.law.extensibility > 0.0) {
+      if (m_world != nullptr) {
+        // Squeezing: ahead of the tip the lumen's width (from its middle) leaves the flattened section's area only.
+        const Vec3 ahead = m_state.x[tip] + m_radius * tangent;
+        const double r = m_world->contains(ahead) ? node_radius(ahead, m_state.frames.back(), nullptr, kRecentrings)
+                                                  : m_radius;
+        squeeze = slot_area(m_radius, r / kSlack) / area;
+      }
+      growth = {growth_force(pressure * squeeze, report.yield, m_radius),
+                area / (m_options.law.extensibility * dt), cap};
+    }
+  }
+  // Contact radii (squeezed where the lumen is narrow), each at most what the node has room for at the start: a
+  // configuration with a finite barrier energy.
+  RodConstraints c;
+  c.growth = growth;
+  if (m_world != nullptr) {
+    WallBarrier wall{m_world, std::vector<double>(nodes, 0.0), m_dhat, m_stiffness};
+    m_cache.resize(nodes);
+    for (std::size_t i = 1; i < nodes; ++i) {
+      PlaneCache& cache = m_cache[i];
+      if (!((m_state.x[i] - cache.radius_at).norm() <= kStill * m_radius)) {
+        cache.radius_at = m_state.x[i];
+        cache.radius = node_radius(m_state.x[i], m_state.frames[std::min(i, nodes - 2)], &cache.across);
+      }
+      double r = cache.radius;
+      std::array<anatomy::NearTriangle, 1> near{};
+      if (m_world->triangles_within(m_state.x[i], r, near) > 0) r = near[0].distance - 0.5 * m_dhat;
+      wall.radius[i] = r > 0.1 * m_radius ? r : 0.0;
+    }
+    c.wall = std::move(wall);
+  }
+  // Friction references: where each everted node's material was laid down (kept across steps, moved to the
+  // Coulomb limit after a slip), or where a pushed body's material was before this step's insertion.
+  std::vector<Vec3> reference = m_anchor;
+  reference.resize(nodes, Vec3::Constant(kNone));
+  if (pushed) {
+    std::vector<double> lengths(static_cast<std::size_t>(m_model.edges));
+    for (int j = 0; j < m_model.edges; ++j) lengths[static_cast<std::size_t>(j)] = robot::edge_length(m_model, j);
+    double s = 0.0;
+    for (std::size_t i = 1; i < nodes; ++i) {
+      s += lengths[i - 1];
+      reference[i] = point_at_arc(m_state, lengths, m_base_frame.col(0), s - push);
+    }
+  }
+  const RodModel old_model = m_model;
+  const RodState old_state = m_state;
+  const std::vector<Vec3> old_anchor = m_anchor;
+  const std::vector<Vec3> old_axis = m_anchor_normal;
+  const std::vector<double> old_lambda = m_normal_force;
+  const std::vector<Vec3> old_force = m_wall_force;
+  const auto restore = [&] {
+    m_model = old_model;
+    m_state = old_state;
+    m_anchor = old_anchor;
+    m_anchor_normal = old_axis;
+    m_normal_force = old_lambda;
+    m_wall_force = old_force;
+  };
+  m_normal_force.resize(nodes, 0.0);
+  m_anchor_normal.resize(nodes, Vec3::Zero());
+  m_wall_force.resize(nodes, Vec3::Zero());
+  std::vector<double> lambda = m_normal_force;
+  std::vector<Vec3> axis = m_anchor_normal;
+  bool settled = false;
+  for (int k = 0; k < m_options.max_friction_iterations && !settled; ++k) {
+    c.friction.clear();
+    for (std::size_t i = 1; i < nodes && m_world != nullptr; ++i) {
+      if (!(lambda[i] > 0.0) || (!pushed && i == tip)) continue;  // the everting tip lays material down: no slip
+      if (std::isnan(reference[i].x())) reference[i] = m_state.x[i];
+      c.friction.push_back({static_cast<int>(i), reference[i], axis[i], lambda[i], m_options.friction, m_slip});
+    }
+    ++report.contact_passes;
+    const RodSolveReport r = solve_rod_statics(m_model, m_field, m_state, m_options.solver, &m_workspace, &c);
+    report.newton_iterations += r.iterations;
+    if (!r.converged) {
+      restore();
+      report.converged = false;
+      report.failure = r.failure;
+      return false;
+    }
+    if (m_world == nullptr) break;
+    const std::vector<NodeWallForce> f = wall_barrier_forces(m_state, *c.wall);
+    double scale = growth.force;
+    std::vector<double> next(nodes, 0.0);
+    for (std::size_t i = 1; i < nodes; ++i) {
+      next[i] = f[i].magnitude;
+      // A flattened section presses each of the two walls with P over its flat strip, 2·P·(πR − πg/2)·h; a
+      // pinched catheter with its ring's line load, 2·q(g)·h.
+      if (c.wall->radius[i] > 0.0 && m_cache[i].radius < m_radius) {
+        const double g = m_cache[i].radius / kSlack;
+        next[i] += 2.0 * m_h * (m_options.catheter ? ring_crush_load(*m_options.catheter, g)
+                                                   : m_pressure * flat_width(m_radius, g));
+      }
+      scale = std::max(scale, next[i]);
+    }
+    settled = true;
+    for (std::size_t i = 1; i < nodes; ++i) {
+      const bool changed = std::abs(next[i] - lambda[i]) > m_options.friction_tolerance * scale ||
+                           (next[i] > m_options.friction_tolerance * scale && axis[i].cross(f[i].axis).norm() > 1e-2);
+      if (changed) settled = false;
+      lambda[i] = next[i];
+      axis[i] = f[i].axis;
+      m_wall_force[i] = f[i].force;
+    }
+  }
+  if (!settled && m_world != nullptr) {
+    restore();
+    report.converged = false;
+    report.failure = "the lagged friction did not settle in " + std::to_string(m_options.max_friction_iterations) +
+                     " solves";
+    return false;
+  }
+  // Forces on the tissue (the converged solve's).
+  m_normal_force = lambda;
+  m_anchor_normal = axis;
+  m_forces = WallForces{};
+  m_forces.normal.assign(nodes, 0.0);
+  m_forces.shear.assign(nodes, 0.0);
+  m_forces.normal_vector.assign(nodes, Vec3::Zero());
+  m_forces.shear_vector.assign(nodes, Vec3::Zero());
+  for (const NodeFriction& f : c.friction) {
+    const auto i = static_cast<std::size_t>(f.node);
+    const Vec3 on_body = friction_force(f, m_state.x[i]);
+    m_forces.shear_vector[i] = -on_body;
+    m_forces.shear[i] = on_body.norm();
+    // Static friction's reference follows a slip past ε (the node then sits at the Coulomb limit).
+    const Vec3 d = m_state.x[i] - f.reference;
+    const Vec3 u = d - f.normal.dot(d) * f.normal;
+    if (!pushed && u.norm() > m_slip) reference[i] += (1.0 - m_slip / u.norm()) * u;
+  }
+  for (std::size_t i = 1; i < nodes; ++i) {
+    m_forces.normal[i] = lambda[i];
+    m_forces.normal_vector[i] = -m_wall_force[i];
+    m_forces.max_normal = std::max(m_forces.max_normal, lambda[i]);
+    m_forces.total_normal += lambda[i];
+    m_forces.max_shear = std::max(m_forces.max_shear, m_forces.shear[i]);
+    m_forces.total_shear += m_forces.shear[i];
+    if (lambda[i] > 0.0) ++m_forces.nodes_in_contact;
+    if (!(lambda[i] > 0.0) || pushed) reference[i] = Vec3::Constant(kNone);  // off the wall: released
+  }
+  if (m_forces.nodes_in_contact > 0) m_forces.mean_normal = m_forces.total_normal / m_forces.nodes_in_contact;
+  {
+    // The global balance: every force on the body, each computed from its own law.
+    Vec3 wall = Vec3::Zero();
+    Vec3 friction = Vec3::Zero();
+    for (std::size_t i = 1; i < nodes; ++i) {
+      wall += m_wall_force[i];
+      friction -= m_forces.shear_vector[i];
+    }
+    const Vec3 load = body_load(m_model, m_field, m_state);
+    m_forces.clamp = clamp_force(m_model, m_field, m_state);
+    m_forces.imbalance = wall + friction + load + m_forces.clamp;
+    m_forces.largest_load = std::max({wall.norm(), friction.norm(), load.norm(), m_forces.clamp.norm(), growth.force});
+  }
+  m_anchor = reference;
+  // Growth: the tip edge's extension past its made length becomes made length; a tip edge of 3h/2 splits into an
+  // edge of h and the rest.
+  const Vec3 edge = m_state.x[tip] - m_state.x[tip - 1];
+  const double extension = m_state.frames.back().col(0).dot(edge) - robot::edge_length(m_model, m_model.edges - 1);
+  const double grown = dt > 0.0 && growth.force > 0.0 ? std::clamp(extension, 0.0, std::max(0.0, growth.limit)) : 0.0;
+  m_tip_length += grown;
+  while (m_tip_length >= 1.5 * m_h) {
+    const Vec3 t = m_state.frames.back().col(0);
+    const Vec3 at = m_state.x[m_state.x.size() - 2] + m_h * t;
+    const std::size_t n = m_state.x.size() - 1;  // the new node's index; the tip moves to n + 1
+    m_state.x.insert(m_state.x.begin() + static_cast<std::ptrdiff_t>(n), at);
+    m_state.frames.push_back(m_state.frames.back());
+    m_anchor.insert(m_anchor.begin() + static_cast<std::ptrdiff_t>(n), Vec3::Constant(kNone));
+    m_anchor_normal.insert(m_anchor_normal.begin() + static_cast<std::ptrdiff_t>(n), Vec3::Zero());
+    m_normal_force.insert(m_normal_force.begin() + static_cast<std::ptrdiff_t>(n), 0.0);
+    m_wall_force.insert(m_wall_force.begin() + static_cast<std::ptrdiff_t>(n), Vec3::Zero());
+    for (auto* v : {&m_forces.normal, &m_forces.shear}) v->insert(v->begin() + static_cast<std::ptrdiff_t>(n), 0.0);
+    for (auto* v : {&m_forces.normal_vector, &m_forces.shear_vector}) {
+      v->insert(v->begin() + static_cast<std::ptrdiff_t>(n), Vec3::Zero());
+    }
+    m_cache.insert(m_cache.begin() + static_cast<std::ptrdiff_t>(n), PlaneCache{});
+    ++m_vine.edges;
+    ++report.edges_added;
+    m_tip_length -= m_h;
+  }
+  rebuild_model(pressure);
+  // Events: the wall in front of the tip holding it (growth below 1 % of the free growth), or a narrowing.
+  if (dt > 0.0 && !pushed && !solid_body()) {
+    const double free = growth.stiffness > 0.0 ? growth.force / growth.stiffness : 0.0;
+    const bool held = growth.force > 0.0 && grown < 0.01 * free;
+    if (held && !m_blocked) {
+      m_blocked = true;
+      const double carried = -m_wall_force[tip].dot(tangent);
+      add_event(GrowthEventKind::kBlocked,
+                printf_string("the wall in front of the tip carries %.3f N of the growth force %.3f N", carried,
+                              growth.force));
+    } else if (growth.force == 0.0 && squeeze < 1.0 && pressure > report.yield && !m_blocked) {
+      m_blocked = true;
+      add_event(GrowthEventKind::kSqueeze,
+                printf_string("the narrowing ahead leaves the tip %.0f %% of its section: %.2f kPa x %.2f is at or "
+                              "below the yield %.2f kPa",
+                              100.0 * squeeze, pressure / kKpaToPa, squeeze, report.yield / kKpaToPa));
+    } else if (grown >= 0.01 * free && growth.force > 0.0) {
+      m_blocked = false;
+    }
+  }
+  return true;
 }
 
 }  // namespace magvine::robot

@@ -1,9 +1,12 @@
 #include "magvine/robot/rod.hpp"
 
 #include <algorithm>
+#include <array>
 #include <cmath>
 #include <limits>
 #include <string>
+
+#include <Eigen/Eigenvalues>
 
 #include "magvine/core/error.hpp"
 #include "magvine/core/multiversion.hpp"
@@ -32,11 +35,12 @@ constexpr double kMaxTurn = 0.5;  // [rad] largest frame rotation of one Newton 
 constexpr double kMaxRetryDamping = 1e-1;
 
 /// Energy at load factor λ (the sum of the terms of rod_terms.hpp); adds its gradient to `sys` when given.
-/// `samples`, when given, holds (or receives) the field at this state's edge midpoints.
+/// `samples`, when given, holds (or receives) the field at this state's edge midpoints; `from`, for a line-search
+/// trial, is the iterate it moves from (TermContext::from).
 double evaluate(const RodModel& m, const RodField& field, const RodState& s, double load, System* sys,
                 const Inertia* inertia = nullptr, const RodConstraints* constraints = nullptr,
-                FieldSamples* samples = nullptr) {
-  const TermContext c{m, field, s, load, inertia, constraints, samples};
+                FieldSamples* samples = nullptr, const RodState* from = nullptr) {
+  const TermContext c{m, field, s, load, inertia, constraints, samples, from};
   return detail::rod_terms_energy(c, sys);
 }
 
@@ -307,6 +311,10 @@ void check_rod_model(const RodModel& m) {
   positive("axial_stiffness", m.axial_stiffness);
   positive("shear_stiffness", m.shear_stiffness);
   if (m.edges < 1) throw InputError("rod: edges = " + std::to_string(m.edges) + " (must be >= 1)");
+  if (!(m.tip_edge_length >= 0.0) || !(m.tip_edge_length < m.length) ||
+      (m.tip_edge_length > 0.0 && m.edges < 2)) {
+    throw InputError("rod: tip_edge_length must be in [0, length) and needs at least two edges");
+  }
   if (!(m.mass_per_length >= 0.0) || !std::isfinite(m.mass_per_length)) {
     throw InputError("rod: mass_per_length must be finite and >= 0");
   }
@@ -496,10 +504,10 @@ MAGVINE_HOT_KERNEL std::string newton(const RodModel& m, const RodField& field, 
     // Newton iterations with it; 1092–7196 without, and one case failed). The winner is left in w.trial.
     const auto trial_at = [&](const VecX& step, double scale) {
       apply(s, step, scale, w.trial);
-      const double e = evaluate(m, field, w.trial, load, nullptr, inertia, constraints);
+      const double e = evaluate(m, field, w.trial, load, nullptr, inertia, constraints, nullptr, &s);
       rebuild_positions(w.trial, s, step, scale, w.rebuilt);
       std::swap(w.trial.x, w.rebuilt);  // w.trial is now the rebuilt state (the same frames)
-      const double e_rebuilt = evaluate(m, field, w.trial, load, nullptr, inertia, constraints);
+      const double e_rebuilt = evaluate(m, field, w.trial, load, nullptr, inertia, constraints, nullptr, &s);
       if (std::isfinite(e_rebuilt) && !(e_rebuilt >= e)) return e_rebuilt;
       std::swap(w.trial.x, w.rebuilt);
       return e;
@@ -550,7 +558,7 @@ MAGVINE_HOT_KERNEL std::string newton(const RodModel& m, const RodField& field, 
       apply(s, delta, t0, w.trial);
       if (w.probe.gradient.size() != sys.gradient.size()) w.probe = System(m.edges, false);
       w.probe.gradient.setZero();
-      const double e_probe = evaluate(m, field, w.trial, load, &w.probe, inertia, constraints);
+      const double e_probe = evaluate(m, field, w.trial, load, &w.probe, inertia, constraints, nullptr, &s);
       if (!std::isfinite(e_probe) || !(scaled_norm(m, w.probe.gradient) < 0.9 * report.gradient_norm)) {
         // The quadratic model misled the step (a contact met within its smooth zone, a field gradient's
         // negative stiffness): damp harder, towards a short step down the gradient scaled by the stiffness, which
@@ -644,11 +652,10 @@ std::vector<double> joint_angles(const RodModel& model, const RodState& state) {
 }
 
 std::vector<double> joint_bending_moments(const RodModel& model, const RodState& state) {
-  const double h = model.length / model.edges;
   std::vector<double> out;
   for (int j = 0; j < model.edges; ++j) {
     const Mat3& ra = detail::joint_first_frame(model, state, j);
-    const double ell = detail::joint_length(h, j);
+    const double ell = detail::joint_length(model, j);
     const Mat3 q = ra.transpose() * state.frames[static_cast<std::size_t>(j)];
     Vec3 stress;
     const Vec3 omega = joint_strain(q, ell);
@@ -660,11 +667,80 @@ std::vector<double> joint_bending_moments(const RodModel& model, const RodState&
   return out;
 }
 
+std::vector<NodeWallForce> wall_barrier_forces(const RodState& state, const WallBarrier& wall) {
+  std::vector<NodeWallForce> out(state.x.size());
+  std::vector<Mat3> spread(state.x.size(), Mat3::Zero());
+  const RodModel unused;
+  const RodField none;
+  const TermContext c{unused, none, state};
+  const bool clear = detail::WallBarrierTerm::for_each_gap(c, wall, [&](std::size_t i, double gap, const Vec3& n) {
+    const double f = detail::barrier_force(wall, gap);
+    out[i].force += f * n;
+    out[i].magnitude += f;
+    spread[i] += f * n * n.transpose();
+  });
+  for (std::size_t i = 0; i < out.size(); ++i) {
+    if (out[i].magnitude <= 0.0) continue;
+    const Eigen::SelfAdjointEigenSolver<Mat3> eigen(spread[i]);
+    out[i].axis = eigen.eigenvectors().col(2);
+    if (out[i].axis.dot(out[i].force) < 0.0) out[i].axis = -out[i].axis;
+  }
+  if (!clear) {
+    for (std::size_t i = 1; i < state.x.size() && i < wall.radius.size(); ++i) {
+      std::array<anatomy::NearTriangle, 1> near{};
+      if (wall.radius[i] > 0.0 && wall.world->triangles_within(state.x[i], wall.radius[i], near) > 0) {
+        out[i].magnitude = std::numeric_limits<double>::infinity();
+      }
+    }
+  }
+  return out;
+}
+
+Vec3 clamp_force(const RodModel& model, const RodField& field, const RodState& state) {
+  const TermContext c{model, field, state};
+  const auto e = detail::StretchShear::edge(c, 0);
+  Vec3 force = -(e.r * e.stress) / e.h;  // the first edge's pull on x_0 (dW/de = Rσ/h), reversed
+  if (detail::Magnetic::active(c)) {
+    // Half the first edge's magnetic force acts on x_0, which the clamp holds (magnetics::magnetic_wrench).
+    const Vec3 hard = model.moment_per_length.empty() ? Vec3::Zero() : detail::Magnetic::hard_moment(c, 0);
+    const magnetics::FieldSample f = field(detail::edge_midpoint(state, 0));
+    double energy = 0.0;
+    const Vec3 moment =
+        detail::Magnetic::effective_moment(c, hard, detail::Magnetic::fill_volume(c, 0), state.frames[0], f, energy);
+    force -= 0.5 * magnetics::magnetic_wrench(moment, f).force;
+  }
+  return force;
+}
+
+Vec3 body_load(const RodModel& model, const RodField& field, const RodState& state) {
+  const TermContext c{model, field, state};
+  Vec3 total = model.tip_force;
+  for (std::size_t i = 1; i < state.x.size(); ++i) total += detail::lumped_mass(model, i) * model.gravity;
+  if (!detail::Magnetic::active(c)) return total;
+  for (int j = 0; j < model.edges; ++j) {
+    const auto ju = static_cast<std::size_t>(j);
+    const Vec3 hard = model.moment_per_length.empty() ? Vec3::Zero() : detail::Magnetic::hard_moment(c, ju);
+    const magnetics::FieldSample f = field(detail::edge_midpoint(state, ju));
+    double energy = 0.0;
+    const Vec3 moment =
+        detail::Magnetic::effective_moment(c, hard, detail::Magnetic::fill_volume(c, j), state.frames[ju], f, energy);
+    total += magnetics::magnetic_wrench(moment, f).force;
+  }
+  return total;
+}
+
+Vec3 friction_force(const NodeFriction& f, const Vec3& x) {
+  const Vec3 d = x - f.reference;
+  const Vec3 u = d - f.normal.dot(d) * f.normal;
+  return -f.coefficient * f.normal_force * detail::friction_law(u.norm(), f.slip).force_per * u;
+}
+
 RodState straight_rod(const RodModel& model) {
   RodState s;
-  const double h = model.length / model.edges;
   const Vec3 t = model.base_frame.col(0);
-  for (int i = 0; i <= model.edges; ++i) s.x.push_back(model.base_position + i * h * t);
+  const double h = uniform_edge_length(model);
+  for (int i = 0; i < model.edges; ++i) s.x.push_back(model.base_position + i * h * t);
+  s.x.push_back(s.x.back() + edge_length(model, model.edges - 1) * t);
   s.frames.assign(static_cast<std::size_t>(model.edges), model.base_frame);
   return s;
 }
@@ -715,7 +791,7 @@ RodSolveReport step_rod_dynamics(const RodModel& model, const RodField& field, R
   if (state.x.size() != n + 1 || motion.velocity.size() != n + 1 || motion.angular_velocity.size() != n) {
     throw InputError("rod dynamics: the state or motion does not match the model's edge count");
   }
-  const double h = model.length / model.edges;
+  const double h = uniform_edge_length(model);  // (the dynamics keep every edge at h: no growing tip edge)
   Inertia inertia;
   inertia.dt = dt;
   inertia.rotational = model.rotational_inertia_per_length * h;
@@ -724,7 +800,7 @@ RodSolveReport step_rod_dynamics(const RodModel& model, const RodField& field, R
   inertia.frames.resize(n);
   for (std::size_t i = 0; i <= n; ++i) {
     inertia.x[i] = state.x[i] + dt * motion.velocity[i];
-    inertia.mass[i] = detail::lumped_mass(model, h, i);
+    inertia.mass[i] = detail::lumped_mass(model, i);
   }
   for (std::size_t j = 0; j < n; ++j) {
     inertia.frames[j] = exp_rotation(dt * motion.angular_velocity[j]) * state.frames[j];

@@ -24,9 +24,13 @@ using Vec6 = Eigen::Matrix<double, 6, 1>;
 /// The midpoint of edge j, where its magnetic loads are sampled.
 inline Vec3 edge_midpoint(const RodState& s, std::size_t j) { return 0.5 * (s.x[j] + s.x[j + 1]); }
 
-/// The lumped mass of node i of N [kg]: ρA·h, half at the tip (node 0 is clamped).
-inline double lumped_mass(const RodModel& m, double h, std::size_t i) {
-  return m.mass_per_length * (i == static_cast<std::size_t>(m.edges) ? 0.5 * h : h);
+/// The lumped mass of node i of N [kg]: ρA over half of each edge it ends, ρA·h between two edges of h, half at the
+/// tip (node 0 is clamped).
+inline double lumped_mass(const RodModel& m, std::size_t i) {
+  const int j = static_cast<int>(i);
+  const double before = j > 0 ? edge_length(m, j - 1) : 0.0;
+  const double after = j < m.edges ? edge_length(m, j) : 0.0;
+  return m.mass_per_length * 0.5 * (before + after);
 }
 
 /// [v]: the cross-product matrix, [v]u = v × u.
@@ -174,10 +178,15 @@ struct TermContext {
   const Inertia* inertia = nullptr;
   const RodConstraints* constraints = nullptr;
   FieldSamples* samples = nullptr;
-  double edge_length = model.length / model.edges;  ///< h, once per context (not per edge)
+  /// The iterate a line-search trial moves from (the wall barrier refuses trials whose nodes cross the wall on the
+  /// way); null for the iterate itself.
+  const RodState* from = nullptr;
+  double edge_length = uniform_edge_length(model);  ///< h, once per context (not per edge)
+  double tip_length = robot::edge_length(model, model.edges - 1);  ///< the last edge's
 
   int edges() const { return model.edges; }
-  double h() const { return edge_length; }
+  /// The length of edge j.
+  double h(int j) const { return j == model.edges - 1 ? tip_length : edge_length; }
 
   /// The entries of one list of the constraints (RodConstraints::contacts, anchors, forces); none without them.
   template <class T>

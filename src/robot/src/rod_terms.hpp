@@ -9,18 +9,20 @@
 #include "rod_system.hpp"
 #include "terms/anchors.hpp"
 #include "terms/bend_twist.hpp"
+#include "terms/friction.hpp"
 #include "terms/gravity.hpp"
 #include "terms/inertia.hpp"
 #include "terms/magnetic.hpp"
 #include "terms/node_forces.hpp"
 #include "terms/stretch_shear.hpp"
 #include "terms/tip_moment.hpp"
+#include "terms/wall_barrier.hpp"
 #include "terms/wall_contact.hpp"
 
 namespace magvine::robot::detail {
 
 using RodTerms = std::tuple<StretchShear, BendTwist, Magnetic, InertiaTerm, WallContactTerm, AnchorTerm, NodeForceTerm,
-                            GravityTerm, TipMomentTerm>;
+                            GravityTerm, TipMomentTerm, WallBarrierTerm, FrictionTerm>;
 
 /// The energy at load factor λ (c.load); adds its gradient to `sys` when given. Infinite when a joint has folded
 /// back on itself: the terms after the first non-finite energy are skipped (the gradient is then incomplete, and

@@ -188,8 +188,21 @@ std::optional<robot::PushedRod> parse_robot(const YamlMap& robot, const FileUnit
 /// growth: the growth law and the insertion mode (a pushed rod refuses the pressure's keys).
 void parse_growth(const YamlMap& g, const FileUnits& units, bool rod, ExperimentScene& scene) {
   g.allow_only({"mode", "yield_pressure", "length_yield", "turning_yield", "extensibility", "friction", "edge_length",
-                "catheter", "magnetorheology", "retraction_pressure", "max_incidence"});
+                "catheter", "magnetorheology", "retraction_pressure", "max_incidence", "contact",
+                "contact_distance", "friction_slip"});
   robot::GrowthOptions& o = scene.growth;
+  if (g.has("contact")) {
+    const std::string contact = g.text("contact");
+    if (contact == "planes") {
+      o.contact = robot::ContactModel::kPlanes;
+    } else if (contact == "barrier") {
+      o.contact = robot::ContactModel::kBarrier;
+    } else {
+      g.fail("contact", "must be planes or barrier (got '" + contact + "')");
+    }
+  }
+  if (g.has("contact_distance")) o.contact_distance = g.quantity("contact_distance", units.len, range::kSpacing);
+  if (g.has("friction_slip")) o.friction_slip = g.quantity("friction_slip", units.len, range::kSpacing);
   if (g.has("mode")) {
     const std::string mode = g.text("mode");
     if (mode == "eversion") {

@@ -78,11 +78,13 @@ inline Mat3 joint_stiffness(const RodModel& m, double ell, const Vec3& omega) {
 }
 
 /// The first frame of joint j (the clamp frame or edge j − 1's; the second is edge j's) and its length ℓ (h/2 at the
-/// clamp, else h).
+/// clamp, else half of each edge it joins: h between edges of h).
 inline const Mat3& joint_first_frame(const RodModel& m, const RodState& s, int j) {
   return j == 0 ? m.base_frame : s.frames[static_cast<std::size_t>(j) - 1];
 }
-inline double joint_length(double h, int j) { return j == 0 ? 0.5 * h : h; }
+inline double joint_length(const RodModel& m, int j) {
+  return j == 0 ? 0.5 * edge_length(m, 0) : 0.5 * (edge_length(m, j - 1) + edge_length(m, j));
+}
 
 struct BendTwist {
   /// A joint folded back on itself makes the energy infinite (and the gradient incomplete; rod_terms_energy then
@@ -91,7 +93,7 @@ struct BendTwist {
     for (int j = 0; j < c.edges(); ++j) {
       const Mat3& ra = joint_first_frame(c.model, c.state, j);
       const Mat3& rb = c.state.frames[static_cast<std::size_t>(j)];
-      const double ell = joint_length(c.h(), j);
+      const double ell = joint_length(c.model, j);
       const Mat3 q = ra.transpose() * rb;
       const double cq = 1.0 + q.trace();  // 2(1 + cos ψ)
       if (!(cq > 1e-12)) {
@@ -119,7 +121,7 @@ struct BendTwist {
     for (int j = 0; j < c.edges(); ++j) {
       const Mat3& ra = joint_first_frame(c.model, c.state, j);
       const Mat3& rb = c.state.frames[static_cast<std::size_t>(j)];
-      const double ell = joint_length(c.h(), j);
+      const double ell = joint_length(c.model, j);
       const Mat3 q = ra.transpose() * rb;
       const Vec3 omega = joint_strain(q, ell);
       const Vec3 strain = omega - rest_strain(c.model, j);

@@ -15,34 +15,45 @@ struct Magnetic {
     const RodModel& m = c.model;
     return c.field && (!m.moment_per_length.empty() || fill_volume(c) > 0.0);
   }
-  /// The hard moment λ h R_j m̂_j of edge j (world) [A·m²].
+  /// The hard moment λ h_j R_j m̂_j of edge j (world) [A·m²].
   static Vec3 hard_moment(const TermContext& c, std::size_t j) {
-    return c.load * c.h() * (c.state.frames[j] * c.model.moment_per_length[j]);
+    return c.load * c.h(static_cast<int>(j)) * (c.state.frames[j] * c.model.moment_per_length[j]);
   }
-  /// V = λ A_fill h of each edge's fill [m³].
+  /// V = λ A_fill h of the fill of an edge of length h [m³].
   static double fill_volume(const TermContext& c) {
-    return c.model.induced ? c.load * c.model.induced->volume_per_length * c.h() : 0.0;
+    return c.model.induced ? c.load * c.model.induced->volume_per_length * c.edge_length : 0.0;
+  }
+  static double fill_volume(const TermContext& c, int j) {
+    return c.model.induced ? c.load * c.model.induced->volume_per_length * c.h(j) : 0.0;
+  }
+
+  /// The effective moment m = −dU/dB (world) of an edge of hard moment `hard`, fill volume `volume` and frame r in
+  /// the field sample f; adds the edge's energy U to `energy`.
+  static Vec3 effective_moment(const TermContext& c, const Vec3& hard, double volume, const Mat3& r,
+                               const magnetics::FieldSample& f, double& energy) {
+    energy -= hard.dot(f.b);
+    Vec3 moment = hard;
+    if (volume > 0.0) {
+      Vec3 de_db;
+      energy += volume * c.model.induced->law.energy_density(r.transpose() * f.b, de_db);
+      moment -= volume * (r * de_db);
+    }
+    return moment;
   }
 
   static void add_energy(const TermContext& c, double& energy, System* sys) {
     if (!active(c)) return;
     const RodModel& m = c.model;
     const bool hard = !m.moment_per_length.empty();
-    const double volume = fill_volume(c);
     for (int j = 0; j < c.edges(); ++j) {
       const auto ju = static_cast<std::size_t>(j);
+      const double volume = fill_volume(c, j);
       const Mat3& r = c.state.frames[ju];
       const Vec3 mj = hard ? hard_moment(c, ju) : Vec3::Zero();
       if (mj.isZero() && volume == 0.0) continue;
       const magnetics::FieldSample f =
           c.samples != nullptr ? c.samples->at(c.field, c.state, ju) : c.field(edge_midpoint(c.state, ju));
-      energy -= mj.dot(f.b);
-      Vec3 moment = mj;  // the effective moment m = −dU/dB (world)
-      if (volume > 0.0) {
-        Vec3 de_db;
-        energy += volume * m.induced->law.energy_density(r.transpose() * f.b, de_db);
-        moment -= volume * (r * de_db);
-      }
+      const Vec3 moment = effective_moment(c, mj, volume, r, f, energy);
       if (sys == nullptr) continue;
       const magnetics::Wrench wrench = magnetics::magnetic_wrench(moment, f);
       const Vec3 half_gradient = -0.5 * wrench.force;
@@ -60,7 +71,6 @@ struct Magnetic {
     if (!active(c)) return;
     const RodModel& m = c.model;
     const bool hard = !m.moment_per_length.empty();
-    const double volume = fill_volume(c);
     const auto n = static_cast<std::size_t>(c.edges());
     FieldSamples local;
     FieldSamples& samples = c.samples != nullptr ? *c.samples : local;
@@ -76,6 +86,7 @@ struct Magnetic {
     const double step = 1e-6 * m.length;
     for (std::size_t ju = 0; ju < n; ++ju) {
       const int j = static_cast<int>(ju);
+      const double volume = fill_volume(c, j);
       const Mat3& r = c.state.frames[ju];
       const magnetics::FieldSample& f = samples.value[ju];
       Vec3 w = hard ? Vec3(-hard_moment(c, ju)) : Vec3::Zero();  // dU/dB of the hard moment

@@ -87,6 +87,13 @@ struct RayHit {
   bool front_face = false;      ///< the ray arrived on the side the triangle's outward normal points to
 };
 
+/// A triangle near a point (CollisionWorld::triangles_within): the closest point on it and the distance to it.
+struct NearTriangle {
+  Vec3 point = Vec3::Zero();   ///< closest point on the triangle, world frame [m]
+  double distance = 0.0;       ///< |query point − point| [m]
+  std::uint32_t triangle = 0;  ///< index into `mesh().triangles`
+};
+
 /// What construction found in the mesh.
 struct CollisionWorldStats {
   std::size_t triangles = 0;             ///< triangles in the mesh
@@ -152,6 +159,12 @@ class CollisionWorld {
 
   /// Contacts of the capsule around segment a–b [m] with radius > 0 [m]; a == b is a sphere. As sphere_contacts.
   std::size_t capsule_contacts(const Vec3& a, const Vec3& b, double radius, std::span<Contact> out) const;
+
+  /// The triangles within `radius` [m] of `point` (unsigned point–triangle distance, exact: Ericson's closest
+  /// point), degenerate ones left out, written to `out` nearest first. Returns how many lie within the radius, which
+  /// may exceed out.size(): then `out` holds the nearest out.size() of them. No sides, no merging: the raw
+  /// proximity the robot's wall barrier sums over (robot/terms/wall_barrier.hpp). Allocation-free.
+  std::size_t triangles_within(const Vec3& point, double radius, std::span<NearTriangle> out) const;
 
   /// First hit of the ray origin + s·direction, 0 ≤ s ≤ max_distance [m], `direction` a unit vector; nullopt when
   /// it hits nothing. Both faces count. A ray through a shared edge or vertex hits (inclusive test). Allocation-free.

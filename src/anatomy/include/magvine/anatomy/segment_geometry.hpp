@@ -1,5 +1,6 @@
 #pragma once
-/// Closest points of two segments, shared by the contact, distance and phantom code.
+/// Closest points of segments and triangles, shared by the contact, distance and phantom code and the robot's wall
+/// barrier.
 
 #include <algorithm>
 #include <limits>
@@ -47,6 +48,36 @@ inline Vec3 closest_point_on_segment(const Vec3& p, const Vec3& a, const Vec3& b
   const double dd = d.squaredNorm();
   if (dd <= 0.0) return a;
   return a + d * std::clamp((p - a).dot(d) / dd, 0.0, 1.0);
+}
+
+/// Closest point to p on triangle abc: Ericson, Real-Time Collision Detection (2005), §5.1.5, by Voronoi regions of
+/// the vertices, then the edges, then the face. A zero-area triangle (collinear corners) never reaches the face
+/// region with a positive denominator; it falls back to the closest of its three edges.
+inline Vec3 closest_point_on_triangle(const Vec3& p, const Vec3& a, const Vec3& b, const Vec3& c) {
+  const Vec3 ab = b - a, ac = c - a, ap = p - a;
+  const double d1 = ab.dot(ap), d2 = ac.dot(ap);
+  if (d1 <= 0.0 && d2 <= 0.0) return a;  // vertex a
+  const Vec3 bp = p - b;
+  const double d3 = ab.dot(bp), d4 = ac.dot(bp);
+  if (d3 >= 0.0 && d4 <= d3) return b;  // vertex b
+  const double vc = d1 * d4 - d3 * d2;
+  if (vc <= 0.0 && d1 >= 0.0 && d3 <= 0.0) return a + ab * (d1 / (d1 - d3));  // edge ab
+  const Vec3 cp = p - c;
+  const double d5 = ab.dot(cp), d6 = ac.dot(cp);
+  if (d6 >= 0.0 && d5 <= d6) return c;  // vertex c
+  const double vb = d5 * d2 - d1 * d6;
+  if (vb <= 0.0 && d2 >= 0.0 && d6 <= 0.0) return a + ac * (d2 / (d2 - d6));  // edge ac
+  const double va = d3 * d6 - d5 * d4;
+  if (va <= 0.0 && d4 - d3 >= 0.0 && d5 - d6 >= 0.0) return b + (c - b) * ((d4 - d3) / ((d4 - d3) + (d5 - d6)));  // bc
+  const double sum = va + vb + vc;  // = |ab × ac|², zero only for a degenerate triangle
+  if (!(sum > 0.0)) {
+    Vec3 best = closest_point_on_segment(p, a, b);
+    for (const Vec3& q : {closest_point_on_segment(p, b, c), closest_point_on_segment(p, c, a)}) {
+      if ((q - p).squaredNorm() < (best - p).squaredNorm()) best = q;
+    }
+    return best;
+  }
+  return a + ab * (vb / sum) + ac * (vc / sum);  // face, barycentric (u, v, w) = (va, vb, vc)/sum
 }
 
 /// Distance between the segments p1–q1 and p2–q2 [m].

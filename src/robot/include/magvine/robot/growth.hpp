@@ -73,6 +73,14 @@ struct GrowthLaw {
 
 enum class InsertionMode { kEversion, kPushed };
 
+/// How a step meets the wall. kPlanes: the wall frozen as planes per solve, re-queried until the contact set
+/// settles, touching nodes anchored by springs, growth by whole edges with an incidence rule and an energy test (the
+/// first wave's scheme). kBarrier: one minimisation per step over the body with the wall as a barrier on the distance
+/// to its triangles (WallBarrier), lagged smoothed Coulomb friction (NodeFriction) iterated until the lagged normal
+/// forces stop changing, and the growth law as the tip edge's axial law (TipGrowth): the tip presses an obstacle
+/// with the growth force and stops there. docs/growth-and-contact.md.
+enum class ContactModel { kPlanes, kBarrier };
+
 /// A solid-walled tube pushed as a catheter (InsertionMode::kPushed only), in place of the vine's body: the
 /// comparison of thesis 5.6.2, a TPU tube of OD 4 mm and ID 3 mm. Squeezed into a gap g narrower than its outer
 /// diameter D, its wall bends like a ring pinched across a diameter (Roark, thin ring under two opposite line
@@ -130,7 +138,18 @@ struct GrowthOptions {
   double max_incidence = 0.0;
   double contact_stiffness = 0.0;  ///< wall penalty k [N/m]; 0: automatic (the growth force at 2 % R depth)
   double max_length = std::numeric_limits<double>::infinity();  ///< the vine's made length [m]
-  int max_contact_passes = 10;     ///< solves per step while the contact set settles
+  int max_contact_passes = 10;     ///< solves per step while the contact set settles (kPlanes)
+  ContactModel contact = ContactModel::kPlanes;
+  /// kBarrier: the barrier's activation distance d̂ [m]; 0: 2 % of the radius. The body rests within d̂ of the wall.
+  double contact_distance = 0.0;
+  /// kBarrier: the slip ε below which friction is static [m]; 0: 1 % of the radius.
+  double friction_slip = 0.0;
+  /// kBarrier: solves per step while the lagged normal forces settle (each to the solver's tolerance); the step
+  /// fails (and is retried in halves) when they have not settled by then.
+  int max_friction_iterations = 12;
+  /// kBarrier: the lagged normal forces have settled when no node's wall force changes by more than this fraction
+  /// of the step's force scale (the largest wall force or the growth force).
+  double friction_tolerance = 1e-3;
   /// Magnetorheological stiffening of a magnetic-fluid fill (thesis 5.6.4: near the EPM the fluid stiffened and
   /// growth stopped until the magnet was withdrawn). Growth feeds the tip with fluid flowing along the body; a
   /// Bingham fluid of yield stress τ_y flows through a tube of radius R only where the pressure gradient exceeds
@@ -184,6 +203,14 @@ struct GrowthEvent {
 struct WallForces {
   std::vector<double> normal;
   std::vector<double> shear;
+  /// kBarrier: the forces on the tissue as vectors [N] (normal: the barrier's push reversed; shear: the friction's).
+  std::vector<Vec3> normal_vector;
+  std::vector<Vec3> shear_vector;
+  /// kBarrier: the global balance of the converged body, Σ(wall normal + friction + magnetic + gravity + clamp)
+  /// on the body [N] (zero at equilibrium), and the largest of those loads' magnitudes [N], its scale.
+  Vec3 imbalance = Vec3::Zero();
+  double largest_load = 0.0;
+  Vec3 clamp = Vec3::Zero();  ///< kBarrier: the clamp's force on the body [N]
   double max_normal = 0.0;
   double mean_normal = 0.0;  ///< over the nodes in contact
   double total_normal = 0.0;
@@ -207,6 +234,7 @@ struct GrowthStepReport {
   bool burst = false;
   bool converged = true;   ///< the body reached equilibrium (else the cause is in failure and an event)
   int contact_passes = 0;
+  int retries = 0;         ///< kBarrier: steps that failed and were taken again as two halves
   int newton_iterations = 0;
   double yield = 0.0;      ///< Y [Pa] (with the magnetorheological term)
   double magnetorheological_yield = 0.0;  ///< its magnetorheological part ΔP [Pa]
@@ -284,6 +312,12 @@ class VineGrowth {
   /// `incidence`.
   double roll_off_crest(const Vec3& tangent, const Vec3& normal, double incidence);
   bool solve_with_wall(GrowthStepReport& report);
+  /// kBarrier: steps of dt from the growth law's speed on (advance's preamble done), a failed one retried as two
+  /// halves (down to dt/16); false when even those fail. `cap`: how far the tether and the made length let it grow.
+  bool barrier_steps(double dt, double pressure, double cap, GrowthStepReport& report, int depth = 0);
+  /// kBarrier: one converged step of dt (dt = 0: no growth). On failure the state is left as it was and
+  /// report.failure says why.
+  bool barrier_step(double dt, double pressure, double cap, GrowthStepReport& report);
   /// solve_with_wall with the loads ramped up from the current state (the slower, surer path after a failure).
   bool solve_with_wall_ramped(GrowthStepReport& report);
   void add_event(GrowthEventKind kind, std::string detail);
@@ -333,6 +367,11 @@ class VineGrowth {
   /// runs over that window.
   std::vector<std::array<double, 2>> m_recent;
   std::vector<GrowthEvent> m_events;
+  // kBarrier
+  double m_tip_length = 0.0;          ///< the tip edge's made length [m] (between h/2 and 3h/2)
+  double m_dhat = 0.0;                ///< d̂ [m]
+  double m_slip = 0.0;                ///< ε [m]
+  std::vector<Vec3> m_wall_force;     ///< per node, the wall's net force on the body at the last solve [N]
 };
 
 }  // namespace magvine::robot

@@ -23,6 +23,7 @@
 /// first, the step halved when Newton fails); NaN and an exhausted ramp stop with a named cause.
 
 #include <functional>
+#include <limits>
 #include <memory>
 #include <optional>
 #include <string>
@@ -32,6 +33,10 @@
 #include "magvine/magnetics/field_sample.hpp"
 #include "magvine/magnetics/field_function.hpp"
 #include "magvine/magnetics/magnetisation.hpp"
+
+namespace magvine::anatomy {
+class CollisionWorld;
+}
 
 namespace magvine::robot {
 
@@ -86,7 +91,21 @@ struct RodModel {
   /// (= 2 tan(ψ/2)·axis/ℓ, body frame of the joint's first edge, ℓ = h/2 at the clamp, h elsewhere) at which it stores
   /// no energy: a pre-curved rod (a catheter with a shaped tip). The laws above act on ω − ω_rest. Empty: straight at rest; otherwise one entry per edge.
   std::vector<Vec3> rest_strain;
+  /// The last edge's length [m] when it differs from the others (a growing tip edge, growth.hpp); 0: every edge
+  /// has h = length/edges. Otherwise the first N − 1 edges have h = (length − tip_edge_length)/(N − 1), and the
+  /// last edge's stretch, mass, magnetisation and joint follow its own length.
+  double tip_edge_length = 0.0;
 };
+
+/// h of edges 0 … N − 2 (and of the last one unless RodModel::tip_edge_length says otherwise) [m].
+inline double uniform_edge_length(const RodModel& m) {
+  return m.tip_edge_length > 0.0 && m.edges > 1 ? (m.length - m.tip_edge_length) / (m.edges - 1)
+                                                : m.length / m.edges;
+}
+/// The length of edge j [m].
+inline double edge_length(const RodModel& m, int j) {
+  return j == m.edges - 1 && m.tip_edge_length > 0.0 ? m.tip_edge_length : uniform_edge_length(m);
+}
 
 /// Stretch and shear stiffness of a rod relative to the physical EA and κGA: the rod is near-inextensible and
 /// near-unshearable, as the elastica and the thesis's models assume. Measured on the 60 × 3 × 3 mm silicone beam
@@ -201,13 +220,79 @@ struct NodeForce {
   Vec3 force = Vec3::Zero();
 };
 
+/// The wall as a smooth barrier on the unsigned distance between each node's sphere and the wall's triangles
+/// (incremental potential contact, Li et al. 2020, eq. 6; terms/wall_barrier.hpp): for every triangle t within
+/// r_i + d̂ of node i, the gap g = |x_i − q_t| − r_i (q_t the closest point on t) stores
+///   κ b(g),  b(g) = −(g − d̂)² ln(g/d̂) for 0 < g < d̂, 0 beyond,
+/// infinite at g ≤ 0, so no configuration with a finite energy overlaps the wall. The wall's force on the node is
+/// −κ b'(g) along (x − q)/|x − q|. A line-search trial whose node centre moves by r_i or more from the iterate is
+/// also refused when the straight path crosses a triangle (a shorter move stays inside the wall-free ball of the
+/// feasible iterate). The nodes' spheres cover the edges between them while r_i > h/2.
+struct WallBarrier {
+  const anatomy::CollisionWorld* world = nullptr;
+  std::vector<double> radius;  ///< per node [m] (index = node); ≤ 0: the node does not touch the wall
+  double activation = 0.0;     ///< d̂ [m]
+  double stiffness = 0.0;      ///< κ [N/m]
+};
+
+/// Smoothed Coulomb friction of one node against the wall, lagged (Li et al. 2020, §5): with the normal force λ and
+/// the normal n held from the previous solve, u = (I − nnᵀ)(x − x_ref) the tangential slip from the reference,
+///   D = μ λ f0(|u|),  f0(y) = y for y ≥ ε,  f0(y) = −y³/(3ε²) + y²/ε + ε/3 below,
+/// whose force −μλ f1(|u|) û saturates at the Coulomb limit μλ past the slip ε and is a stiff spring 2μλ/ε below it
+/// (static friction). terms/friction.hpp.
+struct NodeFriction {
+  int node = 0;
+  Vec3 reference = Vec3::Zero();  ///< x_ref [m]
+  Vec3 normal = Vec3::UnitZ();    ///< n, unit
+  double normal_force = 0.0;      ///< λ [N]
+  double coefficient = 0.0;       ///< μ
+  double slip = 0.0;              ///< ε [m], > 0
+};
+
+/// The growth law on the tip edge (growth.hpp): the last edge's axial stretch law is replaced by the incremental
+/// potential of L̇ = K·(P − Y − F_obstacle/(πR²)) over one step dt: for an extension e of the tip edge past its
+/// made length, W(e) = −F e + ½ k e² (e ≥ 0, F = πR²(P − Y) the growth force, k = πR²/(K dt)), so that in free space
+/// e = F/k = K(P − Y)dt and against an obstacle growth stops where the obstacle carries F. Compression (e < 0) and
+/// extension past `limit` (the tether) meet the edge's own axial stiffness EA/ℓ. With F ≤ 0 the edge does not grow.
+struct TipGrowth {
+  double force = 0.0;      ///< F [N]
+  double stiffness = 0.0;  ///< k [N/m], > 0
+  double limit = std::numeric_limits<double>::infinity();  ///< the most the tip edge may grow in this step [m]
+};
+
 /// Terms a simulation adds to the rod's energy for one solve; not scaled by the load ramp. Node 0 (the clamp)
 /// takes none.
 struct RodConstraints {
   std::vector<NodeContact> contacts;
   std::vector<NodeAnchor> anchors;
   std::vector<NodeForce> forces;
+  std::optional<WallBarrier> wall;
+  std::vector<NodeFriction> friction;
+  std::optional<TipGrowth> growth;
 };
+
+/// The wall's push on one node (wall_barrier_forces).
+struct NodeWallForce {
+  Vec3 force = Vec3::Zero();  ///< Σ_t −κ b'(g_t) n_t, the net force on the node [N]
+  double magnitude = 0.0;     ///< Σ_t |f_t|: what the walls carry together (two jaws of a slot add up) [N]
+  Vec3 axis = Vec3::Zero();   ///< the principal direction of Σ_t |f_t| n_t n_tᵀ (unit; zero without contact)
+};
+
+/// The wall's push on each node of `state` under `wall` (WallBarrier). A node that overlaps the wall gets an
+/// infinite magnitude.
+std::vector<NodeWallForce> wall_barrier_forces(const RodState& state, const WallBarrier& wall);
+
+/// The force the clamp exerts on the rod at equilibrium [N]: what holds x_0, the first edge's internal force and
+/// the half of its magnetic force that acts on x_0 (without constraints on x_0), from the stretch law and the field
+/// alone, so that Σ (wall + magnetic + gravity + clamp) = 0 is a check of the solve, not an identity.
+Vec3 clamp_force(const RodModel& model, const RodField& field, const RodState& state);
+
+/// The model's own loads on the whole body [N]: the magnetic force on every edge, the weight of the lumped masses
+/// and the tip force.
+Vec3 body_load(const RodModel& model, const RodField& field, const RodState& state);
+
+/// The friction force on the node at x (NodeFriction: −μλ f1(|u|) û) [N].
+Vec3 friction_force(const NodeFriction& friction, const Vec3& x);
 
 /// Moves `state` to static equilibrium under the model's loads and `field` (empty: none), starting from `state`
 /// (the full load first; the ramp from the unloaded state when that fails). With a workspace, Newton reuses the

@@ -1,0 +1,86 @@
+#pragma once
+// The wall as a smooth barrier (WallBarrier in rod.hpp; incremental potential contact, Li et al. 2020, eq. 6),
+// energy, gradient and Hessian together: per node i and wall triangle t within r_i + d̂ of it, the gap
+// g = |x_i − q_t| − r_i stores κ b(g), b(g) = −(g − d̂)² ln(g/d̂) on 0 < g < d̂ (C² at d̂), +∞ at g ≤ 0. The
+// triangles are queried from the collision world at every evaluation (no frozen planes). The Hessian keeps
+// κ b''(g) n nᵀ and drops the term κ b'(g) ∇²|x − q| of a closest point on an edge or corner, which is negative
+// semi-definite (b' < 0): the Newton matrix stays positive semi-definite.
+
+#include <array>
+#include <cmath>
+#include <limits>
+
+#include "../rod_system.hpp"
+#include "magvine/anatomy/collision_world.hpp"
+
+namespace magvine::robot::detail {
+
+/// b(g) [m²], b'(g) [m] and b''(g) of the barrier at gap g, activation d̂ (0 at and beyond d̂; g must be > 0).
+struct BarrierLaw {
+  double energy = 0.0;
+  double slope = 0.0;
+  double curvature = 0.0;
+};
+inline BarrierLaw barrier_law(double g, double dhat) {
+  if (g >= dhat) return {};
+  const double d = g - dhat;
+  const double l = std::log(g / dhat);
+  return {-d * d * l, -2.0 * d * l - d * d / g, -2.0 * l - 4.0 * d / g + d * d / (g * g)};
+}
+
+/// The wall's force on a node at gap g: −κ b'(g) ≥ 0 along the unit direction from the wall to the node [N].
+inline double barrier_force(const WallBarrier& w, double g) { return -w.stiffness * barrier_law(g, w.activation).slope; }
+
+/// The most triangles one node's barrier sums over (the nearest, should more lie within r + d̂).
+inline constexpr std::size_t kBarrierTriangles = 32;
+
+struct WallBarrierTerm {
+  /// Calls visit(i, gap, unit normal) for every triangle within reach of node i; false when the node overlaps the
+  /// wall (g ≤ 0) or, for a line-search trial (c.from), its centre's path crossed the wall.
+  template <class Visit>
+  static bool for_each_gap(const TermContext& c, const WallBarrier& w, Visit&& visit) {
+    std::array<anatomy::NearTriangle, kBarrierTriangles> near{};
+    const std::size_t nodes = c.state.x.size();
+    for (std::size_t i = 1; i < nodes && i < w.radius.size(); ++i) {
+      const double r = w.radius[i];
+      if (!(r > 0.0)) continue;
+      const Vec3& x = c.state.x[i];
+      if (c.from != nullptr) {
+        // A move shorter than r stays inside the wall-free ball of the feasible iterate.
+        const Vec3 move = x - c.from->x[i];
+        const double length = move.norm();
+        if (length >= r && w.world->ray_cast(c.from->x[i], move / length, length)) return false;
+      }
+      const std::size_t found = std::min(w.world->triangles_within(x, r + w.activation, near), near.size());
+      for (std::size_t k = 0; k < found; ++k) {
+        const double gap = near[k].distance - r;
+        if (!(gap > 0.0)) return false;
+        visit(i, gap, Vec3((x - near[k].point) / near[k].distance));
+      }
+    }
+    return true;
+  }
+
+  static void add_energy(const TermContext& c, double& energy, System* sys) {
+    if (c.constraints == nullptr || !c.constraints->wall) return;
+    const WallBarrier& w = *c.constraints->wall;
+    double sum = 0.0;
+    const bool clear = for_each_gap(c, w, [&](std::size_t i, double gap, const Vec3& n) {
+      const BarrierLaw b = barrier_law(gap, w.activation);
+      sum += b.energy;
+      if (sys != nullptr && b.slope != 0.0) sys->add_gradient(position_slot(static_cast<int>(i)), w.stiffness * b.slope * n);
+    });
+    energy = clear ? energy + w.stiffness * sum : std::numeric_limits<double>::infinity();
+  }
+
+  static void add_hessian(const TermContext& c, System& sys) {
+    if (c.constraints == nullptr || !c.constraints->wall) return;
+    const WallBarrier& w = *c.constraints->wall;
+    for_each_gap(c, w, [&](std::size_t i, double gap, const Vec3& n) {
+      const double k = w.stiffness * barrier_law(gap, w.activation).curvature;
+      if (k > 0.0) add_block(sys, position_slot(static_cast<int>(i)), position_slot(static_cast<int>(i)), k * n * n.transpose());
+    });
+  }
+};
+
+}  // namespace magvine::robot::detail
