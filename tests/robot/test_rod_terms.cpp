@@ -106,11 +106,9 @@ TermSetup make_setup(bool vine) {
   // read too; the tip edge 1.2 h long.
   s.model.tip_edge_length = 1.2 * h;
   s.model.length += 0.2 * h;
-  const Vec3 tip_edge = s.state.x.back() - s.state.x[s.state.x.size() - 2];
   s.state.x.back() += 0.23 * h * s.state.frames.back().col(0);
   const double extension = s.state.frames.back().col(0).dot(s.state.x.back() - s.state.x[s.state.x.size() - 2]) -
                            1.2 * h;
-  (void)tip_edge;
   s.constraints.growth = TipGrowth{0.2, 50.0, 0.5 * extension};
   return s;
 }

@@ -670,10 +670,7 @@ std::vector<double> joint_bending_moments(const RodModel& model, const RodState&
 std::vector<NodeWallForce> wall_barrier_forces(const RodState& state, const WallBarrier& wall) {
   std::vector<NodeWallForce> out(state.x.size());
   std::vector<Mat3> spread(state.x.size(), Mat3::Zero());
-  const RodModel unused;
-  const RodField none;
-  const TermContext c{unused, none, state};
-  const bool clear = detail::WallBarrierTerm::for_each_gap(c, wall, [&](std::size_t i, double gap, const Vec3& n) {
+  const bool clear = detail::WallBarrierTerm::for_each_gap(state, nullptr, wall, [&](std::size_t i, double gap, const Vec3& n) {
     const double f = detail::barrier_force(wall, gap);
     out[i].force += f * n;
     out[i].magnitude += f;

@@ -36,20 +36,20 @@ inline constexpr std::size_t kBarrierTriangles = 32;
 
 struct WallBarrierTerm {
   /// Calls visit(i, gap, unit normal) for every triangle within reach of node i; false when the node overlaps the
-  /// wall (g ≤ 0) or, for a line-search trial (c.from), its centre's path crossed the wall.
+  /// wall (g ≤ 0) or, for a line-search trial moving from the iterate `from`, its centre's path crossed the wall.
   template <class Visit>
-  static bool for_each_gap(const TermContext& c, const WallBarrier& w, Visit&& visit) {
+  static bool for_each_gap(const RodState& state, const RodState* from, const WallBarrier& w, Visit&& visit) {
     std::array<anatomy::NearTriangle, kBarrierTriangles> near{};
-    const std::size_t nodes = c.state.x.size();
+    const std::size_t nodes = state.x.size();
     for (std::size_t i = 1; i < nodes && i < w.radius.size(); ++i) {
       const double r = w.radius[i];
       if (!(r > 0.0)) continue;
-      const Vec3& x = c.state.x[i];
-      if (c.from != nullptr) {
+      const Vec3& x = state.x[i];
+      if (from != nullptr) {
         // A move shorter than r stays inside the wall-free ball of the feasible iterate.
-        const Vec3 move = x - c.from->x[i];
+        const Vec3 move = x - from->x[i];
         const double length = move.norm();
-        if (length >= r && w.world->ray_cast(c.from->x[i], move / length, length)) return false;
+        if (length >= r && w.world->ray_cast(from->x[i], move / length, length)) return false;
       }
       const std::size_t found = std::min(w.world->triangles_within(x, r + w.activation, near), near.size());
       for (std::size_t k = 0; k < found; ++k) {
@@ -65,7 +65,7 @@ struct WallBarrierTerm {
     if (c.constraints == nullptr || !c.constraints->wall) return;
     const WallBarrier& w = *c.constraints->wall;
     double sum = 0.0;
-    const bool clear = for_each_gap(c, w, [&](std::size_t i, double gap, const Vec3& n) {
+    const bool clear = for_each_gap(c.state, c.from, w, [&](std::size_t i, double gap, const Vec3& n) {
       const BarrierLaw b = barrier_law(gap, w.activation);
       sum += b.energy;
       if (sys != nullptr && b.slope != 0.0) sys->add_gradient(position_slot(static_cast<int>(i)), w.stiffness * b.slope * n);
@@ -76,7 +76,7 @@ struct WallBarrierTerm {
   static void add_hessian(const TermContext& c, System& sys) {
     if (c.constraints == nullptr || !c.constraints->wall) return;
     const WallBarrier& w = *c.constraints->wall;
-    for_each_gap(c, w, [&](std::size_t i, double gap, const Vec3& n) {
+    for_each_gap(c.state, c.from, w, [&](std::size_t i, double gap, const Vec3& n) {
       const double k = w.stiffness * barrier_law(gap, w.activation).curvature;
       if (k > 0.0) add_block(sys, position_slot(static_cast<int>(i)), position_slot(static_cast<int>(i)), k * n * n.transpose());
     });

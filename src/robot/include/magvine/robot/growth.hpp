@@ -19,6 +19,9 @@
 /// of a blocked tip below applies to eversion only. GrowthOptions::catheter pushes a solid tube instead of the vine,
 /// GrowthOptions::rod a (magnetic) rod at its own insertion speed.
 ///
+/// All of the above is the planes model (ContactModel::kPlanes, the default). ContactModel::kBarrier replaces the
+/// planes, passes, anchors, incidence rule and energy test by one minimisation per step (see ContactModel).
+///
 /// Growth law (PHYSICS.md §3, Blumenschein et al. 2017's form; the constants are not published for these robots):
 ///   L̇ = K·max(0, P − Y),  Y = Y0 + c_L·L + c_θ·Σθ,
 /// Σθ the total turning along the body (the sum of the joint angles). Growth stalls when Y ≥ P (an event naming the
@@ -347,9 +350,9 @@ class VineGrowth {
   RodModel m_model;
   RodState m_state;
   RodWorkspace m_workspace;
-  std::vector<Vec3> m_anchor;         ///< per node; NaN: none
-  std::vector<Vec3> m_anchor_normal;  ///< wall normal at the anchor
-  std::vector<double> m_normal_force; ///< per node, from the last solve [N]
+  std::vector<Vec3> m_anchor;         ///< per node; NaN: none (kBarrier: the friction reference)
+  std::vector<Vec3> m_anchor_normal;  ///< wall normal at the anchor (kBarrier: the lagged contact axis)
+  std::vector<double> m_normal_force; ///< per node, from the last solve [N] (kBarrier: the lagged λ)
   /// The last wall query per node (reused while the node does not move).
   struct PlaneCache {
     Vec3 at = Vec3::Constant(std::numeric_limits<double>::quiet_NaN());
