@@ -1069,6 +1069,7 @@ bool VineGrowth::barrier_step(double dt, double pressure, double cap, GrowthStep
   const std::vector<Vec3> old_anchor = m_anchor;
   const std::vector<Vec3> old_axis = m_anchor_normal;
   const std::vector<double> old_lambda = m_normal_force;
+  const std::vector<double> old_strip = m_strip_force;
   const std::vector<Vec3> old_force = m_wall_force;
   const auto restore = [&] {
     m_model = old_model;
@@ -1076,20 +1077,32 @@ bool VineGrowth::barrier_step(double dt, double pressure, double cap, GrowthStep
     m_anchor = old_anchor;
     m_anchor_normal = old_axis;
     m_normal_force = old_lambda;
+    m_strip_force = old_strip;
     m_wall_force = old_force;
   };
   m_normal_force.resize(nodes, 0.0);
+  m_strip_force.resize(nodes, 0.0);
   m_anchor_normal.resize(nodes, Vec3::Zero());
   m_wall_force.resize(nodes, Vec3::Zero());
+  // Two lagged contact channels per node, each with its own friction: the walls within d̂ of the sphere (force λ,
+  // the principal direction of their normals), and a flattened section's strips (force s, across the pinch).
   std::vector<double> lambda = m_normal_force;
+  std::vector<double> strip = m_strip_force;
   std::vector<Vec3> axis = m_anchor_normal;
   bool settled = false;
   for (int k = 0; k < m_options.max_friction_iterations && !settled; ++k) {
     c.friction.clear();
     for (std::size_t i = 1; i < nodes && m_world != nullptr; ++i) {
-      if (!(lambda[i] > 0.0) || (!pushed && i == tip)) continue;  // the everting tip lays material down: no slip
+      if (!pushed && i == tip) continue;  // the everting tip lays material down: no slip
+      if (!(lambda[i] > 0.0) && !(strip[i] > 0.0)) continue;
       if (std::isnan(reference[i].x())) reference[i] = m_state.x[i];
-      c.friction.push_back({static_cast<int>(i), reference[i], axis[i], lambda[i], m_options.friction, m_slip});
+      if (lambda[i] > 0.0) {
+        c.friction.push_back({static_cast<int>(i), reference[i], axis[i], lambda[i], m_options.friction, m_slip});
+      }
+      if (strip[i] > 0.0) {
+        c.friction.push_back(
+            {static_cast<int>(i), reference[i], m_cache[i].across, strip[i], m_options.friction, m_slip});
+      }
     }
     ++report.contact_passes;
     const RodSolveReport r = solve_rod_statics(m_model, m_field, m_state, m_options.solver, &m_workspace, &c);
@@ -1103,25 +1116,31 @@ bool VineGrowth::barrier_step(double dt, double pressure, double cap, GrowthStep
     if (m_world == nullptr) break;
     const std::vector<NodeWallForce> f = wall_barrier_forces(m_state, *c.wall);
     double scale = growth.force;
-    std::vector<double> next(nodes, 0.0);
+    std::vector<double> next_strip(nodes, 0.0);
     for (std::size_t i = 1; i < nodes; ++i) {
-      next[i] = f[i].magnitude;
       // A flattened section presses each of the two walls with P over its flat strip, 2·P·(πR − πg/2)·h; a
       // pinched catheter with its ring's line load, 2·q(g)·h.
       if (c.wall->radius[i] > 0.0 && m_cache[i].radius < m_radius) {
         const double g = m_cache[i].radius / kSlack;
-        next[i] += 2.0 * m_h * (m_options.catheter ? ring_crush_load(*m_options.catheter, g)
-                                                   : m_pressure * flat_width(m_radius, g));
+        next_strip[i] = 2.0 * m_h * (m_options.catheter ? ring_crush_load(*m_options.catheter, g)
+                                                        : m_pressure * flat_width(m_radius, g));
       }
-      scale = std::max(scale, next[i]);
+      scale = std::max({scale, f[i].magnitude, next_strip[i]});
     }
     settled = true;
+    const double tolerance = m_options.friction_tolerance * scale;
     for (std::size_t i = 1; i < nodes; ++i) {
-      const bool changed = std::abs(next[i] - lambda[i]) > m_options.friction_tolerance * scale ||
-                           (next[i] > m_options.friction_tolerance * scale && axis[i].cross(f[i].axis).norm() > 1e-2);
+      const bool changed = std::abs(f[i].magnitude - lambda[i]) > tolerance ||
+                           std::abs(next_strip[i] - strip[i]) > tolerance ||
+                           (f[i].magnitude > tolerance && lambda[i] > 0.0 && axis[i].cross(f[i].axis).norm() > 1e-2);
       if (changed) settled = false;
-      lambda[i] = next[i];
-      axis[i] = f[i].axis;
+      // From the third solve on, the lag moves halfway (under-relaxation): a node whose friction moves it off the
+      // force it was lagged at (a two-cycle of the fixed point) settles between the two.
+      const double w = k < 2 ? 1.0 : 0.5;
+      lambda[i] += w * (f[i].magnitude - lambda[i]);
+      strip[i] += w * (next_strip[i] - strip[i]);
+      const Vec3 blended = axis[i].isZero() ? f[i].axis : Vec3(axis[i] + w * (f[i].axis - axis[i]));
+      axis[i] = blended.norm() > 1e-9 ? Vec3(blended.normalized()) : f[i].axis;
       m_wall_force[i] = f[i].force;
     }
   }
@@ -1134,6 +1153,7 @@ bool VineGrowth::barrier_step(double dt, double pressure, double cap, GrowthStep
   }
   // Forces on the tissue (the converged solve's).
   m_normal_force = lambda;
+  m_strip_force = strip;
   m_anchor_normal = axis;
   m_forces = WallForces{};
   m_forces.normal.assign(nodes, 0.0);
@@ -1142,23 +1162,23 @@ bool VineGrowth::barrier_step(double dt, double pressure, double cap, GrowthStep
   m_forces.shear_vector.assign(nodes, Vec3::Zero());
   for (const NodeFriction& f : c.friction) {
     const auto i = static_cast<std::size_t>(f.node);
-    const Vec3 on_body = friction_force(f, m_state.x[i]);
-    m_forces.shear_vector[i] = -on_body;
-    m_forces.shear[i] = on_body.norm();
+    m_forces.shear_vector[i] -= friction_force(f, m_state.x[i]);
     // Static friction's reference follows a slip past ε (the node then sits at the Coulomb limit).
-    const Vec3 d = m_state.x[i] - f.reference;
+    const Vec3 d = m_state.x[i] - reference[i];
     const Vec3 u = d - f.normal.dot(d) * f.normal;
     if (!pushed && u.norm() > m_slip) reference[i] += (1.0 - m_slip / u.norm()) * u;
   }
   for (std::size_t i = 1; i < nodes; ++i) {
-    m_forces.normal[i] = lambda[i];
+    const double fn = lambda[i] + strip[i];
+    m_forces.normal[i] = fn;
+    m_forces.shear[i] = m_forces.shear_vector[i].norm();
     m_forces.normal_vector[i] = -m_wall_force[i];
-    m_forces.max_normal = std::max(m_forces.max_normal, lambda[i]);
-    m_forces.total_normal += lambda[i];
+    m_forces.max_normal = std::max(m_forces.max_normal, fn);
+    m_forces.total_normal += fn;
     m_forces.max_shear = std::max(m_forces.max_shear, m_forces.shear[i]);
     m_forces.total_shear += m_forces.shear[i];
-    if (lambda[i] > 0.0) ++m_forces.nodes_in_contact;
-    if (!(lambda[i] > 0.0) || pushed) reference[i] = Vec3::Constant(kNone);  // off the wall: released
+    if (fn > 0.0) ++m_forces.nodes_in_contact;
+    if (!(fn > 0.0) || pushed) reference[i] = Vec3::Constant(kNone);  // off the wall: released
   }
   if (m_forces.nodes_in_contact > 0) m_forces.mean_normal = m_forces.total_normal / m_forces.nodes_in_contact;
   {
@@ -1190,6 +1210,7 @@ bool VineGrowth::barrier_step(double dt, double pressure, double cap, GrowthStep
     m_anchor.insert(m_anchor.begin() + static_cast<std::ptrdiff_t>(n), Vec3::Constant(kNone));
     m_anchor_normal.insert(m_anchor_normal.begin() + static_cast<std::ptrdiff_t>(n), Vec3::Zero());
     m_normal_force.insert(m_normal_force.begin() + static_cast<std::ptrdiff_t>(n), 0.0);
+    m_strip_force.insert(m_strip_force.begin() + static_cast<std::ptrdiff_t>(n), 0.0);
     m_wall_force.insert(m_wall_force.begin() + static_cast<std::ptrdiff_t>(n), Vec3::Zero());
     for (auto* v : {&m_forces.normal, &m_forces.shear}) v->insert(v->begin() + static_cast<std::ptrdiff_t>(n), 0.0);
     for (auto* v : {&m_forces.normal_vector, &m_forces.shear_vector}) {

@@ -375,6 +375,7 @@ class VineGrowth {
   double m_dhat = 0.0;                ///< d̂ [m]
   double m_slip = 0.0;                ///< ε [m]
   std::vector<Vec3> m_wall_force;     ///< per node, the wall's net force on the body at the last solve [N]
+  std::vector<double> m_strip_force;  ///< per node, the lagged force of a flattened section's strips [N]
 };
 
 }  // namespace magvine::robot
