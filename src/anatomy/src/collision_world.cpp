@@ -976,8 +976,9 @@ MAGVINE_HOT_KERNEL std::size_t CollisionWorld::triangles_within(const Vec3& poin
   std::size_t kept = 0;
   m_impl->bvh->visit_slots(detail::SphereBoxTest(point, radius), [&](std::uint32_t slot) {
     const TriangleData& d = w.data[slot];
-    if (!std::isfinite(d.offset)) return;  // degenerate
-    if ((w.centroid(d) - point).norm() > d.bound_radius + radius) return;
+    // Farther from the triangle's plane than the radius (a degenerate triangle's offset is infinite: always).
+    if (!(std::abs(d.normal.dot(point) - d.offset) <= radius)) return;
+    if ((w.centroid(d) - point).squaredNorm() > (d.bound_radius + radius) * (d.bound_radius + radius)) return;
     const auto v = w.corners(d);
     const Vec3 q = closest_point_on_triangle(point, *v[0], *v[1], *v[2]);
     const double distance = (q - point).norm();

@@ -1035,9 +1035,9 @@ bool VineGrowth::barrier_step(double dt, double pressure, double cap, GrowthStep
   // configuration with a finite barrier energy.
   RodConstraints c;
   c.growth = growth;
+  m_cache.resize(nodes);
   if (m_world != nullptr) {
     WallBarrier wall{m_world, std::vector<double>(nodes, 0.0), m_dhat, m_stiffness};
-    m_cache.resize(nodes);
     for (std::size_t i = 1; i < nodes; ++i) {
       PlaneCache& cache = m_cache[i];
       if (!((m_state.x[i] - cache.radius_at).norm() <= kStill * m_radius)) {

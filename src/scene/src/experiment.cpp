@@ -7,6 +7,7 @@
 
 #include "magvine/anatomy/airway_graph.hpp"
 #include "magvine/core/stopwatch.hpp"
+#include "magvine/core/text.hpp"
 #include "magvine/magnetics/field_function.hpp"
 #include "magvine/scene/navigator.hpp"
 
@@ -134,6 +135,12 @@ ExperimentResult run_experiment(const ExperimentScene& scene, const std::functio
     out.converged = r.converged;
     if (!r.converged) {
       if (out.failed_steps++ == 0) out.failure = "at " + std::to_string(t) + " s: " + r.failure;
+      // The barrier model retries a failed step in halves already: one that still fails ends the run (docs/cli.md:
+      // failed runs, exit 3).
+      if (scene.growth.contact == robot::ContactModel::kBarrier) {
+        out.failure = printf_string("step %ld at %.3f s failed: %s", k, t, r.failure.c_str());
+        break;
+      }
     }
     ExperimentSample s;
     s.time = t;
