@@ -1089,6 +1089,7 @@ bool VineGrowth::barrier_step(double dt, double pressure, double cap, GrowthStep
   std::vector<double> lambda = m_normal_force;
   std::vector<double> strip = m_strip_force;
   std::vector<Vec3> axis = m_anchor_normal;
+  std::vector<std::array<double, 2>> last_change(nodes, {0.0, 0.0});  // the last corrections of λ and s
   bool settled = false;
   for (int k = 0; k < m_options.max_friction_iterations && !settled; ++k) {
     c.friction.clear();
@@ -1134,11 +1135,15 @@ bool VineGrowth::barrier_step(double dt, double pressure, double cap, GrowthStep
                            std::abs(next_strip[i] - strip[i]) > tolerance ||
                            (f[i].magnitude > tolerance && lambda[i] > 0.0 && axis[i].cross(f[i].axis).norm() > 1e-2);
       if (changed) settled = false;
-      // From the third solve on, the lag moves halfway (under-relaxation): a node whose friction moves it off the
-      // force it was lagged at (a two-cycle of the fixed point) settles between the two.
-      const double w = k < 2 ? 1.0 : 0.5;
-      lambda[i] += w * (f[i].magnitude - lambda[i]);
-      strip[i] += w * (next_strip[i] - strip[i]);
+      // A correction that turns back against the last one (a two-cycle of the fixed point: a node whose friction
+      // moves it off the force it was lagged at) moves the lag halfway (under-relaxation); one that goes on in the
+      // same direction moves it all the way.
+      const double dl = f[i].magnitude - lambda[i];
+      const double ds = next_strip[i] - strip[i];
+      const double w = dl * last_change[i][0] < 0.0 || ds * last_change[i][1] < 0.0 ? 0.5 : 1.0;
+      last_change[i] = {w * dl, w * ds};
+      lambda[i] += w * dl;
+      strip[i] += w * ds;
       const Vec3 blended = axis[i].isZero() ? f[i].axis : Vec3(axis[i] + w * (f[i].axis - axis[i]));
       axis[i] = blended.norm() > 1e-9 ? Vec3(blended.normalized()) : f[i].axis;
       m_wall_force[i] = f[i].force;

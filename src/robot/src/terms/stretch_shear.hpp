@@ -17,18 +17,21 @@ struct AxialLaw {
   double stiffness = 0.0;
 };
 
-/// The growth law on the tip edge (TipGrowth, rod.hpp): W(e) = −F⁺e + ½k e² + ½K(e − limit)₊² for e ≥ 0 when F > 0,
-/// −F⁺e + ½K e² for e < 0 (F⁺ = max(F, 0)), K = EA/ℓ the edge's own axial stiffness: C¹ at e = 0, and the plain
-/// ½K e² when F ≤ 0 (no growth).
+/// The growth law on the tip edge (TipGrowth, rod.hpp): W(e) = −F⁺e + ½k e² + ½(100k)(e − limit)₊² for e ≥ 0 when
+/// F > 0, −F⁺e + ½K e² for e < 0, K = EA/ℓ the edge's own axial stiffness: C¹ at e = 0, and the plain ½K e² when F ≤ 0
+/// (no growth). F⁺ = min(F, k·limit): the tether takes what would grow the tip past it, and a hundred times the growth
+/// law's stiffness holds it there against other pulls (the edge's own EA there, 10⁴–10⁶ times k, stalled Newton at
+/// the kink).
 inline AxialLaw tip_growth_law(const TipGrowth& g, double axial, double e) {
-  const double f = std::max(g.force, 0.0);
+  const double f = std::clamp(g.force, 0.0, g.stiffness * std::max(g.limit, 0.0));
   if (e < 0.0 || f == 0.0) return {-f * e + 0.5 * axial * e * e, -f + axial * e, axial};
   AxialLaw a{-f * e + 0.5 * g.stiffness * e * e, -f + g.stiffness * e, g.stiffness};
   if (e > g.limit) {
+    const double tether = 100.0 * g.stiffness;
     const double over = e - g.limit;
-    a.energy += 0.5 * axial * over * over;
-    a.force += axial * over;
-    a.stiffness += axial;
+    a.energy += 0.5 * tether * over * over;
+    a.force += tether * over;
+    a.stiffness += tether;
   }
   return a;
 }

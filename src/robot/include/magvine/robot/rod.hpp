@@ -252,8 +252,9 @@ struct NodeFriction {
 /// The growth law on the tip edge (growth.hpp): the last edge's axial stretch law is replaced by the incremental
 /// potential of L̇ = K·(P − Y − F_obstacle/(πR²)) over one step dt: for an extension e of the tip edge past its
 /// made length, W(e) = −F e + ½ k e² (e ≥ 0, F = πR²(P − Y) the growth force, k = πR²/(K dt)), so that in free space
-/// e = F/k = K(P − Y)dt and against an obstacle growth stops where the obstacle carries F. Compression (e < 0) and
-/// extension past `limit` (the tether) meet the edge's own axial stiffness EA/ℓ. With F ≤ 0 the edge does not grow.
+/// e = F/k = K(P − Y)dt and against an obstacle growth stops where the obstacle carries F. The tether takes what would
+/// grow it past `limit` (F is capped at k·limit, and 100k holds the limit against other pulls); compression (e < 0)
+/// meets the edge's own axial stiffness EA/ℓ. With F ≤ 0 the edge does not grow.
 struct TipGrowth {
   double force = 0.0;      ///< F [N]
   double stiffness = 0.0;  ///< k [N/m], > 0
