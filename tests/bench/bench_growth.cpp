@@ -7,7 +7,10 @@
 //             and 35 mm into the main bronchus on its side (the "through the tree");
 //   /y        the Y bifurcation phantom (parent Ø12 mm, daughters Ø9.5 mm at 35°, ~0.31 M triangles), the vine
 //             started against one side wall and leaning that way: it turns into that daughter.
-// Counters: steps (advance calls of 20 ms), Newton iterations, contact passes, nodes on the wall at the end.
+// Each with /barrier:0 (the planes model) and /barrier:1 (ContactModel::kBarrier, docs/growth-and-contact.md), in one
+// run so that their ratio is measured on the same machine state.
+// Counters: steps (advance calls of 20 ms), Newton iterations, contact passes (barrier: lagged solves), nodes on the
+// wall at the end.
 //
 //   cmake --build build-bench --target bench_growth && build-bench/tests/bench/bench_growth
 
@@ -29,6 +32,7 @@ VineParameters fluid_vine() { return thesis_fluid_vine(5e-3); }
 void grow(benchmark::State& state, const anatomy::CollisionWorld& world, const Vec3& gravity, const Vec3& base,
           const Mat3& frame) {
   GrowthOptions o;
+  o.contact = state.range(0) != 0 ? ContactModel::kBarrier : ContactModel::kPlanes;
   o.gravity = gravity;
   o.law.yield_pressure = 20e3;
   int steps = 0;
@@ -92,7 +96,7 @@ void BM_GrowthY(benchmark::State& state) {
 
 }  // namespace
 
-BENCHMARK(BM_GrowthTrachea)->Unit(benchmark::kMillisecond)->MinTime(2.0);
-BENCHMARK(BM_GrowthCarina)->Unit(benchmark::kMillisecond)->MinTime(2.0);
-BENCHMARK(BM_GrowthY)->Unit(benchmark::kMillisecond)->MinTime(2.0);
+BENCHMARK(BM_GrowthTrachea)->ArgName("barrier")->Arg(0)->Arg(1)->Unit(benchmark::kMillisecond)->MinTime(2.0);
+BENCHMARK(BM_GrowthCarina)->ArgName("barrier")->Arg(0)->Arg(1)->Unit(benchmark::kMillisecond)->MinTime(2.0);
+BENCHMARK(BM_GrowthY)->ArgName("barrier")->Arg(0)->Arg(1)->Unit(benchmark::kMillisecond)->MinTime(2.0);
 BENCHMARK_MAIN();

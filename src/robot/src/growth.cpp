@@ -1128,13 +1128,21 @@ bool VineGrowth::barrier_step(double dt, double pressure, double cap, GrowthStep
       }
       scale = std::max({scale, f[i].magnitude, next_strip[i]});
     }
-    settled = true;
+    // Settled when the lagged forces' total change is within friction_tolerance of the total contact force (plus
+    // the growth force), and no node that carries a share of it turns its axis: light contacts that flicker on
+    // and off a resting body change their few mN, not the friction the body carries.
+    double change = 0.0;
+    double total = growth.force;
+    for (std::size_t i = 1; i < nodes; ++i) {
+      change += std::abs(f[i].magnitude - lambda[i]) + std::abs(next_strip[i] - strip[i]);
+      total += f[i].magnitude + next_strip[i];
+    }
+    settled = change <= m_options.friction_tolerance * total;
     const double tolerance = m_options.friction_tolerance * scale;
     for (std::size_t i = 1; i < nodes; ++i) {
-      const bool changed = std::abs(f[i].magnitude - lambda[i]) > tolerance ||
-                           std::abs(next_strip[i] - strip[i]) > tolerance ||
-                           (f[i].magnitude > tolerance && lambda[i] > 0.0 && axis[i].cross(f[i].axis).norm() > 1e-2);
-      if (changed) settled = false;
+      if (f[i].magnitude > 10.0 * tolerance && lambda[i] > 0.0 && axis[i].cross(f[i].axis).norm() > 1e-2) {
+        settled = false;
+      }
       // A correction that turns back against the last one (a two-cycle of the fixed point: a node whose friction
       // moves it off the force it was lagged at) moves the lag halfway (under-relaxation); one that goes on in the
       // same direction moves it all the way.

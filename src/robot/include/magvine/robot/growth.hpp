@@ -149,9 +149,10 @@ struct GrowthOptions {
   double friction_slip = 0.0;
   /// kBarrier: solves per step while the lagged normal forces settle (each to the solver's tolerance); the step
   /// fails (and is retried in halves) when they have not settled by then.
-  int max_friction_iterations = 12;
-  /// kBarrier: the lagged normal forces have settled when no node's wall force changes by more than this fraction
-  /// of the step's force scale (the largest wall force or the growth force).
+  int max_friction_iterations = 20;
+  /// kBarrier: the lagged normal forces have settled when their total change over the body is within this fraction
+  /// of the total contact force (plus the growth force), and no node carrying more than 1 % of the largest force
+  /// turns its contact axis by more than 0.01 rad.
   double friction_tolerance = 1e-3;
   /// Magnetorheological stiffening of a magnetic-fluid fill (thesis 5.6.4: near the EPM the fluid stiffened and
   /// growth stopped until the magnet was withdrawn). Growth feeds the tip with fluid flowing along the body; a
