@@ -7,6 +7,7 @@
 
 #include <cmath>
 #include <cstdio>
+#include <algorithm>
 #include <string>
 
 #include "magvine/anatomy/collision_world.hpp"
@@ -124,6 +125,40 @@ TEST(WallStatics, AMagnetPressingAVineOnAWallIsBalancedByTheWallsReaction) {
   EXPECT_GT(-magnetic.z(), 0.01);
   EXPECT_GT(f.nodes_in_contact, 5);
   EXPECT_NEAR(wall.z(), -(magnetic.z() + f.clamp.z()), 0.02 * std::abs(magnetic.z()));
+}
+
+TEST(WallStatics, EveryStepPastTheCarinaBalancesAndNoNodeLeavesTheLumen) {
+  // The Ø5 mm fluid vine grown 100 mm from 70 mm down the generated tree's trachea, past the carina into a main
+  // bronchus (bench_growth's /carina case), gravity across it: every converged step balances globally to 1e-3 of its
+  // largest load, and every node stays inside the lumen at every step.
+  anatomy::BronchialTreeParams p;
+  p.max_generation = 4;
+  p.spacing = 0.5e-3;
+  const anatomy::Phantom tree = anatomy::make_bronchial_tree(p);
+  const anatomy::CollisionWorld world(tree.mesh);
+  Mat3 frame;
+  frame.col(0) = -Vec3::UnitZ();
+  frame.col(1) = Vec3::UnitX();
+  frame.col(2) = frame.col(0).cross(frame.col(1));
+  GrowthOptions o = barrier_options();
+  o.gravity = Vec3(9.81, 0.0, 0.0);
+  o.law.yield_pressure = 20e3;
+  VineGrowth g(thesis_fluid_vine(5e-3), o, &world, {}, Vec3(3e-3, 0.0, -70e-3), frame);
+  double worst = 0.0;
+  int steps = 0;
+  while (g.length() < 105e-3 && g.time() < 30.0) {
+    const GrowthStepReport r = g.advance(0.02, {.pressure = 35e3});
+    ASSERT_TRUE(r.converged) << r.failure << " at " << g.time() << " s";
+    ++steps;
+    const WallForces& f = g.wall_forces();
+    worst = std::max(worst, f.imbalance.norm() / f.largest_load);
+    ASSERT_LE(f.imbalance.norm(), 1e-3 * f.largest_load) << "at " << g.time() << " s";
+    for (const Vec3& x : g.state().x) ASSERT_TRUE(world.contains(x)) << "a node left the lumen at " << g.time() << " s";
+  }
+  std::printf("  %d steps to %.1f mm, tip at (%.1f, %.1f, %.1f) mm, worst imbalance %.2g of the largest load\n", steps,
+              1e3 * g.length(), 1e3 * g.state().tip().x(), 1e3 * g.state().tip().y(), 1e3 * g.state().tip().z(), worst);
+  EXPECT_GE(g.length(), 105e-3);
+  EXPECT_LT(g.state().tip().z(), -0.12);  // past the carina (the generated trachea is 120 mm long)
 }
 
 }  // namespace
