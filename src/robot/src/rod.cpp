@@ -737,7 +737,9 @@ RodState straight_rod(const RodModel& model) {
   const Vec3 t = model.base_frame.col(0);
   const double h = uniform_edge_length(model);
   for (int i = 0; i < model.edges; ++i) s.x.push_back(model.base_position + i * h * t);
-  s.x.push_back(s.x.back() + edge_length(model, model.edges - 1) * t);
+  // (N·h for a uniform rod, as before the tip edge had its own length: the same bits.)
+  s.x.push_back(model.tip_edge_length > 0.0 ? Vec3(s.x.back() + model.tip_edge_length * t)
+                                            : Vec3(model.base_position + model.edges * h * t));
   s.frames.assign(static_cast<std::size_t>(model.edges), model.base_frame);
   return s;
 }
