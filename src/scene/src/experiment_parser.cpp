@@ -192,26 +192,14 @@ void parse_growth(const YamlMap& g, const FileUnits& units, bool rod, Experiment
                 "contact_distance", "friction_slip"});
   robot::GrowthOptions& o = scene.growth;
   if (g.has("contact")) {
-    const std::string contact = g.text("contact");
-    if (contact == "planes") {
-      o.contact = robot::ContactModel::kPlanes;
-    } else if (contact == "barrier") {
-      o.contact = robot::ContactModel::kBarrier;
-    } else {
-      g.fail("contact", "must be planes or barrier (got '" + contact + "')");
-    }
+    o.contact = g.choice("contact", std::pair{std::string_view("planes"), robot::ContactModel::kPlanes},
+                         std::pair{std::string_view("barrier"), robot::ContactModel::kBarrier});
   }
   if (g.has("contact_distance")) o.contact_distance = g.quantity("contact_distance", units.len, range::kSpacing);
   if (g.has("friction_slip")) o.friction_slip = g.quantity("friction_slip", units.len, range::kSpacing);
   if (g.has("mode")) {
-    const std::string mode = g.text("mode");
-    if (mode == "eversion") {
-      o.mode = robot::InsertionMode::kEversion;
-    } else if (mode == "pushed") {
-      o.mode = robot::InsertionMode::kPushed;
-    } else {
-      g.fail("mode", "must be eversion or pushed (got '" + mode + "')");
-    }
+    o.mode = g.choice("mode", std::pair{std::string_view("eversion"), robot::InsertionMode::kEversion},
+                      std::pair{std::string_view("pushed"), robot::InsertionMode::kPushed});
   }
   if (g.has("yield_pressure")) o.law.yield_pressure = g.quantity("yield_pressure", units.stress, range::kPressure);
   if (g.has("length_yield")) {

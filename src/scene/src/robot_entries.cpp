@@ -226,14 +226,8 @@ robot::VineParameters parse_vine(const YamlMap& robot, const FileUnits& units) {
       v.volume_fraction = fill.quantity("volume_fraction", kPlain, Range{0.0, 0.74, true, true});
     }
     if (fill.has("law")) {
-      const std::string law = fill.text("law");
-      if (law == "bounded") {
-        v.law = robot::FluidLaw::kBounded;
-      } else if (law == "thesis") {
-        v.law = robot::FluidLaw::kThesis;
-      } else {
-        fill.fail("law", "must be bounded or thesis (got '" + law + "')");
-      }
+      v.law = fill.choice("law", std::pair{std::string_view("bounded"), robot::FluidLaw::kBounded},
+                          std::pair{std::string_view("thesis"), robot::FluidLaw::kThesis});
     }
     if (fill.has("density")) v.fill_density = fill.quantity("density", kKgPerM3, range::kDensity);
   }

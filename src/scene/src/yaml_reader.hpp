@@ -8,6 +8,7 @@
 #include <initializer_list>
 #include <string>
 #include <string_view>
+#include <utility>
 #include <vector>
 
 #include "magvine/core/eigen_types.hpp"
@@ -64,6 +65,16 @@ class YamlMap {
   std::array<int, 2> pixel_size(const std::string& key) const;
   /// `true` or `false`.
   bool flag(const std::string& key) const;
+  /// One of two words at `key`, as its value: `first.second` for `first.first`, `second.second` for
+  /// `second.first`; otherwise InputError "must be A or B (got 'x')".
+  template <class T>
+  T choice(const std::string& key, const std::pair<std::string_view, T>& first,
+           const std::pair<std::string_view, T>& second) const {
+    const std::string word = text(key);
+    if (word == first.first) return first.second;
+    if (word == second.first) return second.second;
+    fail(key, "must be " + std::string(first.first) + " or " + std::string(second.first) + " (got '" + word + "')");
+  }
   YamlMap map(const std::string& key) const;
   /// The node at `key`, which must exist.
   YAML::Node node(const std::string& key) const;
