@@ -18,6 +18,7 @@
 #include "magvine/magnetics/field_sample.hpp"
 #include "magvine/robot/elastica.hpp"
 #include "magvine/robot/growth.hpp"
+#include "magvine/robot/inflated_beam.hpp"
 
 namespace magvine::robot {
 namespace {
@@ -156,9 +157,9 @@ TEST(Growth, AFieldSwitchedOnMidGrowthBendsTheBodyBeforeItGrowsOn) {
     f.b = Vec3(20e-3, 0.0, 0.0);
     return f;
   });
-  ASSERT_TRUE(g.advance(1e-3, {.pressure = 12e3}).converged);  // 0.013 mm of growth: no new edge yet
+  ASSERT_TRUE(g.advance(1e-3, {.pressure = 12e3}).converged);  // 0.013 mm of growth (the tip edge lengthens)
   const double l = g.length();
-  ASSERT_NEAR(l, 40e-3, 1e-9);
+  ASSERT_NEAR(l, 40e-3 + 1e-3 * growth_rate(o.law, 12e3, 40e-3, 0.0).speed, 1e-9);
   const double q = g.model().moment_per_length[0].norm() * 20e-3;
   const double ei = g.model().bending_stiffness_3;
   const double expected = -q * l * l * l / (3.0 * ei);
@@ -242,9 +243,10 @@ FloorRun grow_along_floor(InsertionMode mode) {
   GrowthOptions o;
   o.mode = mode;
   const VineParameters v = skin_mvr();
-  // The base rests on the floor: centre R(1 + ε) above it (ε the hoop strain at 12 kPa).
+  // The base rests on the floor: centre R(1 + ε) above it (ε the hoop strain at 12 kPa), plus the barrier's
+  // activation distance d̂ = 2 % R (closer, the barrier would fight the clamp).
   const double radius = v.radius * (1.0 + v.pressure * v.radius / (v.wall.thickness * v.wall.modulus));
-  VineGrowth g(v, o, &channel, {}, Vec3(2e-3, 0.0, radius - 5e-3), Mat3::Identity());
+  VineGrowth g(v, o, &channel, {}, Vec3(2e-3, 0.0, radius + 0.02 * v.radius - 5e-3), Mat3::Identity());
   FloorRun out;
   std::vector<Vec3> first_touch;
   while (g.length() < 100e-3) {
@@ -253,7 +255,8 @@ FloorRun grow_along_floor(InsertionMode mode) {
     if (!r.converged || g.time() > 100.0) break;
     const WallForces& f = g.wall_forces();
     first_touch.resize(g.state().x.size(), Vec3::Constant(std::nan("")));
-    for (std::size_t i = 1; i < g.state().x.size(); ++i) {
+    // Everted material: every node but the tip (which advances, and leaves a new node behind it as it goes).
+    for (std::size_t i = 1; i + 1 < g.state().x.size(); ++i) {
       if (f.normal[i] <= 0.0) continue;
       if (std::isnan(first_touch[i].x())) first_touch[i] = g.state().x[i];
       out.drift = std::max(out.drift, (g.state().x[i] - first_touch[i]).norm());
@@ -268,18 +271,23 @@ FloorRun grow_along_floor(InsertionMode mode) {
 }
 
 TEST(Growth, EvertedNodesStayPutOnATubeFloorWhileTheTipAdvancesAndTheCatheterSlides) {
-  // Eversion: every node, once it touches the wall, stays where it touched (no sliding: PHYSICS.md §3) and the
-  // wall shear vanishes against the normal force (round-off of the anchors only). Pushed: the same body slides,
-  // so every node in contact carries kinetic friction μ·F_n (μ = 0.3).
+  // Eversion: every node, once it touches the wall, stays where it touched (no sliding: PHYSICS.md §3; static
+  // friction holds it within the slip ε = 1 % R; asserted: within 1 % of ε) and the wall shear vanishes against
+  // the normal force (the floor is flat: nothing loads the friction but the creep below ε). Pushed: the same body
+  // slides, so every node in contact carries kinetic friction μ·F_n (μ = 0.3), to the lag's tolerance (the
+  // friction is computed from the normal force of the solve before the last, which the last moved by at most
+  // friction_tolerance of the total).
+  // Re-measured with the barrier model (issue 28): the planes model's anchors gave a drift below 1e-6 mm and
+  // μ exactly; the barrier gives 6e-5 mm and 0.3000002.
   const FloorRun vine = grow_along_floor(InsertionMode::kEversion);
   const FloorRun pushed = grow_along_floor(InsertionMode::kPushed);
   std::printf("  vine: %d nodes on the floor, largest drift after touching %.3g mm, shear/normal %.3g\n",
               vine.contacts, 1e3 * vine.drift, vine.shear / vine.normal);
-  std::printf("  pushed: %d nodes on the floor, shear/normal %.3g\n", pushed.contacts, pushed.shear / pushed.normal);
+  std::printf("  pushed: %d nodes on the floor, shear/normal %.9f\n", pushed.contacts, pushed.shear / pushed.normal);
   EXPECT_GT(vine.contacts, 20);
-  EXPECT_LT(vine.drift, 1e-6);
+  EXPECT_LT(vine.drift, 1e-2 * 0.01 * skin_mvr().radius);
   EXPECT_LT(vine.shear, 1e-3 * vine.normal);
-  EXPECT_NEAR(pushed.shear / pushed.normal, 0.3, 1e-9);
+  EXPECT_NEAR(pushed.shear / pushed.normal, 0.3, 0.3 * GrowthOptions{}.friction_tolerance);
 }
 
 TEST(Growth, TipGrowingIntoTheEndWallIsBlockedAndNeverTunnels) {
@@ -430,6 +438,7 @@ TEST(Growth, AStepWhosePassesRunOutWhileTheBodyStillSwingsIsFlaggedUnsettled) {
     o.gravity = Vec3(0.0, 9.81, 0.0);
     o.law.yield_pressure = 20e3;
     o.max_contact_passes = passes;
+    o.contact = ContactModel::kPlanes;  // the planes model's flag (issue 28: the barrier model has no passes)
     VineGrowth g(fluid_vine(), o, &world, {}, Vec3(2e-3, 3e-3, 0.0), Mat3::Identity());
     int count = 0;
     int steps = 0;
@@ -456,6 +465,7 @@ TEST(Growth, AStepWhosePassesRunOutWhileTheBodyStillSwingsIsFlaggedUnsettled) {
 TEST(Growth, BodyStartedDeepInTheWallIsPushedBackAndGrowsOn) {
   // Deep penetration: the initial 20 mm body points 10° down into the floor of the square channel, its tip 3.5 mm
   // into it. The first equilibrium must push it back into the lumen, and growth then goes on along the floor.
+  // (Barrier model, issue 28: the body as made is cut where it enters the wall and everted from there.)
   const anatomy::CollisionWorld channel(box_mesh(Vec3(0.0, -6e-3, -5e-3), Vec3(0.12, 6e-3, 7e-3)));
   VineParameters v = skin_mvr(20e-3);
   const double radius = v.radius * (1.0 + v.pressure * v.radius / (v.wall.thickness * v.wall.modulus));
@@ -478,6 +488,11 @@ TEST(Growth, GrazingASideWallIntoACornerSlidesThenBlocksWithoutTunnelling) {
   // Sharp edges: the vine heads 20° off the channel's axis, meets the side wall at a shallow angle (it must slide
   // along it), and ends in the corner between that wall and the channel's end (two walls at 90°, a sharp edge).
   // The fluid vine (soft enough for the wall to turn it with less than its growth force).
+  // Re-measured with the barrier model (issue 28): the tip slides along the side wall to the end wall (y = 2.86 mm
+  // from x = 10 to 57 mm), and there the growth force, 0.40 N, now pressing the end wall, compresses the 55 mm
+  // body beyond its Euler load (~0.1 N); it buckles, and its tip, whose friction on the end wall starts with the
+  // step after it first touches (lagged), crosses to the other corner, where the wall holds it. The planes model
+  // stopped the tip by its incidence rule before the body carried the growth force.
   const anatomy::CollisionWorld channel(box_mesh(Vec3(0.0, -6e-3, -5e-3), Vec3(0.06, 6e-3, 7e-3)));
   VineParameters v = fluid_vine();
   const double radius = v.radius * (1.0 + v.pressure * v.radius / (v.wall.thickness * v.wall.modulus));
@@ -501,7 +516,7 @@ TEST(Growth, GrazingASideWallIntoACornerSlidesThenBlocksWithoutTunnelling) {
   std::printf("  tip (%.1f, %.1f) mm after %.1f mm, most Newton iterations in a step %d\n", 1e3 * tip.x(),
               1e3 * tip.y(), 1e3 * g.length(), most);
   EXPECT_TRUE(blocked);
-  EXPECT_GT(tip.y(), 6e-3 - radius - 0.5e-3);  // along the side wall
+  EXPECT_GT(std::abs(tip.y()), 6e-3 - radius - 0.5e-3);  // in a corner
   EXPECT_GT(tip.x(), 0.06 - radius - g.edge_length());  // at the end wall
   EXPECT_LE(most, 2000);
 }
@@ -597,8 +612,10 @@ TEST(Growth, ADeflatedVineLyingInTheSBendBendsTowardsAMagnetBroughtClose) {
   // The skin vine grown 68 mm along the S-bend phantom's floor (past the first obstacle's end), then deflated to
   // 1 kPa as the thesis's EPM (Ø101.6 mm N52) is brought beside the channel, its axis vertical so its field at the
   // body lies along the skin's magnetisation (gradient mode, thesis 4.7.3): the full load at once does not converge
-  // from the inflated equilibrium, so the step ramps it up from there. The body creases and its free part swings
-  // towards the magnet and over the obstacle; no node leaves the lumen.
+  // from the inflated equilibrium, so the step ramps it up from there. The body wrinkles to its collapse and its
+  // free part swings towards the magnet and over the obstacle; no node leaves the lumen. (Re-measured with the
+  // barrier model, issue 28: its largest joint moment is 0.99 of the collapse moment πR³P, on the wrinkled
+  // plateau just short of the crease; the planes model's anchors held the body so that one joint passed it.)
   const anatomy::Phantom ph = anatomy::make_s_bend({});
   const anatomy::CollisionWorld world(ph.mesh);
   Mat3 frame;  // tangent +x, the skin's magnetisation (body y) vertical
@@ -614,12 +631,15 @@ TEST(Growth, ADeflatedVineLyingInTheSBendBendsTowardsAMagnetBroughtClose) {
   const GrowthStepReport r = g.advance(0.1, {.pressure = 1e3, .tether_length = 70e-3});
   ASSERT_TRUE(r.converged) << r.failure;
   const Vec3 after = g.state().tip();
-  std::printf("  tip (%.1f, %.1f) mm -> (%.1f, %.1f) mm, %d Newton iterations, creased %d\n", 1e3 * before.x(),
-              1e3 * before.y(), 1e3 * after.x(), 1e3 * after.y(), r.newton_iterations,
-              static_cast<int>(vine_bend_state(g.model(), g.state()).creased));
+  double largest = 0.0;
+  for (const double m : joint_bending_moments(g.model(), g.state())) largest = std::max(largest, std::abs(m));
+  const double collapse = collapse_moment(g.model().inflated->radius, g.model().inflated->pressure);
+  std::printf("  tip (%.1f, %.1f) mm -> (%.1f, %.1f) mm, %d Newton iterations, largest joint moment %.3f of the "
+              "collapse moment\n", 1e3 * before.x(), 1e3 * before.y(), 1e3 * after.x(), 1e3 * after.y(),
+              r.newton_iterations, largest / collapse);
   EXPECT_NEAR(before.y(), 14e-3, 0.5e-3);
   EXPECT_LT(after.y(), before.y() - 5e-3);  // towards the magnet (−y)
-  EXPECT_TRUE(vine_bend_state(g.model(), g.state()).creased);
+  EXPECT_GT(largest, 0.95 * collapse);  // wrinkled to (nearly) all of its section: the hinge it swings about
   for (const Vec3& x : g.state().x) EXPECT_TRUE(world.contains(x)) << "a node left the lumen";
 }
 
@@ -651,19 +671,27 @@ TEST(Growth, MagnetorheologicalStiffeningStallsTheFluidVineAtTheBinghamLength) {
 
 TEST(Growth, TheStiffenedFluidResumesGrowingWhenTheMagnetIsWithdrawn) {
   // Thesis 5.6.4: near the EPM the magnetorheological fluid stiffened and growth stopped; withdrawing the magnet let
-  // it grow. The fluid vine grows along x in free space towards the thesis's EPM placed 60 mm beyond its tip line.
+  // it grow. The fluid vine grows along x in free space towards the thesis's EPM on its axis, the magnet's face
+  // 29 mm beyond the tip (its field along the body: the fill's induced moment too, so the body stays straight,
+  // pulled along its axis). (Re-measured with the barrier model, issue 28: the magnet used to sit 80 mm to the
+  // side, where the body has no equilibrium in free space; the planes model kept the straight body and reported
+  // the failed solve as an event, the barrier model ends the run.)
   GrowthOptions o;
   o.gravity = Vec3::Zero();
   o.law.yield_pressure = 15e3;
   o.magnetorheology = true;
-  VineGrowth g(thesis_fluid_vine(40e-3), o, nullptr, thesis_epm(Vec3(40e-3, -80e-3, 0.0), Vec3::UnitY()),
+  VineGrowth g(thesis_fluid_vine(40e-3), o, nullptr, thesis_epm(Vec3(120e-3, 0.0, 0.0), Vec3::UnitX()),
                Vec3::Zero(), Mat3::Identity());
-  for (int i = 0; i < 40; ++i) ASSERT_TRUE(g.advance(0.05, {.pressure = 35e3}).converged);
+  ASSERT_TRUE(g.events().empty()) << g.events().front().detail;
+  for (int i = 0; i < 40; ++i) {
+    const GrowthStepReport r = g.advance(0.05, {.pressure = 35e3});
+    ASSERT_TRUE(r.converged) << "step " << i << ": " << r.failure;
+  }
   const double near = g.length();
   const double extra = g.advance(0.05, {.pressure = 35e3}).magnetorheological_yield;
-  g.set_field(thesis_epm(Vec3(40e-3, -400e-3, 0.0), Vec3::UnitY()));
+  g.set_field(thesis_epm(Vec3(400e-3, 0.0, 0.0), Vec3::UnitX()));
   for (int i = 0; i < 40; ++i) ASSERT_TRUE(g.advance(0.05, {.pressure = 35e3}).converged);
-  std::printf("  magnet 80 mm off: stalled at %.1f mm (magnetorheological yield %.1f kPa); withdrawn to 400 mm: %.1f "
+  std::printf("  magnet 29 mm beyond the tip: stalled at %.1f mm (magnetorheological yield %.1f kPa); withdrawn to 400 mm: %.1f "
               "mm\n",
               1e3 * near, extra / 1e3, 1e3 * g.length());
   EXPECT_NEAR(near, 40e-3, g.edge_length());  // no growth near the magnet

@@ -560,7 +560,9 @@ TEST(Experiment, AGamepadSteersTheSkinVineIntoEitherMainBronchus) {
   // Thesis 4.7.4 by gamepad (assets/scenes/bronchial_tree_skin_vine.yaml): the Ø8 mm skin MVR grown down the tree's
   // trachea at 12 kPa, deflated to 1 kPa for 2 s with the EPM brought in beside main bronchus 0-0, regrown at 12 kPa:
   // it reaches 0-0's end; the same script mirrored (magnet and target at −x) reaches 0-1's; with the magnet left
-  // 300 mm away it reaches neither (it stops at the carina).
+  // 300 mm away it does not reach 0-1's: it rolls off the carina into 0-0 (re-measured with the barrier model,
+  // issue 28: the planes model's incidence rule stopped it at the carina), so the mirrored run's 0-1 is the
+  // magnet's doing.
   const std::filesystem::path file =
       std::filesystem::path(MAGVINE_SOURCE_DIR) / "assets/scenes/bronchial_tree_skin_vine.yaml";
   std::ifstream in(file);
@@ -582,7 +584,7 @@ TEST(Experiment, AGamepadSteersTheSkinVineIntoEitherMainBronchus) {
   const ExperimentResult none = run(replaced(text, "    - {time: 10, over: 1, move: [-190, 0, -5]}", "#"), "EPM away");
   EXPECT_TRUE(right.success);
   EXPECT_TRUE(left.success);
-  EXPECT_FALSE(none.success);
+  EXPECT_GT(none.final_state.tip().x(), 0.0);  // not in 0-1 (−x)
   EXPECT_GT(right.final_state.tip().x(), 15e-3);
   EXPECT_LT(left.final_state.tip().x(), -15e-3);
 }
@@ -697,17 +699,18 @@ TEST(Experiment, TheNavigatorSteersTheSkinVineByTorqueIntoEitherMainBronchus) {
 
 TEST(Experiment, TheNavigatorRaisesThePressureOnlyForAHeldTipAndOnlyBelowBurst) {
   // assets/scenes/bronchial_tree_generation4.yaml: boost_pressure 42 kPa after 0.5 s without growth, until the tip
-  // has grown 5 mm. Towards 0-1-0-1-1 the unperturbed Ø4 mm vine is held at the generation-4 entry near 7 s.
+  // has grown 5 mm. Towards 0-0-1-1-0 the unperturbed Ø4 mm vine is held at the generation-4 entry near 7.9 s
+  // (re-measured with the barrier model, issue 28: the planes model held it towards 0-1-0-1-1 near 7 s).
   // Asserted from the samples: the pressure is the schedule's 35 kPa or the boost's 42 kPa; every rise comes at
   // least 0.5 s after the everted length last changed, every fall once the length is 5 mm past where the rise
   // began (edges of 2 mm: the first edge at or past it); and at least one boost happens.
   const std::filesystem::path file =
       std::filesystem::path(MAGVINE_SOURCE_DIR) / "assets/scenes/bronchial_tree_generation4.yaml";
-  ExperimentScene scene = with_target(load_experiment_scene(file), "0-1-0-1-1");
+  ExperimentScene scene = with_target(load_experiment_scene(file), "0-0-1-1-0");
   ASSERT_TRUE(scene.navigator);
   EXPECT_DOUBLE_EQ(scene.navigator->boost_pressure, 42e3);
   scene.navigator->recover.retries = 0;  // the boost alone (the retractions: the test after the next)
-  scene.duration = 8.6;
+  scene.duration = 9.0;
   const ExperimentResult r = run_experiment(scene);
   int rises = 0;
   double changed_at = 0.0;  // when the everted length last changed
@@ -761,21 +764,28 @@ TEST(Experiment, AGenerationFourEntryIsEnteredWithEdgesOfTwoAndOneAndAHalfMillim
   }
 }
 
-TEST(Experiment, TheNavigatorBacksTheVineOutOfAWrongDaughterAndGrowsItIntoTheRightOne) {
-  // assets/scenes/bronchial_tree_generation4.yaml, the trial towards 0-0-1-1-0 that `magvine trials` runs first
-  // (seed 1·1000003 + 1·10007 + 0): the perturbed vine turns into the wrong generation-4 daughter, 0-0-1-1-1, a
-  // blind end. Without retractions it stays there. With control.navigator.recover (retries 3, past 4 mm, back
-  // 20 mm) the navigator deflates it to the growth's retraction pressure, 5 kPa, once it has grown 4 mm into
-  // 0-0-1-1-1, pulls it back to 20 mm short of where it left the path, gives the pressure back, and the vine
-  // reaches the target. Asserted from the samples: the length only falls at or below 5 kPa; the first retraction
-  // takes back 24 mm (4 past, 20 back) within an edge either way; the tip was in 0-0-1-1-1 before it succeeded.
+TEST(Experiment, TheNavigatorBacksTheVineOutOfAWrongBranchAndGrowsItAgain) {
+  // assets/scenes/bronchial_tree_generation4.yaml with the magnet's placement error widened to σ = 30 mm (the
+  // scene's is 2 mm), the trial towards 0-1-0-1-1 that `magvine trials --targets 0-0-0-0-1,0-1-0-1-1,...` runs
+  // third (seed 1·1000003 + 1·10007 + 2): the misplaced magnet turns the vine into the wrong generation-2
+  // daughter, 0-1-1, and on into 0-1-1-0-0, where it is held. Without retractions it stays there. With
+  // control.navigator.recover (retries 3, past 4 mm, back 20 mm) the navigator deflates it to the growth's
+  // retraction pressure, 5 kPa, once it has grown 4 mm into 0-1-1, pulls it back to 20 mm short of where it left
+  // the path, gives the pressure back, and grows it again: the magnet's error is the same each time, so each of
+  // the three tries turns into 0-1-1 again, and the run ends there (a retry that then succeeds: the next test).
+  // Asserted from the samples: the length only falls at or below 5 kPa; the first retraction takes back 24 mm (4
+  // past, 20 back) within an edge either way; the tip was in 0-1-1; all three retries were spent. (Re-measured with
+  // the barrier model, issue 28: with the planes model the scene's own trial 1·1000003 + 1·10007 towards 0-0-1-1-0
+  // turned into 0-0-1-1-1 and reached the target after one retraction; with the barrier model none of the scene's
+  // 80 trials turns the wrong way.)
   const std::filesystem::path file =
       std::filesystem::path(MAGVINE_SOURCE_DIR) / "assets/scenes/bronchial_tree_generation4.yaml";
-  const ExperimentScene aimed = with_target(load_experiment_scene(file), "0-0-1-1-0");
+  ExperimentScene aimed = with_target(load_experiment_scene(file), "0-1-0-1-1");
   ASSERT_TRUE(aimed.navigator);
   EXPECT_EQ(aimed.navigator->recover.retries, 3);
   EXPECT_DOUBLE_EQ(aimed.growth.retraction_pressure, 5e3);
-  ExperimentScene scene = perturbed(aimed, 1 * 1000003ULL + 1 * 10007ULL);
+  aimed.perturbation.magnet_position_sd = 30e-3;
+  ExperimentScene scene = perturbed(aimed, 1 * 1000003ULL + 1 * 10007ULL + 2);
   const auto describe = [](const char* label, const ExperimentResult& r) {
     std::printf("  %s: %s at %.2f s, %.0f mm everted, %d retraction(s)\n", label,
                 r.success ? "reached" : "not reached", r.time_to_target, 1e3 * r.samples.back().length, r.recoveries);
@@ -791,14 +801,13 @@ TEST(Experiment, TheNavigatorBacksTheVineOutOfAWrongDaughterAndGrowsItIntoTheRig
   EXPECT_EQ(stuck.recoveries, 0);
   ASSERT_TRUE(scene.anatomy->graph);
   ASSERT_GE(stuck.samples.back().branch, 0);
-  EXPECT_EQ(scene.anatomy->graph->branches[static_cast<std::size_t>(stuck.samples.back().branch)].name, "0-0-1-1-1");
+  EXPECT_EQ(scene.anatomy->graph->branches[static_cast<std::size_t>(stuck.samples.back().branch)].name, "0-1-1-0-0");
 
   scene.navigator->recover.retries = 3;
   const ExperimentResult r = run_experiment(scene);
   describe("with them", r);
-  EXPECT_TRUE(r.success);
-  EXPECT_GE(r.recoveries, 1);
-  EXPECT_LE(r.recoveries, 3);
+  EXPECT_FALSE(r.success);
+  EXPECT_EQ(r.recoveries, 3);
   bool wrong = false;
   double peak = 0.0;     // the everted length when the first retraction began
   double lowest = 1.0;   // and where it ended
@@ -806,7 +815,7 @@ TEST(Experiment, TheNavigatorBacksTheVineOutOfAWrongDaughterAndGrowsItIntoTheRig
   bool first_done = false;
   double previous = scene.vine.length;
   for (const ExperimentSample& s : r.samples) {
-    wrong = wrong || (s.branch >= 0 && scene.anatomy->graph->branches[static_cast<std::size_t>(s.branch)].name == "0-0-1-1-1");
+    wrong = wrong || (s.branch >= 0 && scene.anatomy->graph->branches[static_cast<std::size_t>(s.branch)].name == "0-1-1");
     if (s.length < previous) {
       EXPECT_LE(s.pressure, 5e3) << s.time << " s";
       if (!retracting && !first_done) peak = previous;
@@ -832,8 +841,8 @@ TEST(Experiment, TheNavigatorBacksTheVineOutOfAWrongDaughterAndGrowsItIntoTheRig
   ASSERT_TRUE(in);
   EXPECT_EQ(nlohmann::json::parse(in).at("retractions").get<int>(), r.recoveries);
   TrialOutcome o;
-  o.target = "0-0-1-1-0";
-  o.success = true;
+  o.target = "0-1-0-1-1";
+  o.success = r.success;
   o.time_to_target = r.time_to_target;
   o.everted_length = r.samples.back().length;
   o.retractions = r.recoveries;
@@ -847,15 +856,17 @@ TEST(Experiment, TheNavigatorBacksTheVineOutOfAWrongDaughterAndGrowsItIntoTheRig
 
 TEST(Experiment, TheNavigatorBacksAHeldTipOutAndGrowsItInAgain) {
   // The other trigger of control.navigator.recover: a tip held for `after` (2 s) with nothing but the wall holding
-  // it. Trial seed 3·1000003 (the first trial towards 0-0-0-0-1 when the scene's seed is 3) is blocked by the energy
-  // test at the generation-4 entry at 190 mm (6.72 s) and stays held through the boost. Asserted from the samples:
-  // before the first retraction the everted length stood still for at least 2 s; the retraction takes it back 20 mm
-  // (within an edge), shortening only at 5 kPa; the run then reaches the target. (Until the fill's Maxwell-Garnett
-  // factor took the particles' susceptibility, the scene's seed 4 gave such a trial; it now reaches the target
-  // without one.)
+  // it. With the magnet's placement error widened to σ = 15 mm (the scene's is 2 mm), trial seed 1·1000003 + 2
+  // (the third towards 0-0-1-1-0) is held at the generation-4 entry and stays held through the boost. Asserted
+  // from the samples: before the first retraction the everted length stood still for at least 2 s; the retraction
+  // takes it back 20 mm (within an edge), shortening only at 5 kPa; the run then reaches the target.
+  // (Re-measured with the barrier model, issue 28: with the planes model, trial 3·1000003 towards 0-0-0-0-1 of
+  // the scene as it is was held by the energy test; with the barrier model none of the scene's 80 trials is.)
   const std::filesystem::path file =
       std::filesystem::path(MAGVINE_SOURCE_DIR) / "assets/scenes/bronchial_tree_generation4.yaml";
-  const ExperimentScene scene = perturbed(with_target(load_experiment_scene(file), "0-0-0-0-1"), 3 * 1000003ULL + 0);
+  ExperimentScene wide = with_target(load_experiment_scene(file), "0-0-1-1-0");
+  wide.perturbation.magnet_position_sd = 15e-3;
+  const ExperimentScene scene = perturbed(wide, 1 * 1000003ULL + 2);
   const ExperimentResult r = run_experiment(scene);
   std::printf("  %s at %.2f s, %d retraction(s)\n", r.success ? "reached" : "not reached", r.time_to_target,
               r.recoveries);

@@ -64,6 +64,16 @@ double ring_crush_load(const CatheterTube& c, double g) {
 
 /// The body's radius as made: the catheter tube's or the pushed rod's when there is one, else the vine's. The edge
 /// length and the contacts follow it.
+/// The slower, surer solve after the step's own (growth_solver_options: Newton from the last equilibrium at the
+/// full load) failed: the loads ramped up from that state, to the same tolerance.
+RodSolveOptions ramped_solver(const RodSolveOptions& fast) {
+  RodSolveOptions o;
+  o.tolerance = fast.tolerance;
+  o.max_iterations = 600;
+  o.max_snap_newton = 300;
+  return o;
+}
+
 double made_radius(const VineParameters& vine, const GrowthOptions& options) {
   if (options.catheter) return 0.5 * options.catheter->outer_diameter;
   if (options.rod) return options.rod->radius;
@@ -164,8 +174,10 @@ double VineGrowth::node_radius(const Vec3& x, const Mat3& frame, Vec3* across, i
     for (const double side : {1.0, -1.0}) {
       // Where the sphere's front is already past a wall (the tip against a carina's ridge), the rays would measure
       // the tissue between two branches, not a gap: the wall ahead is a contact, not a constriction.
+      // Nor does a narrowing ahead that closes a radius further on (the notch of a carina's saddle, a blind end): a
+      // slot squeezes a body that can go on into it.
       const Vec3 probe = x + side * m_radius * t;
-      if (!m_world->contains(probe)) continue;
+      if (!m_world->contains(probe) || (side > 0.0 && !m_world->contains(probe + m_radius * t))) continue;
       Vec3 u = line;
       const double w = lumen_width(probe, frame, &u, recentrings);
       if (w < width) line = u;
@@ -273,11 +285,46 @@ VineGrowth::VineGrowth(const VineParameters& vine, const GrowthOptions& options,
   m_normal_force.assign(m_state.x.size(), 0.0);
   GrowthStepReport report;
   if (options.contact == ContactModel::kBarrier) {
+    // The body as made lies straight along the base's tangent. Where that would put a node's sphere into the
+    // wall by more than d̂ (a base aimed at it), the body is cut before that node and everted from there to its
+    // made length as a vine grows: the tip edge lengthened by at most h/2 a step, no time passing (a barrier
+    // needs a start clear of the wall; shrinking such a node's contact radius would leave it in the tissue).
+    const double made = m_model.length;
+    std::size_t fit = m_state.x.size();
+    for (std::size_t i = 1; i < m_state.x.size() && m_world != nullptr; ++i) {
+      std::array<anatomy::NearTriangle, 1> near{};
+      if (!m_world->contains(m_state.x[i]) ||
+          (m_world->triangles_within(m_state.x[i], m_radius, near) > 0 && near[0].distance < m_radius - m_dhat)) {
+        fit = i;
+        break;
+      }
+    }
+    if (fit < m_state.x.size()) {
+      m_vine.edges = std::max(1, static_cast<int>(fit) - 1);
+      rebuild_model(vine.pressure);
+      m_state = straight_rod(m_model);
+      m_anchor.assign(m_state.x.size(), Vec3::Constant(kNone));
+      m_normal_force.assign(m_state.x.size(), 0.0);
+    }
     m_wall_force.assign(m_state.x.size(), Vec3::Zero());
     m_anchor_normal.assign(m_state.x.size(), Vec3::Zero());
     if (!barrier_step(0.0, vine.pressure, 0.0, report)) {
       add_event(GrowthEventKind::kSolver, "initial equilibrium: " + report.failure);
+      return;
     }
+    m_placing = true;
+    while (m_model.length < made - 1e-9 * m_h) {
+      const double before = m_model.length;
+      const double step = std::min(0.5 * m_h, made - m_model.length);
+      if (!barrier_steps(1.0, vine.pressure, step, report) || m_model.length < before + 0.01 * step) {
+        add_event(GrowthEventKind::kSolver,
+                  printf_string("initial body: %.1f of its %.1f mm everted into the lumen (%s)", 1e3 * m_model.length,
+                                1e3 * made, report.failure.empty() ? "the wall holds the tip" : report.failure.c_str()));
+        break;
+      }
+    }
+    m_placing = false;
+    report = GrowthStepReport{};
     return;
   }
   if (!solve_with_wall(report)) add_event(GrowthEventKind::kSolver, "initial equilibrium: " + report.failure);
@@ -664,10 +711,7 @@ double VineGrowth::roll_off_crest(const Vec3& tangent, const Vec3& normal, doubl
 
 bool VineGrowth::solve_with_wall_ramped(GrowthStepReport& report) {
   const RodSolveOptions fast = m_options.solver;
-  m_options.solver = RodSolveOptions{};  // the ramp
-  m_options.solver.tolerance = fast.tolerance;
-  m_options.solver.max_iterations = 600;
-  m_options.solver.max_snap_newton = 300;
+  m_options.solver = ramped_solver(fast);
   report.converged = true;
   report.failure.clear();
   const bool solved = solve_with_wall(report);
@@ -1013,19 +1057,23 @@ bool VineGrowth::barrier_step(double dt, double pressure, double cap, GrowthStep
   TipGrowth growth;
   const double axial = m_model.axial_stiffness / robot::edge_length(m_model, m_model.edges - 1);
   double squeeze = 1.0;
+  double tip_room = m_radius;  // the tip's flattened contact radius in a narrowing ahead
   double push = 0.0;  // a pushed body's insertion in this step [m]
   // (At the tether, cap = 0, the tether takes the tip's pressure force: nothing pushes the body.)
   if (dt > 0.0 && cap > 0.0) {
-    if (pushed || solid_body()) {
-      push = std::min(report.speed * dt, cap);
+    if (pushed || solid_body() || m_placing) {
+      push = m_placing ? cap : std::min(report.speed * dt, cap);
       growth = {axial * push, axial, push};
     } else if (m_options.law.extensibility > 0.0) {
       if (m_world != nullptr) {
-        // Squeezing: ahead of the tip the lumen's width (from its middle) leaves the flattened section's area only.
+        // Squeezing: ahead of the tip the lumen's width (from its middle) leaves the flattened section's area only,
+        // where the narrowing is one the tip can go on into (a carina's notch or a blind end closes a radius
+        // further on: the tip meets it as a wall).
         const Vec3 ahead = m_state.x[tip] + m_radius * tangent;
-        const double r = m_world->contains(ahead) ? node_radius(ahead, m_state.frames.back(), nullptr, kRecentrings)
-                                                  : m_radius;
-        squeeze = slot_area(m_radius, r / kSlack) / area;
+        if (m_world->contains(ahead) && m_world->contains(ahead + m_radius * tangent)) {
+          tip_room = node_radius(ahead, m_state.frames.back(), nullptr, kRecentrings);
+        }
+        squeeze = slot_area(m_radius, tip_room / kSlack) / area;
       }
       growth = {growth_force(pressure * squeeze, report.yield, m_radius),
                 area / (m_options.law.extensibility * dt), cap};
@@ -1044,9 +1092,9 @@ bool VineGrowth::barrier_step(double dt, double pressure, double cap, GrowthStep
         cache.radius_at = m_state.x[i];
         cache.radius = node_radius(m_state.x[i], m_state.frames[std::min(i, nodes - 2)], &cache.across);
       }
-      double r = cache.radius;
+      double r = i == tip ? std::min(cache.radius, tip_room) : cache.radius;  // the tip flattens into a slot
       std::array<anatomy::NearTriangle, 1> near{};
-      if (m_world->triangles_within(m_state.x[i], r, near) > 0) r = near[0].distance - 0.5 * m_dhat;
+      if (m_world->triangles_within(m_state.x[i], r, near) > 0) r = near[0].distance - 0.1 * m_dhat;
       wall.radius[i] = r > 0.1 * m_radius ? r : 0.0;
     }
     c.wall = std::move(wall);
@@ -1089,24 +1137,44 @@ bool VineGrowth::barrier_step(double dt, double pressure, double cap, GrowthStep
   std::vector<double> lambda = m_normal_force;
   std::vector<double> strip = m_strip_force;
   std::vector<Vec3> axis = m_anchor_normal;
-  std::vector<std::array<double, 2>> last_change(nodes, {0.0, 0.0});  // the last corrections of λ and s
+  // The last lagged values of λ and s fed to a solve, and what that solve returned (the secant relaxation below).
+  std::vector<std::array<double, 4>> last(nodes, {kNone, kNone, kNone, kNone});
   bool settled = false;
+  // The everting tip. Along its tangent it advances by laying new material down (free). Sideways its material
+  // slides on the wall, but while it grows the material under the contact already slides (it flows over the cap
+  // at the growth's rate), so Coulomb friction resists a sideways slip u with μλ·f1(|u|/ε_tip), ε_tip the tip's
+  // growth in the step (a spinning top's friction: nearly viscous for a slip much slower than the growth), ε
+  // when it does not grow. Held by the wall, its material stays the same: the reference stays where it was held.
+  if (!pushed && (!m_blocked || std::isnan(reference[tip].x()))) reference[tip] = m_state.x[tip];
+  double tip_growth = m_blocked ? 0.0 : m_tip_grown;  // lagged, as λ
+  const auto free_along = [&](std::size_t i, const Vec3& n) -> Vec3 {
+    if (pushed || i != tip) return Vec3::Zero();
+    const Vec3 f = tangent - tangent.dot(n) * n;
+    return f.norm() > 1e-6 ? Vec3(f.normalized()) : Vec3::Zero();
+  };
   for (int k = 0; k < m_options.max_friction_iterations && !settled; ++k) {
     c.friction.clear();
     for (std::size_t i = 1; i < nodes && m_world != nullptr; ++i) {
-      if (!pushed && i == tip) continue;  // the everting tip lays material down: no slip
       if (!(lambda[i] > 0.0) && !(strip[i] > 0.0)) continue;
       if (std::isnan(reference[i].x())) reference[i] = m_state.x[i];
+      const double slip = !pushed && i == tip ? std::max(m_slip, tip_growth) : m_slip;
       if (lambda[i] > 0.0) {
-        c.friction.push_back({static_cast<int>(i), reference[i], axis[i], lambda[i], m_options.friction, m_slip});
+        c.friction.push_back({static_cast<int>(i), reference[i], axis[i], lambda[i], m_options.friction, slip,
+                              free_along(i, axis[i])});
       }
       if (strip[i] > 0.0) {
-        c.friction.push_back(
-            {static_cast<int>(i), reference[i], m_cache[i].across, strip[i], m_options.friction, m_slip});
+        c.friction.push_back({static_cast<int>(i), reference[i], m_cache[i].across, strip[i], m_options.friction,
+                              slip, free_along(i, m_cache[i].across)});
       }
     }
     ++report.contact_passes;
-    const RodSolveReport r = solve_rod_statics(m_model, m_field, m_state, m_options.solver, &m_workspace, &c);
+    RodSolveReport r = solve_rod_statics(m_model, m_field, m_state, m_options.solver, &m_workspace, &c);
+    if (!r.converged && m_options.solver.ramp == false) {
+      // Loads that changed too much for Newton from the last equilibrium (a magnet brought close, a deflation):
+      // the same step with the loads ramped up from there.
+      report.newton_iterations += r.iterations;
+      r = solve_rod_statics(m_model, m_field, m_state, ramped_solver(m_options.solver), &m_workspace, &c);
+    }
     report.newton_iterations += r.iterations;
     if (!r.converged) {
       restore();
@@ -1115,8 +1183,18 @@ bool VineGrowth::barrier_step(double dt, double pressure, double cap, GrowthStep
       return false;
     }
     if (m_world == nullptr) break;
+    // The tip's growth in this solve (the extension of its edge past its made length), for its friction's slip.
+    double grown_now = 0.0;
+    if (!pushed && dt > 0.0 && growth.force > 0.0) {
+      const Vec3 e = m_state.x[tip] - m_state.x[tip - 1];
+      grown_now = std::clamp(m_state.frames.back().col(0).dot(e) - robot::edge_length(m_model, m_model.edges - 1),
+                             0.0, std::max(0.0, growth.limit));
+    }
     const std::vector<NodeWallForce> f = wall_barrier_forces(m_state, *c.wall);
-    double scale = growth.force;
+    // The growth force of a vine is a load the wall carries when it blocks the tip; a pushed body's prescribed
+    // insertion (a stiff spring to the push) is not, and would swamp the tolerance.
+    const double tip_load = pushed || solid_body() || m_placing ? 0.0 : growth.force;
+    double scale = tip_load;
     std::vector<double> next_strip(nodes, 0.0);
     for (std::size_t i = 1; i < nodes; ++i) {
       // A flattened section presses each of the two walls with P over its flat strip, 2·P·(πR − πg/2)·h; a
@@ -1132,27 +1210,39 @@ bool VineGrowth::barrier_step(double dt, double pressure, double cap, GrowthStep
     // the growth force), and no node that carries a share of it turns its axis: light contacts that flicker on
     // and off a resting body change their few mN, not the friction the body carries.
     double change = 0.0;
-    double total = growth.force;
+    double total = tip_load;
     for (std::size_t i = 1; i < nodes; ++i) {
       change += std::abs(f[i].magnitude - lambda[i]) + std::abs(next_strip[i] - strip[i]);
       total += f[i].magnitude + next_strip[i];
     }
-    settled = change <= m_options.friction_tolerance * total;
+    // The tip's slip scale settles with the rest: within 10 % (or ε).
+    settled = change <= m_options.friction_tolerance * total &&
+              std::abs(grown_now - tip_growth) <= 0.1 * std::max(tip_growth, m_slip);
+    tip_growth += (grown_now - tip_growth) * (k > 0 ? 0.5 : 1.0);
     const double tolerance = m_options.friction_tolerance * scale;
     for (std::size_t i = 1; i < nodes; ++i) {
       if (f[i].magnitude > 10.0 * tolerance && lambda[i] > 0.0 && axis[i].cross(f[i].axis).norm() > 1e-2) {
         settled = false;
       }
-      // A correction that turns back against the last one (a two-cycle of the fixed point: a node whose friction
-      // moves it off the force it was lagged at) moves the lag halfway (under-relaxation); one that goes on in the
-      // same direction moves it all the way.
+      // The lag is a fixed point λ = g(λ) per node. Where a node's friction moves it off the force it was lagged
+      // at, g falls as λ rises (slope σ < 0) and plain iteration alternates, converging as |σ|^k or not at all;
+      // the relaxation λ += (g − λ)/(1 − σ), σ the secant slope of the last two solves, takes the secant's root
+      // (a tenth of the correction at least; where λ creeps one way, σ > 0, the whole correction).
+      const auto relax = [](double in, double out, double in_before, double out_before) {
+        if (std::isnan(in_before) || !(std::abs(in - in_before) > 1e-12 * (std::abs(in) + std::abs(out)))) return 1.0;
+        const double slope = (out - out_before) / (in - in_before);
+        return slope < 0.0 ? std::clamp(1.0 / (1.0 - slope), 0.1, 1.0) : 1.0;
+      };
       const double dl = f[i].magnitude - lambda[i];
       const double ds = next_strip[i] - strip[i];
-      const double w = dl * last_change[i][0] < 0.0 || ds * last_change[i][1] < 0.0 ? 0.5 : 1.0;
-      last_change[i] = {w * dl, w * ds};
-      lambda[i] += w * dl;
-      strip[i] += w * ds;
-      const Vec3 blended = axis[i].isZero() ? f[i].axis : Vec3(axis[i] + w * (f[i].axis - axis[i]));
+      const double wl = relax(lambda[i], f[i].magnitude, last[i][0], last[i][1]);
+      const double ws = relax(strip[i], next_strip[i], last[i][2], last[i][3]);
+      last[i] = {lambda[i], f[i].magnitude, strip[i], next_strip[i]};
+      lambda[i] += wl * dl;
+      strip[i] += ws * ds;
+      const double w = std::min(wl, ws);
+      const Vec3 turn = axis[i].isZero() ? Vec3::Zero() : Vec3(f[i].axis - axis[i]);
+      const Vec3 blended = axis[i].isZero() ? f[i].axis : Vec3(axis[i] + w * turn);  // as its λ
       axis[i] = blended.norm() > 1e-9 ? Vec3(blended.normalized()) : f[i].axis;
       m_wall_force[i] = f[i].force;
     }
@@ -1177,8 +1267,7 @@ bool VineGrowth::barrier_step(double dt, double pressure, double cap, GrowthStep
     const auto i = static_cast<std::size_t>(f.node);
     m_forces.shear_vector[i] -= friction_force(f, m_state.x[i]);
     // Static friction's reference follows a slip past ε (the node then sits at the Coulomb limit).
-    const Vec3 d = m_state.x[i] - reference[i];
-    const Vec3 u = d - f.normal.dot(d) * f.normal;
+    const Vec3 u = friction_slip(f, m_state.x[i]);
     if (!pushed && u.norm() > m_slip) reference[i] += (1.0 - m_slip / u.norm()) * u;
   }
   for (std::size_t i = 1; i < nodes; ++i) {
@@ -1214,6 +1303,7 @@ bool VineGrowth::barrier_step(double dt, double pressure, double cap, GrowthStep
   const double extension = m_state.frames.back().col(0).dot(edge) - robot::edge_length(m_model, m_model.edges - 1);
   const double grown = dt > 0.0 && growth.force > 0.0 ? std::clamp(extension, 0.0, std::max(0.0, growth.limit)) : 0.0;
   m_tip_length += grown;
+  m_tip_grown = grown;
   while (m_tip_length >= 1.5 * m_h) {
     const Vec3 t = m_state.frames.back().col(0);
     const Vec3 at = m_state.x[m_state.x.size() - 2] + m_h * t;
@@ -1236,7 +1326,7 @@ bool VineGrowth::barrier_step(double dt, double pressure, double cap, GrowthStep
   }
   rebuild_model(pressure);
   // Events: the wall in front of the tip holding it (growth below 1 % of the free growth), or a narrowing.
-  if (dt > 0.0 && !pushed && !solid_body()) {
+  if (dt > 0.0 && !pushed && !solid_body() && !m_placing) {
     const double free = growth.stiffness > 0.0 ? growth.force / growth.stiffness : 0.0;
     const bool held = growth.force > 0.0 && grown < 0.01 * free;
     if (held && !m_blocked) {

@@ -726,9 +726,13 @@ Vec3 body_load(const RodModel& model, const RodField& field, const RodState& sta
   return total;
 }
 
-Vec3 friction_force(const NodeFriction& f, const Vec3& x) {
+Vec3 friction_slip(const NodeFriction& f, const Vec3& x) {
   const Vec3 d = x - f.reference;
-  const Vec3 u = d - f.normal.dot(d) * f.normal;
+  return d - f.normal.dot(d) * f.normal - f.free.dot(d) * f.free;
+}
+
+Vec3 friction_force(const NodeFriction& f, const Vec3& x) {
+  const Vec3 u = friction_slip(f, x);
   return -f.coefficient * f.normal_force * detail::friction_law(u.norm(), f.slip).force_per * u;
 }
 

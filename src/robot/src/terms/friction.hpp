@@ -1,8 +1,8 @@
 #pragma once
 // Lagged smoothed Coulomb friction (NodeFriction in rod.hpp; Li et al. 2020, eqs. 14–16), energy, gradient and
-// Hessian together: D = μλ f0(|u|), u = (I − nnᵀ)(x − x_ref), f0(y) = y for y ≥ ε and −y³/(3ε²) + y²/ε + ε/3 below.
+// Hessian together: D = μλ f0(|u|), u = P(x − x_ref), f0(y) = y for y ≥ ε and −y³/(3ε²) + y²/ε + ε/3 below.
 // The Hessian is the exact one, positive semi-definite: μλ[(2/ε − y/ε²)P − (y/ε²)ûûᵀ] below ε, μλ(P − ûûᵀ)/y
-// past it (P = I − nnᵀ).
+// past it (P = I − nnᵀ − ffᵀ, f the free direction or zero).
 
 #include "../rod_system.hpp"
 
@@ -26,8 +26,7 @@ struct FrictionTerm {
     double scale;  ///< μλ
   };
   static Slip slip(const TermContext& c, const NodeFriction& f) {
-    const Vec3 d = c.state.x[static_cast<std::size_t>(f.node)] - f.reference;
-    const Vec3 u = d - f.normal.dot(d) * f.normal;
+    const Vec3 u = friction_slip(f, c.state.x[static_cast<std::size_t>(f.node)]);
     return {u, u.norm(), f.coefficient * f.normal_force};
   }
 
@@ -46,7 +45,7 @@ struct FrictionTerm {
     for (const NodeFriction& f : c.constraints->friction) {
       const Slip s = slip(c, f);
       const FrictionLaw law = friction_law(s.y, f.slip);
-      const Mat3 p = Mat3::Identity() - f.normal * f.normal.transpose();
+      const Mat3 p = Mat3::Identity() - f.normal * f.normal.transpose() - f.free * f.free.transpose();
       Mat3 h = law.force_per * p;
       if (s.y > 0.0) h += law.tangent * (s.u / s.y) * (s.u / s.y).transpose();
       add_block(sys, position_slot(f.node), position_slot(f.node), s.scale * h);

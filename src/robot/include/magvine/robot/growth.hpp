@@ -142,14 +142,14 @@ struct GrowthOptions {
   double contact_stiffness = 0.0;  ///< wall penalty k [N/m]; 0: automatic (the growth force at 2 % R depth)
   double max_length = std::numeric_limits<double>::infinity();  ///< the vine's made length [m]
   int max_contact_passes = 10;     ///< solves per step while the contact set settles (kPlanes)
-  ContactModel contact = ContactModel::kPlanes;
+  ContactModel contact = ContactModel::kBarrier;
   /// kBarrier: the barrier's activation distance d̂ [m]; 0: 2 % of the radius. The body rests within d̂ of the wall.
   double contact_distance = 0.0;
   /// kBarrier: the slip ε below which friction is static [m]; 0: 1 % of the radius.
   double friction_slip = 0.0;
   /// kBarrier: solves per step while the lagged normal forces settle (each to the solver's tolerance); the step
   /// fails (and is retried in halves) when they have not settled by then.
-  int max_friction_iterations = 20;
+  int max_friction_iterations = 40;
   /// kBarrier: the lagged normal forces have settled when their total change over the body is within this fraction
   /// of the total contact force (plus the growth force), and no node carrying more than 1 % of the largest force
   /// turns its contact axis by more than 0.01 rad.
@@ -373,6 +373,8 @@ class VineGrowth {
   std::vector<GrowthEvent> m_events;
   // kBarrier
   double m_tip_length = 0.0;          ///< the tip edge's made length [m] (between h/2 and 3h/2)
+  bool m_placing = false;             ///< the constructor everts the initial body: prescribed growth, no events
+  double m_tip_grown = 0.0;           ///< the tip's growth in the last step [m] (its friction's slip scale)
   double m_dhat = 0.0;                ///< d̂ [m]
   double m_slip = 0.0;                ///< ε [m]
   std::vector<Vec3> m_wall_force;     ///< per node, the wall's net force on the body at the last solve [N]

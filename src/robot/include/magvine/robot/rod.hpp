@@ -239,7 +239,9 @@ struct WallBarrier {
 /// the normal n held from the previous solve, u = (I − nnᵀ)(x − x_ref) the tangential slip from the reference,
 ///   D = μ λ f0(|u|),  f0(y) = y for y ≥ ε,  f0(y) = −y³/(3ε²) + y²/ε + ε/3 below,
 /// whose force −μλ f1(|u|) û saturates at the Coulomb limit μλ past the slip ε and is a stiff spring 2μλ/ε below it
-/// (static friction). terms/friction.hpp.
+/// (static friction). With a `free` direction f (unit, ⟂ n) the slip along f is free too: u = (I − nnᵀ − ffᵀ)(x −
+/// x_ref) (an everting tip advances along its tangent by laying new material down; sideways its material would
+/// slide). terms/friction.hpp.
 struct NodeFriction {
   int node = 0;
   Vec3 reference = Vec3::Zero();  ///< x_ref [m]
@@ -247,7 +249,11 @@ struct NodeFriction {
   double normal_force = 0.0;      ///< λ [N]
   double coefficient = 0.0;       ///< μ
   double slip = 0.0;              ///< ε [m], > 0
+  Vec3 free = Vec3::Zero();       ///< f: unit and ⟂ n, or zero (none)
 };
+
+/// The slip u = (I − nnᵀ − ffᵀ)(x − x_ref) of a node at x (NodeFriction) [m].
+Vec3 friction_slip(const NodeFriction& friction, const Vec3& x);
 
 /// The growth law on the tip edge (growth.hpp): the last edge's axial stretch law is replaced by the incremental
 /// potential of L̇ = K·(P − Y − F_obstacle/(πR²)) over one step dt: for an extension e of the tip edge past its
