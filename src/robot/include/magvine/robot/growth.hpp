@@ -19,7 +19,7 @@
 /// of a blocked tip below applies to eversion only. GrowthOptions::catheter pushes a solid tube instead of the vine,
 /// GrowthOptions::rod a (magnetic) rod at its own insertion speed.
 ///
-/// All of the above is the planes model (ContactModel::kPlanes, the default). ContactModel::kBarrier replaces the
+/// All of the above is the planes model (ContactModel::kPlanes). ContactModel::kBarrier, the default, replaces the
 /// planes, passes, anchors, incidence rule and energy test by one minimisation per step (see ContactModel).
 ///
 /// Growth law (PHYSICS.md §3, Blumenschein et al. 2017's form; the constants are not published for these robots):
@@ -81,7 +81,7 @@ enum class InsertionMode { kEversion, kPushed };
 /// first wave's scheme). kBarrier: one minimisation per step over the body with the wall as a barrier on the distance
 /// to its triangles (WallBarrier), lagged smoothed Coulomb friction (NodeFriction) iterated until the lagged normal
 /// forces stop changing, and the growth law as the tip edge's axial law (TipGrowth): the tip presses an obstacle
-/// with the growth force and stops there. docs/growth-and-contact.md.
+/// with the growth force and stops there; the default. docs/growth-and-contact.md.
 enum class ContactModel { kPlanes, kBarrier };
 
 /// A solid-walled tube pushed as a catheter (InsertionMode::kPushed only), in place of the vine's body: the
@@ -132,14 +132,16 @@ struct GrowthOptions {
   std::optional<PushedRod> rod;
   double edge_length = 0.0;        ///< h [m]; 0: the vine's radius
   double friction = 0.3;           ///< Coulomb μ between the body and the wall
-  /// The steepest angle between the tip's tangent and a wall it meets at which the tip still slides along the wall
+  /// kPlanes: the steepest angle between the tip's tangent and a wall it meets at which the tip still slides along the wall
   /// (Greer et al. 2020: shallow incidence deflects, steep incidence stops the tip); steeper: "blocked" [rad].
   /// 0: automatic, from Coulomb's law with `friction`: the growth force F along the tangent presses the wall with
   /// F sin α and drives the tip along it with F cos α, which beats the friction μF sin α for α < atan(1/μ) (73.3° at
   /// μ = 0.3). Whatever gets past this test must still pass the energy test of a step (VineGrowth::advance). Not a
   /// thesis number.
   double max_incidence = 0.0;
-  double contact_stiffness = 0.0;  ///< wall penalty k [N/m]; 0: automatic (the growth force at 2 % R depth)
+  /// The wall's penalty k (kPlanes) or barrier stiffness κ (kBarrier) [N/m]; 0: automatic (the growth force at 2 % R
+  /// depth).
+  double contact_stiffness = 0.0;
   double max_length = std::numeric_limits<double>::infinity();  ///< the vine's made length [m]
   int max_contact_passes = 10;     ///< solves per step while the contact set settles (kPlanes)
   ContactModel contact = ContactModel::kBarrier;
@@ -151,8 +153,8 @@ struct GrowthOptions {
   /// fails (and is retried in halves) when they have not settled by then.
   int max_friction_iterations = 40;
   /// kBarrier: the lagged normal forces have settled when their total change over the body is within this fraction
-  /// of the total contact force (plus the growth force), and no node carrying more than 1 % of the largest force
-  /// turns its contact axis by more than 0.01 rad.
+  /// of the total contact force (plus a vine's growth force), no node carrying more than 1 % of the largest force
+  /// turns its contact axis by more than 0.01 rad, and the tip's growth (its friction's slip scale) is within 10 %.
   double friction_tolerance = 1e-3;
   /// Magnetorheological stiffening of a magnetic-fluid fill (thesis 5.6.4: near the EPM the fluid stiffened and
   /// growth stopped until the magnet was withdrawn). Growth feeds the tip with fluid flowing along the body; a
@@ -166,7 +168,7 @@ struct GrowthOptions {
   /// length (a pressurised vine does not retract: the pull buckles it) and a "retract" event says so once.
   /// Negative: no retraction (the tether only caps growth).
   double retraction_pressure = -1.0;
-  double retry_interval = 0.5;     ///< a blocked tip tries to grow again after this long [s] (or when loads change)
+  double retry_interval = 0.5;     ///< kPlanes: a blocked tip tries to grow again after this long [s] (or when loads change)
   Vec3 gravity = Vec3(0.0, 0.0, -9.81);  ///< [m/s²] (bench phantoms: z up)
   RodSolveOptions solver = growth_solver_options();
 };
