@@ -62,8 +62,6 @@ double ring_crush_load(const CatheterTube& c, double g) {
   return std::max(0.0, c.outer_diameter - g) * c.modulus * t * t * t / (12.0 * 0.149 * r * r * r);
 }
 
-/// The body's radius as made: the catheter tube's or the pushed rod's when there is one, else the vine's. The edge
-/// length and the contacts follow it.
 /// The slower, surer solve after the step's own (growth_solver_options: Newton from the last equilibrium at the
 /// full load) failed: the loads ramped up from that state, to the same tolerance.
 RodSolveOptions ramped_solver(const RodSolveOptions& fast) {
@@ -74,6 +72,8 @@ RodSolveOptions ramped_solver(const RodSolveOptions& fast) {
   return o;
 }
 
+/// The body's radius as made: the catheter tube's or the pushed rod's when there is one, else the vine's. The edge
+/// length and the contacts follow it.
 double made_radius(const VineParameters& vine, const GrowthOptions& options) {
   if (options.catheter) return 0.5 * options.catheter->outer_diameter;
   if (options.rod) return options.rod->radius;
@@ -1062,7 +1062,7 @@ bool VineGrowth::barrier_step(double dt, double pressure, double cap, GrowthStep
   // (At the tether, cap = 0, the tether takes the tip's pressure force: nothing pushes the body.)
   if (dt > 0.0 && cap > 0.0) {
     if (pushed || solid_body() || m_placing) {
-      push = m_placing ? cap : std::min(report.speed * dt, cap);
+      push = m_placing ? cap * std::min(1.0, dt) : std::min(report.speed * dt, cap);  // placing: dt 1, or halves
       growth = {axial * push, axial, push};
     } else if (m_options.law.extensibility > 0.0) {
       if (m_world != nullptr) {
@@ -1218,6 +1218,7 @@ bool VineGrowth::barrier_step(double dt, double pressure, double cap, GrowthStep
     // The tip's slip scale settles with the rest: within 10 % (or ε).
     settled = change <= m_options.friction_tolerance * total &&
               std::abs(grown_now - tip_growth) <= 0.1 * std::max(tip_growth, m_slip);
+    // (Halfway after the first solve: a tip between growing and held would otherwise alternate.)
     tip_growth += (grown_now - tip_growth) * (k > 0 ? 0.5 : 1.0);
     const double tolerance = m_options.friction_tolerance * scale;
     for (std::size_t i = 1; i < nodes; ++i) {
