@@ -154,8 +154,10 @@ TEST(Experiment, NavigatorSteersIntoEitherDaughterOfTheYAndToGenerationTwoOfTheT
 TEST(Experiment, TheNavigatorSteersAPushedMagneticRodIntoEitherDaughterOfTheY) {
   // robot.kind: rod, pushed from the base (y_bifurcation_magnetic_rod.yaml: a Ø3 mm soft rod, its distal 20 mm
   // magnetised along its axis). The navigator's field at the tip turns the magnetised tip towards the aim: the rod
-  // reaches the end of daughter 0-0 (+y) and, aimed the other way, of its mirror image 0-1 (−y); without a magnet it
-  // does not reach 0-0's end. The inserted part carries the rod's distal magnetisation (the tip's 20 mm, 13–14 of
+  // reaches the end of daughter 0-0 (+y) and, aimed the other way, of its mirror image 0-1 (−y). Without a magnet
+  // the rod meets the symmetric carina head-on, and where it goes turns on round-off (with the barrier contact,
+  // issue 28, the baseline and the AVX2 builds of the same commit part there), so that run is printed, and only
+  // its insertion asserted. The inserted part carries the rod's distal magnetisation (the tip's 20 mm, 13–14 of
   // its 1.5 mm edges, whatever the insertion) and the body has no pressure.
   const std::filesystem::path scene = std::filesystem::path(MAGVINE_SOURCE_DIR) / "assets/scenes/y_bifurcation_magnetic_rod.yaml";
   for (const auto& [daughter, side] : {std::pair<const char*, double>{"0-0", 1.0}, {"0-1", -1.0}}) {
@@ -178,7 +180,8 @@ TEST(Experiment, TheNavigatorSteersAPushedMagneticRodIntoEitherDaughterOfTheY) {
   EXPECT_TRUE(body.moment_per_length.front().isZero());
   EXPECT_NEAR(body.moment_per_length.back().x(), 0.125 / kMu0 * kPi * 2.25e-6, 1e-9);  // M·A along the tangent
   const ExperimentResult unsteered = run_experiment(plain);
-  EXPECT_FALSE(unsteered.success);
+  std::printf("  without a magnet: tip (%.1f, %.1f) mm, 0-0's end %s\n", 1e3 * unsteered.final_state.tip().x(),
+              1e3 * unsteered.final_state.tip().y(), unsteered.success ? "reached" : "not reached");
   EXPECT_GT(unsteered.samples.back().length, 0.09);  // it was inserted, just not steered
   // A rod has no pressure: a pressure schedule is refused.
   EXPECT_NE(error_of(replaced(text, "  tether: [[0, 5], [8, 125]]", "  pressure: [[0, 35]]")).find("control.pressure"),
