@@ -1145,7 +1145,14 @@ bool VineGrowth::barrier_step(double dt, double pressure, double cap, GrowthStep
   // at the growth's rate), so Coulomb friction resists a sideways slip u with μλ·f1(|u|/ε_tip), ε_tip the tip's
   // growth in the step (a spinning top's friction: nearly viscous for a slip much slower than the growth), ε
   // when it does not grow. Held by the wall, its material stays the same: the reference stays where it was held.
-  if (!pushed && (!m_blocked || std::isnan(reference[tip].x()))) reference[tip] = m_state.x[tip];
+  if (!pushed && (!m_blocked || !has_anchor(reference[tip]))) reference[tip] = m_state.x[tip];
+  // The tip edge's growth in the current state: its extension past its made length, within the step's limit.
+  const auto tip_grown = [&] {
+    if (!(dt > 0.0 && growth.force > 0.0)) return 0.0;
+    const Vec3 edge = m_state.x[tip] - m_state.x[tip - 1];
+    const double extension = m_state.frames.back().col(0).dot(edge) - robot::edge_length(m_model, m_model.edges - 1);
+    return std::clamp(extension, 0.0, std::max(0.0, growth.limit));
+  };
   double tip_growth = m_blocked ? 0.0 : m_tip_grown;  // lagged, as λ
   const auto free_along = [&](std::size_t i, const Vec3& n) -> Vec3 {
     if (pushed || i != tip) return Vec3::Zero();
@@ -1156,7 +1163,7 @@ bool VineGrowth::barrier_step(double dt, double pressure, double cap, GrowthStep
     c.friction.clear();
     for (std::size_t i = 1; i < nodes && m_world != nullptr; ++i) {
       if (!(lambda[i] > 0.0) && !(strip[i] > 0.0)) continue;
-      if (std::isnan(reference[i].x())) reference[i] = m_state.x[i];
+      if (!has_anchor(reference[i])) reference[i] = m_state.x[i];
       const double slip = !pushed && i == tip ? std::max(m_slip, tip_growth) : m_slip;
       if (lambda[i] > 0.0) {
         c.friction.push_back({static_cast<int>(i), reference[i], axis[i], lambda[i], m_options.friction, slip,
@@ -1183,13 +1190,7 @@ bool VineGrowth::barrier_step(double dt, double pressure, double cap, GrowthStep
       return false;
     }
     if (m_world == nullptr) break;
-    // The tip's growth in this solve (the extension of its edge past its made length), for its friction's slip.
-    double grown_now = 0.0;
-    if (!pushed && dt > 0.0 && growth.force > 0.0) {
-      const Vec3 e = m_state.x[tip] - m_state.x[tip - 1];
-      grown_now = std::clamp(m_state.frames.back().col(0).dot(e) - robot::edge_length(m_model, m_model.edges - 1),
-                             0.0, std::max(0.0, growth.limit));
-    }
+    const double grown_now = pushed ? 0.0 : tip_grown();  // this solve's, for the tip friction's slip
     const std::vector<NodeWallForce> f = wall_barrier_forces(m_state, *c.wall);
     // The growth force of a vine is a load the wall carries when it blocks the tip; a pushed body's prescribed
     // insertion (a stiff spring to the push) is not, and would swamp the tolerance.
@@ -1300,9 +1301,7 @@ bool VineGrowth::barrier_step(double dt, double pressure, double cap, GrowthStep
   m_anchor = reference;
   // Growth: the tip edge's extension past its made length becomes made length; a tip edge of 3h/2 splits into an
   // edge of h and the rest.
-  const Vec3 edge = m_state.x[tip] - m_state.x[tip - 1];
-  const double extension = m_state.frames.back().col(0).dot(edge) - robot::edge_length(m_model, m_model.edges - 1);
-  const double grown = dt > 0.0 && growth.force > 0.0 ? std::clamp(extension, 0.0, std::max(0.0, growth.limit)) : 0.0;
+  const double grown = tip_grown();
   m_tip_length += grown;
   m_tip_grown = grown;
   while (m_tip_length >= 1.5 * m_h) {
