@@ -6,9 +6,7 @@ Left: a view (mm) on the plane of the run's two widest extents, or the one
 (when graph.json is there), the final body, the tip's path coloured by
 time, the magnets' path and the target, with the final body's nodes on the
 wall ringed (area following shape.csv's normal_N). Right: everted length, and
-the wall's largest normal force and total shear, against time; steps whose
-contacts did not settle (the `unsettled` column) are left out of those lines
-and marked as grey crosses at their largest normal force. A missing or malformed
+the wall's largest normal force and total shear, against time. A missing or malformed
 input gives one line on stderr, exit status 2 and no PNG.
 
     /usr/bin/python3 tools/plot_experiment.py RUN_DIR --out PNG [--title T] [--plane xy|xz|yz]
@@ -148,13 +146,9 @@ def main():
     ax2.set_xlabel("time [s]")
     ax2.set_ylabel("everted length [mm]")
     ax3 = ax2.twinx()
-    unsettled = np.asarray(tip["unsettled"], float) > 0 if "unsettled" in tip else np.zeros(len(tip["t_s"]), bool)
     for key, colour, label in (("max_normal_N", "tab:blue", "largest normal force on a node"),
                                ("total_shear_N", "tab:green", "total shear")):
-        ax3.plot(tip["t_s"], 1e3 * np.where(unsettled, np.nan, tip[key]), color=colour, lw=1, label=label)
-    if unsettled.any():
-        ax3.plot(tip["t_s"][unsettled], 1e3 * tip["max_normal_N"][unsettled], "x", color="0.5", ms=4,
-                 label="unsettled step (not an equilibrium): largest normal force")
+        ax3.plot(tip["t_s"], 1e3 * tip[key], color=colour, lw=1, label=label)
     ax3.set_ylabel("wall force [mN]")
     lines = ax2.get_lines() + ax3.get_lines()
     ax2.legend(lines, [line.get_label() for line in lines], loc="upper left", fontsize=8)

@@ -1,4 +1,4 @@
-// Wall contact that obeys statics (robot/growth.hpp, ContactModel::kBarrier; docs/growth-and-contact.md): the wall
+// Wall contact that obeys statics (robot/growth.hpp, docs/growth-and-contact.md): the wall
 // forces of a converged step against closed forms. A vine grown head-on into a tube's end cap presses it with the
 // growth law's own force (P − Y)·πR² (Blumenschein et al. 2017: at stall the obstacle carries what the yield does
 // not); a vine lying in a horizontal tube rests its weight on the wall.
@@ -21,12 +21,6 @@
 namespace magvine::robot {
 namespace {
 
-GrowthOptions barrier_options() {
-  GrowthOptions o;
-  o.contact = ContactModel::kBarrier;
-  return o;
-}
-
 struct Tube {
   anatomy::Phantom phantom;
   anatomy::CollisionWorld world;
@@ -42,7 +36,7 @@ TEST(WallStatics, AVineGrownHeadOnIntoAWallPressesItWithTheGrowthForce) {
   tp.length = 60e-3;
   const Tube tube(tp);
   for (const double pressure : {27e3, 31e3, 35e3}) {
-    GrowthOptions o = barrier_options();
+    GrowthOptions o = GrowthOptions{};
     o.gravity = Vec3::Zero();
     o.law.yield_pressure = 20e3;
     o.law.length_yield = 0.0;
@@ -74,7 +68,7 @@ TEST(WallStatics, AVineLyingInAHorizontalTubeRestsItsWeightOnTheWall) {
   tp.diameter = 8e-3;
   tp.length = 150e-3;
   const Tube tube(tp);
-  GrowthOptions o = barrier_options();
+  GrowthOptions o = GrowthOptions{};
   o.law.yield_pressure = 20e3;
   VineGrowth g(thesis_fluid_vine(10e-3), o, &tube.world, {}, Vec3(2e-3, 0.0, 0.0), Mat3::Identity());
   while (g.time() < 12.0) {
@@ -106,7 +100,7 @@ TEST(WallStatics, AMagnetPressingAVineOnAWallIsBalancedByTheWallsReaction) {
   magnetics::FieldModel epm;
   epm.add(magnetics::CylinderMagnet(50.8e-3, 101.6e-3, Vec3(0.0, 0.0, 1.48)),
           magnetics::Pose::from_axis(Vec3(40e-3, 0.0, -90e-3), Vec3::UnitZ()), "EPM");
-  GrowthOptions o = barrier_options();
+  GrowthOptions o = GrowthOptions{};
   o.gravity = Vec3::Zero();
   o.law.yield_pressure = 20e3;
   VineGrowth g(thesis_fluid_vine(10e-3), o, &tube.world, field_function(epm, epm.rest_poses), Vec3(2e-3, 0.0, 0.0),
@@ -140,7 +134,7 @@ TEST(WallStatics, EveryStepPastTheCarinaBalancesAndNoNodeLeavesTheLumen) {
   frame.col(0) = -Vec3::UnitZ();
   frame.col(1) = Vec3::UnitX();
   frame.col(2) = frame.col(0).cross(frame.col(1));
-  GrowthOptions o = barrier_options();
+  GrowthOptions o = GrowthOptions{};
   o.gravity = Vec3(9.81, 0.0, 0.0);
   o.law.yield_pressure = 20e3;
   VineGrowth g(thesis_fluid_vine(5e-3), o, &world, {}, Vec3(3e-3, 0.0, -70e-3), frame);

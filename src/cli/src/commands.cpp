@@ -215,13 +215,6 @@ int run_experiment_scene(const RunArgs& args, const std::filesystem::path& out) 
             << "; " << result.runtime_s << " s of computing -> " << out.string() << "/{metrics.json,tip_trajectory.csv,"
             << (sc.magnets ? "magnet_trajectory.csv," : "") << "events.json,shape.csv"
             << (sc.videos.empty() ? "" : ",videos (metrics.json: videos)") << "}\n";
-  if (const scene::UnsettledSteps u = scene::unsettled_steps(result); u.count > 0) {
-    std::cerr << "magvine run: " << u.count << " of " << result.samples.size()
-              << " steps ended with the body still moving against the wall (largest normal force there "
-              << printf_string("%.2f N", u.max_normal)
-              << "); their wall forces are not an equilibrium and are left out of the maxima (tip_trajectory.csv: "
-                 "unsettled)\n";
-  }
   return 0;
 }
 

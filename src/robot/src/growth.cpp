@@ -20,8 +20,7 @@ namespace magvine::robot {
 namespace {
 
 constexpr double kNone = std::numeric_limits<double>::quiet_NaN();
-// A node that moved less than this (times R) since its last wall query keeps that query's planes, and its depth is
-// taken as theirs: a plane's error over 2 % of R is second order (the wall's curvature times the move squared).
+// A node that moved less than this (times R) since its contact radius was measured keeps it.
 constexpr double kStill = 0.02;
 // A squeezed node's contact radius is this fraction of the lumen width w (a little slack between the two walls, so
 // the solver does not hold it at zero clearance from both); its physics (slot_area, flat_width) uses w itself. The
@@ -32,22 +31,7 @@ constexpr double kSlack = 0.45;
 // (VineGrowth::lumen_width): two leave a quarter of the offset in a round lumen.
 constexpr int kRecentrings = 2;
 
-bool has_anchor(const Vec3& a) { return !std::isnan(a.x()); }
-
-/// Direction d, heading into a wall of unit normal n, turned into the wall's plane (a tip sliding along it); d itself
-/// where it leaves the wall or there is none (n zero). Normalised.
-Vec3 along_wall(const Vec3& d, const Vec3& n) {
-  const double into = d.dot(n);
-  return into < 0.0 ? Vec3(d - into * n).normalized() : d.normalized();
-}
-
-/// The unit tangent of the body at node i (mean of its edges' tangents).
-Vec3 node_tangent(const RodState& s, std::size_t i) {
-  const std::size_t n = s.frames.size();
-  Vec3 t = s.frames[std::min(i, n - 1)].col(0);
-  if (i > 0 && i < n) t += s.frames[i - 1].col(0);
-  return t.normalized();
-}
+bool has_reference(const Vec3& a) { return !std::isnan(a.x()); }
 
 /// A tube of radius r squeezed into a slot of width g < 2r keeps its perimeter 2πr (a thin, inextensible film):
 /// its section is a stadium of width g, two flat strips of width πr − πg/2 against the walls joined by half
@@ -117,15 +101,10 @@ int VineGrowth::retract_to(double length, GrowthStepReport& report) {
   if (removed == 0) return 0;
   m_tip_length = m_h;
   rebuild_model(m_pressure);
-  m_anchor.resize(m_state.x.size());
-  m_anchor_normal.resize(m_state.x.size());
+  m_reference.resize(m_state.x.size());
   m_cache.resize(m_state.x.size());
-  if (m_options.contact == ContactModel::kBarrier) {
-    m_wall_force.resize(m_state.x.size());
-    if (!barrier_step(0.0, m_pressure, 0.0, report)) add_event(GrowthEventKind::kSolver, "after retracting: " + report.failure);
-    return removed;
-  }
-  if (!solve_with_wall(report)) add_event(GrowthEventKind::kSolver, "after retracting: " + report.failure);
+  m_wall_force.resize(m_state.x.size());
+  if (!barrier_step(0.0, m_pressure, 0.0, report)) add_event(GrowthEventKind::kSolver, "after retracting: " + report.failure);
   return removed;
 }
 
@@ -224,9 +203,11 @@ void check_growth(const VineParameters& vine, const GrowthOptions& options, cons
   check(finite_non_negative(options.friction), "friction", "friction must be finite and >= 0");
   check(finite_non_negative(options.contact_stiffness), "contact_stiffness", "contact_stiffness must be >= 0");
   check(finite_non_negative(options.edge_length), "edge_length", "edge_length must be finite and >= 0");
-  check(options.max_contact_passes >= 1, "max_contact_passes", "max_contact_passes must be >= 1");
-  check(options.max_incidence >= 0.0 && options.max_incidence < 0.5 * kPi, "max_incidence",
-        "max_incidence must be in [0, 90) degrees");
+  check(finite_non_negative(options.contact_distance), "contact_distance", "contact_distance must be finite and >= 0");
+  check(finite_non_negative(options.friction_slip), "friction_slip", "friction_slip must be finite and >= 0");
+  check(options.max_friction_iterations >= 1, "max_friction_iterations", "max_friction_iterations must be >= 1");
+  check(options.friction_tolerance > 0.0 && options.friction_tolerance < 1.0, "friction_tolerance",
+        "friction_tolerance must be in (0, 1)");
   check(!options.magnetorheology || vine.fill == FillKind::kMagneticFluid, "magnetorheology",
         "magnetorheology needs a magnetic-fluid fill");
   check(std::isfinite(options.retraction_pressure), "retraction_pressure", "retraction_pressure must be finite");
@@ -269,7 +250,6 @@ VineGrowth::VineGrowth(const VineParameters& vine, const GrowthOptions& options,
       m_base_position(base_position),
       m_base_frame(base_frame) {
   check_growth(vine, options, base_frame);
-  m_max_incidence = options.max_incidence > 0.0 ? options.max_incidence : std::atan2(1.0, options.friction);
   m_vine.radius = made_radius(vine, options);  // the edge length and the contacts follow a tube's or rod's radius
   m_h = options.edge_length > 0.0 ? options.edge_length : m_vine.radius;
   const int edges = std::max(1, static_cast<int>(std::lround(vine.length / m_h)));
@@ -280,54 +260,49 @@ VineGrowth::VineGrowth(const VineParameters& vine, const GrowthOptions& options,
   m_slip = options.friction_slip > 0.0 ? options.friction_slip : 0.01 * m_vine.radius;
   rebuild_model(vine.pressure);  // validates the vine (VineParameterError)
   m_state = straight_rod(m_model);
-  m_anchor.assign(m_state.x.size(), Vec3::Constant(kNone));
-  m_anchor_normal.assign(m_state.x.size(), Vec3::Zero());
-  m_normal_force.assign(m_state.x.size(), 0.0);
+  m_reference.assign(m_state.x.size(), Vec3::Constant(kNone));
+  m_contact_axis.assign(m_state.x.size(), Vec3::Zero());
+  m_contact_force.assign(m_state.x.size(), 0.0);
   GrowthStepReport report;
-  if (options.contact == ContactModel::kBarrier) {
-    // The body as made lies straight along the base's tangent. Where that would put a node's sphere into the
-    // wall by more than d̂ (a base aimed at it), the body is cut before that node and everted from there to its
-    // made length as a vine grows: the tip edge lengthened by at most h/2 a step, no time passing (a barrier
-    // needs a start clear of the wall; shrinking such a node's contact radius would leave it in the tissue).
-    const double made = m_model.length;
-    std::size_t fit = m_state.x.size();
-    for (std::size_t i = 1; i < m_state.x.size() && m_world != nullptr; ++i) {
-      std::array<anatomy::NearTriangle, 1> near{};
-      if (!m_world->contains(m_state.x[i]) ||
-          (m_world->triangles_within(m_state.x[i], m_radius, near) > 0 && near[0].distance < m_radius - m_dhat)) {
-        fit = i;
-        break;
-      }
+  // The body as made lies straight along the base's tangent. Where that would put a node's sphere into the
+  // wall by more than d̂ (a base aimed at it), the body is cut before that node and everted from there to its
+  // made length as a vine grows: the tip edge lengthened by at most h/2 a step, no time passing (a barrier
+  // needs a start clear of the wall; shrinking such a node's contact radius would leave it in the tissue).
+  const double made = m_model.length;
+  std::size_t fit = m_state.x.size();
+  for (std::size_t i = 1; i < m_state.x.size() && m_world != nullptr; ++i) {
+    std::array<anatomy::NearTriangle, 1> near{};
+    if (!m_world->contains(m_state.x[i]) ||
+        (m_world->triangles_within(m_state.x[i], m_radius, near) > 0 && near[0].distance < m_radius - m_dhat)) {
+      fit = i;
+      break;
     }
-    if (fit < m_state.x.size()) {
-      m_vine.edges = std::max(1, static_cast<int>(fit) - 1);
-      rebuild_model(vine.pressure);
-      m_state = straight_rod(m_model);
-      m_anchor.assign(m_state.x.size(), Vec3::Constant(kNone));
-      m_normal_force.assign(m_state.x.size(), 0.0);
-    }
-    m_wall_force.assign(m_state.x.size(), Vec3::Zero());
-    m_anchor_normal.assign(m_state.x.size(), Vec3::Zero());
-    if (!barrier_step(0.0, vine.pressure, 0.0, report)) {
-      add_event(GrowthEventKind::kSolver, "initial equilibrium: " + report.failure);
-      return;
-    }
-    m_placing = true;
-    while (m_model.length < made - 1e-9 * m_h) {
-      const double before = m_model.length;
-      const double step = std::min(0.5 * m_h, made - m_model.length);
-      if (!barrier_steps(1.0, vine.pressure, step, report) || m_model.length < before + 0.01 * step) {
-        add_event(GrowthEventKind::kSolver,
-                  printf_string("initial body: %.1f of its %.1f mm everted into the lumen (%s)", 1e3 * m_model.length,
-                                1e3 * made, report.failure.empty() ? "the wall holds the tip" : report.failure.c_str()));
-        break;
-      }
-    }
-    m_placing = false;
-    report = GrowthStepReport{};
+  }
+  if (fit < m_state.x.size()) {
+    m_vine.edges = std::max(1, static_cast<int>(fit) - 1);
+    rebuild_model(vine.pressure);
+    m_state = straight_rod(m_model);
+    m_reference.assign(m_state.x.size(), Vec3::Constant(kNone));
+    m_contact_force.assign(m_state.x.size(), 0.0);
+  }
+  m_wall_force.assign(m_state.x.size(), Vec3::Zero());
+  m_contact_axis.assign(m_state.x.size(), Vec3::Zero());
+  if (!barrier_step(0.0, vine.pressure, 0.0, report)) {
+    add_event(GrowthEventKind::kSolver, "initial equilibrium: " + report.failure);
     return;
   }
-  if (!solve_with_wall(report)) add_event(GrowthEventKind::kSolver, "initial equilibrium: " + report.failure);
+  m_placing = true;
+  while (m_model.length < made - 1e-9 * m_h) {
+    const double before = m_model.length;
+    const double step = std::min(0.5 * m_h, made - m_model.length);
+    if (!barrier_steps(1.0, vine.pressure, step, report) || m_model.length < before + 0.01 * step) {
+      add_event(GrowthEventKind::kSolver,
+                printf_string("initial body: %.1f of its %.1f mm everted into the lumen (%s)", 1e3 * m_model.length,
+                              1e3 * made, report.failure.empty() ? "the wall holds the tip" : report.failure.c_str()));
+      break;
+    }
+  }
+  m_placing = false;
 }
 
 void VineGrowth::rebuild_model(double pressure) {
@@ -343,10 +318,9 @@ void VineGrowth::rebuild_model(double pressure) {
   } else {
     m_model = vine_rod(v);
   }
-  if (m_options.contact == ContactModel::kBarrier) {  // the tip edge keeps its own made length
-    m_model.length = (m_vine.edges - 1) * m_h + m_tip_length;
-    m_model.tip_edge_length = m_vine.edges > 1 ? m_tip_length : 0.0;
-  }
+  // The tip edge keeps its own made length.
+  m_model.length = (m_vine.edges - 1) * m_h + m_tip_length;
+  m_model.tip_edge_length = m_vine.edges > 1 ? m_tip_length : 0.0;
   m_model.base_position = m_base_position;
   m_model.base_frame = m_base_frame;
   m_model.gravity = m_options.gravity;
@@ -383,342 +357,6 @@ std::string_view growth_event_name(GrowthEventKind kind) {
   return "unknown";
 }
 
-bool VineGrowth::solve_with_wall(GrowthStepReport& report) {
-  const std::size_t nodes = m_state.x.size();
-  m_cache.resize(nodes);
-  m_anchor.resize(nodes, Vec3::Constant(kNone));
-  m_anchor_normal.resize(nodes, Vec3::Zero());
-  m_normal_force.assign(nodes, 0.0);
-  std::vector<double> previous_force(nodes, 0.0);
-  std::array<anatomy::Contact, kContactsPerNode> found{};
-  RodConstraints c;
-  const double tolerance = 1e-2 * m_radius;  // contact set settled: planes predict every depth to 1 % of R
-  // Planes are kept for nodes within `margin` of the wall, and a node that moves farther than that in a solve is
-  // queried again. It starts at R/4 and grows to 1.5 times the largest move of the last solve (at most R), so a
-  // free span that swings across a wide lumen finds the walls it swings towards within a few passes. (At most 2R
-  // cost a quarter more time through the tree's carina, bench_growth: the query's triangles grow with its area.)
-  double margin = 0.25 * m_radius;
-  std::vector<Vec3> queried(nodes);
-  std::vector<char> has_planes(nodes, 0);
-  std::vector<double> radius(nodes, m_radius);
-  const double mu = m_options.friction;
-  const double smoothing = 0.01 * m_radius;  // the contact law's C² zone (NodeContact::smoothing)
-  const bool pushed = m_options.mode == InsertionMode::kPushed;
-  std::vector<Vec3> wall_force(nodes, Vec3::Zero());  // on the body, per node
-  const std::vector<Vec3> start = pushed ? m_state.x : std::vector<Vec3>{};  // where each node began the step
-  // Per node, an orthonormal basis of the normals of the planes pressing it: a wall, not friction, holds a node
-  // along them, so the shear is the anchor's force with those directions removed (two jaws and a floor leave only
-  // the direction along the slot).
-  std::vector<std::array<Vec3, 3>> pressed(nodes);
-  std::vector<int> pressed_count(nodes, 0);
-  const auto free_part = [&](std::size_t i, Vec3 v) {
-    for (int b = 0; b < pressed_count[i]; ++b) v -= pressed[i][static_cast<std::size_t>(b)].dot(v) * pressed[i][static_cast<std::size_t>(b)];
-    return v;
-  };
-  // Walls a node's centre passed through in a solve (its planes came from where it started, and a large move can
-  // carry it past walls it had not met): the pass is undone and the wall kept as a plane for that node for the rest
-  // of the step, facing the side it came from (continuous collision for a swing across an obstacle).
-  std::vector<NodeContact> crossed;
-  // Pushed mode: planes kept for a node that swung back in a solve. On a curved wall the planes queried at one
-  // position push a sliding node to another, whose planes (and the friction of the new normal force) push it back: a
-  // two-cycle that never settles. Keeping the planes of each swing (up to kMaxHolds) for the rest of the step holds
-  // it between them.
-  std::vector<NodeContact> held;
-  std::vector<int> holds(nodes, 0);
-  constexpr int kMaxHolds = 3;
-  std::vector<Vec3> last_move(nodes, Vec3::Zero());
-  RodState before;
-  bool still_moving = false;  // the passes ran out with a node still moving (WallForces::unsettled)
-  for (int pass = 0; pass < m_options.max_contact_passes; ++pass) {
-    ++report.contact_passes;
-    c.contacts.clear();
-    c.anchors.clear();
-    c.forces.clear();
-    if (m_world != nullptr) {
-      for (std::size_t i = 1; i < nodes; ++i) {
-        queried[i] = m_state.x[i];
-        PlaneCache& cache = m_cache[i];
-        // A node that has not moved since its last query (an anchored node on the wall, most of an everted body)
-        // keeps that query's planes: the sphere queries are most of a step's cost.
-        if (!(cache.reach >= m_radius + margin && (m_state.x[i] - cache.at).norm() <= kStill * m_radius)) {
-          cache.at = m_state.x[i];
-          cache.reach = m_radius + margin;
-          cache.count = m_world->sphere_contacts(m_state.x[i], cache.reach, cache.found);
-        }
-        has_planes[i] = cache.count > 0;
-        // Squeezed where the lumen across the body is narrower than its diameter, the section flattens (radial
-        // compliance, slot_area): the node's contact radius is half that width, and the pressure, not the
-        // penalty, presses on the walls (below).
-        if (has_planes[i] && !((m_state.x[i] - cache.radius_at).norm() <= kStill * m_radius)) {
-          cache.radius_at = m_state.x[i];
-          cache.radius = node_radius(m_state.x[i], m_state.frames[std::min(i, nodes - 2)], &cache.across);
-        }
-        radius[i] = has_planes[i] ? cache.radius : m_radius;
-        for (std::size_t q = 0; q < cache.count; ++q) {
-          // Radius r − ε: the law's smooth zone then starts where the body touches the wall (d = 0), so a node
-          // resting on a wall with a light load sits at the clamp's height, not ε off it.
-          const anatomy::Contact& k = cache.found[q];
-          c.contacts.push_back({static_cast<int>(i), k.point, k.normal, radius[i] - smoothing, m_stiffness, smoothing});
-        }
-      }
-    }
-    for (std::size_t i = 1; i < nodes; ++i) {
-      if (!pushed && has_anchor(m_anchor[i])) {
-        c.anchors.push_back({static_cast<int>(i), m_anchor[i], m_anchor_normal[i], m_stiffness});
-      }
-      if (pushed && m_normal_force[i] > 0.0) {
-        // Kinetic friction against the sliding velocity h·t + δ (δ the node's sideways move in this step):
-        // μF_n along −t, and sideways μF_n·δ/h for δ ≪ h, a spring of stiffness μF_n/h (the anchor below).
-        const Vec3 t = node_tangent(m_state, i);
-        c.forces.push_back({static_cast<int>(i), -mu * m_normal_force[i] * t});
-        c.anchors.push_back({static_cast<int>(i), start[i], t, mu * m_normal_force[i] / m_h});
-      }
-    }
-    c.contacts.insert(c.contacts.end(), crossed.begin(), crossed.end());
-    c.contacts.insert(c.contacts.end(), held.begin(), held.end());
-    if (m_world != nullptr) before = m_state;
-    const RodSolveReport r = solve_rod_statics(m_model, m_field, m_state, m_options.solver, &m_workspace, &c);
-    report.newton_iterations += r.iterations;
-    if (!r.converged) {
-      report.converged = false;
-      report.failure = r.failure;
-      return false;
-    }
-    bool tunnelled = false;
-    for (std::size_t i = 1; i < nodes && m_world != nullptr; ++i) {
-      const Vec3 path = m_state.x[i] - before.x[i];
-      const double length = path.norm();
-      if (length < 0.25 * m_radius) continue;  // shorter than any wall's planes allow to go unnoticed
-      const std::optional<anatomy::RayHit> hit = m_world->ray_cast(before.x[i], path / length, length);
-      if (!hit) continue;
-      crossed.push_back({static_cast<int>(i), hit->point, hit->normal, radius[i] - smoothing, m_stiffness, smoothing});
-      tunnelled = true;
-    }
-    if (tunnelled) {
-      m_state = before;
-      if (pass + 1 == m_options.max_contact_passes) {
-        report.converged = false;
-        report.failure = "the body kept passing through the wall in " + std::to_string(m_options.max_contact_passes) +
-                         " solves";
-        return false;
-      }
-      continue;
-    }
-    for (std::size_t i = 1; i < nodes && pushed && m_world != nullptr; ++i) {
-      const Vec3 move = m_state.x[i] - before.x[i];
-      if (holds[i] < kMaxHolds && has_planes[i] &&
-          move.dot(last_move[i]) < -0.25 * move.norm() * last_move[i].norm()) {
-        ++holds[i];
-        const PlaneCache& cache = m_cache[i];
-        for (std::size_t q = 0; q < cache.count; ++q) {
-          const anatomy::Contact& k = cache.found[q];
-          held.push_back({static_cast<int>(i), k.point, k.normal, radius[i] - smoothing, m_stiffness, smoothing});
-        }
-      }
-      last_move[i] = move;
-    }
-    // Wall forces from the planes at the solved state, and whether fresh queries agree with the planes.
-    std::fill(wall_force.begin(), wall_force.end(), Vec3::Zero());
-    std::vector<double> plane_depth(nodes, 0.0);
-    std::fill(pressed_count.begin(), pressed_count.end(), 0);
-    std::vector<double> nearest(nodes, -std::numeric_limits<double>::infinity());  // deepest plane's depth
-    for (std::size_t i = 1; i < nodes; ++i) {  // a pinched section is held across the pinch by its two walls
-      if (radius[i] < m_radius) pressed[i][static_cast<std::size_t>(pressed_count[i]++)] = m_cache[i].across;
-    }
-    for (const NodeContact& p : c.contacts) {
-      const auto i = static_cast<std::size_t>(p.node);
-      const double depth = p.radius - p.normal.dot(m_state.x[i] - p.point);
-      plane_depth[i] = std::max(plane_depth[i], depth + smoothing);
-      nearest[i] = std::max(nearest[i], depth);
-      if (depth <= -smoothing) continue;
-      const double s = depth + smoothing;
-      const double f = depth >= smoothing ? p.stiffness * depth : p.stiffness * s * s / (4.0 * smoothing);
-      wall_force[i] += f * p.normal;
-      if (f > 0.0 && pressed_count[i] < 3) {
-        const Vec3 rest = free_part(i, p.normal);
-        if (rest.norm() > 0.85) pressed[i][static_cast<std::size_t>(pressed_count[i]++)] = rest.normalized();
-      }
-    }
-    // Settled: the planes predict every depth (1 % of R) and no node moved past its planes' margin. Safe: no node
-    // sits deeper in the wall than the planes allow (5 % of R beyond their prediction) or moved past the margin;
-    // a step whose passes run out while only the friction (slips, pushed-mode forces) or small depth differences
-    // are still changing is accepted as safe, and the friction carries on settling in the next step.
-    bool settled = true;
-    bool safe = true;
-    double largest_move = 0.0;
-    for (std::size_t i = 1; i < nodes && m_world != nullptr; ++i) {
-      const double move = (m_state.x[i] - queried[i]).norm();
-      largest_move = std::max(largest_move, move);
-      // A node that had no wall within R + margin and moved less than the margin cannot touch one; a node that has
-      // hardly moved since its query (kStill) has its planes' depth: no query.
-      const PlaneCache& cache = m_cache[i];
-      double depth = 0.0;
-      if ((m_state.x[i] - cache.at).norm() <= kStill * m_radius) {
-        depth = std::max(0.0, plane_depth[i]);
-      } else if (has_planes[i] || move >= margin) {
-        const std::size_t k = m_world->sphere_contacts(m_state.x[i], m_radius, found);
-        depth = k > 0 ? std::max(0.0, found[0].depth - (m_radius - radius[i])) : 0.0;
-      }
-      if (std::abs(depth - plane_depth[i]) > tolerance || move > margin) settled = false;
-      if (depth - plane_depth[i] > 5.0 * tolerance || move > margin) safe = false;
-    }
-    previous_force = m_normal_force;
-    for (std::size_t i = 0; i < nodes; ++i) {
-      m_normal_force[i] = wall_force[i].norm();
-      // A flattened section presses each of the two walls with P over its flat strip, 2·P·(πR − πg/2)·h; a
-      // pinched catheter with its ring's line load, 2·q(g)·h.
-      if (radius[i] < m_radius) {
-        const double g = radius[i] / kSlack;
-        m_normal_force[i] += 2.0 * m_h *
-                             (m_options.catheter ? ring_crush_load(*m_options.catheter, g)
-                                                 : m_pressure * flat_width(m_radius, g));
-      }
-      // A node that swung back (pushed mode): its friction (μ·F_n from the last pass) follows the mean of the last
-      // two normal forces, which damps the two-cycle the friction otherwise keeps up.
-      if (holds[i] > 0) m_normal_force[i] = 0.5 * (m_normal_force[i] + previous_force[i]);
-    }
-    if (pushed) {
-      for (std::size_t i = 1; i < nodes; ++i) {
-        if (std::abs(m_normal_force[i] - previous_force[i]) > 1e-3 * (m_normal_force[i] + 1e-9)) settled = false;
-      }
-    } else {
-      // Static friction: anchor nodes where they touch, release them when they leave the wall, and let an anchor
-      // slip to the Coulomb limit when it holds more than μ·F_n.
-      for (std::size_t i = 1; i < nodes; ++i) {
-        const double fn = m_normal_force[i];
-        if (fn <= 0.0) {
-          // Off the wall by more than 2 % of R (a node lifted by a hair keeps its hold, else the anchors flicker
-          // as the body settles): released, and solved again without it if it held the node.
-          if (has_anchor(m_anchor[i]) && nearest[i] < -kStill * m_radius) {
-            if ((m_state.x[i] - m_anchor[i]).norm() > 1e-6 * m_radius) settled = false;
-            m_anchor[i] = Vec3::Constant(kNone);
-          }
-          continue;
-        }
-        // The anchor's wall normal: the planes' push over the whole normal force, a unit vector for a node held by
-        // its planes. For a pinched section, whose flattened strips' pressure carries most of F_n, it is shorter,
-        // and the anchor then also holds the node across the wall (I − nnᵀ keeps part of n): the two jaws grip it.
-        const Vec3 n = wall_force[i] / fn;
-        if (!has_anchor(m_anchor[i])) {
-          m_anchor[i] = m_state.x[i];
-          m_anchor_normal[i] = n;
-          continue;
-        }
-        const Vec3 d = m_state.x[i] - m_anchor[i];
-        const Vec3 tangential = d - m_anchor_normal[i].dot(d) * m_anchor_normal[i];
-        const double ft = m_stiffness * tangential.norm();
-        if (ft > mu * fn * (1.0 + 1e-6)) {
-          const Vec3 slip = tangential * (1.0 - mu * fn / ft);
-          m_anchor[i] += slip;
-          // Another solve only for a slip that matters: a tiny one converges slowly (each solve gives back part of
-          // it) and changes nothing at the scale of the body.
-          if (slip.norm() > 1e-3 * m_radius) settled = false;
-        }
-      }
-    }
-    if (settled) break;
-    if (pass + 1 == m_options.max_contact_passes && safe) {
-      still_moving = largest_move > kUnsettledMove * m_radius;
-      break;
-    }
-    if (pass + 1 == m_options.max_contact_passes) {
-      report.converged = false;
-      report.failure = "the wall contacts did not settle in " + std::to_string(m_options.max_contact_passes) +
-                       " solves (a node moved more than " + printf_string("%.2f mm", 1e3 * margin) +
-                       " past its contact planes or sank 5 % of R deeper into the wall than they allow)";
-      return false;
-    }
-    margin = std::clamp(1.5 * largest_move, 0.25 * m_radius, 1.0 * m_radius);
-  }
-  // Tissue forces (the last solve's).
-  m_forces = WallForces{};
-  m_forces.unsettled = still_moving;
-  m_forces.normal.assign(nodes, 0.0);
-  m_forces.shear.assign(nodes, 0.0);
-  for (std::size_t i = 1; i < nodes; ++i) {
-    const double fn = m_normal_force[i];
-    double shear = 0.0;
-    if (pushed) {
-      shear = mu * fn;
-    } else if (has_anchor(m_anchor[i])) {
-      const Vec3 d = m_state.x[i] - m_anchor[i];
-      shear = m_stiffness * free_part(i, d - m_anchor_normal[i].dot(d) * m_anchor_normal[i]).norm();
-    }
-    m_forces.normal[i] = fn;
-    m_forces.shear[i] = shear;
-    m_forces.max_normal = std::max(m_forces.max_normal, fn);
-    m_forces.total_normal += fn;
-    m_forces.max_shear = std::max(m_forces.max_shear, shear);
-    m_forces.total_shear += shear;
-    if (fn > 0.0) ++m_forces.nodes_in_contact;
-  }
-  if (m_forces.nodes_in_contact > 0) m_forces.mean_normal = m_forces.total_normal / m_forces.nodes_in_contact;
-  m_energy = rod_energy(m_model, m_field, m_state, 1.0, &c);
-  return true;
-}
-
-double VineGrowth::steepest_wall(const Vec3& x, double radius, const Vec3& tangent, Vec3* normal) const {
-  std::array<anatomy::Contact, kContactsPerNode> found{};
-  const std::size_t k = m_world->sphere_contacts(x, radius, found);
-  double most = 0.0;
-  for (std::size_t q = 0; q < k; ++q) {
-    const double a = std::asin(std::clamp(-found[q].normal.dot(tangent), -1.0, 1.0));
-    if (a > most && normal != nullptr) *normal = found[q].normal;
-    most = std::max(most, a);
-  }
-  return most;
-}
-
-double VineGrowth::roll_off_crest(const Vec3& tangent, const Vec3& normal, double incidence) {
-  // A convex ridge met nearly head-on (a carina's crest) is no wall to slide along: the pushed, rounded tip is
-  // unstable on it (a ball pushed onto a crest) and rolls off, friction or not. Tried: the new edge turned so that
-  // the tip moves sideways by R/4, R/2 or R, in 8 directions around the tangent (the first towards the side it leans
-  // to); a shift counts where the wall there falls away in that direction (its normal leans along the shift, so the
-  // push drives the tip further off: convex), or is gone, and is met no steeper than max_incidence. The least steep
-  // such shift is taken, turned into that flank's plane as any wall met at a shallow angle. A flat wall keeps its
-  // normal and a concave one (a blind end, a bowl) turns it back against the shift: both still block.
-  // (Test ATipMeetingACarinaHeadOnRollsOffIntoADaughterButAFlatWallHoldsIt.)
-  Vec3 lean = normal - normal.dot(tangent) * tangent;
-  if (lean.norm() < 1e-9) lean = tangent.unitOrthogonal();
-  const Vec3 e1 = lean.normalized();
-  const Vec3 e2 = tangent.cross(e1);
-  const Vec3& from = m_state.x[m_state.x.size() - 2];
-  const Vec3 ahead = m_state.x.back() - from;
-  double best = m_max_incidence;
-  Vec3 best_direction = Vec3::Zero();
-  for (const double shift : {0.25 * m_radius, 0.5 * m_radius, m_radius}) {
-    for (int k = 0; k < 8; ++k) {
-      const double phi = kPi / 4.0 * k;
-      const Vec3 across = std::cos(phi) * e1 + std::sin(phi) * e2;
-      const Vec3 direction = (ahead + shift * across).normalized();
-      const Vec3 x = from + m_h * direction;
-      Vec3 there = Vec3::Zero();
-      const double a = steepest_wall(x, node_radius(x, m_state.frames.back()), tangent, &there);
-      if (a < best && (there.squaredNorm() == 0.0 || there.dot(across) > 0.05)) {
-        best = a;
-        best_direction = along_wall(direction, there);
-      }
-    }
-    if (best < m_max_incidence) break;
-  }
-  if (!(best < m_max_incidence)) return incidence;
-  const Vec3 was = m_state.frames.back().col(0);
-  m_state.frames.back() =
-      Eigen::Quaterniond::FromTwoVectors(was, best_direction).toRotationMatrix() * m_state.frames.back();
-  m_state.x.back() = from + m_h * best_direction;
-  return best;
-}
-
-bool VineGrowth::solve_with_wall_ramped(GrowthStepReport& report) {
-  const RodSolveOptions fast = m_options.solver;
-  m_options.solver = ramped_solver(fast);
-  report.converged = true;
-  report.failure.clear();
-  const bool solved = solve_with_wall(report);
-  m_options.solver = fast;
-  return solved;
-}
-
 GrowthStepReport VineGrowth::advance(double dt, const GrowthControl& control) {
   GrowthStepReport report;
   if (!(dt > 0.0) || !std::isfinite(dt)) throw InputError("vine growth: dt must be > 0");
@@ -741,17 +379,13 @@ GrowthStepReport VineGrowth::advance(double dt, const GrowthControl& control) {
                                      p / kKpaToPa, hoop / 1e6, m_vine.wall_strength / 1e6));
     return report;
   }
-  if (p != m_pressure) {
-    rebuild_model(p);
-    m_dirty = true;
-    m_loads_failed = false;
-  }
+  if (p != m_pressure) rebuild_model(p);
   if (m_options.rod) {
     report.speed = m_options.rod->insertion_speed;  // pushed up to the tether: no pressure, no growth law
   } else {
     const GrowthLaw& law = m_options.law;
     report.magnetorheological_yield = magnetorheological_yield();
-    const GrowthRate rate = growth_rate(law, p, m_model.length + m_pending /* the grown length, whole edges or not */,
+    const GrowthRate rate = growth_rate(law, p, m_model.length,
                                         turning(), report.magnetorheological_yield);
     const double length_term = rate.length_term;
     const double turning_term = rate.turning_term;
@@ -776,12 +410,10 @@ GrowthStepReport VineGrowth::advance(double dt, const GrowthControl& control) {
   }
   // Retraction: a tether pulled back below the everted length inverts the tip of a deflated vine.
   if (m_options.retraction_pressure >= 0.0 && control.tether_length < m_model.length - 1e-9 * m_h) {
-    m_pending = 0.0;
     if (p <= m_options.retraction_pressure) {
       m_retract_refused = false;
       const int removed = retract_to(control.tether_length, report);
       report.edges_removed = removed;
-      if (removed > 0) m_recent.clear();  // the energy window starts again from the new tip
       if (removed > 0 && !m_retracting) {
         m_retracting = true;
         add_event(GrowthEventKind::kRetract, printf_string("the tether pulls the deflated vine (%.2f kPa) back from %.1f mm",
@@ -795,218 +427,16 @@ GrowthStepReport VineGrowth::advance(double dt, const GrowthControl& control) {
                               1e3 * control.tether_length, p / kKpaToPa, m_options.retraction_pressure / kKpaToPa));
     }
   }
-  if (m_options.contact == ContactModel::kBarrier) {
-    const double cap = std::max(0.0, std::min(control.tether_length, m_options.max_length) - m_model.length);
-    const double before = m_model.length;
-    if (!barrier_steps(dt, p, cap, report)) {
-      report.converged = false;
-      report.stalled = true;
-      add_event(GrowthEventKind::kSolver, "step failed: " + report.failure);
-      return report;
-    }
-    report.stalled = m_model.length <= before;
-    if (report.edges_added > 0) m_retracting = false;
-    m_dirty = false;
-    return report;
-  }
-  const double cap = std::min(control.tether_length, m_options.max_length) - (m_model.length + m_pending);
-  m_pending += std::clamp(report.speed * dt, 0.0, std::max(0.0, cap));
-  if (m_blocked) m_pending = std::min(m_pending, m_h);  // a blocked tip does not store growth
-  if (m_dirty && m_loads_failed && m_time - m_loads_failed_at < m_options.retry_interval) {
-    // These loads failed to converge lately: the body keeps its last equilibrium until they change again or
-    // retry_interval has passed (each try can cost a whole ramp).
+  const double cap = std::max(0.0, std::min(control.tether_length, m_options.max_length) - m_model.length);
+  const double before = m_model.length;
+  if (!barrier_steps(dt, p, cap, report)) {
     report.converged = false;
-    report.failure = "the new loads have no equilibrium yet (retried every " +
-                     printf_string("%.2f s", m_options.retry_interval) + ")";
     report.stalled = true;
-    m_pending = std::min(m_pending, m_h);  // a body without equilibrium does not store growth either
+    add_event(GrowthEventKind::kSolver, "step failed: " + report.failure);
     return report;
   }
-  if (m_dirty) {
-    // The pressure or the field changed: the body finds its new equilibrium first (or keeps the last one), so the
-    // energy balance of growing starts from the new loads.
-    const RodState old_state = m_state;
-    const std::vector<Vec3> old_anchor = m_anchor;
-    const std::vector<Vec3> old_normal = m_anchor_normal;
-    const std::vector<double> old_force = m_normal_force;
-    bool solved = solve_with_wall(report);
-    if (!solved) {
-      // A large change at once (a magnet brought close to a deflated body): ramp the loads up from the last
-      // equilibrium instead.
-      m_state = old_state;
-      m_anchor = old_anchor;
-      m_anchor_normal = old_normal;
-      solved = solve_with_wall_ramped(report);
-    }
-    if (!solved) {
-      // Keep the last equilibrium (under the old loads), report the failure and try again later.
-      if (!m_loads_failed) add_event(GrowthEventKind::kSolver, "new loads: " + report.failure);
-      m_loads_failed = true;
-      m_loads_failed_at = m_time;
-      m_state = old_state;
-      m_anchor = old_anchor;
-      m_anchor_normal = old_normal;
-      m_normal_force = old_force;
-      report.stalled = true;
-      m_pending = std::min(m_pending, m_h);
-      return report;
-    }
-    m_loads_failed = false;
-  }
-  // A blocked tip tries again only when the loads changed or retry_interval has passed (each try is a full solve).
-  const bool may_try = !m_blocked || m_dirty || m_time - m_last_try >= m_options.retry_interval;
-  while (may_try && m_pending >= m_h * (1.0 - 1e-12)) {
-    m_last_try = m_time;
-    const RodModel old_model = m_model;
-    const RodState old_state = m_state;
-    const std::vector<Vec3> old_anchor = m_anchor;
-    const std::vector<Vec3> old_normal = m_anchor_normal;
-    const std::vector<double> old_force = m_normal_force;
-    const WallForces old_forces = m_forces;
-    // New material at the tip, along the tip's tangent; where that runs into the wall, the first guess for the
-    // solver turns it into the wall's tangent plane (the tip slides along a wall it meets at a shallow angle,
-    // Greer et al. 2020), so Newton starts near the equilibrium instead of pushing the new node out of the wall.
-    ++m_vine.edges;
-    rebuild_model(p);
-    Mat3 frame = m_state.frames.back();
-    Vec3 next = m_state.x.back() + m_h * frame.col(0);
-    if (m_world != nullptr) {
-      std::array<anatomy::Contact, kContactsPerNode> found{};
-      // Heading into a narrowing the tip flattens (node_radius) rather than sliding off the narrowing's edges.
-      const double r = node_radius(next, frame);
-      for (int turn = 0; turn < 2; ++turn) {
-        const std::size_t k = m_world->sphere_contacts(next, r, found);
-        if (k == 0) break;
-        const Vec3 t = frame.col(0);
-        const Vec3 n = found[0].normal;
-        // Only a shallow meeting slides (a steeper one is left for the blocked test below).
-        if (t.dot(n) >= 0.0 || -t.dot(n) > std::sin(m_max_incidence)) break;
-        const Vec3 slid = along_wall(t, n);
-        if (!slid.allFinite()) break;
-        frame = Eigen::Quaterniond::FromTwoVectors(t, slid).toRotationMatrix() * frame;
-        next = m_state.x.back() + m_h * slid;
-      }
-    }
-    m_state.x.push_back(next);
-    m_state.frames.push_back(frame);
-    // Squeezing: where the lumen ahead is narrower than the body, the tip flattens into it and the pressure drives
-    // it over the flattened section's area only: it advances while P·A_slot exceeds the yield force Y·πR² (the
-    // tail and the fold resist as before), and it is blocked otherwise. The width is read from the lumen's middle
-    // (re-centred chords): the new tip, pressed against a branch's wall, would otherwise read a gap that is not there.
-    const double tip_radius = node_radius(m_state.x.back(), m_state.frames.back(), nullptr, kRecentrings);
-    // (A catheter is pushed from the base: the gap does not slow it until the tube is pressed flat.)
-    const double squeeze =
-        solid_body() ? 1.0 : slot_area(m_radius, tip_radius / kSlack) / (kPi * m_radius * m_radius);
-    const bool flat = m_options.catheter &&
-                      tip_radius / kSlack < m_options.catheter->outer_diameter - m_options.catheter->inner_diameter;
-    const bool squeezed_out = flat || (!m_options.rod && p * squeeze <= report.yield);
-    // Blocked before solving: the new tip meets the wall steeper than max_incidence (it cannot slide along it),
-    // unless that wall is a convex crest, which it rolls off (roll_off_crest).
-    const Vec3 tangent = old_state.frames.back().col(0);
-    double incidence = 0.0;
-    if (m_world != nullptr && !squeezed_out) {
-      Vec3 n = Vec3::Zero();
-      incidence = steepest_wall(m_state.x.back(), tip_radius, tangent, &n);
-      if (incidence > m_max_incidence && n.squaredNorm() > 0.0) incidence = roll_off_crest(tangent, n, incidence);
-    }
-    const bool steep = squeezed_out || incidence > m_max_incidence;
-    const double old_energy = m_energy;
-    bool solved = false;
-    if (!steep) {
-      // The first guess is the last equilibrium with the new tip node and frame.
-      const Vec3 guess_x = m_state.x.back();
-      const Mat3 guess_frame = m_state.frames.back();
-      solved = solve_with_wall(report);
-      if (!solved) {
-        // As for new loads (above): Newton from the first guess at the full load failed, so the loads are ramped up
-        // from it instead (the slower, surer path) before the edge is given up.
-        m_state = old_state;
-        m_state.x.push_back(guess_x);
-        m_state.frames.push_back(guess_frame);
-        m_anchor = old_anchor;
-        m_anchor_normal = old_normal;
-        solved = solve_with_wall_ramped(report);
-      }
-    }
-    // Blocked after solving: growing stores more energy in the body, its contacts and its loads (bending the new
-    // edge along a wall, lifting it, pressing it in) than the growth force does work, (P·A/(πR²) − Y)·πR²·h per
-    // edge. The balance runs over the last body diameter of growth (this edge and those before it within 2R, the
-    // oldest in part), not over one edge: an edge turned into a wall's plane puts the whole turn into one joint,
-    // which the everting front, as long as the body is wide, spreads over its own length. Per edge, the finer the
-    // edges the more a turn was blocked (generation-4 trials: 14/16 with h = R, 5/16 with h = 0.75R).
-    const double tip_force = growth_force(p * squeeze, report.yield, m_radius);
-    // (A pushed catheter has no such limit: the base pushes as hard as it takes.)
-    const bool eversion = m_options.mode == InsertionMode::kEversion;
-    const double stored = solved && eversion ? m_energy - old_energy : 0.0;
-    double window_stored = stored;
-    double window_work = tip_force * m_h;
-    double window = m_h;
-    for (auto r = m_recent.rbegin(); r != m_recent.rend() && window < 2.0 * m_radius * (1.0 - 1e-9); ++r) {
-      const double share = std::min(1.0, (2.0 * m_radius - window) / m_h);
-      window_stored += share * (*r)[0];
-      window_work += share * (*r)[1];
-      window += share * m_h;
-    }
-    if (steep || !solved || window_stored > window_work) {
-      --m_vine.edges;
-      m_model = old_model;
-      m_state = old_state;
-      m_anchor = old_anchor;
-      m_anchor_normal = old_normal;
-      m_pending = 0.0;
-      if (flat) {
-        if (!m_blocked) {
-          m_blocked = true;
-          add_event(GrowthEventKind::kSqueeze,
-                    printf_string("a %.2f mm gap is narrower than the catheter pressed flat (%.2f mm)",
-                                  1e3 * tip_radius / kSlack,
-                                  1e3 * (m_options.catheter->outer_diameter - m_options.catheter->inner_diameter)));
-        }
-      } else if (squeezed_out) {
-        if (!m_blocked) {
-          m_blocked = true;
-          add_event(GrowthEventKind::kSqueeze,
-                    printf_string("a %.2f mm gap leaves the tip %.0f %% of its section: %.2f kPa x %.2f is at or "
-                                  "below the yield %.2f kPa",
-                                  1e3 * tip_radius / kSlack, 100.0 * squeeze, p / kKpaToPa, squeeze,
-                                  report.yield / kKpaToPa));
-        }
-      } else if (steep) {
-        if (!m_blocked) {
-          m_blocked = true;
-          add_event(GrowthEventKind::kBlocked, printf_string("the tip meets the wall at %.1f deg, steeper than max_incidence %.1f deg",
-                                             incidence / kDegToRad, m_max_incidence / kDegToRad));
-        }
-      } else if (!solved) {
-        if (!m_blocked) {
-          m_blocked = true;
-          add_event(GrowthEventKind::kSolver,
-                    "adding an edge at " + printf_string("%.1f mm", 1e3 * m_model.length) + ": " + report.failure);
-        }
-        report.converged = true;  // the step is reverted, the body keeps its last equilibrium
-      } else if (!m_blocked) {
-        m_blocked = true;
-        add_event(GrowthEventKind::kBlocked,
-                  printf_string("growing %.1f mm would store %.3g mJ over the last %.1f mm of growth, more than "
-                                "the growth force's work %.3g mJ (%.3f N)",
-                                1e3 * m_h, 1e3 * window_stored, 1e3 * window, 1e3 * window_work, tip_force));
-      }
-      m_normal_force = old_force;
-      m_forces = old_forces;
-      m_energy = old_energy;
-      break;
-    }
-    m_pending -= m_h;
-    ++report.edges_added;
-    m_recent.push_back({stored, tip_force * m_h});
-    if (static_cast<double>(m_recent.size()) * m_h > 2.0 * m_radius + m_h) m_recent.erase(m_recent.begin());
-  }
+  report.stalled = m_model.length <= before;
   if (report.edges_added > 0) m_retracting = false;
-  if (report.edges_added > 0 && m_blocked) {
-    m_blocked = false;
-  }
-  report.stalled = report.edges_added == 0;
-  m_dirty = false;
   return report;
 }
 
@@ -1087,7 +517,7 @@ bool VineGrowth::barrier_step(double dt, double pressure, double cap, GrowthStep
   if (m_world != nullptr) {
     WallBarrier wall{m_world, std::vector<double>(nodes, 0.0), m_dhat, m_stiffness};
     for (std::size_t i = 1; i < nodes; ++i) {
-      PlaneCache& cache = m_cache[i];
+      NodeCache& cache = m_cache[i];
       if (!((m_state.x[i] - cache.radius_at).norm() <= kStill * m_radius)) {
         cache.radius_at = m_state.x[i];
         cache.radius = node_radius(m_state.x[i], m_state.frames[std::min(i, nodes - 2)], &cache.across);
@@ -1101,7 +531,7 @@ bool VineGrowth::barrier_step(double dt, double pressure, double cap, GrowthStep
   }
   // Friction references: where each everted node's material was laid down (kept across steps, moved to the
   // Coulomb limit after a slip), or where a pushed body's material was before this step's insertion.
-  std::vector<Vec3> reference = m_anchor;
+  std::vector<Vec3> reference = m_reference;
   reference.resize(nodes, Vec3::Constant(kNone));
   if (pushed) {
     std::vector<double> lengths(static_cast<std::size_t>(m_model.edges));
@@ -1114,29 +544,29 @@ bool VineGrowth::barrier_step(double dt, double pressure, double cap, GrowthStep
   }
   const RodModel old_model = m_model;
   const RodState old_state = m_state;
-  const std::vector<Vec3> old_anchor = m_anchor;
-  const std::vector<Vec3> old_axis = m_anchor_normal;
-  const std::vector<double> old_lambda = m_normal_force;
+  const std::vector<Vec3> old_anchor = m_reference;
+  const std::vector<Vec3> old_axis = m_contact_axis;
+  const std::vector<double> old_lambda = m_contact_force;
   const std::vector<double> old_strip = m_strip_force;
   const std::vector<Vec3> old_force = m_wall_force;
   const auto restore = [&] {
     m_model = old_model;
     m_state = old_state;
-    m_anchor = old_anchor;
-    m_anchor_normal = old_axis;
-    m_normal_force = old_lambda;
+    m_reference = old_anchor;
+    m_contact_axis = old_axis;
+    m_contact_force = old_lambda;
     m_strip_force = old_strip;
     m_wall_force = old_force;
   };
-  m_normal_force.resize(nodes, 0.0);
+  m_contact_force.resize(nodes, 0.0);
   m_strip_force.resize(nodes, 0.0);
-  m_anchor_normal.resize(nodes, Vec3::Zero());
+  m_contact_axis.resize(nodes, Vec3::Zero());
   m_wall_force.resize(nodes, Vec3::Zero());
   // Two lagged contact channels per node, each with its own friction: the walls within d̂ of the sphere (force λ,
   // the principal direction of their normals), and a flattened section's strips (force s, across the pinch).
-  std::vector<double> lambda = m_normal_force;
+  std::vector<double> lambda = m_contact_force;
   std::vector<double> strip = m_strip_force;
-  std::vector<Vec3> axis = m_anchor_normal;
+  std::vector<Vec3> axis = m_contact_axis;
   // The last lagged values of λ and s fed to a solve, and what that solve returned (the secant relaxation below).
   std::vector<std::array<double, 4>> last(nodes, {kNone, kNone, kNone, kNone});
   bool settled = false;
@@ -1145,7 +575,7 @@ bool VineGrowth::barrier_step(double dt, double pressure, double cap, GrowthStep
   // at the growth's rate), so Coulomb friction resists a sideways slip u with μλ·f1(|u|/ε_tip), ε_tip the tip's
   // growth in the step (a spinning top's friction: nearly viscous for a slip much slower than the growth), ε
   // when it does not grow. Held by the wall, its material stays the same: the reference stays where it was held.
-  if (!pushed && (!m_blocked || !has_anchor(reference[tip]))) reference[tip] = m_state.x[tip];
+  if (!pushed && (!m_blocked || !has_reference(reference[tip]))) reference[tip] = m_state.x[tip];
   // The tip edge's growth in the current state: its extension past its made length, within the step's limit.
   const auto tip_grown = [&] {
     if (!(dt > 0.0 && growth.force > 0.0)) return 0.0;
@@ -1163,7 +593,7 @@ bool VineGrowth::barrier_step(double dt, double pressure, double cap, GrowthStep
     c.friction.clear();
     for (std::size_t i = 1; i < nodes && m_world != nullptr; ++i) {
       if (!(lambda[i] > 0.0) && !(strip[i] > 0.0)) continue;
-      if (!has_anchor(reference[i])) reference[i] = m_state.x[i];
+      if (!has_reference(reference[i])) reference[i] = m_state.x[i];
       const double slip = !pushed && i == tip ? std::max(m_slip, tip_growth) : m_slip;
       if (lambda[i] > 0.0) {
         c.friction.push_back({static_cast<int>(i), reference[i], axis[i], lambda[i], m_options.friction, slip,
@@ -1174,7 +604,7 @@ bool VineGrowth::barrier_step(double dt, double pressure, double cap, GrowthStep
                               slip, free_along(i, m_cache[i].across)});
       }
     }
-    ++report.contact_passes;
+    ++report.solves;
     RodSolveReport r = solve_rod_statics(m_model, m_field, m_state, m_options.solver, &m_workspace, &c);
     if (!r.converged && m_options.solver.ramp == false) {
       // Loads that changed too much for Newton from the last equilibrium (a magnet brought close, a deflation):
@@ -1257,9 +687,9 @@ bool VineGrowth::barrier_step(double dt, double pressure, double cap, GrowthStep
     return false;
   }
   // Forces on the tissue (the converged solve's).
-  m_normal_force = lambda;
+  m_contact_force = lambda;
   m_strip_force = strip;
-  m_anchor_normal = axis;
+  m_contact_axis = axis;
   m_forces = WallForces{};
   m_forces.normal.assign(nodes, 0.0);
   m_forces.shear.assign(nodes, 0.0);
@@ -1298,7 +728,7 @@ bool VineGrowth::barrier_step(double dt, double pressure, double cap, GrowthStep
     m_forces.imbalance = wall + friction + load + m_forces.clamp;
     m_forces.largest_load = std::max({wall.norm(), friction.norm(), load.norm(), m_forces.clamp.norm(), growth.force});
   }
-  m_anchor = reference;
+  m_reference = reference;
   // Growth: the tip edge's extension past its made length becomes made length; a tip edge of 3h/2 splits into an
   // edge of h and the rest.
   const double grown = tip_grown();
@@ -1310,16 +740,16 @@ bool VineGrowth::barrier_step(double dt, double pressure, double cap, GrowthStep
     const std::size_t n = m_state.x.size() - 1;  // the new node's index; the tip moves to n + 1
     m_state.x.insert(m_state.x.begin() + static_cast<std::ptrdiff_t>(n), at);
     m_state.frames.push_back(m_state.frames.back());
-    m_anchor.insert(m_anchor.begin() + static_cast<std::ptrdiff_t>(n), Vec3::Constant(kNone));
-    m_anchor_normal.insert(m_anchor_normal.begin() + static_cast<std::ptrdiff_t>(n), Vec3::Zero());
-    m_normal_force.insert(m_normal_force.begin() + static_cast<std::ptrdiff_t>(n), 0.0);
+    m_reference.insert(m_reference.begin() + static_cast<std::ptrdiff_t>(n), Vec3::Constant(kNone));
+    m_contact_axis.insert(m_contact_axis.begin() + static_cast<std::ptrdiff_t>(n), Vec3::Zero());
+    m_contact_force.insert(m_contact_force.begin() + static_cast<std::ptrdiff_t>(n), 0.0);
     m_strip_force.insert(m_strip_force.begin() + static_cast<std::ptrdiff_t>(n), 0.0);
     m_wall_force.insert(m_wall_force.begin() + static_cast<std::ptrdiff_t>(n), Vec3::Zero());
     for (auto* v : {&m_forces.normal, &m_forces.shear}) v->insert(v->begin() + static_cast<std::ptrdiff_t>(n), 0.0);
     for (auto* v : {&m_forces.normal_vector, &m_forces.shear_vector}) {
       v->insert(v->begin() + static_cast<std::ptrdiff_t>(n), Vec3::Zero());
     }
-    m_cache.insert(m_cache.begin() + static_cast<std::ptrdiff_t>(n), PlaneCache{});
+    m_cache.insert(m_cache.begin() + static_cast<std::ptrdiff_t>(n), NodeCache{});
     ++m_vine.edges;
     ++report.edges_added;
     m_tip_length -= m_h;

@@ -25,16 +25,6 @@ EventKind event_kind(robot::GrowthEventKind kind) { return static_cast<EventKind
 
 RunEvent run_event(const robot::GrowthEvent& e) { return {e.time, e.length, event_kind(e.kind), e.detail}; }
 
-UnsettledSteps unsettled_steps(const ExperimentResult& result) {
-  UnsettledSteps u;
-  for (const ExperimentSample& s : result.samples) {
-    if (!s.unsettled) continue;
-    ++u.count;
-    u.max_normal = std::max(u.max_normal, s.max_normal);
-  }
-  return u;
-}
-
 namespace {
 
 /// Whether the magnets move in this run (keyframes or the navigator).
@@ -134,13 +124,11 @@ ExperimentResult run_experiment(const ExperimentScene& scene, const std::functio
     const robot::GrowthStepReport r = growth.advance(dt, control);
     out.converged = r.converged;
     if (!r.converged) {
-      if (out.failed_steps++ == 0) out.failure = "at " + std::to_string(t) + " s: " + r.failure;
-      // The barrier model retries a failed step in halves already: one that still fails ends the run (docs/cli.md:
-      // failed runs, exit 3).
-      if (scene.growth.contact == robot::ContactModel::kBarrier) {
-        out.failure = printf_string("step %ld at %.3f s failed: %s", k, t, r.failure.c_str());
-        break;
-      }
+      // A failed step was retried in halves already: one that still fails ends the run (docs/cli.md: failed runs,
+      // exit 3).
+      ++out.failed_steps;
+      out.failure = printf_string("step %ld at %.3f s failed: %s", k, t, r.failure.c_str());
+      break;
     }
     ExperimentSample s;
     s.time = t;
@@ -151,7 +139,6 @@ ExperimentResult run_experiment(const ExperimentScene& scene, const std::functio
     s.mean_normal = growth.wall_forces().mean_normal;
     s.total_normal = growth.wall_forces().total_normal;
     s.total_shear = growth.wall_forces().total_shear;
-    s.unsettled = growth.wall_forces().unsettled;
     if (anatomy.graph) {
       const anatomy::CentrelinePoint near = anatomy::nearest_centreline_point(*anatomy.graph, s.tip);
       s.branch = near.branch;

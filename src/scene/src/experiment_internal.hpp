@@ -46,10 +46,9 @@ struct RunFigures {
   double everted_length = 0.0;       ///< at the end [m]
   std::optional<double> final_error;  ///< tip to target at the end [m]; none without a target
   double path = 0.0;                 ///< tip path length [m]
-  double max_normal = 0.0;           ///< largest wall normal force on a node [N], over the settled steps
+  double max_normal = 0.0;           ///< largest wall normal force on a node [N]
   double mean_normal = 0.0;          ///< time average of the total [N]
-  double max_shear = 0.0;            ///< largest total shear [N], over the settled steps
-  UnsettledSteps unsettled;          ///< the steps left out of the maxima
+  double max_shear = 0.0;            ///< largest total shear [N]
   std::vector<std::string> branches; ///< graph branches the tip passed through, in order
   int generation = -1;               ///< the deepest generation among them (−1 without a graph)
   std::optional<double> centreline;       ///< tip to the nearest centreline at the end [m] (with a graph)

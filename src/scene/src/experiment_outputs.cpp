@@ -20,7 +20,6 @@ namespace detail {
 
 RunFigures figures_of(const ExperimentScene& scene, const ExperimentResult& result) {
   RunFigures f;
-  f.unsettled = unsettled_steps(result);
   const Vec3 tip = result.final_state.tip();
   f.everted_length = result.samples.empty() ? scene.vine.length : result.samples.back().length;
   if (scene.target) f.final_error = (tip - *scene.target).norm();
@@ -29,10 +28,8 @@ RunFigures figures_of(const ExperimentScene& scene, const ExperimentResult& resu
   for (const ExperimentSample& s : result.samples) {
     f.path += (s.tip - last).norm();
     last = s.tip;
-    if (!s.unsettled) {
-      f.max_normal = std::max(f.max_normal, s.max_normal);
-      f.max_shear = std::max(f.max_shear, s.total_shear);
-    }
+    f.max_normal = std::max(f.max_normal, s.max_normal);
+    f.max_shear = std::max(f.max_shear, s.total_shear);
     f.mean_normal += s.total_normal / static_cast<double>(result.samples.size());
     if (scene.anatomy->graph && s.branch >= 0 && s.branch != last_branch) {
       f.branches.push_back(scene.anatomy->graph->branches[static_cast<std::size_t>(s.branch)].name);
@@ -112,8 +109,6 @@ void write_experiment_outputs(const ExperimentScene& scene, const ExperimentResu
   j["max_wall_normal_N"] = f.max_normal;
   j["mean_wall_normal_N"] = f.mean_normal;
   j["max_wall_shear_N"] = f.max_shear;
-  j["unsettled_steps"] = f.unsettled.count;
-  j["max_wall_normal_unsettled_N"] = f.unsettled.max_normal;
   int stalls = 0;
   int blocked = 0;
   nlohmann::json events = nlohmann::json::array();
@@ -152,14 +147,13 @@ void write_experiment_outputs(const ExperimentScene& scene, const ExperimentResu
   }
   std::ostringstream tips;
   tips.precision(10);
-  tips << "t_s,x_m,y_m,z_m,length_m,pressure_Pa,max_normal_N,mean_normal_N,total_normal_N,total_shear_N,branch,"
-          "unsettled\n";
+  tips << "t_s,x_m,y_m,z_m,length_m,pressure_Pa,max_normal_N,mean_normal_N,total_normal_N,total_shear_N,branch\n";
   for (const ExperimentSample& s : result.samples) {
     tips << s.time << ',' << s.tip.x() << ',' << s.tip.y() << ',' << s.tip.z() << ',' << s.length << ','
          << s.pressure << ',' << s.max_normal << ',' << s.mean_normal << ',' << s.total_normal << ',' << s.total_shear
          << ','
-         << (s.branch >= 0 ? scene.anatomy->graph->branches[static_cast<std::size_t>(s.branch)].name : std::string()) << ','
-         << (s.unsettled ? 1 : 0) << '\n';
+         << (s.branch >= 0 ? scene.anatomy->graph->branches[static_cast<std::size_t>(s.branch)].name : std::string())
+         << '\n';
   }
   std::ostringstream shape;
   shape.precision(10);

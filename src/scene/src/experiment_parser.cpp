@@ -187,14 +187,12 @@ std::optional<robot::PushedRod> parse_robot(const YamlMap& robot, const FileUnit
 
 /// growth: the growth law and the insertion mode (a pushed rod refuses the pressure's keys).
 void parse_growth(const YamlMap& g, const FileUnits& units, bool rod, ExperimentScene& scene) {
-  g.allow_only({"mode", "yield_pressure", "length_yield", "turning_yield", "extensibility", "friction", "edge_length",
-                "catheter", "magnetorheology", "retraction_pressure", "max_incidence", "contact",
-                "contact_distance", "friction_slip"});
-  robot::GrowthOptions& o = scene.growth;
-  if (g.has("contact")) {
-    o.contact = g.choice("contact", std::pair{std::string_view("planes"), robot::ContactModel::kPlanes},
-                         std::pair{std::string_view("barrier"), robot::ContactModel::kBarrier});
+  for (const char* gone : {"contact", "max_incidence"}) {  // the planes contact model's (removed 2026-12-02)
+    if (g.has(gone)) g.fail(gone, "the planes contact model and its keys are gone: the barrier contact is the only one (drop this key)");
   }
+  g.allow_only({"mode", "yield_pressure", "length_yield", "turning_yield", "extensibility", "friction", "edge_length",
+                "catheter", "magnetorheology", "retraction_pressure", "contact_distance", "friction_slip"});
+  robot::GrowthOptions& o = scene.growth;
   if (g.has("contact_distance")) o.contact_distance = g.quantity("contact_distance", units.len, range::kSpacing);
   if (g.has("friction_slip")) o.friction_slip = g.quantity("friction_slip", units.len, range::kSpacing);
   if (g.has("mode")) {
@@ -216,9 +214,6 @@ void parse_growth(const YamlMap& g, const FileUnits& units, bool rod, Experiment
   }
   if (g.has("friction")) o.friction = g.quantity("friction", kPlain, range::kFriction);
   if (g.has("edge_length")) o.edge_length = g.quantity("edge_length", units.len, range::kSpacing);
-  if (g.has("max_incidence")) {
-    o.max_incidence = g.quantity("max_incidence", kDegrees, Range{0.0, 0.5 * kPi, true, true});
-  }
   if (g.has("catheter")) {
     if (o.mode != robot::InsertionMode::kPushed) g.fail("catheter", "a catheter tube is pushed: set mode: pushed");
     const YamlMap c = g.map("catheter");

@@ -105,7 +105,6 @@ std::vector<TrialOutcome> run_trials(const ExperimentScene& scene, const std::ve
         o.everted_length = f.everted_length;
         o.final_error = f.final_error.value_or(0.0);
         o.max_normal = f.max_normal;
-        o.unsettled = f.unsettled;
         o.retractions = res.recoveries;
         for (const RunEvent& e : res.events) o.burst = o.burst || e.kind == EventKind::kBurst;
         o.runtime_s = res.runtime_s;
@@ -139,12 +138,12 @@ void write_trial_outputs(const std::vector<TrialOutcome>& outcomes, const std::f
   std::ostringstream all;
   all.precision(10);
   all << "target,repeat,seed,success,burst,time_to_target_s,everted_length_m,final_error_m,max_normal_N,"
-         "max_normal_unsettled_N,unsettled_steps,retractions,runtime_s,reason\n";
+         "retractions,runtime_s,reason\n";
   for (const TrialOutcome& o : outcomes) {
     all << o.target << ',' << o.repeat << ',' << o.seed << ',' << (o.success ? 1 : 0) << ',' << (o.burst ? 1 : 0) << ','
         << (o.success ? std::to_string(o.time_to_target) : std::string()) << ',' << o.everted_length << ','
-        << o.final_error << ',' << o.max_normal << ',' << o.unsettled.max_normal << ','
-        << o.unsettled.count << ',' << o.retractions << ',' << o.runtime_s << ','
+        << o.final_error << ',' << o.max_normal << ','
+        << o.retractions << ',' << o.runtime_s << ','
         << quoted(o.reason) << '\n';
   }
   std::ostringstream csv;

@@ -1,33 +1,32 @@
 #pragma once
 /// An everting vine growing through anatomy (PHYSICS.md §3): quasi-static steps of the discretised vine of vine.hpp
-/// against the airway wall of an anatomy::CollisionWorld.
+/// against the airway wall of an anatomy::CollisionWorld (docs/growth-and-contact.md).
 ///
-/// Eversion. New material appears at the tip: the body is a chain of edges of fixed length h, and growing by h
-/// appends one edge along the tip's tangent. Material already everted never slides along the wall: a node that
-/// touches the wall is anchored where it touched (static friction, NodeAnchor) and keeps the anchor while it stays
-/// in contact, unless the tangential force it needs exceeds μ times its normal force (then the anchor slips to the
-/// Coulomb limit). Free spans still bend under the magnetic, gravity and contact loads: every step solves the whole
-/// body's equilibrium (solve_rod_statics) with the wall as frozen contact planes, re-queried until the contact set
-/// settles.
+/// One minimisation per step. Each step solves the whole body's equilibrium (solve_rod_statics) with the wall as a
+/// smooth barrier on the distance from each node's sphere to the wall triangles within d̂ of it (WallBarrier;
+/// incremental potential contact, Li et al. 2020), lagged smoothed Coulomb friction per node (NodeFriction), and the
+/// growth law as the tip edge's axial law (TipGrowth). The lagged normal forces and contact axes are iterated until
+/// they stop changing (GrowthOptions::friction_tolerance); a step that does not converge is taken again as two
+/// halves, down to dt/16, and one that still fails ends growth with a "solver" event. The line search never lets a
+/// node cross the wall.
 ///
-/// Pushed mode (InsertionMode::kPushed): the same body inserted from the base, as a catheter. The chain grows the
-/// same way (the path is the same), but every material point slides forward by h, so each node in contact carries
-/// kinetic friction μ·F_n against the sliding velocity h·t + δ (t its tangent, δ its sideways move in the step): μ·F_n
-/// along −t, and sideways μ·F_n·δ/h for δ ≪ h, a spring of stiffness μ·F_n/h towards where the node began the step
-/// (without it a pushed body loaded by its own friction buckles sideways in one solve). Its insertion follows the
-/// same growth law and tether (a stand-in for an insertion schedule), but nothing limits the push: the energy test
-/// of a blocked tip below applies to eversion only. GrowthOptions::catheter pushes a solid tube instead of the vine,
-/// GrowthOptions::rod a (magnetic) rod at its own insertion speed.
+/// Eversion. New material appears at the tip: the tip edge lengthens by the growth law and splits into an edge of h
+/// and the rest once it reaches 3h/2. Material already everted does not slide along the wall: its friction
+/// reference is where it was laid down (static friction below the slip ε, Coulomb μλ beyond). The everting tip is
+/// free along its tangent; sideways its friction's slip scale is its growth in the step.
 ///
-/// All of the above is the planes model (ContactModel::kPlanes). ContactModel::kBarrier, the default, replaces the
-/// planes, passes, anchors, incidence rule and energy test by one minimisation per step (see ContactModel).
+/// Pushed mode (InsertionMode::kPushed): the same body inserted from the base, as a catheter: a prescribed
+/// insertion at the growth law's speed (up to the tether), and every material point's friction reference where its
+/// material was before the step's insertion, which gives kinetic friction μλ against the sliding.
+/// GrowthOptions::catheter pushes a solid tube instead of the vine, GrowthOptions::rod a (magnetic) rod at its own
+/// insertion speed.
 ///
 /// Growth law (PHYSICS.md §3, Blumenschein et al. 2017's form; the constants are not published for these robots):
 ///   L̇ = K·max(0, P − Y),  Y = Y0 + c_L·L + c_θ·Σθ,
 /// Σθ the total turning along the body (the sum of the joint angles). Growth stalls when Y ≥ P (an event naming the
-/// three terms) and when the wall in front of the tip pushes back along the tangent by more than the growth force
-/// (P − Y)·πR² (a "blocked" event; the edge is not added). The tether caps the length. Burst: a pressure whose
-/// hoop stress exceeds the film's strength (vine.hpp, bursts) is an event and ends growth. Diametric extension: the
+/// three terms) and when an obstacle carries the growth force (P − Y)·πR² along the tip (a "blocked" event, once the
+/// tip grows less than 1 % of its free growth in a step). The tether caps the length. Burst: a pressure whose hoop
+/// stress exceeds the film's strength (vine.hpp, bursts) is an event and ends growth. Diametric extension: the
 /// radius is R(1 + PR/(tE)) (vine.hpp, extended_radius), used for the contacts and the inflated-beam law.
 ///
 /// Squeezing (thesis 4.7.2, 5.6.2): where the lumen across the body (its narrowest width w through a node, by ray
@@ -35,14 +34,12 @@
 /// flattens at constant perimeter (a thin, inextensible film) into a stadium of width w: the node's contact radius
 /// drops to 0.45·w (a little slack between the two walls), each wall carries the pressure on the flat strip,
 /// P·(πR − πw/2) per unit length, and the tip in the narrowing is driven over the stadium's area
-/// A = πRw − πw²/4 only: it advances while P·A/(πR²) > Y (else a "squeeze" event). For this growth test the width
-/// ahead of the new tip is measured from the lumen's middle (lumen_width's re-centring): a tip pressed against the
-/// wall of a round branch, probed R ahead, otherwise read chords of 1–1.4 mm across a Ø4.5 mm generation-4 branch
-/// as a gap and stopped there. The contact radii keep the chords through the nodes themselves.
+/// A = πRw − πw²/4 only: it advances while P·A/(πR²) > Y (else a "squeeze" event). The width ahead of the tip is
+/// measured from the lumen's middle (lumen_width's re-centring).
 ///
-/// Tissue forces per step: normal k·depth at every node in contact (plus the flattened section's pressure, or a pinched
-/// catheter's ring force), shear the anchors' tangential force (eversion; the directions a wall pressing the node
-/// holds, including a pinch, removed) or μ·F_n (pushed).
+/// Tissue forces per step (WallForces): per node the barrier's push and the friction, reversed, as vectors and
+/// magnitudes (plus the flattened section's pressure, or a pinched catheter's ring force), and the global balance
+/// of the converged body.
 
 #include <array>
 #include <limits>
@@ -60,8 +57,6 @@
 
 namespace magvine::robot {
 
-inline constexpr std::size_t kContactsPerNode = 8;  ///< wall contacts kept per node and query
-
 /// L̇ = K·max(0, P − Y0 − c_L·L − c_θ·Σθ). The constants are not published for these robots. Defaults, for the Ø8 mm
 /// skin vine of thesis 4.6 at its 12 kPa: Y0 = 5 kPa is FITTED to the thesis's constriction thresholds (it passes
 /// 3 mm, not 2 mm: the squeezed tip keeps 60 % and 43 % of its section, so 0.43·12 < Y < 0.60·12 kPa where the
@@ -75,14 +70,6 @@ struct GrowthLaw {
 };
 
 enum class InsertionMode { kEversion, kPushed };
-
-/// How a step meets the wall. kPlanes: the wall frozen as planes per solve, re-queried until the contact set
-/// settles, touching nodes anchored by springs, growth by whole edges with an incidence rule and an energy test (the
-/// first wave's scheme). kBarrier: one minimisation per step over the body with the wall as a barrier on the distance
-/// to its triangles (WallBarrier), lagged smoothed Coulomb friction (NodeFriction) iterated until the lagged normal
-/// forces stop changing, and the growth law as the tip edge's axial law (TipGrowth): the tip presses an obstacle
-/// with the growth force and stops there; the default. docs/growth-and-contact.md.
-enum class ContactModel { kPlanes, kBarrier };
 
 /// A solid-walled tube pushed as a catheter (InsertionMode::kPushed only), in place of the vine's body: the
 /// comparison of thesis 5.6.2, a TPU tube of OD 4 mm and ID 3 mm. Squeezed into a gap g narrower than its outer
@@ -132,27 +119,17 @@ struct GrowthOptions {
   std::optional<PushedRod> rod;
   double edge_length = 0.0;        ///< h [m]; 0: the vine's radius
   double friction = 0.3;           ///< Coulomb μ between the body and the wall
-  /// kPlanes: the steepest angle between the tip's tangent and a wall it meets at which the tip still slides along the wall
-  /// (Greer et al. 2020: shallow incidence deflects, steep incidence stops the tip); steeper: "blocked" [rad].
-  /// 0: automatic, from Coulomb's law with `friction`: the growth force F along the tangent presses the wall with
-  /// F sin α and drives the tip along it with F cos α, which beats the friction μF sin α for α < atan(1/μ) (73.3° at
-  /// μ = 0.3). Whatever gets past this test must still pass the energy test of a step (VineGrowth::advance). Not a
-  /// thesis number.
-  double max_incidence = 0.0;
-  /// The wall's penalty k (kPlanes) or barrier stiffness κ (kBarrier) [N/m]; 0: automatic (the growth force at 2 % R
-  /// depth).
+  /// The barrier stiffness κ [N/m]; 0: automatic (the growth force at 2 % R depth).
   double contact_stiffness = 0.0;
   double max_length = std::numeric_limits<double>::infinity();  ///< the vine's made length [m]
-  int max_contact_passes = 10;     ///< solves per step while the contact set settles (kPlanes)
-  ContactModel contact = ContactModel::kBarrier;
-  /// kBarrier: the barrier's activation distance d̂ [m]; 0: 2 % of the radius. The body rests within d̂ of the wall.
+  /// The barrier's activation distance d̂ [m]; 0: 2 % of the radius. The body rests within d̂ of the wall.
   double contact_distance = 0.0;
-  /// kBarrier: the slip ε below which friction is static [m]; 0: 1 % of the radius.
+  /// The slip ε below which friction is static [m]; 0: 1 % of the radius.
   double friction_slip = 0.0;
-  /// kBarrier: solves per step while the lagged normal forces settle (each to the solver's tolerance); the step
+  /// Solves per step while the lagged normal forces settle (each to the solver's tolerance); the step
   /// fails (and is retried in halves) when they have not settled by then.
   int max_friction_iterations = 40;
-  /// kBarrier: the lagged normal forces have settled when their total change over the body is within this fraction
+  /// The lagged normal forces have settled when their total change over the body is within this fraction
   /// of the total contact force (plus a vine's growth force), no node carrying more than 1 % of the largest force
   /// turns its contact axis by more than 0.01 rad, and the tip's growth (its friction's slip scale) is within 10 %.
   double friction_tolerance = 1e-3;
@@ -168,7 +145,6 @@ struct GrowthOptions {
   /// length (a pressurised vine does not retract: the pull buckles it) and a "retract" event says so once.
   /// Negative: no retraction (the tether only caps growth).
   double retraction_pressure = -1.0;
-  double retry_interval = 0.5;     ///< kPlanes: a blocked tip tries to grow again after this long [s] (or when loads change)
   Vec3 gravity = Vec3(0.0, 0.0, -9.81);  ///< [m/s²] (bench phantoms: z up)
   RodSolveOptions solver = growth_solver_options();
 };
@@ -209,29 +185,21 @@ struct GrowthEvent {
 struct WallForces {
   std::vector<double> normal;
   std::vector<double> shear;
-  /// kBarrier: the forces on the tissue as vectors [N] (normal: the barrier's push reversed; shear: the friction's).
+  /// The forces on the tissue as vectors [N] (normal: the barrier's push reversed; shear: the friction's).
   std::vector<Vec3> normal_vector;
   std::vector<Vec3> shear_vector;
-  /// kBarrier: the global balance of the converged body, Σ(wall normal + friction + magnetic + gravity + clamp)
+  /// The global balance of the converged body, Σ(wall normal + friction + magnetic + gravity + clamp)
   /// on the body [N] (zero at equilibrium), and the largest of those loads' magnitudes [N], its scale.
   Vec3 imbalance = Vec3::Zero();
   double largest_load = 0.0;
-  Vec3 clamp = Vec3::Zero();  ///< kBarrier: the clamp's force on the body [N]
+  Vec3 clamp = Vec3::Zero();  ///< the clamp's force on the body [N]
   double max_normal = 0.0;
   double mean_normal = 0.0;  ///< over the nodes in contact
   double total_normal = 0.0;
   double max_shear = 0.0;
   double total_shear = 0.0;
   int nodes_in_contact = 0;
-  /// The step's contact passes ran out while a node still moved more than kUnsettledMove·R in the last one (the step
-  /// was accepted as safe, but its shape was still swinging): these forces are not an equilibrium of the contact
-  /// model, and the run's maxima leave them out (experiments count such steps and report their largest force apart).
-  bool unsettled = false;
 };
-
-/// A node move in a step's last contact pass, as a fraction of R, above which the step's wall forces count as
-/// unsettled (WallForces::unsettled): 1 % of R, the depth tolerance to which the passes settle the contact set.
-inline constexpr double kUnsettledMove = 0.01;
 
 /// What one advance did.
 struct GrowthStepReport {
@@ -239,8 +207,8 @@ struct GrowthStepReport {
   bool stalled = false;    ///< no growth this step (yield, blocked, tether, length or burst)
   bool burst = false;
   bool converged = true;   ///< the body reached equilibrium (else the cause is in failure and an event)
-  int contact_passes = 0;
-  int retries = 0;         ///< kBarrier: steps that failed and were taken again as two halves
+  int solves = 0;          ///< body solves in the step (the friction lag's iterations)
+  int retries = 0;         ///< steps that failed and were taken again as two halves
   int newton_iterations = 0;
   double yield = 0.0;      ///< Y [Pa] (with the magnetorheological term)
   double magnetorheological_yield = 0.0;  ///< its magnetorheological part ΔP [Pa]
@@ -270,16 +238,12 @@ class VineGrowth {
   VineGrowth(const VineParameters& vine, const GrowthOptions& options, const anatomy::CollisionWorld* world,
              RodField field, const Vec3& base_position, const Mat3& base_frame);
 
-  /// Advances by dt [s] under `control`: grows by the growth law (whole edges), then solves the body's equilibrium
-  /// with the wall.
+  /// Advances by dt [s] under `control`: one step of the growth law and the body's equilibrium with the wall
+  /// together (retried in halves where it does not converge).
   GrowthStepReport advance(double dt, const GrowthControl& control);
 
   /// Replaces the magnetic field (a moved EPM).
-  void set_field(RodField field) {
-    m_field = std::move(field);
-    m_dirty = true;
-    m_loads_failed = false;  // new loads: a fresh try
-  }
+  void set_field(RodField field) { m_field = std::move(field); }
 
   const RodState& state() const { return m_state; }
   const RodModel& model() const { return m_model; }
@@ -291,8 +255,6 @@ class VineGrowth {
   bool burst() const { return m_burst; }
   const std::vector<GrowthEvent>& events() const { return m_events; }
   const WallForces& wall_forces() const { return m_forces; }
-  /// Where each node's anchor sits (NaN for free nodes); eversion mode.
-  const std::vector<Vec3>& anchors() const { return m_anchor; }
 
  private:
   void rebuild_model(double pressure);
@@ -310,22 +272,12 @@ class VineGrowth {
   /// The body's contact radius at x: R, or half the lumen width at x or R ahead of or behind it when narrower.
   /// `across`, if given, receives the direction of the narrowest line (the pinch); `recentrings` as lumen_width.
   double node_radius(const Vec3& x, const Mat3& frame, Vec3* across = nullptr, int recentrings = 0) const;
-  /// The steepest wall a tip sphere of `radius` at x meets: its incidence to `tangent` [rad] (0: none), and, if
-  /// `normal` is given, that contact's normal.
-  double steepest_wall(const Vec3& x, double radius, const Vec3& tangent, Vec3* normal) const;
-  /// A new tip met steeper than max_incidence on a wall of normal `normal`: where the wall is a convex crest, turns
-  /// the new edge so the tip rolls off it and returns the incidence there; otherwise leaves the tip and returns
-  /// `incidence`.
-  double roll_off_crest(const Vec3& tangent, const Vec3& normal, double incidence);
-  bool solve_with_wall(GrowthStepReport& report);
-  /// kBarrier: steps of dt from the growth law's speed on (advance's preamble done), a failed one retried as two
+  /// Steps of dt from the growth law's speed on (advance's preamble done), a failed one retried as two
   /// halves (down to dt/16); false when even those fail. `cap`: how far the tether and the made length let it grow.
   bool barrier_steps(double dt, double pressure, double cap, GrowthStepReport& report, int depth = 0);
-  /// kBarrier: one converged step of dt (dt = 0: no growth). On failure the state is left as it was and
+  /// One converged step of dt (dt = 0: no growth). On failure the state is left as it was and
   /// report.failure says why.
   bool barrier_step(double dt, double pressure, double cap, GrowthStepReport& report);
-  /// solve_with_wall with the loads ramped up from the current state (the slower, surer path after a failure).
-  bool solve_with_wall_ramped(GrowthStepReport& report);
   void add_event(GrowthEventKind kind, std::string detail);
 
   VineParameters m_vine;
@@ -335,45 +287,30 @@ class VineGrowth {
   Vec3 m_base_position;
   Mat3 m_base_frame;
   double m_h = 0.0;
-  double m_max_incidence = 0.0;  ///< GrowthOptions::max_incidence, resolved [rad]
   double m_radius = 0.0;
   double m_pressure = 0.0;
   double m_stiffness = 0.0;
-  double m_pending = 0.0;  ///< grown length not yet a whole edge [m]
   double m_time = 0.0;
-  double m_last_try = -std::numeric_limits<double>::infinity();  ///< when an edge was last tried [s]
   bool m_burst = false;
   bool m_stalled = false;  ///< by the yield (a "stall" event was given)
-  bool m_blocked = false;  ///< by the wall or the solver (a "blocked" or "solver" event was given)
-  bool m_dirty = false;    ///< the loads changed since the last equilibrium
-  bool m_loads_failed = false;     ///< the current loads did not converge (a "solver" event was given)
-  double m_loads_failed_at = 0.0;  ///< when [s]
+  bool m_blocked = false;  ///< by the wall or a narrowing (a "blocked" or "squeeze" event was given)
   bool m_retract_refused = false;  ///< a "retract" event said the vine must be deflated
   bool m_retracting = false;       ///< a "retract" event announced this retraction
   RodModel m_model;
   RodState m_state;
   RodWorkspace m_workspace;
-  std::vector<Vec3> m_anchor;         ///< per node; NaN: none (kBarrier: the friction reference)
-  std::vector<Vec3> m_anchor_normal;  ///< wall normal at the anchor (kBarrier: the lagged contact axis)
-  std::vector<double> m_normal_force; ///< per node, from the last solve [N] (kBarrier: the lagged λ)
-  /// The last wall query per node (reused while the node does not move).
-  struct PlaneCache {
-    Vec3 at = Vec3::Constant(std::numeric_limits<double>::quiet_NaN());
-    double reach = 0.0;  ///< the query sphere's radius [m]
-    std::size_t count = 0;
-    std::array<anatomy::Contact, kContactsPerNode> found{};
+  std::vector<Vec3> m_reference;     ///< per node, its friction reference (NaN: none)
+  std::vector<Vec3> m_contact_axis;  ///< per node, the lagged contact axis (unit; zero: none)
+  std::vector<double> m_contact_force;  ///< per node, the lagged wall force λ [N]
+  /// The last contact radius query per node (reused while the node does not move).
+  struct NodeCache {
     Vec3 radius_at = Vec3::Constant(std::numeric_limits<double>::quiet_NaN());
     double radius = 0.0;  ///< the node's squeezed radius there [m]
     Vec3 across = Vec3::UnitY();  ///< the pinch direction there (node_radius)
   };
-  std::vector<PlaneCache> m_cache;
+  std::vector<NodeCache> m_cache;
   WallForces m_forces;
-  double m_energy = 0.0;  ///< total potential energy (body, loads, wall) at the last equilibrium [J]
-  /// (energy stored, growth work) of the edges added last, within one body diameter of growth [J]: the energy test
-  /// runs over that window.
-  std::vector<std::array<double, 2>> m_recent;
   std::vector<GrowthEvent> m_events;
-  // kBarrier
   double m_tip_length = 0.0;          ///< the tip edge's made length [m] (between h/2 and 3h/2)
   bool m_placing = false;             ///< the constructor everts the initial body: prescribed growth, no events
   double m_tip_grown = 0.0;           ///< the tip's growth in the last step [m] (its friction's slip scale)

@@ -27,7 +27,6 @@ struct ExperimentSample {
   double total_shear = 0.0;    ///< [N]
   int branch = -1;             ///< nearest branch of the phantom's graph to the tip (−1: no graph)
   double centreline = 0.0;     ///< the tip's distance from that branch's centreline [m] (0: no graph)
-  bool unsettled = false;      ///< its wall forces are not an equilibrium (robot::WallForces::unsettled)
 };
 
 struct MagnetSample {
@@ -76,13 +75,6 @@ struct ExperimentResult {
 ExperimentResult run_experiment(const ExperimentScene& scene,
                                 const std::function<void(double)>& progress = nullptr);
 
-/// The steps whose wall forces are not an equilibrium (ExperimentSample::unsettled): how many, and the largest normal
-/// force on a node among them [N]. metrics.json, trials.csv and `magvine run` report these apart from the maxima.
-struct UnsettledSteps {
-  int count = 0;
-  double max_normal = 0.0;
-};
-UnsettledSteps unsettled_steps(const ExperimentResult& result);
 
 /// Writes, atomically, into `dir` (created): metrics.json, tip_trajectory.csv, magnet_trajectory.csv (when the
 /// scene has magnets), events.json, shape.csv (the final body), shapes.csv (t_s,node,x_m,y_m,z_m; with

@@ -28,8 +28,7 @@ struct TrialOutcome {
   double time_to_target = -1.0;  ///< [s]
   double everted_length = 0.0;   ///< [m]
   double final_error = 0.0;      ///< tip to target [m]
-  double max_normal = 0.0;       ///< [N], over the steps whose contacts settled
-  UnsettledSteps unsettled;      ///< the steps left out of max_normal
+  double max_normal = 0.0;       ///< largest wall normal force on a node [N]
   int retractions = 0;           ///< the navigator's (ExperimentResult::recoveries)
   double runtime_s = 0.0;
   /// Why a failed trial failed, one line: the last event that stopped the tip (with its numbers), the branch it was
