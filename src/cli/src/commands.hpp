@@ -58,6 +58,7 @@ struct MeshGraphArgs {
 };
 int run_mesh_graph(const MeshGraphArgs& args);
 int run_study_centerline(const std::string& out_dir);
+int run_study_growth(const std::string& out_dir, bool quick);
 
 struct RunArgs {
   std::string scene;

@@ -58,6 +58,13 @@ int main(int argc, char** argv) {
   auto* study_centerline = study_cmd->add_subcommand(
       "centerline", "airway-graph voxel size: the generated tree's extracted graph vs its ground truth (CSV)");
   study_centerline->add_option("--out", centerline_out, "output folder")->required();
+  std::string growth_out;
+  bool growth_quick = false;
+  auto* study_growth = study_cmd->add_subcommand(
+      "growth", "vine growth past the carina: tip path and peak wall forces against edge length, dt and d-hat, "
+                "each against its finest run (CSV; tools/plot_growth_study.py draws it)");
+  study_growth->add_option("--out", growth_out, "output folder")->required();
+  study_growth->add_flag("--quick", growth_quick, "two settings per knob (a check, not a study)");
 
   magvine::cli::MeshCheckArgs mesh_check;
   auto* mesh_cmd = app.add_subcommand("mesh", "anatomy mesh tools");
@@ -135,6 +142,7 @@ int main(int argc, char** argv) {
     if (map_cmd->parsed()) return magvine::cli::run_field_map(map);
     if (study_fields->parsed()) return magvine::cli::run_study_field_models(study);
     if (study_meshing->parsed()) return magvine::cli::run_study_phantom_meshing(meshing_out);
+    if (study_growth->parsed()) return magvine::cli::run_study_growth(growth_out, growth_quick);
     if (study_centerline->parsed()) return magvine::cli::run_study_centerline(centerline_out);
     if (mesh_check_cmd->parsed()) return magvine::cli::run_mesh_check(mesh_check);
     if (mesh_graph_cmd->parsed()) return magvine::cli::run_mesh_graph(mesh_graph);
