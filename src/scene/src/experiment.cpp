@@ -139,6 +139,8 @@ ExperimentResult run_experiment(const ExperimentScene& scene, const std::functio
     s.mean_normal = growth.wall_forces().mean_normal;
     s.total_normal = growth.wall_forces().total_normal;
     s.total_shear = growth.wall_forces().total_shear;
+    const robot::WallForces& forces = growth.wall_forces();
+    s.imbalance = forces.largest_load > 0.0 ? forces.imbalance.norm() / forces.largest_load : 0.0;
     if (anatomy.graph) {
       const anatomy::CentrelinePoint near = anatomy::nearest_centreline_point(*anatomy.graph, s.tip);
       s.branch = near.branch;
@@ -147,7 +149,7 @@ ExperimentResult run_experiment(const ExperimentScene& scene, const std::functio
     out.samples.push_back(s);
     record_frame(t);
     if (scene.shape_interval > 0.0 && t >= next_shape - 1e-9) {
-      out.shapes.push_back({t, growth.state().x, growth.wall_forces().normal, growth.wall_forces().shear});
+      out.shapes.push_back({t, growth.state().x, forces.normal, forces.shear, forces.normal_vector, forces.shear_vector});
       next_shape += scene.shape_interval;
     }
     if (scene.target && out.time_to_target < 0.0 && (s.tip - *scene.target).norm() <= scene.target_tolerance) {

@@ -109,6 +109,9 @@ void write_experiment_outputs(const ExperimentScene& scene, const ExperimentResu
   j["max_wall_normal_N"] = f.max_normal;
   j["mean_wall_normal_N"] = f.mean_normal;
   j["max_wall_shear_N"] = f.max_shear;
+  double imbalance = 0.0;
+  for (const ExperimentSample& s : result.samples) imbalance = std::max(imbalance, s.imbalance);
+  j["max_force_imbalance"] = imbalance;
   int stalls = 0;
   int blocked = 0;
   nlohmann::json events = nlohmann::json::array();
@@ -159,13 +162,19 @@ void write_experiment_outputs(const ExperimentScene& scene, const ExperimentResu
   shape.precision(10);
   // Per node: the position and the wall's forces on the tissue there (0 where a run's forces have fewer nodes).
   const auto node_row = [](std::ostream& o, const Vec3& x, const std::vector<double>& normal,
-                           const std::vector<double>& shear, std::size_t i) {
+                           const std::vector<double>& shear, const std::vector<Vec3>& normal_vector,
+                           const std::vector<Vec3>& shear_vector, std::size_t i) {
+    const Vec3 n = i < normal_vector.size() ? normal_vector[i] : Vec3::Zero();
+    const Vec3 s = i < shear_vector.size() ? shear_vector[i] : Vec3::Zero();
     o << x.x() << ',' << x.y() << ',' << x.z() << ',' << (i < normal.size() ? normal[i] : 0.0) << ','
-      << (i < shear.size() ? shear[i] : 0.0) << '\n';
+      << (i < shear.size() ? shear[i] : 0.0) << ',' << n.x() << ',' << n.y() << ',' << n.z() << ',' << s.x() << ','
+      << s.y() << ',' << s.z() << '\n';
   };
-  shape << "x_m,y_m,z_m,normal_N,shear_N\n";
+  const char* node_columns = "x_m,y_m,z_m,normal_N,shear_N,normal_x_N,normal_y_N,normal_z_N,shear_x_N,shear_y_N,shear_z_N\n";
+  shape << node_columns;
   for (std::size_t i = 0; i < result.final_state.x.size(); ++i) {
-    node_row(shape, result.final_state.x[i], result.final_forces.normal, result.final_forces.shear, i);
+    node_row(shape, result.final_state.x[i], result.final_forces.normal, result.final_forces.shear,
+             result.final_forces.normal_vector, result.final_forces.shear_vector, i);
   }
 
   create_output_directory(dir);
@@ -174,11 +183,11 @@ void write_experiment_outputs(const ExperimentScene& scene, const ExperimentResu
   if (scene.shape_interval > 0.0) {
     std::ostringstream shapes;
     shapes.precision(10);
-    shapes << "t_s,node,x_m,y_m,z_m,normal_N,shear_N\n";
+    shapes << "t_s,node," << node_columns;
     for (const ShapeSample& sample : result.shapes) {
       for (std::size_t i = 0; i < sample.nodes.size(); ++i) {
         shapes << sample.time << ',' << i << ',';
-        node_row(shapes, sample.nodes[i], sample.normal, sample.shear, i);
+        node_row(shapes, sample.nodes[i], sample.normal, sample.shear, sample.normal_vector, sample.shear_vector, i);
       }
     }
     write_file_atomically(dir / "shapes.csv", shapes.str());

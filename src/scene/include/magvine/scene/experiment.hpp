@@ -27,6 +27,9 @@ struct ExperimentSample {
   double total_shear = 0.0;    ///< [N]
   int branch = -1;             ///< nearest branch of the phantom's graph to the tip (−1: no graph)
   double centreline = 0.0;     ///< the tip's distance from that branch's centreline [m] (0: no graph)
+  /// The global balance of the converged body: |Σ(wall + friction + magnetic + gravity + clamp)| over the largest
+  /// of those loads (robot::WallForces::imbalance, largest_load); 0 for a body without loads.
+  double imbalance = 0.0;
 };
 
 struct MagnetSample {
@@ -42,6 +45,8 @@ struct ShapeSample {
   std::vector<Vec3> nodes;   ///< clamp first, tip last [m]
   std::vector<double> normal;  ///< wall normal force on the tissue per node [N] (0 off the wall)
   std::vector<double> shear;   ///< wall shear force on the tissue per node [N]
+  std::vector<Vec3> normal_vector;  ///< the normal force on the tissue as a vector, per node [N]
+  std::vector<Vec3> shear_vector;   ///< the friction force on the tissue as a vector, per node [N]
 };
 
 /// What a video frame needs of the run at one time (recorded when the scene has outputs.video).
