@@ -188,7 +188,7 @@ struct TermContext {
   /// The length of edge j.
   double h(int j) const { return j == model.edges - 1 ? tip_length : edge_length; }
 
-  /// The entries of one list of the constraints (RodConstraints::contacts, anchors, forces); none without them.
+  /// The entries of one list of the constraints (RodConstraints::anchors, friction); none without them.
   template <class T>
   std::span<const T> entries(std::vector<T> RodConstraints::*list) const {
     if (constraints == nullptr) return {};

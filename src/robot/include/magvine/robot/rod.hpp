@@ -190,20 +190,6 @@ class RodWorkspace {
   std::unique_ptr<Impl> impl;
 };
 
-/// Contact of node `node` with a wall, frozen as a plane for one solve (from CollisionWorld contacts), at depth
-/// d = r − n·(x − p) (n the unit normal from the wall toward the body, p a point on the wall, r the body's radius):
-/// energy ½k d² for d ≥ ε, none for d ≤ −ε, and between them the cubic k(d + ε)³/(12ε), whose stiffness rises
-/// linearly from 0 to k (a C² energy: Newton does not cycle on nodes resting at d ≈ 0, as it did with the plain
-/// ½k max(0, d)²). The force on the wall, k·d beyond ε, is along −n.
-struct NodeContact {
-  int node = 0;
-  Vec3 point = Vec3::Zero();
-  Vec3 normal = Vec3::UnitZ();
-  double radius = 0.0;     ///< [m]
-  double stiffness = 0.0;  ///< k [N/m]
-  double smoothing = 0.0;  ///< ε [m]; 0: the plain penalty
-};
-
 /// A node held against sliding along a wall (static friction, the everted vine's no-shear condition): energy
 /// ½ k dᵀ(I − nnᵀ)d, d = x − a its offset from the anchor a (terms/anchors.hpp: its gradient is the applied force
 /// also for a normal shorter than 1). The shear force on the wall is k (I − nnᵀ)(x − a).
@@ -212,12 +198,6 @@ struct NodeAnchor {
   Vec3 anchor = Vec3::Zero();
   Vec3 normal = Vec3::UnitZ();  ///< the wall normal at the anchor
   double stiffness = 0.0;       ///< [N/m]
-};
-
-/// A fixed force on a node [N] (e.g. the kinetic friction of a pushed catheter).
-struct NodeForce {
-  int node = 0;
-  Vec3 force = Vec3::Zero();
 };
 
 /// The wall as a smooth barrier on the unsigned distance between each node's sphere and the wall's triangles
@@ -270,9 +250,7 @@ struct TipGrowth {
 /// Terms a simulation adds to the rod's energy for one solve; not scaled by the load ramp. Node 0 (the clamp)
 /// takes none.
 struct RodConstraints {
-  std::vector<NodeContact> contacts;
   std::vector<NodeAnchor> anchors;
-  std::vector<NodeForce> forces;
   std::optional<WallBarrier> wall;
   std::vector<NodeFriction> friction;
   std::optional<TipGrowth> growth;
