@@ -121,10 +121,11 @@ int run_study_centerline(const std::string& out_dir) {
 int run_study_growth(const std::string& out_dir, bool quick) {
   create_output_directory(out_dir);
   studies::run_growth_study(out_dir, quick, [](const studies::GrowthStudyRun& r) {
-    std::cerr << printf_string("  %-6s %-16s %8.4g  %s  %6.1f mm grown  %5d steps  %6d Newton  %7.2f s  peak node %.3f N, "
-                               "total %.3f N\n",
-                               r.which == studies::GrowthStudyCase::kY ? "y" : "carina", r.knob.c_str(), r.knob == "dt" ? r.value : 1e3 * r.value, r.ok ? "ok    " : "FAILED",
-                               1e3 * r.grown, r.steps, r.newton, r.seconds, r.peak_node_normal, r.peak_total_normal);
+    std::cerr << printf_string("  %-6s %-16s %8.4g  %s  %6.1f mm grown  %5d steps  %6d Newton  %7.2f s  "
+                               "peak node %.3f N, total %.3f N\n",
+                               r.which == studies::GrowthStudyCase::kY ? "y" : "carina", r.knob.c_str(),
+                               r.knob == "dt" ? r.value : 1e3 * r.value, r.ok ? "ok    " : "FAILED", 1e3 * r.grown,
+                               r.steps, r.newton, r.seconds, r.peak_node_normal, r.peak_total_normal);
   });
   std::cerr << "magvine study growth: " << out_dir << "/growth_study.csv (tools/plot_growth_study.py " << out_dir
             << ")\n";

@@ -61,8 +61,8 @@ int main(int argc, char** argv) {
   std::string growth_out;
   bool growth_quick = false;
   auto* study_growth = study_cmd->add_subcommand(
-      "growth", "vine growth past the carina: tip path and peak wall forces against edge length, dt and d-hat, "
-                "each against its finest run (CSV; tools/plot_growth_study.py draws it)");
+      "growth", "vine growth past the carina and into the Y: tip path and peak wall forces against edge length, dt "
+                "and d-hat, each against its finest run (CSV; tools/plot_growth_study.py draws it)");
   study_growth->add_option("--out", growth_out, "output folder")->required();
   study_growth->add_flag("--quick", growth_quick, "two settings per knob (a check, not a study)");
 

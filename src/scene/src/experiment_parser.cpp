@@ -188,7 +188,10 @@ std::optional<robot::PushedRod> parse_robot(const YamlMap& robot, const FileUnit
 /// growth: the growth law and the insertion mode (a pushed rod refuses the pressure's keys).
 void parse_growth(const YamlMap& g, const FileUnits& units, bool rod, ExperimentScene& scene) {
   for (const char* gone : {"contact", "max_incidence"}) {  // the planes contact model's (removed 2026-12-02)
-    if (g.has(gone)) g.fail(gone, "the planes contact model and its keys are gone: the barrier contact is the only one (drop this key)");
+    if (g.has(gone)) {
+      g.fail(gone, "the planes contact model and its keys are gone: the barrier contact is the only one (drop this "
+                   "key)");
+    }
   }
   g.allow_only({"mode", "yield_pressure", "length_yield", "turning_yield", "extensibility", "friction", "edge_length",
                 "catheter", "magnetorheology", "retraction_pressure", "contact_distance", "friction_slip"});

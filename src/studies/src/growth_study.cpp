@@ -69,8 +69,8 @@ GrowthStudyRun run_growth_study_case(GrowthStudyCase which, double edge_length, 
   GrowthStudyRun run;
   run.which = which;
   const Stopwatch clock;
-  robot::VineGrowth g(robot::thesis_fluid_vine(5e-3), o, &world, {}, y ? Vec3(2e-3, 3e-3, 0.0) : Vec3(3e-3, 0.0, -70e-3),
-                      frame);
+  const Vec3 base = y ? Vec3(2e-3, 3e-3, 0.0) : Vec3(3e-3, 0.0, -70e-3);
+  robot::VineGrowth g(robot::thesis_fluid_vine(5e-3), o, &world, {}, base, frame);
   const double start = g.length();
   std::vector<std::pair<double, Vec3>> path{{0.0, g.state().tip()}};
   while (g.length() - start < kGrowth && g.time() < 30.0) {
@@ -135,7 +135,8 @@ void run_growth_study(const std::filesystem::path& dir, bool quick,
         const bool comparable = run.ok && ref.ok;
         csv += std::string(which == GrowthStudyCase::kY ? "y" : "carina") + "," + run.knob;
         for (const double x : {run.value, run.ok ? 1.0 : 0.0, run.grown, static_cast<double>(run.steps),
-                               static_cast<double>(run.newton), run.seconds, run.peak_node_normal, run.peak_total_normal,
+                               static_cast<double>(run.newton), run.seconds, run.peak_node_normal,
+                               run.peak_total_normal,
                                comparable ? path : nan,
                                comparable ? std::abs(run.peak_node_normal / ref.peak_node_normal - 1.0) : nan,
                                comparable ? std::abs(run.peak_total_normal / ref.peak_total_normal - 1.0) : nan}) {

@@ -67,8 +67,8 @@ struct ExperimentResult {
   robot::RodState final_state;
   robot::WallForces final_forces;  ///< on the tissue, per node, at the end
   bool converged = true;       ///< the last step reached equilibrium
-  int failed_steps = 0;        ///< steps whose new loads did not converge (the body kept its last equilibrium)
-  std::string failure;         ///< the first such step's cause
+  int failed_steps = 0;        ///< steps that did not converge, even in halves: the run ends at the first (0 or 1)
+  std::string failure;         ///< that step's cause
   bool success = false;        ///< the tip came within the target's tolerance (false without a target)
   double time_to_target = -1;  ///< [s], −1 when not reached
   int recoveries = 0;          ///< times the navigator backed the vine out of a wrong turn (Navigator::Recovery)
