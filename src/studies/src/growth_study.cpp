@@ -16,8 +16,9 @@
 namespace magvine::studies {
 namespace {
 
-constexpr double kGrowth = 100e-3;  // grown in each run [m]
-constexpr double kSample = 5e-3;    // the tip is compared every this much growth [m]
+constexpr double kEnd = 105e-3;    // each run grows to this everted length [m] (from about 5 mm: 100 mm of growth)
+constexpr double kFirst = 10e-3;   // the tips are compared at everted lengths from this one [m]
+constexpr double kSample = 5e-3;   // every this much [m]
 
 /// The generated tree to generation 4 at 0.5 mm meshing, built once.
 const anatomy::CollisionWorld& study_tree() {
@@ -30,7 +31,7 @@ const anatomy::CollisionWorld& study_tree() {
   return *world;
 }
 
-/// The tip where the body had grown s, interpolated between the samples (grown length, tip) around it.
+/// The tip where the body's everted length was s, interpolated between the samples (length, tip) around it.
 Vec3 tip_at(const std::vector<std::pair<double, Vec3>>& path, double s) {
   for (std::size_t k = 1; k < path.size(); ++k) {
     if (path[k].first >= s) {
@@ -71,9 +72,11 @@ GrowthStudyRun run_growth_study_case(GrowthStudyCase which, double edge_length, 
   const Stopwatch clock;
   const Vec3 base = y ? Vec3(2e-3, 3e-3, 0.0) : Vec3(3e-3, 0.0, -70e-3);
   robot::VineGrowth g(robot::thesis_fluid_vine(5e-3), o, &world, {}, base, frame);
+  // The initial body is whole edges of about 5 mm (3.75 mm with h = 3.75 mm): the runs are compared at equal
+  // everted lengths, not at equal growth.
   const double start = g.length();
-  std::vector<std::pair<double, Vec3>> path{{0.0, g.state().tip()}};
-  while (g.length() - start < kGrowth && g.time() < 30.0) {
+  std::vector<std::pair<double, Vec3>> path{{start, g.state().tip()}};
+  while (g.length() < kEnd && g.time() < 30.0) {
     const robot::GrowthStepReport r = g.advance(step, {.pressure = 35e3});
     ++run.steps;
     run.newton += r.newton_iterations;
@@ -81,15 +84,15 @@ GrowthStudyRun run_growth_study_case(GrowthStudyCase which, double edge_length, 
       run.failure = r.failure;
       break;
     }
-    path.emplace_back(g.length() - start, g.state().tip());
+    path.emplace_back(g.length(), g.state().tip());
     run.peak_node_normal = std::max(run.peak_node_normal, g.wall_forces().max_normal);
     run.peak_total_normal = std::max(run.peak_total_normal, g.wall_forces().total_normal);
   }
   run.seconds = clock.seconds();
   run.grown = g.length() - start;
-  run.ok = run.failure.empty() && run.grown >= kGrowth - 1e-9;
+  run.ok = run.failure.empty() && g.length() >= kEnd - 1e-9;
   if (!run.ok && run.failure.empty()) run.failure = "grew " + printf_string("%.1f mm", 1e3 * run.grown) + " in 30 s";
-  for (double s = kSample; s <= std::min(run.grown, kGrowth) + 1e-12; s += kSample) run.tips.push_back(tip_at(path, s));
+  for (double s = kFirst; s <= std::min(g.length(), kEnd) + 1e-12; s += kSample) run.tips.push_back(tip_at(path, s));
   return run;
 }
 

@@ -1,11 +1,11 @@
 #pragma once
 /// Error against runtime of vine growth in anatomy (issue 28): the thesis's Ø5 mm magnetic-fluid vine (35 kPa,
-/// yield 20 kPa, no field) grown 100 mm in the two bench_growth cases: `carina`, from 70 mm down the trachea of the
+/// yield 20 kPa, no field) grown from about 5 to 105 mm in the two bench_growth cases: `carina`, from 70 mm down the trachea of the
 /// generated bronchial tree (Weibel A to generation 4, 0.5 mm meshing), leaning on its wall under gravity, past the
 /// carina into a main bronchus; `y`, in the Y bifurcation phantom from against one side wall into that side's
 /// daughter (turning 35° at the junction). Per case three sweeps, each changing one resolution knob from the defaults (edge length h = R,
 /// dt = 20 ms, d̂ = 2 % of R) and compared with its own finest setting:
-///  - the tip path: the largest distance between the tips at equal grown lengths (every 5 mm of growth) [m];
+///  - the tip path: the largest distance between the tips at equal everted lengths (every 5 mm from 10 to 105 mm) [m];
 ///  - the peak wall normal force on a node and the peak total wall normal force over the run (relative errors).
 /// A node's force is a share of a distributed load (about the load per length times h), so it changes with h where
 /// the total does not; both are written.
@@ -30,7 +30,7 @@ struct GrowthStudyRun {
   double grown = 0.0;            ///< [m]
   double peak_node_normal = 0.0;   ///< [N]
   double peak_total_normal = 0.0;  ///< [N]
-  std::vector<Vec3> tips;        ///< the tip every 5 mm of growth
+  std::vector<Vec3> tips;        ///< the tip at everted lengths of 10, 15, …, 105 mm
   int steps = 0;
   int newton = 0;
   double seconds = 0.0;          ///< wall time of the run (one thread)
