@@ -14,11 +14,9 @@
 
 #include <benchmark/benchmark.h>
 
-#include <memory>
-
 #include "magvine/anatomy/collision_world.hpp"
-#include "magvine/anatomy/phantom.hpp"
 #include "magvine/robot/growth.hpp"
+#include "magvine/studies/growth_study.hpp"
 
 namespace {
 
@@ -58,16 +56,8 @@ void grow(benchmark::State& state, const anatomy::CollisionWorld& world, const V
   state.counters["contacts"] = contacts;
 }
 
-/// The generated tree to generation 4 at 0.5 mm meshing (built once).
-const anatomy::CollisionWorld& tree() {
-  static const auto world = [] {
-    anatomy::BronchialTreeParams p;
-    p.max_generation = 4;
-    p.spacing = 0.5e-3;
-    return std::make_unique<anatomy::CollisionWorld>(anatomy::make_bronchial_tree(p).mesh);
-  }();
-  return *world;
-}
+/// The generated tree to generation 4 at 0.5 mm meshing, the growth study's (built once).
+const anatomy::CollisionWorld& tree() { return studies::growth_study_world(studies::GrowthStudyCase::kCarina); }
 
 void BM_GrowthTrachea(benchmark::State& state) {
   Mat3 frame;  // tangent down the trachea (−z), normal +x
@@ -86,9 +76,7 @@ void BM_GrowthCarina(benchmark::State& state) {
 }
 
 void BM_GrowthY(benchmark::State& state) {
-  static const auto world =
-      std::make_unique<anatomy::CollisionWorld>(anatomy::make_y_bifurcation(anatomy::YBifurcationParams{}).mesh);
-  grow(state, *world, Vec3(0.0, 9.81, 0.0), Vec3(2e-3, 3e-3, 0.0), Mat3::Identity());
+  grow(state, studies::growth_study_world(studies::GrowthStudyCase::kY), Vec3(0.0, 9.81, 0.0), Vec3(2e-3, 3e-3, 0.0), Mat3::Identity());
 }
 
 }  // namespace

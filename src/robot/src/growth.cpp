@@ -100,10 +100,7 @@ int VineGrowth::retract_to(double length, GrowthStepReport& report) {
   }
   if (removed == 0) return 0;
   m_tip_length = m_h;
-  rebuild_model(m_pressure);
-  m_reference.resize(m_state.x.size());
-  m_cache.resize(m_state.x.size());
-  m_wall_force.resize(m_state.x.size());
+  rebuild_model(m_pressure);  // (barrier_step sizes the per-node state to the shorter body)
   if (!barrier_step(0.0, m_pressure, 0.0, report)) add_event(GrowthEventKind::kSolver, "after retracting: " + report.failure);
   return removed;
 }
@@ -260,9 +257,6 @@ VineGrowth::VineGrowth(const VineParameters& vine, const GrowthOptions& options,
   m_slip = options.friction_slip > 0.0 ? options.friction_slip : 0.01 * m_vine.radius;
   rebuild_model(vine.pressure);  // validates the vine (VineParameterError)
   m_state = straight_rod(m_model);
-  m_reference.assign(m_state.x.size(), Vec3::Constant(kNone));
-  m_contact_axis.assign(m_state.x.size(), Vec3::Zero());
-  m_contact_force.assign(m_state.x.size(), 0.0);
   GrowthStepReport report;
   // The body as made lies straight along the base's tangent. Where that would put a node's sphere into the
   // wall by more than d̂ (a base aimed at it), the body is cut before that node and everted from there to its
@@ -282,11 +276,8 @@ VineGrowth::VineGrowth(const VineParameters& vine, const GrowthOptions& options,
     m_vine.edges = std::max(1, static_cast<int>(fit) - 1);
     rebuild_model(vine.pressure);
     m_state = straight_rod(m_model);
-    m_reference.assign(m_state.x.size(), Vec3::Constant(kNone));
-    m_contact_force.assign(m_state.x.size(), 0.0);
   }
-  m_wall_force.assign(m_state.x.size(), Vec3::Zero());
-  m_contact_axis.assign(m_state.x.size(), Vec3::Zero());
+  m_reference.assign(m_state.x.size(), Vec3::Constant(kNone));  // no contact yet (barrier_step sizes the rest)
   if (!barrier_step(0.0, vine.pressure, 0.0, report)) {
     add_event(GrowthEventKind::kSolver, "initial equilibrium: " + report.failure);
     return;
@@ -544,7 +535,7 @@ bool VineGrowth::barrier_step(double dt, double pressure, double cap, GrowthStep
   }
   const RodModel old_model = m_model;
   const RodState old_state = m_state;
-  const std::vector<Vec3> old_anchor = m_reference;
+  const std::vector<Vec3> old_reference = m_reference;
   const std::vector<Vec3> old_axis = m_contact_axis;
   const std::vector<double> old_lambda = m_contact_force;
   const std::vector<double> old_strip = m_strip_force;
@@ -552,7 +543,7 @@ bool VineGrowth::barrier_step(double dt, double pressure, double cap, GrowthStep
   const auto restore = [&] {
     m_model = old_model;
     m_state = old_state;
-    m_reference = old_anchor;
+    m_reference = old_reference;
     m_contact_axis = old_axis;
     m_contact_force = old_lambda;
     m_strip_force = old_strip;

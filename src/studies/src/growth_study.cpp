@@ -20,17 +20,6 @@ constexpr double kEnd = 105e-3;    // each run grows to this everted length [m] 
 constexpr double kFirst = 10e-3;   // the tips are compared at everted lengths from this one [m]
 constexpr double kSample = 5e-3;   // every this much [m]
 
-/// The generated tree to generation 4 at 0.5 mm meshing, built once.
-const anatomy::CollisionWorld& study_tree() {
-  static const auto world = [] {
-    anatomy::BronchialTreeParams p;
-    p.max_generation = 4;
-    p.spacing = 0.5e-3;
-    return std::make_unique<anatomy::CollisionWorld>(anatomy::make_bronchial_tree(p).mesh);
-  }();
-  return *world;
-}
-
 /// The tip where the body's everted length was s, interpolated between the samples (length, tip) around it.
 Vec3 tip_at(const std::vector<std::pair<double, Vec3>>& path, double s) {
   for (std::size_t k = 1; k < path.size(); ++k) {
@@ -43,18 +32,26 @@ Vec3 tip_at(const std::vector<std::pair<double, Vec3>>& path, double s) {
   return path.back().second;
 }
 
-/// The Y bifurcation phantom (parent Ø12 mm, daughters Ø9.5 mm at 35°), built once.
-const anatomy::CollisionWorld& study_y() {
-  static const auto world =
-      std::make_unique<anatomy::CollisionWorld>(anatomy::make_y_bifurcation(anatomy::YBifurcationParams{}).mesh);
-  return *world;
-}
-
 }  // namespace
+
+const anatomy::CollisionWorld& growth_study_world(GrowthStudyCase which) {
+  if (which == GrowthStudyCase::kY) {  // each world built on first use only
+    static const auto y =
+        std::make_unique<anatomy::CollisionWorld>(anatomy::make_y_bifurcation(anatomy::YBifurcationParams{}).mesh);
+    return *y;
+  }
+  static const auto tree = [] {
+    anatomy::BronchialTreeParams p;
+    p.max_generation = 4;
+    p.spacing = 0.5e-3;
+    return std::make_unique<anatomy::CollisionWorld>(anatomy::make_bronchial_tree(p).mesh);
+  }();
+  return *tree;
+}
 
 GrowthStudyRun run_growth_study_case(GrowthStudyCase which, double edge_length, double dt, double contact_distance) {
   const bool y = which == GrowthStudyCase::kY;
-  const anatomy::CollisionWorld& world = y ? study_y() : study_tree();
+  const anatomy::CollisionWorld& world = growth_study_world(which);
   robot::GrowthOptions o;
   o.gravity = y ? Vec3(0.0, 9.81, 0.0) : Vec3(9.81, 0.0, 0.0);
   o.law.yield_pressure = 20e3;

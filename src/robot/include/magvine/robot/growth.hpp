@@ -98,7 +98,8 @@ struct PushedRod {
 };
 
 /// The body's solver in a growth step: from the last equilibrium at full load, no ramp (RodSolveOptions::ramp), at
-/// most 200 Newton iterations (a step that needs more is reverted and tried again later).
+/// most 200 Newton iterations (a step that needs more is solved again with its loads ramped, then taken again as
+/// two halves).
 inline RodSolveOptions growth_solver_options() {
   RodSolveOptions o;
   o.ramp = false;

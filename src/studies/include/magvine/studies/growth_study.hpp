@@ -15,6 +15,7 @@
 #include <string>
 #include <vector>
 
+#include "magvine/anatomy/collision_world.hpp"
 #include "magvine/core/eigen_types.hpp"
 
 namespace magvine::studies {
@@ -36,6 +37,10 @@ struct GrowthStudyRun {
   double seconds = 0.0;          ///< wall time of the run (one thread)
   std::string failure;
 };
+
+/// The case's anatomy, built once: the generated tree to generation 4 at 0.5 mm meshing (kCarina), the Y
+/// bifurcation phantom (kY). bench_growth grows in the same worlds.
+const anatomy::CollisionWorld& growth_study_world(GrowthStudyCase which);
 
 /// One run with the given knobs (h [m], dt [s], d̂ [m]; 0: the default).
 GrowthStudyRun run_growth_study_case(GrowthStudyCase which, double edge_length, double dt, double contact_distance);
