@@ -54,11 +54,10 @@ demo: build
 
 bench: deps
 	cmake -S . -B $(BUILD) -DCMAKE_BUILD_TYPE=Release -DMAGVINE_BUILD_BENCHMARKS=ON $(CMAKE_FLAGS)
-	cmake --build $(BUILD) -j $(JOBS) --target bench_fields bench_mesh_import bench_contacts bench_distance bench_rod bench_render bench_centerline
+	cmake --build $(BUILD) -j $(JOBS) --target bench_fields bench_mesh_import bench_contacts bench_rod bench_render bench_centerline
 	$(BUILD)/tests/bench/bench_fields --benchmark_min_time=0.5
 	$(BUILD)/tests/bench/bench_mesh_import
 	$(BUILD)/tests/bench/bench_contacts --benchmark_min_time=0.5
-	$(BUILD)/tests/bench/bench_distance --benchmark_filter='point/aabb/mean|capsule/aabb/mean|build/aabb/mean'
 	$(BUILD)/tests/bench/bench_rod
 	$(BUILD)/tests/bench/bench_render
 	$(BUILD)/tests/bench/bench_centerline

@@ -14,11 +14,9 @@ target_link_libraries(magvine_bullet INTERFACE PkgConfig::BULLET_F64)
 target_compile_definitions(magvine_bullet INTERFACE BT_USE_DOUBLE_PRECISION)
 add_library(magvine::bullet ALIAS magvine_bullet)
 
-# Anatomy: assimp reads the mesh formats users export from 3D Slicer and CAD; FCL answers distance queries;
-# Embree's BVH builder builds the collision world's hierarchy. All through their CMake configs (fcl's pkg-config
-# file forces -std=c++11).
+# Anatomy: assimp reads the mesh formats users export from 3D Slicer and CAD; Embree's BVH builder builds the
+# collision world's hierarchy. Both through their CMake configs.
 find_package(assimp 5 REQUIRED CONFIG)
-find_package(fcl 0.6 REQUIRED CONFIG)
 find_package(embree 3 REQUIRED CONFIG)
 
 if(MAGVINE_WITH_RENDER)

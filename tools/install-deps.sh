@@ -13,7 +13,6 @@ packages=(
   libeigen3-dev                        # linear algebra everywhere (MPL-2.0)
   libbullet-dev                        # reference for the edge bends in tests; *-float64 libraries (zlib licence)
   libassimp-dev                        # mesh import: STL/OBJ/PLY/glTF/OFF (BSD-3)
-  libfcl-dev libccd-dev                # BVH distance queries (BSD-3)
   libyaml-cpp-dev                      # scene and magnet files (MIT)
   nlohmann-json3-dev                   # JSON reports (MIT)
   libcli11-dev                         # command line (BSD-3)

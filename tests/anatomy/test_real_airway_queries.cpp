@@ -1,9 +1,9 @@
-// The collision world and the distance query on real CT airways (../shared/airways; skipped when absent), each
-// against a method that shares no code with it:
-//  * contains() (ray parity over Bullet's BVH) against the generalised winding number summed over every triangle
+// The collision world on real CT airways (../shared/airways; skipped when absent), each query against a method
+// that shares no BVH or feature code with it:
+//  * contains() (ray parity over the world's BVH) against the generalised winding number summed over every triangle
 //    (Van Oosterom–Strackee solid angles, no BVH, no rays);
-//  * sphere contacts (our narrow phase on Bullet's BVH) against the exact wall distance from DistanceQuery (FCL's
-//    BVH with exact point–triangle tests, itself checked against brute force in test_distance_query): for a sphere
+//  * sphere and capsule contacts (the world's narrow phase on its BVH) against the exact wall distance over every
+//    triangle (support/mesh_distance.hpp: closest points by closed form, no BVH): for a sphere
 //    of radius r centred in the lumen at distance d from the wall, the deepest contact has depth r − d and the
 //    normal (centre − nearest)/d, and there is no contact when d ≥ r; a centre that crossed the wall into the
 //    tissue is pushed back toward the lumen.
@@ -18,10 +18,10 @@
 #include <vector>
 
 #include "magvine/anatomy/collision_world.hpp"
-#include "magvine/anatomy/distance_query.hpp"
 #include "magvine/anatomy/mesh_io.hpp"
 #include "magvine/core/units.hpp"
 #include "support/airways.hpp"
+#include "support/mesh_distance.hpp"
 
 namespace magvine::anatomy {
 namespace {
@@ -65,7 +65,7 @@ std::vector<Vec3> points_near_wall(const TriangleMesh& mesh, int count, unsigned
 class RealAirway : public ::testing::TestWithParam<const char*> {
  protected:
   void SetUp() override {
-    const auto file = test::airway_file(GetParam());
+    const auto file = ::test::airway_file(GetParam());
     if (!file) GTEST_SKIP() << GetParam() << " not found (../shared/airways absent)";
     mesh = import_mesh(*file, {.units = LengthUnit::kMm}).mesh;
   }
@@ -135,8 +135,7 @@ TEST_P(RealAirway, ContainsAgreesWithTheWindingNumber) {
 
 TEST_P(RealAirway, DeepestSphereContactIsTheWallDistance) {
   const CollisionWorld world(mesh);
-  const DistanceQuery distance(mesh);
-  DistanceWorkspace ws = distance.make_workspace();
+  const magvine::test::BruteForceDistance distance(mesh);
   const double r = 1.5 * kMmToM;
   // Depth and distance come from different formulas on the same coordinates (plane distance of the foot vs
   // closest point on the triangle): round-off ~1e-16 m each; 1e-12 m is still 1e6 below the wall's triangle size.
@@ -148,7 +147,7 @@ TEST_P(RealAirway, DeepestSphereContactIsTheWallDistance) {
   for (const Vec3& p : points_near_wall(mesh, 4000, 9)) {
     if (!world.contains(p)) continue;
     ++checked;
-    const PointDistance d = distance.nearest_point(p, ws);
+    const magvine::test::MeshNearest d = distance.point(p);
     const std::size_t n = world.sphere_contacts(p, r, out);
     if (d.distance >= r) {
       EXPECT_EQ(n, 0u) << "p = " << p.transpose() << " wall at " << d.distance;
@@ -158,7 +157,7 @@ TEST_P(RealAirway, DeepestSphereContactIsTheWallDistance) {
     ASSERT_GE(n, 1u) << "p = " << p.transpose() << " wall at " << d.distance;
     EXPECT_NEAR(out[0].depth, r - d.distance, kDepthTol) << "p = " << p.transpose();
     if (d.distance > 1e-6) {
-      const Vec3 expected = (p - d.nearest) / d.distance;
+      const Vec3 expected = (p - d.on_mesh) / d.distance;
       EXPECT_LT((out[0].normal - expected).norm(), kNormalTol) << "p = " << p.transpose();
     }
   }
@@ -170,8 +169,7 @@ TEST_P(RealAirway, DeepestCapsuleContactIsTheAxisDistance) {
   // Capsules 2 mm long, random directions, axis wholly in the lumen (both ends inside, axis distance s > 0, so it
   // crosses no wall): deepest depth r − s and normal (on_segment − on_mesh)/s, no contact when s ≥ r.
   const CollisionWorld world(mesh);
-  const DistanceQuery distance(mesh);
-  DistanceWorkspace ws = distance.make_workspace();
+  const magvine::test::BruteForceDistance distance(mesh);
   const double r = 1.5 * kMmToM;
   const double half = 1.0 * kMmToM;
   constexpr double kDepthTol = 1e-12;  // round-off on millimetre coordinates, as for spheres
@@ -186,18 +184,18 @@ TEST_P(RealAirway, DeepestCapsuleContactIsTheAxisDistance) {
     const Vec3 a = c - half * axis;
     const Vec3 b = c + half * axis;
     if (!world.contains(a) || !world.contains(b)) continue;
-    const CapsuleDistance d = distance.capsule_distance(a, b, r, ws);
-    if (d.axis_distance < 1e-6) continue;  // touches or crosses a wall
+    const magvine::test::MeshNearest d = distance.segment(a, b);
+    if (d.distance < 1e-6) continue;  // touches or crosses a wall
     ++checked;
     const std::size_t n = world.capsule_contacts(a, b, r, out);
-    if (d.axis_distance >= r) {
+    if (d.distance >= r) {
       EXPECT_EQ(n, 0u) << "a = " << a.transpose() << " b = " << b.transpose();
       continue;
     }
     ++touching;
     ASSERT_GE(n, 1u) << "a = " << a.transpose() << " b = " << b.transpose();
-    EXPECT_NEAR(out[0].depth, r - d.axis_distance, kDepthTol) << "a = " << a.transpose() << " b = " << b.transpose();
-    const Vec3 expected = (d.on_segment - d.on_mesh) / d.axis_distance;
+    EXPECT_NEAR(out[0].depth, r - d.distance, kDepthTol) << "a = " << a.transpose() << " b = " << b.transpose();
+    const Vec3 expected = (d.on_query - d.on_mesh) / d.distance;
     EXPECT_LT((out[0].normal - expected).norm(), kNormalTol) << "a = " << a.transpose() << " b = " << b.transpose();
   }
   EXPECT_GT(checked, 500);
@@ -212,15 +210,14 @@ TEST_P(RealAirway, SphereWhoseCentreCrossedTheWallIsPushedBack) {
   // points at the nearest wall point. Measured share of such cases below; bounded loosely so a regression that
   // flips pushes wholesale fails.
   const CollisionWorld world(mesh);
-  const DistanceQuery distance(mesh);
-  DistanceWorkspace ws = distance.make_workspace();
+  const magvine::test::BruteForceDistance distance(mesh);
   const double r = 1.5 * kMmToM;
   std::array<Contact, 32> out;
   int checked = 0;
   int toward_nearest = 0;
   for (const Vec3& p : points_near_wall(mesh, 3000, 13)) {
     if (world.contains(p)) continue;
-    const PointDistance d = distance.nearest_point(p, ws);
+    const magvine::test::MeshNearest d = distance.point(p);
     if (d.distance >= 0.5 * r || d.distance < 1e-6) continue;
     ++checked;
     const std::size_t n = world.sphere_contacts(p, r, out);
@@ -228,7 +225,7 @@ TEST_P(RealAirway, SphereWhoseCentreCrossedTheWallIsPushedBack) {
     EXPECT_GT(out[0].depth, r) << "p = " << p.transpose();
     Vec3 force = Vec3::Zero();
     for (std::size_t i = 0; i < n; ++i) force += out[i].depth * out[i].normal;
-    toward_nearest += force.dot(d.nearest - p) > 0.0 ? 1 : 0;
+    toward_nearest += force.dot(d.on_mesh - p) > 0.0 ? 1 : 0;
   }
   ASSERT_GT(checked, 200);
   const double share = static_cast<double>(toward_nearest) / checked;

@@ -34,11 +34,11 @@
 #include <cmath>
 #include <cstdint>
 #include <random>
+#include <stdexcept>
 #include <string>
 #include <vector>
 
 #include "magvine/anatomy/collision_world.hpp"
-#include "magvine/anatomy/distance_query.hpp"
 #include "magvine/anatomy/mesh_io.hpp"
 #include "magvine/anatomy/primitives.hpp"
 #include "magvine/core/units.hpp"
@@ -140,10 +140,17 @@ Vec3 near_wall(WallSampler& rng, const WallPoint& w) {
   return w.point - rng.uniform(-0.5 * kRadius, 1.2 * kRadius) * w.normal;
 }
 
+/// The nearest wall point to p (the wall lies within 5 mm of every point asked about here).
+NearTriangle nearest_wall(const Vec3& p) {
+  std::array<NearTriangle, 1> near;
+  if (world().triangles_within(p, 5e-3, near) == 0) throw std::runtime_error("bench_contacts: no wall within 5 mm");
+  return near[0];
+}
+
 /// Robot-like bodies: kChains chains of kChainNodes sphere centres 1.5 mm apart, each walking along the wall in a
-/// fixed direction (every step re-projected onto the wall with DistanceQuery), each centre near the wall as above.
-/// The /body order visits every chain kIterations times in a row, as a solver's Newton iterations query the nodes of
-/// one robot body.
+/// fixed direction (every step re-projected onto the nearest wall point, CollisionWorld::triangles_within), each centre
+/// near the wall as above. The /body order visits every chain kIterations times in a row, as a solver's Newton
+/// iterations query the nodes of one robot body.
 constexpr std::size_t kChains = 64;
 constexpr std::size_t kChainNodes = 64;
 constexpr std::size_t kIterations = 8;
@@ -152,8 +159,6 @@ constexpr double kNodeSpacing = 1.5e-3;  // [m]
 const std::vector<Vec3>& body_centres() {
   static const std::vector<Vec3> c = [] {
     WallSampler rng(16);
-    const DistanceQuery distance(scene().mesh);
-    DistanceWorkspace ws = distance.make_workspace();
     std::vector<Vec3> out;
     out.reserve(kChains * kChainNodes);
     for (std::size_t chain = 0; chain < kChains; ++chain) {
@@ -163,10 +168,10 @@ const std::vector<Vec3>& body_centres() {
         out.push_back(near_wall(rng, w));
         Vec3 tangent = heading - heading.dot(w.normal) * w.normal;
         if (!(tangent.norm() > 1e-9)) tangent = w.normal.unitOrthogonal();
-        const PointDistance next = distance.nearest_point(w.point + kNodeSpacing * tangent.normalized(), ws);
-        const Vec3 n = area_vector(scene().mesh, static_cast<std::size_t>(next.triangle));
-        heading = next.nearest - w.point;
-        w = {next.nearest, n.norm() > 0.0 ? Vec3(n.normalized()) : w.normal};
+        const NearTriangle next = nearest_wall(w.point + kNodeSpacing * tangent.normalized());
+        const Vec3 n = area_vector(scene().mesh, next.triangle);
+        heading = next.point - w.point;
+        w = {next.point, n.norm() > 0.0 ? Vec3(n.normalized()) : w.normal};
       }
     }
     return out;
@@ -267,15 +272,13 @@ struct SidedPoints {
 const SidedPoints& sided_points() {
   static const SidedPoints s = [] {
     WallSampler rng(14);
-    const DistanceQuery distance(scene().mesh);
-    DistanceWorkspace ws = distance.make_workspace();
     SidedPoints out;
     while (out.points.size() < kBodies) {
       const bool in = out.points.size() % 2 == 0;
       const WallPoint w = rng.sample();
       const double offset = rng.uniform(0.5e-3, 3e-3);
       const Vec3 p = w.point + (in ? -offset : offset) * w.normal;
-      if (distance.nearest_point(p, ws).distance < 0.99 * offset) continue;
+      if (nearest_wall(p).distance < 0.99 * offset) continue;
       out.points.push_back(p);
       out.inside.push_back(in);
     }
@@ -373,6 +376,24 @@ void BM_SphereContacts(benchmark::State& state, Order order) {
   state.counters["hit"] = per_iteration(state, static_cast<double>(hits));
   state.counters["contacts"] = per_iteration(state, static_cast<double>(contacts));
   state.counters["full"] = per_iteration(state, static_cast<double>(full));
+}
+
+/// The wall barrier's query (robot/terms/wall_barrier.hpp): the triangles within r + d̂ of a node centre, nearest
+/// first, up to 32 (kBarrierTriangles), with r = 1.5 mm and the default d̂ = 0.2 mm. Counter `near` = triangles
+/// within reach per query.
+void BM_TrianglesWithin(benchmark::State& state, Order order) {
+  const CollisionWorld& w = world();
+  const std::vector<Vec3>& c = centres_for(order);
+  const std::vector<std::uint32_t> o = visit_order(c, order);
+  std::array<NearTriangle, 32> out{};
+  std::size_t i = 0, near = 0;
+  for (auto _ : state) {
+    near += w.triangles_within(c[o[i]], kRadius + 0.2e-3, out);
+    benchmark::DoNotOptimize(out.data());
+    i = i + 1 == o.size() ? 0 : i + 1;
+  }
+  common_counters(state);
+  state.counters["near"] = per_iteration(state, static_cast<double>(near));
 }
 
 /// As BM_SphereContacts (/body or /moving), each chain node with its own ContactCache.
@@ -478,6 +499,9 @@ BENCHMARK_CAPTURE(BM_SphereContacts, sorted, Order::kSorted)->Unit(benchmark::kN
 BENCHMARK_CAPTURE(BM_SphereContacts, hot, Order::kHot)->Unit(benchmark::kNanosecond);
 BENCHMARK_CAPTURE(BM_SphereContacts, body, Order::kBody)->Unit(benchmark::kNanosecond);
 BENCHMARK_CAPTURE(BM_SphereContacts, moving, Order::kMoving)->Unit(benchmark::kNanosecond);
+BENCHMARK_CAPTURE(BM_TrianglesWithin, random, Order::kRandom)->Unit(benchmark::kNanosecond);
+BENCHMARK_CAPTURE(BM_TrianglesWithin, body, Order::kBody)->Unit(benchmark::kNanosecond);
+BENCHMARK_CAPTURE(BM_TrianglesWithin, moving, Order::kMoving)->Unit(benchmark::kNanosecond);
 BENCHMARK_CAPTURE(BM_SphereContactsCached, body, Order::kBody)->Unit(benchmark::kNanosecond);
 BENCHMARK_CAPTURE(BM_SphereContactsCached, moving, Order::kMoving)->Unit(benchmark::kNanosecond);
 BENCHMARK_CAPTURE(BM_CapsuleContacts, random, Order::kRandom)->Unit(benchmark::kNanosecond);

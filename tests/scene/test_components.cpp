@@ -9,9 +9,9 @@
 
 #include "magvine/core/usage.hpp"
 #include "magvine/scene/experiment.hpp"
+#include "magvine/scene/free_space.hpp"
 #include "magvine/scene/navigator.hpp"
 #include "magvine/scene/trials.hpp"
-#include "magvine/scene/free_space.hpp"
 
 namespace magvine::scene {
 namespace {
@@ -20,12 +20,11 @@ using usage::Component;
 
 const std::filesystem::path kScenes = std::filesystem::path(MAGVINE_SOURCE_DIR) / "assets/scenes";
 
-TEST(Components, AFreeSpaceRodInAUniformFieldBuildsNoWorldNoDistanceModelNoGradient) {
+TEST(Components, AFreeSpaceRodInAUniformFieldBuildsNoWorldNoGradient) {
   usage::reset();
   const FreeSpaceResult r = solve_free_space(load_free_space_scene(kScenes / "rod_uniform_field.yaml"));
   ASSERT_TRUE(r.report.converged);
   EXPECT_EQ(usage::count(Component::kCollisionWorld), 0u);
-  EXPECT_EQ(usage::count(Component::kDistanceModel), 0u);
   EXPECT_EQ(usage::count(Component::kGradientField), 0u);
 }
 
@@ -34,11 +33,10 @@ TEST(Components, AFreeSpaceVineUnderTheEpmBuildsItsGradientButNoWorld) {
   const FreeSpaceResult r = solve_free_space(load_free_space_scene(kScenes / "skin_vine_epm.yaml"));
   ASSERT_TRUE(r.report.converged);
   EXPECT_EQ(usage::count(Component::kCollisionWorld), 0u);
-  EXPECT_EQ(usage::count(Component::kDistanceModel), 0u);
   EXPECT_EQ(usage::count(Component::kGradientField), 1u);
 }
 
-TEST(Components, AnExperimentBuildsOneWorldAndNoDistanceModelAndAGradientOnlyWithMagnets) {
+TEST(Components, AnExperimentBuildsOneWorldAndAGradientOnlyWithMagnets) {
   // The collision world is built once, with the scene's anatomy when it loads; runs and trials share it.
   usage::reset();
   ExperimentScene scene = load_experiment_scene(kScenes / "y_bifurcation_fluid_vine.yaml");
@@ -47,7 +45,6 @@ TEST(Components, AnExperimentBuildsOneWorldAndNoDistanceModelAndAGradientOnlyWit
   usage::reset();
   (void)run_experiment(scene);
   EXPECT_EQ(usage::count(Component::kCollisionWorld), 0u);
-  EXPECT_EQ(usage::count(Component::kDistanceModel), 0u);
   EXPECT_GE(usage::count(Component::kGradientField), 1u);  // one per magnet pose (it moves every step)
   EXPECT_EQ(usage::count(Component::kRenderer), 0u);       // no outputs.video (test_video_outputs: one with it)
   scene.magnets.reset();
@@ -55,7 +52,6 @@ TEST(Components, AnExperimentBuildsOneWorldAndNoDistanceModelAndAGradientOnlyWit
   usage::reset();
   (void)run_experiment(scene);
   EXPECT_EQ(usage::count(Component::kCollisionWorld), 0u);
-  EXPECT_EQ(usage::count(Component::kDistanceModel), 0u);
   EXPECT_EQ(usage::count(Component::kGradientField), 0u);
   // Four trials on two threads: no world of their own.
   usage::reset();

@@ -1,8 +1,8 @@
 #pragma once
 /// Counts of the costly components a run builds, so tests can show that a scene builds only what it uses (DESIGN.md:
-/// no collision world without anatomy, no field gradients for uniform fields, no FCL distance model unless a
-/// distance is asked, no renderer without a camera output). Incremented where each component is constructed, never in a solver's inner loop; relaxed
-/// atomics, so counts from parallel trials add up.
+/// no collision world without anatomy, no field gradients for uniform fields, no renderer without a camera output).
+/// Incremented where each component is constructed, never in a solver's inner loop; relaxed atomics, so counts from
+/// parallel trials add up.
 
 #include <cstdint>
 
@@ -10,7 +10,6 @@ namespace magvine::usage {
 
 enum class Component {
   kCollisionWorld,  ///< anatomy::CollisionWorld (contact BVH, edge tables)
-  kDistanceModel,   ///< anatomy::DistanceQuery (FCL BVH)
   kGradientField,   ///< a robot field function that evaluates ∇B (magnets with gradients)
   kRenderer,        ///< render::AirwayRenderer (Embree scene of the anatomy for a camera)
   kCount
