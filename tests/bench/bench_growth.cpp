@@ -38,7 +38,7 @@ void grow(benchmark::State& state, const anatomy::CollisionWorld& world, const V
     VineGrowth g(fluid_vine(), o, &world, {}, base, frame);
     steps = newton = passes = 0;
     while (g.length() < 105e-3) {
-      const GrowthStepReport r = g.advance(0.02, {.pressure = 35e3});
+      const GrowthStatus r = g.advance(0.02, {.pressure = 35e3});
       ++steps;
       newton += r.newton_iterations;
       passes += r.solves;

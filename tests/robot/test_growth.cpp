@@ -1,13 +1,16 @@
 // Vine growth through anatomy (robot/growth.hpp): eversion without shear in a tube, the growth law's stall against
-// its closed form, burst, a tip blocked by a wall, and the pushed catheter's friction against the vine's.
+// its closed form, burst, a tip blocked by a wall, the pushed catheter's friction against the vine's, and the step
+// function's state: a checkpoint is a copy, and one model serves trials in threads.
 
 #include <gtest/gtest.h>
 
 #include <cmath>
 #include <cstdint>
-#include <string>
-#include <utility>
+#include <algorithm>
 #include <cstdio>
+#include <string>
+#include <thread>
+#include <utility>
 #include <vector>
 
 #include "magvine/anatomy/collision_world.hpp"
@@ -99,7 +102,7 @@ TEST(Growth, FollowsTheGrowthLawToWhereTheYieldReachesThePressureAndStallsBelowI
   double worst_lag = 0.0;
   double worst_lead = 0.0;
   while (g.time() < 8.0 / rate) {
-    const GrowthStepReport r = g.advance(0.25, {.pressure = p});
+    const GrowthStatus r = g.advance(0.25, {.pressure = p});
     ASSERT_TRUE(r.converged) << r.failure;
     const double lag = l_star - (l_star - l0) * std::exp(-rate * g.time()) - g.length();
     worst_lag = std::max(worst_lag, lag);
@@ -131,7 +134,7 @@ TEST(Growth, TetherReleaseCapsTheLength) {
   double worst_lag = 0.0;
   while (g.time() < 8.0) {
     const double tether = l0 + 5e-3 * (g.time() + 0.05);
-    const GrowthStepReport r = g.advance(0.05, {.pressure = 12e3, .tether_length = tether});
+    const GrowthStatus r = g.advance(0.05, {.pressure = 12e3, .tether_length = tether});
     ASSERT_TRUE(r.converged) << r.failure;
     EXPECT_GT(r.speed, 10e-3);  // the law alone would outrun the tether
     EXPECT_LE(g.length(), tether + 1e-12);
@@ -186,7 +189,7 @@ TEST(Growth, ABodyWithoutEquilibriumStoresNoGrowthForLater) {
     return f;
   });
   const double held = g.length();
-  GrowthStepReport r;
+  GrowthStatus r;
   for (int i = 0; i < 50; ++i) r = g.advance(0.02, inflated);  // 1 s without equilibrium
   EXPECT_FALSE(r.converged);
   EXPECT_EQ(g.length(), held);
@@ -205,7 +208,7 @@ TEST(Growth, BurstsWhenTheHoopStressPassesTheFilmStrength) {
   VineGrowth g(skin_mvr(), o, nullptr, {}, Vec3::Zero(), Mat3::Identity());
   EXPECT_FALSE(g.advance(0.1, {.pressure = 47e3}).burst);
   const double before = g.length();
-  const GrowthStepReport r = g.advance(0.1, {.pressure = 48.5e3});
+  const GrowthStatus r = g.advance(0.1, {.pressure = 48.5e3});
   EXPECT_TRUE(r.burst);
   EXPECT_TRUE(g.burst());
   EXPECT_EQ(g.events().back().kind, GrowthEventKind::kBurst);
@@ -250,7 +253,7 @@ FloorRun grow_along_floor(InsertionMode mode) {
   FloorRun out;
   std::vector<Vec3> first_touch;
   while (g.length() < 100e-3) {
-    const GrowthStepReport r = g.advance(0.05, {.pressure = 12e3});
+    const GrowthStatus r = g.advance(0.05, {.pressure = 12e3});
     EXPECT_TRUE(r.converged) << r.failure;
     if (!r.converged || g.time() > 100.0) break;
     const WallForces& f = g.wall_forces();
@@ -301,7 +304,7 @@ TEST(Growth, TipGrowingIntoTheEndWallIsBlockedAndNeverTunnels) {
   VineGrowth g(skin_mvr(), o, &tube.world, {}, Vec3(2e-3, 0.0, 0.0), Mat3::Identity());
   int most_iterations = 0;
   for (int step = 0; step < 200; ++step) {
-    const GrowthStepReport r = g.advance(0.05, {.pressure = 12e3});
+    const GrowthStatus r = g.advance(0.05, {.pressure = 12e3});
     ASSERT_TRUE(r.converged) << r.failure;
     most_iterations = std::max(most_iterations, r.newton_iterations);
     for (const Vec3& x : g.state().x) {
@@ -335,7 +338,7 @@ std::pair<double, bool> slide_along_side_wall(double heading, double edge) {
                Eigen::AngleAxisd(heading, Vec3::UnitZ()).toRotationMatrix());
   double touched = -1.0;
   while (g.time() < 10.0 && g.state().tip().x() < 0.12) {
-    const GrowthStepReport r = g.advance(0.02, {.pressure = 35e3});
+    const GrowthStatus r = g.advance(0.02, {.pressure = 35e3});
     EXPECT_TRUE(r.converged) << r.failure;
     if (!r.converged) break;
     if (touched < 0.0 && g.state().tip().y() > 15e-3 - g.radius() - 0.2e-3) touched = g.state().tip().x();
@@ -382,7 +385,7 @@ TEST(Growth, ATipMeetingACarinaHeadOnRollsOffIntoADaughterButAFlatWallHoldsIt) {
     o.law.yield_pressure = 20e3;
     VineGrowth g(fluid_vine(), o, &world, {}, Vec3(2e-3, 0.2e-3 * side, 0.0), Mat3::Identity());
     while (g.length() < 100e-3 && g.time() < 20.0) {
-      const GrowthStepReport r = g.advance(0.02, {.pressure = 35e3});
+      const GrowthStatus r = g.advance(0.02, {.pressure = 35e3});
       ASSERT_TRUE(r.converged) << r.failure;
     }
     const Vec3 tip = g.state().tip();
@@ -410,7 +413,7 @@ TEST(Growth, VineConformsIntoTheDaughterItLeansTowards) {
     VineGrowth g(fluid_vine(), o, &world, {}, Vec3(2e-3, 3e-3 * side, 0.0), Mat3::Identity());
     int newton = 0;
     while (g.length() < 100e-3 && g.time() < 20.0) {
-      const GrowthStepReport r = g.advance(0.02, {.pressure = 35e3});
+      const GrowthStatus r = g.advance(0.02, {.pressure = 35e3});
       ASSERT_TRUE(r.converged) << r.failure;
       newton += r.newton_iterations;
     }
@@ -467,7 +470,7 @@ TEST(Growth, GrazingASideWallIntoACornerSlidesThenBlocksWithoutTunnelling) {
   VineGrowth g(v, o, &channel, {}, Vec3(2e-3, 0.0, radius - 5e-3), frame);
   int most = 0;
   for (int step = 0; step < 200; ++step) {
-    const GrowthStepReport r = g.advance(0.02, {.pressure = 35e3});
+    const GrowthStatus r = g.advance(0.02, {.pressure = 35e3});
     ASSERT_TRUE(r.converged) << r.failure;
     most = std::max(most, r.newton_iterations);
     for (const Vec3& x : g.state().x) ASSERT_TRUE(channel.contains(x)) << "a node left the channel, step " << step;
@@ -505,7 +508,7 @@ SlotRun grow_through_slot(const VineParameters& v, double pressure, double gap, 
   VineGrowth g(v, o, &world, {}, Vec3(base_x, 0.0, 0.0), Mat3::Identity());
   SlotRun out;
   while (g.state().tip().x() < 80e-3 && g.time() < 15.0) {
-    const GrowthStepReport r = g.advance(0.02, {.pressure = pressure});
+    const GrowthStatus r = g.advance(0.02, {.pressure = pressure});
     EXPECT_TRUE(r.converged) << r.failure;
     double normal = 0.0;
     double shear = 0.0;
@@ -593,7 +596,7 @@ TEST(Growth, ADeflatedVineLyingInTheSBendBendsTowardsAMagnetBroughtClose) {
   while (g.time() < 8.0) ASSERT_TRUE(g.advance(0.1, {.pressure = 12e3, .tether_length = 70e-3}).converged);
   const Vec3 before = g.state().tip();
   g.set_field(thesis_epm(Vec3(85e-3, -85e-3, 0.0), -Vec3::UnitZ()));
-  const GrowthStepReport r = g.advance(0.1, {.pressure = 1e3, .tether_length = 70e-3});
+  const GrowthStatus r = g.advance(0.1, {.pressure = 1e3, .tether_length = 70e-3});
   ASSERT_TRUE(r.converged) << r.failure;
   const Vec3 after = g.state().tip();
   double largest = 0.0;
@@ -649,7 +652,7 @@ TEST(Growth, TheStiffenedFluidResumesGrowingWhenTheMagnetIsWithdrawn) {
                Vec3::Zero(), Mat3::Identity());
   ASSERT_TRUE(g.events().empty()) << g.events().front().detail;
   for (int i = 0; i < 40; ++i) {
-    const GrowthStepReport r = g.advance(0.05, {.pressure = 35e3});
+    const GrowthStatus r = g.advance(0.05, {.pressure = 35e3});
     ASSERT_TRUE(r.converged) << "step " << i << ": " << r.failure;
   }
   const double near = g.length();
@@ -676,7 +679,7 @@ TEST(Growth, RetractsByDeflatingAndPullingTheTether) {
   EXPECT_EQ(g.length(), made);
   ASSERT_FALSE(g.events().empty());
   EXPECT_EQ(g.events().back().kind, GrowthEventKind::kRetract);
-  const GrowthStepReport r = g.advance(0.1, {.pressure = 0.5e3, .tether_length = 40e-3});
+  const GrowthStatus r = g.advance(0.1, {.pressure = 0.5e3, .tether_length = 40e-3});
   ASSERT_TRUE(r.converged) << r.failure;
   std::printf("  %.1f mm pulled back to %.1f mm (%d edges inverted)\n", 1e3 * made, 1e3 * g.length(),
               r.edges_removed);
@@ -686,6 +689,87 @@ TEST(Growth, RetractsByDeflatingAndPullingTheTether) {
   // Pressurised again with the tether where it is: no growth past it.
   for (int i = 0; i < 20; ++i) ASSERT_TRUE(g.advance(0.1, {.pressure = 12e3, .tether_length = 40e-3}).converged);
   EXPECT_LE(g.length(), 40e-3 + 1e-12);
+}
+
+
+/// The node positions, frames and tissue forces of two states agree to the last bit (a determinism check: exact
+/// equality is the point).
+void expect_same_bits(const GrowthState& a, const GrowthState& b) {
+  EXPECT_EQ(a.time, b.time);
+  EXPECT_EQ(a.edges, b.edges);
+  EXPECT_EQ(a.tip_length, b.tip_length);
+  ASSERT_EQ(a.body.x.size(), b.body.x.size());
+  for (std::size_t i = 0; i < a.body.x.size(); ++i) {
+    EXPECT_TRUE(a.body.x[i] == b.body.x[i]) << "node " << i;
+    EXPECT_TRUE(a.body.frames[std::min(i, a.body.frames.size() - 1)] ==
+                b.body.frames[std::min(i, b.body.frames.size() - 1)]);
+    EXPECT_TRUE(a.forces.normal_vector[i] == b.forces.normal_vector[i]) << "node " << i;
+    EXPECT_TRUE(a.forces.shear_vector[i] == b.forces.shear_vector[i]) << "node " << i;
+  }
+}
+
+/// The fluid vine leaning into the Y bifurcation's side wall (gravity across the parent, as
+/// VineConformsIntoTheDaughterItLeansTowards): contacts, friction references and lagged forces to carry.
+GrowthModel leaning_vine(const anatomy::CollisionWorld& world) {
+  GrowthOptions o;
+  o.gravity = Vec3(0.0, 9.81, 0.0);
+  o.law.yield_pressure = 20e3;
+  return make_growth_model(fluid_vine(), o, &world, Vec3(2e-3, 3e-3, 0.0), Mat3::Identity());
+}
+
+/// `steps` steps of 20 ms from `state`, the pressure a load of each step: 35 kPa, then 30 kPa for the second half.
+GrowthState grow_on(const GrowthModel& model, GrowthState state, GrowthWorkspace& workspace, int steps) {
+  for (int k = 0; k < steps; ++k) {
+    const GrowthStatus s = grow_step(model, {}, {.pressure = k < steps / 2 ? 35e3 : 30e3}, state, workspace, 0.02);
+    EXPECT_TRUE(s.converged) << s.failure;
+  }
+  return state;
+}
+
+TEST(GrowthStep, ACheckpointIsACopyOfTheStateAndRepeatsTheRunBitForBit) {
+  // STYLE.md's state: everything that changes in time is in GrowthState, so a copy taken mid-run and grown on again
+  // repeats the run exactly, with the workspace that made it or with a new one (nothing that steers the solve is
+  // kept in the workspace), and the pressure changing as a step load (35 then 30 kPa) needs no new model.
+  const anatomy::Phantom y = anatomy::make_y_bifurcation({});
+  const anatomy::CollisionWorld world(y.mesh);
+  const GrowthModel model = leaning_vine(world);
+  GrowthState state;
+  GrowthWorkspace workspace;
+  const GrowthStatus start = start_growth(model, {}, fluid_vine().length, 35e3, state, workspace);
+  ASSERT_TRUE(start.events.empty()) << start.events.front().detail;  // placed whole: no "solver" event
+  state = grow_on(model, state, workspace, 30);
+  const GrowthState checkpoint = state;
+  ASSERT_GT(checkpoint.forces.nodes_in_contact, 0);  // there is contact history to carry
+  const GrowthState a = grow_on(model, checkpoint, workspace, 30);
+  GrowthWorkspace fresh;
+  const GrowthState b = grow_on(model, checkpoint, fresh, 30);
+  EXPECT_GT(a.edges, checkpoint.edges + 3);  // it grew on, in contact
+  EXPECT_GT(a.forces.nodes_in_contact, 0);
+  EXPECT_EQ(a.pressure, 30e3);
+  EXPECT_NEAR(workspace.radius, extended_radius(fluid_vine(), 30e3), 1e-15);  // the body at the step's pressure
+  expect_same_bits(a, b);
+}
+
+TEST(GrowthStep, TrialsInThreadsShareOneModelAndMatchTheSequentialRun) {
+  // The model is immutable and the world's queries const: two threads growing from one model, each with its own
+  // state and workspace, give the sequential run's result to the bit.
+  const anatomy::Phantom y = anatomy::make_y_bifurcation({});
+  const anatomy::CollisionWorld world(y.mesh);
+  const GrowthModel model = leaning_vine(world);
+  const auto trial = [&model] {
+    GrowthState state;
+    GrowthWorkspace workspace;
+    start_growth(model, {}, fluid_vine().length, 35e3, state, workspace);
+    return grow_on(model, state, workspace, 40);
+  };
+  const GrowthState sequential = trial();
+  GrowthState in_thread[2];
+  std::thread first([&] { in_thread[0] = trial(); });
+  std::thread second([&] { in_thread[1] = trial(); });
+  first.join();
+  second.join();
+  expect_same_bits(in_thread[0], sequential);
+  expect_same_bits(in_thread[1], sequential);
 }
 
 }  // namespace

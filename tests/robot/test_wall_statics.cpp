@@ -43,7 +43,7 @@ TEST(WallStatics, AVineGrownHeadOnIntoAWallPressesItWithTheGrowthForce) {
     o.law.turning_yield = 0.0;
     VineGrowth g(thesis_fluid_vine(10e-3), o, &tube.world, {}, Vec3(2e-3, 0.0, 0.0), Mat3::Identity());
     for (int step = 0; step < 600 && g.time() < 30.0; ++step) {
-      const GrowthStepReport r = g.advance(0.05, {.pressure = pressure});
+      const GrowthStatus r = g.advance(0.05, {.pressure = pressure});
       ASSERT_TRUE(r.converged) << r.failure << " at step " << step;
       for (const Vec3& x : g.state().x) ASSERT_TRUE(tube.world.contains(x)) << "a node left the lumen";
     }
@@ -72,7 +72,7 @@ TEST(WallStatics, AVineLyingInAHorizontalTubeRestsItsWeightOnTheWall) {
   o.law.yield_pressure = 20e3;
   VineGrowth g(thesis_fluid_vine(10e-3), o, &tube.world, {}, Vec3(2e-3, 0.0, 0.0), Mat3::Identity());
   while (g.time() < 12.0) {
-    const GrowthStepReport r = g.advance(0.05, {.pressure = 35e3, .tether_length = 100e-3});
+    const GrowthStatus r = g.advance(0.05, {.pressure = 35e3, .tether_length = 100e-3});
     ASSERT_TRUE(r.converged) << r.failure << " at " << g.time() << " s, " << 1e3 * g.length() << " mm";
     const WallForces& f = g.wall_forces();
     ASSERT_LE(f.imbalance.norm(), 1e-3 * f.largest_load) << "at " << 1e3 * g.length() << " mm";
@@ -106,7 +106,7 @@ TEST(WallStatics, AMagnetPressingAVineOnAWallIsBalancedByTheWallsReaction) {
   VineGrowth g(thesis_fluid_vine(10e-3), o, &tube.world, field_function(epm, epm.rest_poses), Vec3(2e-3, 0.0, 0.0),
                Mat3::Identity());
   while (g.time() < 8.0) {
-    const GrowthStepReport r = g.advance(0.05, {.pressure = 35e3, .tether_length = 60e-3});
+    const GrowthStatus r = g.advance(0.05, {.pressure = 35e3, .tether_length = 60e-3});
     ASSERT_TRUE(r.converged) << r.failure;
   }
   const WallForces& f = g.wall_forces();
@@ -141,7 +141,7 @@ TEST(WallStatics, EveryStepPastTheCarinaBalancesAndNoNodeLeavesTheLumen) {
   double worst = 0.0;
   int steps = 0;
   while (g.length() < 105e-3 && g.time() < 30.0) {
-    const GrowthStepReport r = g.advance(0.02, {.pressure = 35e3});
+    const GrowthStatus r = g.advance(0.02, {.pressure = 35e3});
     ASSERT_TRUE(r.converged) << r.failure << " at " << g.time() << " s";
     ++steps;
     const WallForces& f = g.wall_forces();

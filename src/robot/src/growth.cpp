@@ -64,107 +64,6 @@ double made_radius(const VineParameters& vine, const GrowthOptions& options) {
   return vine.radius;
 }
 
-}  // namespace
-
-GrowthRate growth_rate(const GrowthLaw& law, double pressure, double length, double turning, double extra_yield) {
-  GrowthRate r;
-  r.length_term = law.length_yield * length;
-  r.turning_term = law.turning_yield * turning;
-  r.extra_yield = extra_yield;
-  r.yield = law.yield_pressure + r.length_term + r.turning_term + r.extra_yield;
-  r.speed = law.extensibility * std::max(0.0, pressure - r.yield);
-  return r;
-}
-
-double growth_force(double pressure, double yield, double radius) {
-  return std::max(0.0, pressure - yield) * kPi * radius * radius;
-}
-
-double VineGrowth::magnetorheological_yield() const {
-  if (!m_options.magnetorheology || !m_field) return 0.0;
-  double integral = 0.0;  // ∫τ_y ds, the field at each edge's midpoint
-  for (std::size_t j = 0; j + 1 < m_state.x.size(); ++j) {
-    const Vec3 mid = 0.5 * (m_state.x[j] + m_state.x[j + 1]);
-    integral += magnetics::magnetorheological_yield_stress(m_field(mid).b.norm() / kMu0, m_vine.volume_fraction) * m_h;
-  }
-  return 2.0 * integral / m_radius;
-}
-
-int VineGrowth::retract_to(double length, GrowthStepReport& report) {
-  int removed = 0;
-  while (m_vine.edges > 1 && (m_vine.edges - 1) * m_h >= length - 1e-12 * m_h) {
-    --m_vine.edges;
-    m_state.x.pop_back();
-    m_state.frames.pop_back();
-    ++removed;
-  }
-  if (removed == 0) return 0;
-  m_tip_length = m_h;
-  rebuild_model(m_pressure);  // (barrier_step sizes the per-node state to the shorter body)
-  if (!barrier_step(0.0, m_pressure, 0.0, report)) add_event(GrowthEventKind::kSolver, "after retracting: " + report.failure);
-  return removed;
-}
-
-double VineGrowth::lumen_width(const Vec3& x, const Mat3& frame, Vec3* across, int recentrings) const {
-  const double reach = 2.0 * m_radius;
-  Vec3 centre = x;
-  double width = 0.0;
-  Vec3 line = frame.col(1);
-  for (int pass = 0;; ++pass) {
-    width = 2.0 * reach;
-    Vec3 middle = Vec3::Zero();  // the mean of the chords' midpoints
-    for (int k = 0; k < 4; ++k) {
-      const double a = 0.25 * kPi * k;
-      const Vec3 u = std::cos(a) * frame.col(1) + std::sin(a) * frame.col(2);
-      const auto plus = m_world->ray_cast(centre, u, reach);
-      const auto minus = m_world->ray_cast(centre, -u, reach);
-      const double d_plus = plus ? plus->distance : reach;
-      const double d_minus = minus ? minus->distance : reach;
-      if (d_plus + d_minus < width) line = u;
-      width = std::min(width, d_plus + d_minus);
-      middle += centre + 0.5 * (d_plus - d_minus) * u;
-    }
-    // A point off the lumen's axis has short chords across it (2√(ρ² − d²) at d off the axis of a round lumen of
-    // radius ρ), which read as a gap that is not there. Where the width would squeeze the body, the point moves to
-    // the mean of the chords' midpoints and the chords are cast again: in a round lumen each move halves the
-    // offset (the midpoint of the chord along u is the axis point plus the offset's component along u, and four
-    // directions 45° apart average uuᵀ to I/2); across a slot it changes no chord's length.
-    if (pass == recentrings || kSlack * width >= m_radius) break;
-    middle *= 0.25;
-    if ((middle - centre).norm() < 1e-3 * m_radius || !m_world->contains(middle)) break;
-    centre = middle;
-  }
-  if (across != nullptr) *across = line;
-  return width;
-}
-
-double VineGrowth::node_radius(const Vec3& x, const Mat3& frame, Vec3* across, int recentrings) const {
-  if (m_world == nullptr || m_options.rod) return m_radius;  // a solid rod does not flatten
-  const Vec3 t = frame.col(0);
-  Vec3 line = frame.col(1);
-  double width = lumen_width(x, frame, &line, recentrings);
-  // A centre pressed past the wall (a new tip placed into a carina's ridge before the solve pushes it out) sees the
-  // tissue, not a gap: only the probes inside the lumen count then.
-  if (width < 4.0 * m_radius && !m_world->contains(x)) width = 4.0 * m_radius;
-  if (width < 4.0 * m_radius) {  // near a narrowing: the sphere's front and back too
-    for (const double side : {1.0, -1.0}) {
-      // Where the sphere's front is already past a wall (the tip against a carina's ridge), the rays would measure
-      // the tissue between two branches, not a gap: the wall ahead is a contact, not a constriction.
-      // Nor does a narrowing ahead that closes a radius further on (the notch of a carina's saddle, a blind end): a
-      // slot squeezes a body that can go on into it.
-      const Vec3 probe = x + side * m_radius * t;
-      if (!m_world->contains(probe) || (side > 0.0 && !m_world->contains(probe + m_radius * t))) continue;
-      Vec3 u = line;
-      const double w = lumen_width(probe, frame, &u, recentrings);
-      if (w < width) line = u;
-      width = std::min(width, w);
-    }
-  }
-  if (across != nullptr) *across = line;
-  return std::min(m_radius, kSlack * width);
-}
-
-namespace {
 
 /// The inserted distal length of a pushed rod (PushedRod), as `edges` edges: the body's uniform properties, and per
 /// edge the magnetisation of the material there (edge midpoints mapped to the body's edges from its tip).
@@ -185,7 +84,613 @@ RodModel inserted_part(const RodModel& body, double length, int edges) {
   return m;
 }
 
+/// The point at arc length s [m] along a body whose edges have the lengths `lengths` (nodes x); before the base, on
+/// the line of `base_tangent` (material still in the introducer).
+Vec3 point_at_arc(const RodState& body, const std::vector<double>& lengths, const Vec3& base_tangent, double s) {
+  if (s <= 0.0) return body.x.front() + s * base_tangent;
+  for (std::size_t j = 0; j < lengths.size(); ++j) {
+    if (s <= lengths[j] || j + 1 == lengths.size()) {
+      const double f = std::min(1.0, s / lengths[j]);
+      return body.x[j] + f * (body.x[j + 1] - body.x[j]);
+    }
+    s -= lengths[j];
+  }
+  return body.x.back();
+}
+
+/// One call of grow_step or start_growth: the model, field, state and workspace it works on and the status it
+/// fills, with the step's parts as methods.
+struct Stepper {
+  const GrowthModel& model;
+  const RodField& field;
+  GrowthState& state;
+  GrowthWorkspace& ws;
+  GrowthStatus& status;
+
+  const anatomy::CollisionWorld* world() const { return model.world; }
+  double h() const { return model.edge_length; }
+  double radius() const { return ws.radius; }
+  double length() const { return ws.body.length; }
+
+  void add_event(GrowthEventKind kind, std::string detail) {
+    status.events.push_back({state.time, ws.body.length, kind, std::move(detail)});
+  }
+  /// The body at `pressure`: the state's pressure and the workspace's rod model.
+  void rebuild(double pressure) {
+    state.pressure = pressure;
+    growth_body(model, state, pressure, ws);
+  }
+  double magnetorheological_yield() const;
+  int retract_to(double length);
+  double lumen_width(const Vec3& x, const Mat3& frame, Vec3* across = nullptr, int recentrings = 0) const;
+  double node_radius(const Vec3& x, const Mat3& frame, Vec3* across = nullptr, int recentrings = 0) const;
+  bool barrier_steps(double dt, double pressure, double cap, int depth = 0);
+  bool barrier_step(double dt, double pressure, double cap);
+  void start(double length, double pressure);
+  void step(const GrowthControl& control, double dt);
+};
+
+double Stepper::magnetorheological_yield() const {
+  if (!model.options.magnetorheology || !field) return 0.0;
+  double integral = 0.0;  // ∫τ_y ds, the field at each edge's midpoint
+  const std::vector<Vec3>& x = state.body.x;
+  for (std::size_t j = 0; j + 1 < x.size(); ++j) {
+    const Vec3 mid = 0.5 * (x[j] + x[j + 1]);
+    integral += magnetics::magnetorheological_yield_stress(field(mid).b.norm() / kMu0, model.vine.volume_fraction) * h();
+  }
+  return 2.0 * integral / radius();
+}
+
+/// Inverts whole edges at the tip down to `length` (keeps one edge) and solves again; returns how many.
+int Stepper::retract_to(double length) {
+  int removed = 0;
+  while (state.edges > 1 && (state.edges - 1) * h() >= length - 1e-12 * h()) {
+    --state.edges;
+    state.body.x.pop_back();
+    state.body.frames.pop_back();
+    ++removed;
+  }
+  if (removed == 0) return 0;
+  state.tip_length = h();
+  rebuild(state.pressure);  // (barrier_step sizes the per-node state to the shorter body)
+  if (!barrier_step(0.0, state.pressure, 0.0)) add_event(GrowthEventKind::kSolver, "after retracting: " + status.failure);
+  return removed;
+}
+
+/// Narrowest width of the lumen across the body at x (4 lines through x in the plane ⟂ frame.col(0), ray casts up to
+/// 2R each way) [m]. With `recentrings` > 0, where that would squeeze the body the lines are cast again from the mean
+/// of the chords' midpoints, up to that many times, so that a point off a round lumen's axis does not read its short
+/// chords as a gap.
+double Stepper::lumen_width(const Vec3& x, const Mat3& frame, Vec3* across, int recentrings) const {
+  const double reach = 2.0 * radius();
+  Vec3 centre = x;
+  double width = 0.0;
+  Vec3 line = frame.col(1);
+  for (int pass = 0;; ++pass) {
+    width = 2.0 * reach;
+    Vec3 middle = Vec3::Zero();  // the mean of the chords' midpoints
+    for (int k = 0; k < 4; ++k) {
+      const double a = 0.25 * kPi * k;
+      const Vec3 u = std::cos(a) * frame.col(1) + std::sin(a) * frame.col(2);
+      const auto plus = world()->ray_cast(centre, u, reach);
+      const auto minus = world()->ray_cast(centre, -u, reach);
+      const double d_plus = plus ? plus->distance : reach;
+      const double d_minus = minus ? minus->distance : reach;
+      if (d_plus + d_minus < width) line = u;
+      width = std::min(width, d_plus + d_minus);
+      middle += centre + 0.5 * (d_plus - d_minus) * u;
+    }
+    // A point off the lumen's axis has short chords across it (2√(ρ² − d²) at d off the axis of a round lumen of
+    // radius ρ), which read as a gap that is not there. Where the width would squeeze the body, the point moves to
+    // the mean of the chords' midpoints and the chords are cast again: in a round lumen each move halves the
+    // offset (the midpoint of the chord along u is the axis point plus the offset's component along u, and four
+    // directions 45° apart average uuᵀ to I/2); across a slot it changes no chord's length.
+    if (pass == recentrings || kSlack * width >= radius()) break;
+    middle *= 0.25;
+    if ((middle - centre).norm() < 1e-3 * radius() || !world()->contains(middle)) break;
+    centre = middle;
+  }
+  if (across != nullptr) *across = line;
+  return width;
+}
+
+/// The body's contact radius at x: R, or half the lumen width at x or R ahead of or behind it when narrower.
+/// `across`, if given, receives the direction of the narrowest line (the pinch); `recentrings` as lumen_width.
+double Stepper::node_radius(const Vec3& x, const Mat3& frame, Vec3* across, int recentrings) const {
+  if (world() == nullptr || model.options.rod) return radius();  // a solid rod does not flatten
+  const Vec3 t = frame.col(0);
+  Vec3 line = frame.col(1);
+  double width = lumen_width(x, frame, &line, recentrings);
+  // A centre pressed past the wall (a new tip placed into a carina's ridge before the solve pushes it out) sees the
+  // tissue, not a gap: only the probes inside the lumen count then.
+  if (width < 4.0 * radius() && !world()->contains(x)) width = 4.0 * radius();
+  if (width < 4.0 * radius()) {  // near a narrowing: the sphere's front and back too
+    for (const double side : {1.0, -1.0}) {
+      // Where the sphere's front is already past a wall (the tip against a carina's ridge), the rays would measure
+      // the tissue between two branches, not a gap: the wall ahead is a contact, not a constriction.
+      // Nor does a narrowing ahead that closes a radius further on (the notch of a carina's saddle, a blind end): a
+      // slot squeezes a body that can go on into it.
+      const Vec3 probe = x + side * radius() * t;
+      if (!world()->contains(probe) || (side > 0.0 && !world()->contains(probe + radius() * t))) continue;
+      Vec3 u = line;
+      const double w = lumen_width(probe, frame, &u, recentrings);
+      if (w < width) line = u;
+      width = std::min(width, w);
+    }
+  }
+  if (across != nullptr) *across = line;
+  return std::min(radius(), kSlack * width);
+}
+
+/// Steps of dt from the growth law's speed on (the step's preamble done), a failed one retried as two halves (down
+/// to dt/16); false when even those fail. `cap`: how far the tether and the made length let it grow.
+bool Stepper::barrier_steps(double dt, double pressure, double cap, int depth) {
+  constexpr int kMaxHalvings = 4;
+  if (barrier_step(dt, pressure, cap)) return true;
+  if (depth == kMaxHalvings || dt == 0.0) return false;
+  const double before = length();
+  if (!barrier_steps(0.5 * dt, pressure, cap, depth + 1)) return false;
+  if (!barrier_steps(0.5 * dt, pressure, std::max(0.0, cap - (length() - before)), depth + 1)) return false;
+  ++status.retries;
+  status.converged = true;
+  status.failure.clear();
+  return true;
+}
+
+bool Stepper::barrier_step(double dt, double pressure, double cap) {
+  const std::size_t nodes = state.body.x.size();
+  const std::size_t tip = nodes - 1;
+  const double area = kPi * radius() * radius();
+  const bool pushed = model.options.mode == InsertionMode::kPushed;
+  const Vec3 tangent = state.body.frames.back().col(0);
+  // The growth load on the tip edge (TipGrowth): the growth law's incremental potential for a vine that everts, a
+  // prescribed insertion (stiff, up to the tether) for a pushed body.
+  TipGrowth growth;
+  const double axial = ws.body.axial_stiffness / robot::edge_length(ws.body, ws.body.edges - 1);
+  double squeeze = 1.0;
+  double tip_room = radius();  // the tip's flattened contact radius in a narrowing ahead
+  double push = 0.0;  // a pushed body's insertion in this step [m]
+  // (At the tether, cap = 0, the tether takes the tip's pressure force: nothing pushes the body.)
+  if (dt > 0.0 && cap > 0.0) {
+    if (pushed || model.solid() || state.placing) {
+      push = state.placing ? cap * std::min(1.0, dt) : std::min(status.speed * dt, cap);  // placing: dt 1, or halves
+      growth = {axial * push, axial, push};
+    } else if (model.options.law.extensibility > 0.0) {
+      if (world() != nullptr) {
+        // Squeezing: ahead of the tip the lumen's width (from its middle) leaves the flattened section's area only,
+        // where the narrowing is one the tip can go on into (a carina's notch or a blind end closes a radius
+        // further on: the tip meets it as a wall).
+        const Vec3 ahead = state.body.x[tip] + radius() * tangent;
+        if (world()->contains(ahead) && world()->contains(ahead + radius() * tangent)) {
+          tip_room = node_radius(ahead, state.body.frames.back(), nullptr, kRecentrings);
+        }
+        squeeze = slot_area(radius(), tip_room / kSlack) / area;
+      }
+      growth = {growth_force(pressure * squeeze, status.yield, radius()),
+                area / (model.options.law.extensibility * dt), cap};
+    }
+  }
+  // Contact radii (squeezed where the lumen is narrow), each at most what the node has room for at the start: a
+  // configuration with a finite barrier energy.
+  RodConstraints c;
+  c.growth = growth;
+  state.nodes.resize(nodes);
+  if (world() != nullptr) {
+    WallBarrier wall{world(), std::vector<double>(nodes, 0.0), model.dhat, ws.stiffness};
+    for (std::size_t i = 1; i < nodes; ++i) {
+      GrowthNode& cache = state.nodes[i];
+      if (!((state.body.x[i] - cache.radius_at).norm() <= kStill * radius())) {
+        cache.radius_at = state.body.x[i];
+        cache.radius = node_radius(state.body.x[i], state.body.frames[std::min(i, nodes - 2)], &cache.across);
+      }
+      double r = i == tip ? std::min(cache.radius, tip_room) : cache.radius;  // the tip flattens into a slot
+      std::array<anatomy::NearTriangle, 1> near{};
+      if (world()->triangles_within(state.body.x[i], r, near) > 0) r = near[0].distance - 0.1 * model.dhat;
+      wall.radius[i] = r > 0.1 * radius() ? r : 0.0;
+    }
+    c.wall = std::move(wall);
+  }
+  // Friction references: where each everted node's material was laid down (kept across steps, moved to the
+  // Coulomb limit after a slip), or where a pushed body's material was before this step's insertion.
+  std::vector<Vec3>& reference = ws.reference;
+  reference.resize(nodes);
+  for (std::size_t i = 0; i < nodes; ++i) reference[i] = state.nodes[i].reference;
+  if (pushed) {
+    std::vector<double> lengths(static_cast<std::size_t>(ws.body.edges));
+    for (int j = 0; j < ws.body.edges; ++j) lengths[static_cast<std::size_t>(j)] = robot::edge_length(ws.body, j);
+    double s = 0.0;
+    for (std::size_t i = 1; i < nodes; ++i) {
+      s += lengths[i - 1];
+      reference[i] = point_at_arc(state.body, lengths, model.base_frame.col(0), s - push);
+    }
+  }
+  // The checkpoint a failed step returns to (the contact radii just measured stay measured).
+  ws.checkpoint = state;
+  const auto restore = [&] { state = ws.checkpoint; };
+  // Two lagged contact channels per node, each with its own friction: the walls within d̂ of the sphere (force λ,
+  // the principal direction of their normals), and a flattened section's strips (force s, across the pinch).
+  std::vector<double>& lambda = ws.lambda;
+  std::vector<double>& strip = ws.strip;
+  std::vector<Vec3>& axis = ws.axis;
+  lambda.resize(nodes);
+  strip.resize(nodes);
+  axis.resize(nodes);
+  for (std::size_t i = 0; i < nodes; ++i) {
+    lambda[i] = state.nodes[i].contact_force;
+    strip[i] = state.nodes[i].strip_force;
+    axis[i] = state.nodes[i].contact_axis;
+  }
+  // The last lagged values of λ and s fed to a solve, and what that solve returned (the secant relaxation below).
+  std::vector<std::array<double, 4>>& last = ws.last;
+  last.assign(nodes, {kNone, kNone, kNone, kNone});
+  bool settled = false;
+  // The everting tip. Along its tangent it advances by laying new material down (free). Sideways its material
+  // slides on the wall, but while it grows the material under the contact already slides (it flows over the cap
+  // at the growth's rate), so Coulomb friction resists a sideways slip u with μλ·f1(|u|/ε_tip), ε_tip the tip's
+  // growth in the step (a spinning top's friction: nearly viscous for a slip much slower than the growth), ε
+  // when it does not grow. Held by the wall, its material stays the same: the reference stays where it was held.
+  if (!pushed && (!state.blocked || !has_reference(reference[tip]))) reference[tip] = state.body.x[tip];
+  // The tip edge's growth in the current state: its extension past its made length, within the step's limit.
+  const auto tip_grown = [&] {
+    if (!(dt > 0.0 && growth.force > 0.0)) return 0.0;
+    const Vec3 edge = state.body.x[tip] - state.body.x[tip - 1];
+    const double extension = state.body.frames.back().col(0).dot(edge) - robot::edge_length(ws.body, ws.body.edges - 1);
+    return std::clamp(extension, 0.0, std::max(0.0, growth.limit));
+  };
+  double tip_growth = state.blocked ? 0.0 : state.tip_grown;  // lagged, as λ
+  const auto free_along = [&](std::size_t i, const Vec3& n) -> Vec3 {
+    if (pushed || i != tip) return Vec3::Zero();
+    const Vec3 f = tangent - tangent.dot(n) * n;
+    return f.norm() > 1e-6 ? Vec3(f.normalized()) : Vec3::Zero();
+  };
+  for (int k = 0; k < model.options.max_friction_iterations && !settled; ++k) {
+    c.friction.clear();
+    for (std::size_t i = 1; i < nodes && world() != nullptr; ++i) {
+      if (!(lambda[i] > 0.0) && !(strip[i] > 0.0)) continue;
+      if (!has_reference(reference[i])) reference[i] = state.body.x[i];
+      const double slip = !pushed && i == tip ? std::max(model.slip, tip_growth) : model.slip;
+      if (lambda[i] > 0.0) {
+        c.friction.push_back({static_cast<int>(i), reference[i], axis[i], lambda[i], model.options.friction, slip,
+                              free_along(i, axis[i])});
+      }
+      if (strip[i] > 0.0) {
+        c.friction.push_back({static_cast<int>(i), reference[i], state.nodes[i].across, strip[i], model.options.friction,
+                              slip, free_along(i, state.nodes[i].across)});
+      }
+    }
+    ++status.solves;
+    RodSolveReport r = solve_rod_statics(ws.body, field, state.body, model.options.solver, &ws.rod, &c);
+    if (!r.converged && model.options.solver.ramp == false) {
+      // Loads that changed too much for Newton from the last equilibrium (a magnet brought close, a deflation):
+      // the same step with the loads ramped up from there.
+      status.newton_iterations += r.iterations;
+      r = solve_rod_statics(ws.body, field, state.body, ramped_solver(model.options.solver), &ws.rod, &c);
+    }
+    status.newton_iterations += r.iterations;
+    if (!r.converged) {
+      restore();
+      status.converged = false;
+      status.failure = r.failure;
+      return false;
+    }
+    if (world() == nullptr) break;
+    const double grown_now = pushed ? 0.0 : tip_grown();  // this solve's, for the tip friction's slip
+    const std::vector<NodeWallForce> f = wall_barrier_forces(state.body, *c.wall);
+    // The growth force of a vine is a load the wall carries when it blocks the tip; a pushed body's prescribed
+    // insertion (a stiff spring to the push) is not, and would swamp the tolerance.
+    const double tip_load = pushed || model.solid() || state.placing ? 0.0 : growth.force;
+    double scale = tip_load;
+    std::vector<double> next_strip(nodes, 0.0);
+    for (std::size_t i = 1; i < nodes; ++i) {
+      // A flattened section presses each of the two walls with P over its flat strip, 2·P·(πR − πg/2)·h; a
+      // pinched catheter with its ring's line load, 2·q(g)·h.
+      if (c.wall->radius[i] > 0.0 && state.nodes[i].radius < radius()) {
+        const double g = state.nodes[i].radius / kSlack;
+        next_strip[i] = 2.0 * h() * (model.options.catheter ? ring_crush_load(*model.options.catheter, g)
+                                                        : state.pressure * flat_width(radius(), g));
+      }
+      scale = std::max({scale, f[i].magnitude, next_strip[i]});
+    }
+    // Settled when the lagged forces' total change is within friction_tolerance of the total contact force (plus
+    // the growth force), and no node that carries a share of it turns its axis: light contacts that flicker on
+    // and off a resting body change their few mN, not the friction the body carries.
+    double change = 0.0;
+    double total = tip_load;
+    for (std::size_t i = 1; i < nodes; ++i) {
+      change += std::abs(f[i].magnitude - lambda[i]) + std::abs(next_strip[i] - strip[i]);
+      total += f[i].magnitude + next_strip[i];
+    }
+    // The tip's slip scale settles with the rest: within 10 % (or ε).
+    settled = change <= model.options.friction_tolerance * total &&
+              std::abs(grown_now - tip_growth) <= 0.1 * std::max(tip_growth, model.slip);
+    // (Halfway after the first solve: a tip between growing and held would otherwise alternate.)
+    tip_growth += (grown_now - tip_growth) * (k > 0 ? 0.5 : 1.0);
+    const double tolerance = model.options.friction_tolerance * scale;
+    for (std::size_t i = 1; i < nodes; ++i) {
+      if (f[i].magnitude > 10.0 * tolerance && lambda[i] > 0.0 && axis[i].cross(f[i].axis).norm() > 1e-2) {
+        settled = false;
+      }
+      // The lag is a fixed point λ = g(λ) per node. Where a node's friction moves it off the force it was lagged
+      // at, g falls as λ rises (slope σ < 0) and plain iteration alternates, converging as |σ|^k or not at all;
+      // the relaxation λ += (g − λ)/(1 − σ), σ the secant slope of the last two solves, takes the secant's root
+      // (a tenth of the correction at least; where λ creeps one way, σ > 0, the whole correction).
+      const auto relax = [](double in, double out, double in_before, double out_before) {
+        if (std::isnan(in_before) || !(std::abs(in - in_before) > 1e-12 * (std::abs(in) + std::abs(out)))) return 1.0;
+        const double slope = (out - out_before) / (in - in_before);
+        return slope < 0.0 ? std::clamp(1.0 / (1.0 - slope), 0.1, 1.0) : 1.0;
+      };
+      const double dl = f[i].magnitude - lambda[i];
+      const double ds = next_strip[i] - strip[i];
+      const double w_lambda = relax(lambda[i], f[i].magnitude, last[i][0], last[i][1]);
+      const double w_strip = relax(strip[i], next_strip[i], last[i][2], last[i][3]);
+      last[i] = {lambda[i], f[i].magnitude, strip[i], next_strip[i]};
+      lambda[i] += w_lambda * dl;
+      strip[i] += w_strip * ds;
+      const double w = std::min(w_lambda, w_strip);
+      const Vec3 turn = axis[i].isZero() ? Vec3::Zero() : Vec3(f[i].axis - axis[i]);
+      const Vec3 blended = axis[i].isZero() ? f[i].axis : Vec3(axis[i] + w * turn);  // as its λ
+      axis[i] = blended.norm() > 1e-9 ? Vec3(blended.normalized()) : f[i].axis;
+      state.nodes[i].wall_force = f[i].force;
+    }
+  }
+  if (!settled && world() != nullptr) {
+    restore();
+    status.converged = false;
+    status.failure = "the lagged friction did not settle in " + std::to_string(model.options.max_friction_iterations) +
+                     " solves";
+    return false;
+  }
+  // Forces on the tissue (the converged solve's).
+  for (std::size_t i = 0; i < nodes; ++i) {
+    state.nodes[i].contact_force = lambda[i];
+    state.nodes[i].strip_force = strip[i];
+    state.nodes[i].contact_axis = axis[i];
+  }
+  state.forces = WallForces{};
+  state.forces.normal.assign(nodes, 0.0);
+  state.forces.shear.assign(nodes, 0.0);
+  state.forces.normal_vector.assign(nodes, Vec3::Zero());
+  state.forces.shear_vector.assign(nodes, Vec3::Zero());
+  for (const NodeFriction& f : c.friction) {
+    const auto i = static_cast<std::size_t>(f.node);
+    state.forces.shear_vector[i] -= friction_force(f, state.body.x[i]);
+    // Static friction's reference follows a slip past ε (the node then sits at the Coulomb limit).
+    const Vec3 u = friction_slip(f, state.body.x[i]);
+    if (!pushed && u.norm() > model.slip) reference[i] += (1.0 - model.slip / u.norm()) * u;
+  }
+  for (std::size_t i = 1; i < nodes; ++i) {
+    const double fn = lambda[i] + strip[i];
+    state.forces.normal[i] = fn;
+    state.forces.shear[i] = state.forces.shear_vector[i].norm();
+    state.forces.normal_vector[i] = -state.nodes[i].wall_force;
+    state.forces.max_normal = std::max(state.forces.max_normal, fn);
+    state.forces.total_normal += fn;
+    state.forces.max_shear = std::max(state.forces.max_shear, state.forces.shear[i]);
+    state.forces.total_shear += state.forces.shear[i];
+    if (fn > 0.0) ++state.forces.nodes_in_contact;
+    if (!(fn > 0.0) || pushed) reference[i] = Vec3::Constant(kNone);  // off the wall: released
+  }
+  if (state.forces.nodes_in_contact > 0) state.forces.mean_normal = state.forces.total_normal / state.forces.nodes_in_contact;
+  {
+    // The global balance: every force on the body, each computed from its own law.
+    Vec3 wall = Vec3::Zero();
+    Vec3 friction = Vec3::Zero();
+    for (std::size_t i = 1; i < nodes; ++i) {
+      wall += state.nodes[i].wall_force;
+      friction -= state.forces.shear_vector[i];
+    }
+    const Vec3 load = body_load(ws.body, field, state.body);
+    state.forces.clamp = clamp_force(ws.body, field, state.body);
+    state.forces.imbalance = wall + friction + load + state.forces.clamp;
+    state.forces.largest_load = std::max({wall.norm(), friction.norm(), load.norm(), state.forces.clamp.norm(), growth.force});
+  }
+  for (std::size_t i = 0; i < nodes; ++i) state.nodes[i].reference = reference[i];
+  // Growth: the tip edge's extension past its made length becomes made length; a tip edge of 3h/2 splits into an
+  // edge of h and the rest.
+  const double grown = tip_grown();
+  state.tip_length += grown;
+  state.tip_grown = grown;
+  while (state.tip_length >= 1.5 * h()) {
+    const Vec3 t = state.body.frames.back().col(0);
+    const Vec3 at = state.body.x[state.body.x.size() - 2] + h() * t;
+    const std::size_t n = state.body.x.size() - 1;  // the new node's index; the tip moves to n + 1
+    state.body.x.insert(state.body.x.begin() + static_cast<std::ptrdiff_t>(n), at);
+    state.body.frames.push_back(state.body.frames.back());
+    state.nodes.insert(state.nodes.begin() + static_cast<std::ptrdiff_t>(n), GrowthNode{});
+    for (auto* v : {&state.forces.normal, &state.forces.shear}) v->insert(v->begin() + static_cast<std::ptrdiff_t>(n), 0.0);
+    for (auto* v : {&state.forces.normal_vector, &state.forces.shear_vector}) {
+      v->insert(v->begin() + static_cast<std::ptrdiff_t>(n), Vec3::Zero());
+    }
+    ++state.edges;
+    ++status.edges_added;
+    state.tip_length -= h();
+  }
+  rebuild(pressure);
+  // Events: the wall in front of the tip holding it (growth below 1 % of the free growth), or a narrowing.
+  if (dt > 0.0 && !pushed && !model.solid() && !state.placing) {
+    const double free = growth.stiffness > 0.0 ? growth.force / growth.stiffness : 0.0;
+    const bool held = growth.force > 0.0 && grown < 0.01 * free;
+    if (held && !state.blocked) {
+      state.blocked = true;
+      const double carried = -state.nodes[tip].wall_force.dot(tangent);
+      add_event(GrowthEventKind::kBlocked,
+                printf_string("the wall in front of the tip carries %.3f N of the growth force %.3f N", carried,
+                              growth.force));
+    } else if (growth.force == 0.0 && squeeze < 1.0 && pressure > status.yield && !state.blocked) {
+      state.blocked = true;
+      add_event(GrowthEventKind::kSqueeze,
+                printf_string("the narrowing ahead leaves the tip %.0f %% of its section: %.2f kPa x %.2f is at or "
+                              "below the yield %.2f kPa",
+                              100.0 * squeeze, pressure / kKpaToPa, squeeze, status.yield / kKpaToPa));
+    } else if (grown >= 0.01 * free && growth.force > 0.0) {
+      state.blocked = false;
+    }
+  }
+  return true;
+}
+
+void Stepper::start(double length, double pressure) {
+  state = GrowthState{};
+  ws.rod.forget_hessian();
+  const int edges = std::max(1, static_cast<int>(std::lround(length / h())));
+  state.edges = edges;
+  state.tip_length = h();
+  rebuild(pressure);  // validates the vine (VineParameterError)
+  state.body = straight_rod(ws.body);
+  // The body as made lies straight along the base's tangent. Where that would put a node's sphere into the
+  // wall by more than d̂ (a base aimed at it), the body is cut before that node and everted from there to its
+  // made length as a vine grows: the tip edge lengthened by at most h/2 a step, no time passing (a barrier
+  // needs a start clear of the wall; shrinking such a node's contact radius would leave it in the tissue).
+  const double made = ws.body.length;
+  std::size_t fit = state.body.x.size();
+  for (std::size_t i = 1; i < state.body.x.size() && world() != nullptr; ++i) {
+    std::array<anatomy::NearTriangle, 1> near{};
+    if (!world()->contains(state.body.x[i]) ||
+        (world()->triangles_within(state.body.x[i], radius(), near) > 0 &&
+         near[0].distance < radius() - model.dhat)) {
+      fit = i;
+      break;
+    }
+  }
+  if (fit < state.body.x.size()) {
+    state.edges = std::max(1, static_cast<int>(fit) - 1);
+    rebuild(pressure);
+    state.body = straight_rod(ws.body);
+  }
+  state.nodes.assign(state.body.x.size(), GrowthNode{});  // no contact yet (barrier_step sizes the rest)
+  if (!barrier_step(0.0, pressure, 0.0)) {
+    add_event(GrowthEventKind::kSolver, "initial equilibrium: " + status.failure);
+    return;
+  }
+  state.placing = true;
+  // (Placed within 1e-6 h: the edges' lengths summed leave round-off of ~1e-9 h, which a push cannot close.)
+  while (ws.body.length < made - 1e-6 * h()) {
+    const double before = ws.body.length;
+    const double step = std::min(0.5 * h(), made - ws.body.length);
+    if (!barrier_steps(1.0, pressure, step) || ws.body.length < before + 0.01 * step) {
+      add_event(GrowthEventKind::kSolver,
+                printf_string("initial body: %.1f of its %.1f mm everted into the lumen (%s)", 1e3 * ws.body.length,
+                              1e3 * made, status.failure.empty() ? "the wall holds the tip" : status.failure.c_str()));
+      break;
+    }
+  }
+  state.placing = false;
+}
+
+void Stepper::step(const GrowthControl& control, double dt) {
+  if (!(dt > 0.0) || !std::isfinite(dt)) throw InputError("vine growth: dt must be > 0");
+  if (!(control.pressure >= 0.0) || !std::isfinite(control.pressure)) {
+    throw InputError("vine growth: pressure must be >= 0 and finite");
+  }
+  if (state.burst) {
+    status.stalled = true;
+    status.burst = true;
+    return;
+  }
+  // The step depends on the state and its inputs only: the rod solver's Hessian kept from a step before (chord
+  // steps) is dropped, and a step from a checkpoint repeats bit for bit in any workspace.
+  ws.rod.forget_hessian();
+  state.time += dt;
+  const double p = control.pressure;
+  const VineParameters& vine = model.vine;
+  if (!model.solid() && bursts(vine, p)) {
+    const double hoop = hoop_stress(vine, p);
+    state.burst = true;
+    status.stalled = true;
+    status.burst = true;
+    add_event(GrowthEventKind::kBurst,
+              printf_string("pressure %.1f kPa: hoop stress %.2f MPa above the film's strength %.2f MPa",
+                            p / kKpaToPa, hoop / 1e6, vine.wall_strength / 1e6));
+    return;
+  }
+  // The pressure is this step's load: the body at it.
+  rebuild(p);
+  if (model.options.rod) {
+    status.speed = model.options.rod->insertion_speed;  // pushed up to the tether: no pressure, no growth law
+  } else {
+    const GrowthLaw& law = model.options.law;
+    status.magnetorheological_yield = magnetorheological_yield();
+    const GrowthRate rate = growth_rate(law, p, ws.body.length, growth_turning(ws, state),
+                                        status.magnetorheological_yield);
+    status.yield = rate.yield;
+    status.speed = rate.speed;
+    if (status.speed == 0.0 && !state.stalled) {
+      state.stalled = true;
+      std::string detail = printf_string(
+          "pressure %.2f kPa at or below the yield %.2f kPa (Y0 %.2f + length %.2f + turning %.2f kPa",
+          p / kKpaToPa, status.yield / kKpaToPa, law.yield_pressure / kKpaToPa, rate.length_term / kKpaToPa,
+          rate.turning_term / kKpaToPa);
+      if (model.options.magnetorheology) {
+        detail += printf_string(" + magnetorheological %.2f kPa", status.magnetorheological_yield / kKpaToPa);
+      }
+      add_event(GrowthEventKind::kStall, detail + ")");
+    } else if (status.speed > 0.0 && state.stalled) {
+      state.stalled = false;
+      add_event(GrowthEventKind::kResume,
+                printf_string("pressure %.2f kPa above the yield %.2f kPa", p / kKpaToPa, status.yield / kKpaToPa));
+    }
+  }
+  // Retraction: a tether pulled back below the everted length inverts the tip of a deflated vine.
+  const GrowthOptions& o = model.options;
+  if (o.retraction_pressure >= 0.0 && control.tether_length < ws.body.length - 1e-9 * h()) {
+    if (p <= o.retraction_pressure) {
+      state.retract_refused = false;
+      const int removed = retract_to(control.tether_length);
+      status.edges_removed = removed;
+      if (removed > 0 && !state.retracting) {
+        state.retracting = true;
+        add_event(GrowthEventKind::kRetract,
+                  printf_string("the tether pulls the deflated vine (%.2f kPa) back from %.1f mm", p / kKpaToPa,
+                                1e3 * (ws.body.length + removed * h())));
+      }
+    } else if (!state.retract_refused) {
+      state.retract_refused = true;
+      add_event(GrowthEventKind::kRetract,
+                printf_string("the tether pulls back to %.1f mm but the vine is at %.2f kPa, above the "
+                              "retraction pressure %.2f kPa: the length is held",
+                              1e3 * control.tether_length, p / kKpaToPa, o.retraction_pressure / kKpaToPa));
+    }
+  }
+  const double cap = std::max(0.0, std::min(control.tether_length, o.max_length) - ws.body.length);
+  const double before = ws.body.length;
+  if (!barrier_steps(dt, p, cap)) {
+    status.converged = false;
+    status.stalled = true;
+    add_event(GrowthEventKind::kSolver, "step failed: " + status.failure);
+    return;
+  }
+  status.stalled = ws.body.length <= before;
+  if (status.edges_added > 0) state.retracting = false;
+}
+
 }  // namespace
+
+GrowthRate growth_rate(const GrowthLaw& law, double pressure, double length, double turning, double extra_yield) {
+  GrowthRate r;
+  r.length_term = law.length_yield * length;
+  r.turning_term = law.turning_yield * turning;
+  r.extra_yield = extra_yield;
+  r.yield = law.yield_pressure + r.length_term + r.turning_term + r.extra_yield;
+  r.speed = law.extensibility * std::max(0.0, pressure - r.yield);
+  return r;
+}
+
+double growth_force(double pressure, double yield, double radius) {
+  return std::max(0.0, pressure - yield) * kPi * radius * radius;
+}
+
+std::string_view growth_event_name(GrowthEventKind kind) {
+  switch (kind) {
+    case GrowthEventKind::kStall: return "stall";
+    case GrowthEventKind::kResume: return "resume";
+    case GrowthEventKind::kBlocked: return "blocked";
+    case GrowthEventKind::kSqueeze: return "squeeze";
+    case GrowthEventKind::kBurst: return "burst";
+    case GrowthEventKind::kRetract: return "retract";
+    case GrowthEventKind::kSolver: return "solver";
+  }
+  return "unknown";
+}
 
 void check_growth(const VineParameters& vine, const GrowthOptions& options, const Mat3& base_frame) {
   const auto check = [](bool ok, const char* parameter, const std::string& what) {
@@ -238,535 +743,89 @@ void check_growth(const VineParameters& vine, const GrowthOptions& options, cons
   check(vine.length / h <= 1e6, "edge_length", "the edges would number more than a million");
 }
 
-VineGrowth::VineGrowth(const VineParameters& vine, const GrowthOptions& options, const anatomy::CollisionWorld* world,
-                       RodField field, const Vec3& base_position, const Mat3& base_frame)
-    : m_vine(vine),
-      m_options(options),
-      m_world(world),
-      m_field(std::move(field)),
-      m_base_position(base_position),
-      m_base_frame(base_frame) {
+
+GrowthModel make_growth_model(const VineParameters& vine, const GrowthOptions& options,
+                              const anatomy::CollisionWorld* world, const Vec3& base_position, const Mat3& base_frame) {
   check_growth(vine, options, base_frame);
-  m_vine.radius = made_radius(vine, options);  // the edge length and the contacts follow a tube's or rod's radius
-  m_h = options.edge_length > 0.0 ? options.edge_length : m_vine.radius;
-  const int edges = std::max(1, static_cast<int>(std::lround(vine.length / m_h)));
-  m_vine.edges = edges;
-  m_vine.length = edges * m_h;
-  m_tip_length = m_h;
-  m_dhat = options.contact_distance > 0.0 ? options.contact_distance : 0.02 * m_vine.radius;
-  m_slip = options.friction_slip > 0.0 ? options.friction_slip : 0.01 * m_vine.radius;
-  rebuild_model(vine.pressure);  // validates the vine (VineParameterError)
-  m_state = straight_rod(m_model);
-  GrowthStepReport report;
-  // The body as made lies straight along the base's tangent. Where that would put a node's sphere into the
-  // wall by more than d̂ (a base aimed at it), the body is cut before that node and everted from there to its
-  // made length as a vine grows: the tip edge lengthened by at most h/2 a step, no time passing (a barrier
-  // needs a start clear of the wall; shrinking such a node's contact radius would leave it in the tissue).
-  const double made = m_model.length;
-  std::size_t fit = m_state.x.size();
-  for (std::size_t i = 1; i < m_state.x.size() && m_world != nullptr; ++i) {
-    std::array<anatomy::NearTriangle, 1> near{};
-    if (!m_world->contains(m_state.x[i]) ||
-        (m_world->triangles_within(m_state.x[i], m_radius, near) > 0 && near[0].distance < m_radius - m_dhat)) {
-      fit = i;
-      break;
-    }
-  }
-  if (fit < m_state.x.size()) {
-    m_vine.edges = std::max(1, static_cast<int>(fit) - 1);
-    rebuild_model(vine.pressure);
-    m_state = straight_rod(m_model);
-  }
-  m_reference.assign(m_state.x.size(), Vec3::Constant(kNone));  // no contact yet (barrier_step sizes the rest)
-  if (!barrier_step(0.0, vine.pressure, 0.0, report)) {
-    add_event(GrowthEventKind::kSolver, "initial equilibrium: " + report.failure);
-    return;
-  }
-  m_placing = true;
-  while (m_model.length < made - 1e-9 * m_h) {
-    const double before = m_model.length;
-    const double step = std::min(0.5 * m_h, made - m_model.length);
-    if (!barrier_steps(1.0, vine.pressure, step, report) || m_model.length < before + 0.01 * step) {
-      add_event(GrowthEventKind::kSolver,
-                printf_string("initial body: %.1f of its %.1f mm everted into the lumen (%s)", 1e3 * m_model.length,
-                              1e3 * made, report.failure.empty() ? "the wall holds the tip" : report.failure.c_str()));
-      break;
-    }
-  }
-  m_placing = false;
+  GrowthModel m;
+  m.vine = vine;
+  m.vine.radius = made_radius(vine, options);  // the edge length and the contacts follow a tube's or rod's radius
+  m.options = options;
+  m.world = world;
+  m.base_position = base_position;
+  m.base_frame = base_frame;
+  m.edge_length = options.edge_length > 0.0 ? options.edge_length : m.vine.radius;
+  m.dhat = options.contact_distance > 0.0 ? options.contact_distance : 0.02 * m.vine.radius;
+  m.slip = options.friction_slip > 0.0 ? options.friction_slip : 0.01 * m.vine.radius;
+  return m;
 }
 
-void VineGrowth::rebuild_model(double pressure) {
-  VineParameters v = m_vine;
+double everted_length(const GrowthModel& model, const GrowthState& state) {
+  return (state.edges - 1) * model.edge_length + state.tip_length;
+}
+
+void growth_body(const GrowthModel& model, const GrowthState& state, double pressure, GrowthWorkspace& workspace) {
+  const GrowthOptions& o = model.options;
+  const double h = model.edge_length;
+  VineParameters v = model.vine;
   v.pressure = pressure;  // vine_rod extends the radius (diametric extension)
-  v.edges = m_vine.edges;
-  v.length = m_vine.edges * m_h;
-  if (m_options.catheter) {
-    const CatheterTube& c = *m_options.catheter;
-    m_model = circular_tube_rod(v.length, c.outer_diameter, c.inner_diameter, c.modulus / 3.0, c.density, v.edges);
-  } else if (m_options.rod) {
-    m_model = inserted_part(m_options.rod->body, v.length, v.edges);
+  v.edges = state.edges;
+  v.length = state.edges * h;
+  RodModel& m = workspace.body;
+  if (o.catheter) {
+    const CatheterTube& c = *o.catheter;
+    m = circular_tube_rod(v.length, c.outer_diameter, c.inner_diameter, c.modulus / 3.0, c.density, v.edges);
+  } else if (o.rod) {
+    m = inserted_part(o.rod->body, v.length, v.edges);
   } else {
-    m_model = vine_rod(v);
+    m = vine_rod(v);
   }
   // The tip edge keeps its own made length.
-  m_model.length = (m_vine.edges - 1) * m_h + m_tip_length;
-  m_model.tip_edge_length = m_vine.edges > 1 ? m_tip_length : 0.0;
-  m_model.base_position = m_base_position;
-  m_model.base_frame = m_base_frame;
-  m_model.gravity = m_options.gravity;
-  m_radius = solid_body() ? m_vine.radius : extended_radius(m_vine, pressure);  // a solid body does not extend
-  m_pressure = pressure;
-  const double ei = m_model.bending_stiffness_3;
+  m.length = everted_length(model, state);
+  m.tip_edge_length = state.edges > 1 ? state.tip_length : 0.0;
+  m.base_position = model.base_position;
+  m.base_frame = model.base_frame;
+  m.gravity = o.gravity;
+  const double r = model.solid() ? model.vine.radius : extended_radius(model.vine, pressure);  // a solid: no extension
+  workspace.radius = r;
+  const double ei = m.bending_stiffness_3;
   // A solid rod presses the wall with its section's stiffness over an edge, E·h (E from EI = Eπr⁴/4).
-  const double solid = m_options.rod ? 4.0 * ei / (kPi * std::pow(m_radius, 4)) * m_h : 0.0;
-  m_stiffness = m_options.contact_stiffness > 0.0
-                    ? m_options.contact_stiffness
-                    : std::max({50.0 * kPi * (solid_body() ? 0.0 : pressure) * m_radius,
-                                10.0 * ei / (m_h * m_h * m_h), solid});
+  const double solid = o.rod ? 4.0 * ei / (kPi * std::pow(r, 4)) * h : 0.0;
+  workspace.stiffness = o.contact_stiffness > 0.0
+                            ? o.contact_stiffness
+                            : std::max({50.0 * kPi * (model.solid() ? 0.0 : pressure) * r, 10.0 * ei / (h * h * h),
+                                        solid});
 }
 
-double VineGrowth::turning() const {
-  const std::vector<double> angles = joint_angles(m_model, m_state);
+double growth_turning(const GrowthWorkspace& workspace, const GrowthState& state) {
+  const std::vector<double> angles = joint_angles(workspace.body, state.body);
   return std::accumulate(angles.begin(), angles.end(), 0.0);
 }
 
-void VineGrowth::add_event(GrowthEventKind kind, std::string detail) {
-  m_events.push_back({m_time, m_model.length, kind, std::move(detail)});
+GrowthStatus start_growth(const GrowthModel& model, const RodField& field, double length, double pressure,
+                          GrowthState& state, GrowthWorkspace& workspace) {
+  GrowthStatus status;
+  Stepper{model, field, state, workspace, status}.start(length, pressure);
+  return status;
 }
 
-std::string_view growth_event_name(GrowthEventKind kind) {
-  switch (kind) {
-    case GrowthEventKind::kStall: return "stall";
-    case GrowthEventKind::kResume: return "resume";
-    case GrowthEventKind::kBlocked: return "blocked";
-    case GrowthEventKind::kSqueeze: return "squeeze";
-    case GrowthEventKind::kBurst: return "burst";
-    case GrowthEventKind::kRetract: return "retract";
-    case GrowthEventKind::kSolver: return "solver";
-  }
-  return "unknown";
+GrowthStatus grow_step(const GrowthModel& model, const RodField& field, const GrowthControl& control,
+                       GrowthState& state, GrowthWorkspace& workspace, double dt) {
+  GrowthStatus status;
+  Stepper{model, field, state, workspace, status}.step(control, dt);
+  return status;
 }
 
-GrowthStepReport VineGrowth::advance(double dt, const GrowthControl& control) {
-  GrowthStepReport report;
-  if (!(dt > 0.0) || !std::isfinite(dt)) throw InputError("vine growth: dt must be > 0");
-  if (!(control.pressure >= 0.0) || !std::isfinite(control.pressure)) {
-    throw InputError("vine growth: pressure must be >= 0 and finite");
-  }
-  if (m_burst) {
-    report.stalled = true;
-    report.burst = true;
-    return report;
-  }
-  m_time += dt;
-  const double p = control.pressure;
-  if (!solid_body() && bursts(m_vine, p)) {
-    const double hoop = hoop_stress(m_vine, p);
-    m_burst = true;
-    report.stalled = true;
-    report.burst = true;
-    add_event(GrowthEventKind::kBurst, printf_string("pressure %.1f kPa: hoop stress %.2f MPa above the film's strength %.2f MPa",
-                                     p / kKpaToPa, hoop / 1e6, m_vine.wall_strength / 1e6));
-    return report;
-  }
-  if (p != m_pressure) rebuild_model(p);
-  if (m_options.rod) {
-    report.speed = m_options.rod->insertion_speed;  // pushed up to the tether: no pressure, no growth law
-  } else {
-    const GrowthLaw& law = m_options.law;
-    report.magnetorheological_yield = magnetorheological_yield();
-    const GrowthRate rate = growth_rate(law, p, m_model.length,
-                                        turning(), report.magnetorheological_yield);
-    const double length_term = rate.length_term;
-    const double turning_term = rate.turning_term;
-    report.yield = rate.yield;
-    report.speed = rate.speed;
-    if (report.speed == 0.0 && !m_stalled) {
-      m_stalled = true;
-      std::string detail = printf_string(
-          "pressure %.2f kPa at or below the yield %.2f kPa (Y0 %.2f + length %.2f + turning "
-          "%.2f kPa",
-          p / kKpaToPa, report.yield / kKpaToPa, law.yield_pressure / kKpaToPa, length_term / kKpaToPa,
-          turning_term / kKpaToPa);
-      if (m_options.magnetorheology) {
-        detail += printf_string(" + magnetorheological %.2f kPa", report.magnetorheological_yield / kKpaToPa);
-      }
-      add_event(GrowthEventKind::kStall, detail + ")");
-    } else if (report.speed > 0.0 && m_stalled) {
-      m_stalled = false;
-      add_event(GrowthEventKind::kResume,
-                printf_string("pressure %.2f kPa above the yield %.2f kPa", p / kKpaToPa, report.yield / kKpaToPa));
-    }
-  }
-  // Retraction: a tether pulled back below the everted length inverts the tip of a deflated vine.
-  if (m_options.retraction_pressure >= 0.0 && control.tether_length < m_model.length - 1e-9 * m_h) {
-    if (p <= m_options.retraction_pressure) {
-      m_retract_refused = false;
-      const int removed = retract_to(control.tether_length, report);
-      report.edges_removed = removed;
-      if (removed > 0 && !m_retracting) {
-        m_retracting = true;
-        add_event(GrowthEventKind::kRetract, printf_string("the tether pulls the deflated vine (%.2f kPa) back from %.1f mm",
-                                           p / kKpaToPa, 1e3 * (m_model.length + removed * m_h)));
-      }
-    } else if (!m_retract_refused) {
-      m_retract_refused = true;
-      add_event(GrowthEventKind::kRetract,
-                printf_string("the tether pulls back to %.1f mm but the vine is at %.2f kPa, above the "
-                              "retraction pressure %.2f kPa: the length is held",
-                              1e3 * control.tether_length, p / kKpaToPa, m_options.retraction_pressure / kKpaToPa));
-    }
-  }
-  const double cap = std::max(0.0, std::min(control.tether_length, m_options.max_length) - m_model.length);
-  const double before = m_model.length;
-  if (!barrier_steps(dt, p, cap, report)) {
-    report.converged = false;
-    report.stalled = true;
-    add_event(GrowthEventKind::kSolver, "step failed: " + report.failure);
-    return report;
-  }
-  report.stalled = m_model.length <= before;
-  if (report.edges_added > 0) m_retracting = false;
-  return report;
+VineGrowth::VineGrowth(const VineParameters& vine, const GrowthOptions& options, const anatomy::CollisionWorld* world,
+                       RodField field, const Vec3& base_position, const Mat3& base_frame)
+    : m_model(make_growth_model(vine, options, world, base_position, base_frame)), m_field(std::move(field)) {
+  m_events = start_growth(m_model, m_field, vine.length, vine.pressure, m_state, m_workspace).events;
 }
 
-}  // namespace magvine::robot
-
-namespace magvine::robot {
-namespace {
-
-/// The point at arc length s [m] along a body whose edges have the lengths `lengths` (nodes x); before the base, on
-/// the line of `base_tangent` (material still in the introducer).
-Vec3 point_at_arc(const RodState& body, const std::vector<double>& lengths, const Vec3& base_tangent, double s) {
-  if (s <= 0.0) return body.x.front() + s * base_tangent;
-  for (std::size_t j = 0; j < lengths.size(); ++j) {
-    if (s <= lengths[j] || j + 1 == lengths.size()) {
-      const double f = std::min(1.0, s / lengths[j]);
-      return body.x[j] + f * (body.x[j + 1] - body.x[j]);
-    }
-    s -= lengths[j];
-  }
-  return body.x.back();
-}
-
-}  // namespace
-
-bool VineGrowth::barrier_steps(double dt, double pressure, double cap, GrowthStepReport& report, int depth) {
-  constexpr int kMaxHalvings = 4;
-  if (barrier_step(dt, pressure, cap, report)) return true;
-  if (depth == kMaxHalvings || dt == 0.0) return false;
-  const double before = m_model.length;
-  if (!barrier_steps(0.5 * dt, pressure, cap, report, depth + 1)) return false;
-  if (!barrier_steps(0.5 * dt, pressure, std::max(0.0, cap - (m_model.length - before)), report, depth + 1)) {
-    return false;
-  }
-  ++report.retries;
-  report.converged = true;
-  report.failure.clear();
-  return true;
-}
-
-bool VineGrowth::barrier_step(double dt, double pressure, double cap, GrowthStepReport& report) {
-  const std::size_t nodes = m_state.x.size();
-  const std::size_t tip = nodes - 1;
-  const double area = kPi * m_radius * m_radius;
-  const bool pushed = m_options.mode == InsertionMode::kPushed;
-  const Vec3 tangent = m_state.frames.back().col(0);
-  // The growth load on the tip edge (TipGrowth): the growth law's incremental potential for a vine that everts, a
-  // prescribed insertion (stiff, up to the tether) for a pushed body.
-  TipGrowth growth;
-  const double axial = m_model.axial_stiffness / robot::edge_length(m_model, m_model.edges - 1);
-  double squeeze = 1.0;
-  double tip_room = m_radius;  // the tip's flattened contact radius in a narrowing ahead
-  double push = 0.0;  // a pushed body's insertion in this step [m]
-  // (At the tether, cap = 0, the tether takes the tip's pressure force: nothing pushes the body.)
-  if (dt > 0.0 && cap > 0.0) {
-    if (pushed || solid_body() || m_placing) {
-      push = m_placing ? cap * std::min(1.0, dt) : std::min(report.speed * dt, cap);  // placing: dt 1, or halves
-      growth = {axial * push, axial, push};
-    } else if (m_options.law.extensibility > 0.0) {
-      if (m_world != nullptr) {
-        // Squeezing: ahead of the tip the lumen's width (from its middle) leaves the flattened section's area only,
-        // where the narrowing is one the tip can go on into (a carina's notch or a blind end closes a radius
-        // further on: the tip meets it as a wall).
-        const Vec3 ahead = m_state.x[tip] + m_radius * tangent;
-        if (m_world->contains(ahead) && m_world->contains(ahead + m_radius * tangent)) {
-          tip_room = node_radius(ahead, m_state.frames.back(), nullptr, kRecentrings);
-        }
-        squeeze = slot_area(m_radius, tip_room / kSlack) / area;
-      }
-      growth = {growth_force(pressure * squeeze, report.yield, m_radius),
-                area / (m_options.law.extensibility * dt), cap};
-    }
-  }
-  // Contact radii (squeezed where the lumen is narrow), each at most what the node has room for at the start: a
-  // configuration with a finite barrier energy.
-  RodConstraints c;
-  c.growth = growth;
-  m_cache.resize(nodes);
-  if (m_world != nullptr) {
-    WallBarrier wall{m_world, std::vector<double>(nodes, 0.0), m_dhat, m_stiffness};
-    for (std::size_t i = 1; i < nodes; ++i) {
-      NodeCache& cache = m_cache[i];
-      if (!((m_state.x[i] - cache.radius_at).norm() <= kStill * m_radius)) {
-        cache.radius_at = m_state.x[i];
-        cache.radius = node_radius(m_state.x[i], m_state.frames[std::min(i, nodes - 2)], &cache.across);
-      }
-      double r = i == tip ? std::min(cache.radius, tip_room) : cache.radius;  // the tip flattens into a slot
-      std::array<anatomy::NearTriangle, 1> near{};
-      if (m_world->triangles_within(m_state.x[i], r, near) > 0) r = near[0].distance - 0.1 * m_dhat;
-      wall.radius[i] = r > 0.1 * m_radius ? r : 0.0;
-    }
-    c.wall = std::move(wall);
-  }
-  // Friction references: where each everted node's material was laid down (kept across steps, moved to the
-  // Coulomb limit after a slip), or where a pushed body's material was before this step's insertion.
-  std::vector<Vec3> reference = m_reference;
-  reference.resize(nodes, Vec3::Constant(kNone));
-  if (pushed) {
-    std::vector<double> lengths(static_cast<std::size_t>(m_model.edges));
-    for (int j = 0; j < m_model.edges; ++j) lengths[static_cast<std::size_t>(j)] = robot::edge_length(m_model, j);
-    double s = 0.0;
-    for (std::size_t i = 1; i < nodes; ++i) {
-      s += lengths[i - 1];
-      reference[i] = point_at_arc(m_state, lengths, m_base_frame.col(0), s - push);
-    }
-  }
-  const RodModel old_model = m_model;
-  const RodState old_state = m_state;
-  const std::vector<Vec3> old_reference = m_reference;
-  const std::vector<Vec3> old_axis = m_contact_axis;
-  const std::vector<double> old_lambda = m_contact_force;
-  const std::vector<double> old_strip = m_strip_force;
-  const std::vector<Vec3> old_force = m_wall_force;
-  const auto restore = [&] {
-    m_model = old_model;
-    m_state = old_state;
-    m_reference = old_reference;
-    m_contact_axis = old_axis;
-    m_contact_force = old_lambda;
-    m_strip_force = old_strip;
-    m_wall_force = old_force;
-  };
-  m_contact_force.resize(nodes, 0.0);
-  m_strip_force.resize(nodes, 0.0);
-  m_contact_axis.resize(nodes, Vec3::Zero());
-  m_wall_force.resize(nodes, Vec3::Zero());
-  // Two lagged contact channels per node, each with its own friction: the walls within d̂ of the sphere (force λ,
-  // the principal direction of their normals), and a flattened section's strips (force s, across the pinch).
-  std::vector<double> lambda = m_contact_force;
-  std::vector<double> strip = m_strip_force;
-  std::vector<Vec3> axis = m_contact_axis;
-  // The last lagged values of λ and s fed to a solve, and what that solve returned (the secant relaxation below).
-  std::vector<std::array<double, 4>> last(nodes, {kNone, kNone, kNone, kNone});
-  bool settled = false;
-  // The everting tip. Along its tangent it advances by laying new material down (free). Sideways its material
-  // slides on the wall, but while it grows the material under the contact already slides (it flows over the cap
-  // at the growth's rate), so Coulomb friction resists a sideways slip u with μλ·f1(|u|/ε_tip), ε_tip the tip's
-  // growth in the step (a spinning top's friction: nearly viscous for a slip much slower than the growth), ε
-  // when it does not grow. Held by the wall, its material stays the same: the reference stays where it was held.
-  if (!pushed && (!m_blocked || !has_reference(reference[tip]))) reference[tip] = m_state.x[tip];
-  // The tip edge's growth in the current state: its extension past its made length, within the step's limit.
-  const auto tip_grown = [&] {
-    if (!(dt > 0.0 && growth.force > 0.0)) return 0.0;
-    const Vec3 edge = m_state.x[tip] - m_state.x[tip - 1];
-    const double extension = m_state.frames.back().col(0).dot(edge) - robot::edge_length(m_model, m_model.edges - 1);
-    return std::clamp(extension, 0.0, std::max(0.0, growth.limit));
-  };
-  double tip_growth = m_blocked ? 0.0 : m_tip_grown;  // lagged, as λ
-  const auto free_along = [&](std::size_t i, const Vec3& n) -> Vec3 {
-    if (pushed || i != tip) return Vec3::Zero();
-    const Vec3 f = tangent - tangent.dot(n) * n;
-    return f.norm() > 1e-6 ? Vec3(f.normalized()) : Vec3::Zero();
-  };
-  for (int k = 0; k < m_options.max_friction_iterations && !settled; ++k) {
-    c.friction.clear();
-    for (std::size_t i = 1; i < nodes && m_world != nullptr; ++i) {
-      if (!(lambda[i] > 0.0) && !(strip[i] > 0.0)) continue;
-      if (!has_reference(reference[i])) reference[i] = m_state.x[i];
-      const double slip = !pushed && i == tip ? std::max(m_slip, tip_growth) : m_slip;
-      if (lambda[i] > 0.0) {
-        c.friction.push_back({static_cast<int>(i), reference[i], axis[i], lambda[i], m_options.friction, slip,
-                              free_along(i, axis[i])});
-      }
-      if (strip[i] > 0.0) {
-        c.friction.push_back({static_cast<int>(i), reference[i], m_cache[i].across, strip[i], m_options.friction,
-                              slip, free_along(i, m_cache[i].across)});
-      }
-    }
-    ++report.solves;
-    RodSolveReport r = solve_rod_statics(m_model, m_field, m_state, m_options.solver, &m_workspace, &c);
-    if (!r.converged && m_options.solver.ramp == false) {
-      // Loads that changed too much for Newton from the last equilibrium (a magnet brought close, a deflation):
-      // the same step with the loads ramped up from there.
-      report.newton_iterations += r.iterations;
-      r = solve_rod_statics(m_model, m_field, m_state, ramped_solver(m_options.solver), &m_workspace, &c);
-    }
-    report.newton_iterations += r.iterations;
-    if (!r.converged) {
-      restore();
-      report.converged = false;
-      report.failure = r.failure;
-      return false;
-    }
-    if (m_world == nullptr) break;
-    const double grown_now = pushed ? 0.0 : tip_grown();  // this solve's, for the tip friction's slip
-    const std::vector<NodeWallForce> f = wall_barrier_forces(m_state, *c.wall);
-    // The growth force of a vine is a load the wall carries when it blocks the tip; a pushed body's prescribed
-    // insertion (a stiff spring to the push) is not, and would swamp the tolerance.
-    const double tip_load = pushed || solid_body() || m_placing ? 0.0 : growth.force;
-    double scale = tip_load;
-    std::vector<double> next_strip(nodes, 0.0);
-    for (std::size_t i = 1; i < nodes; ++i) {
-      // A flattened section presses each of the two walls with P over its flat strip, 2·P·(πR − πg/2)·h; a
-      // pinched catheter with its ring's line load, 2·q(g)·h.
-      if (c.wall->radius[i] > 0.0 && m_cache[i].radius < m_radius) {
-        const double g = m_cache[i].radius / kSlack;
-        next_strip[i] = 2.0 * m_h * (m_options.catheter ? ring_crush_load(*m_options.catheter, g)
-                                                        : m_pressure * flat_width(m_radius, g));
-      }
-      scale = std::max({scale, f[i].magnitude, next_strip[i]});
-    }
-    // Settled when the lagged forces' total change is within friction_tolerance of the total contact force (plus
-    // the growth force), and no node that carries a share of it turns its axis: light contacts that flicker on
-    // and off a resting body change their few mN, not the friction the body carries.
-    double change = 0.0;
-    double total = tip_load;
-    for (std::size_t i = 1; i < nodes; ++i) {
-      change += std::abs(f[i].magnitude - lambda[i]) + std::abs(next_strip[i] - strip[i]);
-      total += f[i].magnitude + next_strip[i];
-    }
-    // The tip's slip scale settles with the rest: within 10 % (or ε).
-    settled = change <= m_options.friction_tolerance * total &&
-              std::abs(grown_now - tip_growth) <= 0.1 * std::max(tip_growth, m_slip);
-    // (Halfway after the first solve: a tip between growing and held would otherwise alternate.)
-    tip_growth += (grown_now - tip_growth) * (k > 0 ? 0.5 : 1.0);
-    const double tolerance = m_options.friction_tolerance * scale;
-    for (std::size_t i = 1; i < nodes; ++i) {
-      if (f[i].magnitude > 10.0 * tolerance && lambda[i] > 0.0 && axis[i].cross(f[i].axis).norm() > 1e-2) {
-        settled = false;
-      }
-      // The lag is a fixed point λ = g(λ) per node. Where a node's friction moves it off the force it was lagged
-      // at, g falls as λ rises (slope σ < 0) and plain iteration alternates, converging as |σ|^k or not at all;
-      // the relaxation λ += (g − λ)/(1 − σ), σ the secant slope of the last two solves, takes the secant's root
-      // (a tenth of the correction at least; where λ creeps one way, σ > 0, the whole correction).
-      const auto relax = [](double in, double out, double in_before, double out_before) {
-        if (std::isnan(in_before) || !(std::abs(in - in_before) > 1e-12 * (std::abs(in) + std::abs(out)))) return 1.0;
-        const double slope = (out - out_before) / (in - in_before);
-        return slope < 0.0 ? std::clamp(1.0 / (1.0 - slope), 0.1, 1.0) : 1.0;
-      };
-      const double dl = f[i].magnitude - lambda[i];
-      const double ds = next_strip[i] - strip[i];
-      const double wl = relax(lambda[i], f[i].magnitude, last[i][0], last[i][1]);
-      const double ws = relax(strip[i], next_strip[i], last[i][2], last[i][3]);
-      last[i] = {lambda[i], f[i].magnitude, strip[i], next_strip[i]};
-      lambda[i] += wl * dl;
-      strip[i] += ws * ds;
-      const double w = std::min(wl, ws);
-      const Vec3 turn = axis[i].isZero() ? Vec3::Zero() : Vec3(f[i].axis - axis[i]);
-      const Vec3 blended = axis[i].isZero() ? f[i].axis : Vec3(axis[i] + w * turn);  // as its λ
-      axis[i] = blended.norm() > 1e-9 ? Vec3(blended.normalized()) : f[i].axis;
-      m_wall_force[i] = f[i].force;
-    }
-  }
-  if (!settled && m_world != nullptr) {
-    restore();
-    report.converged = false;
-    report.failure = "the lagged friction did not settle in " + std::to_string(m_options.max_friction_iterations) +
-                     " solves";
-    return false;
-  }
-  // Forces on the tissue (the converged solve's).
-  m_contact_force = lambda;
-  m_strip_force = strip;
-  m_contact_axis = axis;
-  m_forces = WallForces{};
-  m_forces.normal.assign(nodes, 0.0);
-  m_forces.shear.assign(nodes, 0.0);
-  m_forces.normal_vector.assign(nodes, Vec3::Zero());
-  m_forces.shear_vector.assign(nodes, Vec3::Zero());
-  for (const NodeFriction& f : c.friction) {
-    const auto i = static_cast<std::size_t>(f.node);
-    m_forces.shear_vector[i] -= friction_force(f, m_state.x[i]);
-    // Static friction's reference follows a slip past ε (the node then sits at the Coulomb limit).
-    const Vec3 u = friction_slip(f, m_state.x[i]);
-    if (!pushed && u.norm() > m_slip) reference[i] += (1.0 - m_slip / u.norm()) * u;
-  }
-  for (std::size_t i = 1; i < nodes; ++i) {
-    const double fn = lambda[i] + strip[i];
-    m_forces.normal[i] = fn;
-    m_forces.shear[i] = m_forces.shear_vector[i].norm();
-    m_forces.normal_vector[i] = -m_wall_force[i];
-    m_forces.max_normal = std::max(m_forces.max_normal, fn);
-    m_forces.total_normal += fn;
-    m_forces.max_shear = std::max(m_forces.max_shear, m_forces.shear[i]);
-    m_forces.total_shear += m_forces.shear[i];
-    if (fn > 0.0) ++m_forces.nodes_in_contact;
-    if (!(fn > 0.0) || pushed) reference[i] = Vec3::Constant(kNone);  // off the wall: released
-  }
-  if (m_forces.nodes_in_contact > 0) m_forces.mean_normal = m_forces.total_normal / m_forces.nodes_in_contact;
-  {
-    // The global balance: every force on the body, each computed from its own law.
-    Vec3 wall = Vec3::Zero();
-    Vec3 friction = Vec3::Zero();
-    for (std::size_t i = 1; i < nodes; ++i) {
-      wall += m_wall_force[i];
-      friction -= m_forces.shear_vector[i];
-    }
-    const Vec3 load = body_load(m_model, m_field, m_state);
-    m_forces.clamp = clamp_force(m_model, m_field, m_state);
-    m_forces.imbalance = wall + friction + load + m_forces.clamp;
-    m_forces.largest_load = std::max({wall.norm(), friction.norm(), load.norm(), m_forces.clamp.norm(), growth.force});
-  }
-  m_reference = reference;
-  // Growth: the tip edge's extension past its made length becomes made length; a tip edge of 3h/2 splits into an
-  // edge of h and the rest.
-  const double grown = tip_grown();
-  m_tip_length += grown;
-  m_tip_grown = grown;
-  while (m_tip_length >= 1.5 * m_h) {
-    const Vec3 t = m_state.frames.back().col(0);
-    const Vec3 at = m_state.x[m_state.x.size() - 2] + m_h * t;
-    const std::size_t n = m_state.x.size() - 1;  // the new node's index; the tip moves to n + 1
-    m_state.x.insert(m_state.x.begin() + static_cast<std::ptrdiff_t>(n), at);
-    m_state.frames.push_back(m_state.frames.back());
-    m_reference.insert(m_reference.begin() + static_cast<std::ptrdiff_t>(n), Vec3::Constant(kNone));
-    m_contact_axis.insert(m_contact_axis.begin() + static_cast<std::ptrdiff_t>(n), Vec3::Zero());
-    m_contact_force.insert(m_contact_force.begin() + static_cast<std::ptrdiff_t>(n), 0.0);
-    m_strip_force.insert(m_strip_force.begin() + static_cast<std::ptrdiff_t>(n), 0.0);
-    m_wall_force.insert(m_wall_force.begin() + static_cast<std::ptrdiff_t>(n), Vec3::Zero());
-    for (auto* v : {&m_forces.normal, &m_forces.shear}) v->insert(v->begin() + static_cast<std::ptrdiff_t>(n), 0.0);
-    for (auto* v : {&m_forces.normal_vector, &m_forces.shear_vector}) {
-      v->insert(v->begin() + static_cast<std::ptrdiff_t>(n), Vec3::Zero());
-    }
-    m_cache.insert(m_cache.begin() + static_cast<std::ptrdiff_t>(n), NodeCache{});
-    ++m_vine.edges;
-    ++report.edges_added;
-    m_tip_length -= m_h;
-  }
-  rebuild_model(pressure);
-  // Events: the wall in front of the tip holding it (growth below 1 % of the free growth), or a narrowing.
-  if (dt > 0.0 && !pushed && !solid_body() && !m_placing) {
-    const double free = growth.stiffness > 0.0 ? growth.force / growth.stiffness : 0.0;
-    const bool held = growth.force > 0.0 && grown < 0.01 * free;
-    if (held && !m_blocked) {
-      m_blocked = true;
-      const double carried = -m_wall_force[tip].dot(tangent);
-      add_event(GrowthEventKind::kBlocked,
-                printf_string("the wall in front of the tip carries %.3f N of the growth force %.3f N", carried,
-                              growth.force));
-    } else if (growth.force == 0.0 && squeeze < 1.0 && pressure > report.yield && !m_blocked) {
-      m_blocked = true;
-      add_event(GrowthEventKind::kSqueeze,
-                printf_string("the narrowing ahead leaves the tip %.0f %% of its section: %.2f kPa x %.2f is at or "
-                              "below the yield %.2f kPa",
-                              100.0 * squeeze, pressure / kKpaToPa, squeeze, report.yield / kKpaToPa));
-    } else if (grown >= 0.01 * free && growth.force > 0.0) {
-      m_blocked = false;
-    }
-  }
-  return true;
+GrowthStatus VineGrowth::advance(double dt, const GrowthControl& control) {
+  GrowthStatus status = grow_step(m_model, m_field, control, m_state, m_workspace, dt);
+  m_events.insert(m_events.end(), status.events.begin(), status.events.end());
+  return status;
 }
 
 }  // namespace magvine::robot

@@ -387,6 +387,7 @@ RodWorkspace::RodWorkspace() : impl(std::make_unique<Impl>()) {}
 RodWorkspace::~RodWorkspace() = default;
 RodWorkspace::RodWorkspace(RodWorkspace&&) noexcept = default;
 RodWorkspace& RodWorkspace::operator=(RodWorkspace&&) noexcept = default;
+void RodWorkspace::forget_hessian() { impl->edges = -1; }
 
 namespace {
 

@@ -70,7 +70,13 @@ ExperimentResult run_experiment(const ExperimentScene& scene, const std::functio
   // (an event and an outcome, not an error). A pushed rod or catheter has no film to burst.
   const bool solid = scene.growth.catheter || scene.growth.rod;
   if (!solid && robot::bursts(vine, vine.pressure)) vine.pressure *= 0.5;
-  robot::VineGrowth growth(vine, scene.growth, &anatomy.world, field, scene.base_position, scene.base_frame);
+  // The growth step function (growth.hpp): the model, the state (a checkpoint is a copy), the workspace.
+  const robot::GrowthModel model =
+      robot::make_growth_model(vine, scene.growth, &anatomy.world, scene.base_position, scene.base_frame);
+  robot::GrowthState state;
+  robot::GrowthWorkspace workspace;
+  std::vector<robot::GrowthEvent> growth_events =
+      robot::start_growth(model, field, vine.length, vine.pressure, state, workspace).events;
   double next_shape = 0.0;  // outputs.shape_interval
   double next_frame = 0.0;  // outputs.video: one record per frame of the most frequent video
   double frame_interval = std::numeric_limits<double>::infinity();
@@ -79,8 +85,8 @@ ExperimentResult run_experiment(const ExperimentScene& scene, const std::functio
     if (scene.videos.empty() || t < next_frame - 1e-9) return;
     // One record per frame time passed (a step longer than a frame repeats the state: the video keeps time).
     FrameSample f;
-    f.nodes = growth.state().x;
-    f.tip_frame = growth.state().frames.back();
+    f.nodes = state.body.x;
+    f.tip_frame = state.body.frames.back();
     for (const magnetics::Pose& pose : poses) {
       f.magnet_positions.push_back(pose.position);
       f.magnet_axes.push_back(pose.rotation.col(2));
@@ -97,9 +103,9 @@ ExperimentResult run_experiment(const ExperimentScene& scene, const std::functio
 
   for (long k = 1; k <= steps; ++k) {
     const double t = std::min(scene.duration, static_cast<double>(k) * scene.dt);
-    const double dt = t - growth.time();
+    const double dt = t - state.time;
     if (navigator) {
-      navigator->place(t, growth.state().tip(), growth.state().frames.back(), growth.length(), navigator_events);
+      navigator->place(t, state.body.tip(), state.body.frames.back(), workspace.body.length, navigator_events);
     }
     if (scene.magnets && moving) {
       std::vector<magnetics::Pose> next = poses_at(scene, navigator ? &*navigator : nullptr, t);
@@ -110,7 +116,7 @@ ExperimentResult run_experiment(const ExperimentScene& scene, const std::functio
       }
       if (changed) {
         poses = std::move(next);
-        growth.set_field(magnetics::field_function(*scene.magnets, poses));
+        field = magnetics::field_function(*scene.magnets, poses);
         record_magnets(t);
       }
     }
@@ -119,9 +125,10 @@ ExperimentResult run_experiment(const ExperimentScene& scene, const std::functio
     if (scene.tether) control.tether_length = scene.tether->at(t);
     if (navigator) {
       const int branch = out.samples.empty() ? -1 : out.samples.back().branch;
-      navigator->regulate(t, growth.length(), branch, out.success, growth.state().tip(), control, navigator_events);
+      navigator->regulate(t, workspace.body.length, branch, out.success, state.body.tip(), control, navigator_events);
     }
-    const robot::GrowthStepReport r = growth.advance(dt, control);
+    const robot::GrowthStatus r = robot::grow_step(model, field, control, state, workspace, dt);
+    growth_events.insert(growth_events.end(), r.events.begin(), r.events.end());
     out.converged = r.converged;
     if (!r.converged) {
       // A failed step was retried in halves already: one that still fails ends the run (docs/cli.md: failed runs,
@@ -132,14 +139,14 @@ ExperimentResult run_experiment(const ExperimentScene& scene, const std::functio
     }
     ExperimentSample s;
     s.time = t;
-    s.tip = growth.state().tip();
-    s.length = growth.length();
+    s.tip = state.body.tip();
+    s.length = workspace.body.length;
     s.pressure = control.pressure;
-    s.max_normal = growth.wall_forces().max_normal;
-    s.mean_normal = growth.wall_forces().mean_normal;
-    s.total_normal = growth.wall_forces().total_normal;
-    s.total_shear = growth.wall_forces().total_shear;
-    const robot::WallForces& forces = growth.wall_forces();
+    const robot::WallForces& forces = state.forces;
+    s.max_normal = forces.max_normal;
+    s.mean_normal = forces.mean_normal;
+    s.total_normal = forces.total_normal;
+    s.total_shear = forces.total_shear;
     s.imbalance = forces.largest_load > 0.0 ? forces.imbalance.norm() / forces.largest_load : 0.0;
     if (anatomy.graph) {
       const anatomy::CentrelinePoint near = anatomy::nearest_centreline_point(*anatomy.graph, s.tip);
@@ -149,7 +156,7 @@ ExperimentResult run_experiment(const ExperimentScene& scene, const std::functio
     out.samples.push_back(s);
     record_frame(t);
     if (scene.shape_interval > 0.0 && t >= next_shape - 1e-9) {
-      out.shapes.push_back({t, growth.state().x, forces.normal, forces.shear, forces.normal_vector, forces.shear_vector});
+      out.shapes.push_back({t, state.body.x, forces.normal, forces.shear, forces.normal_vector, forces.shear_vector});
       next_shape += scene.shape_interval;
     }
     if (scene.target && out.time_to_target < 0.0 && (s.tip - *scene.target).norm() <= scene.target_tolerance) {
@@ -163,12 +170,12 @@ ExperimentResult run_experiment(const ExperimentScene& scene, const std::functio
     }
   }
   if (navigator) out.recoveries = navigator->recoveries();
-  for (const robot::GrowthEvent& e : growth.events()) out.events.push_back(run_event(e));
+  for (const robot::GrowthEvent& e : growth_events) out.events.push_back(run_event(e));
   out.events.insert(out.events.end(), navigator_events.begin(), navigator_events.end());
   std::stable_sort(out.events.begin(), out.events.end(),
                    [](const RunEvent& a, const RunEvent& b) { return a.time < b.time; });
-  out.final_state = growth.state();
-  out.final_forces = growth.wall_forces();
+  out.final_state = state.body;
+  out.final_forces = state.forces;
   out.runtime_s = clock.seconds();
   return out;
 }

@@ -74,7 +74,7 @@ GrowthStudyRun run_growth_study_case(GrowthStudyCase which, double edge_length, 
   const double start = g.length();
   std::vector<std::pair<double, Vec3>> path{{start, g.state().tip()}};
   while (g.length() < kEnd && g.time() < 30.0) {
-    const robot::GrowthStepReport r = g.advance(step, {.pressure = 35e3});
+    const robot::GrowthStatus r = g.advance(step, {.pressure = 35e3});
     ++run.steps;
     run.newton += r.newton_iterations;
     if (!r.converged) {

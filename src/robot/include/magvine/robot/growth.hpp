@@ -2,6 +2,11 @@
 /// An everting vine growing through anatomy (PHYSICS.md §3): quasi-static steps of the discretised vine of vine.hpp
 /// against the airway wall of an anatomy::CollisionWorld (docs/growth-and-contact.md).
 ///
+/// Model, state, step (STYLE.md): an immutable GrowthModel, a copyable GrowthState (a checkpoint is a copy), a
+/// GrowthWorkspace, and grow_step(model, field, control, state, workspace, dt) returning a GrowthStatus with the
+/// step's events; the pressure and the tether are the step's loads (GrowthControl). VineGrowth holds the four for one
+/// run.
+///
 /// One minimisation per step. Each step solves the whole body's equilibrium (solve_rod_statics) with the wall as a
 /// smooth barrier on the distance from each node's sphere to the wall triangles within d̂ of it (WallBarrier;
 /// incremental potential contact, Li et al. 2020), lagged smoothed Coulomb friction per node (NodeFriction), and the
@@ -202,12 +207,12 @@ struct WallForces {
   int nodes_in_contact = 0;
 };
 
-/// What one advance did.
-struct GrowthStepReport {
+/// What one step did (grow_step), with the events it raised.
+struct GrowthStatus {
   int edges_added = 0;
   bool stalled = false;    ///< no growth this step (yield, blocked, tether, length or burst)
   bool burst = false;
-  bool converged = true;   ///< the body reached equilibrium (else the cause is in failure and an event)
+  bool converged = true;   ///< the body reached equilibrium (else the cause is in failure and a kSolver event)
   int solves = 0;          ///< body solves in the step (the friction lag's iterations)
   int retries = 0;         ///< steps that failed and were taken again as two halves
   int newton_iterations = 0;
@@ -216,109 +221,152 @@ struct GrowthStepReport {
   int edges_removed = 0;   ///< retraction
   double speed = 0.0;      ///< the growth law's L̇ before tether and blocking [m/s]
   std::string failure;
+  std::vector<GrowthEvent> events;  ///< what happened in this step, in order
 };
 
-/// The control inputs of one step.
+/// The control inputs of one step: the loads of the step, not parts of the model.
 struct GrowthControl {
   double pressure = 0.0;  ///< P [Pa]
   double tether_length = std::numeric_limits<double>::infinity();  ///< the length the tether has released [m]
 };
 
-/// Checks what VineGrowth needs of its vine, options and base frame (the constructor calls it; scene loaders call it
-/// first, so that a bad value is an input error before any run): VineParameterError naming the option (friction,
-/// edge_length, catheter, rod, base, …) otherwise. The vine's own parameters are vine_rod's to check.
+/// Checks what a growth model needs of its vine, options and base frame (make_growth_model calls it; scene loaders
+/// call it first, so that a bad value is an input error before any run): VineParameterError naming the option
+/// (friction, edge_length, catheter, rod, base, …) otherwise. The vine's own parameters are vine_rod's to check.
 void check_growth(const VineParameters& vine, const GrowthOptions& options, const Mat3& base_frame);
 
-/// A vine growing through one anatomy. The world and the field are borrowed (the world must outlive this).
+/// What a growing body is made of and where it grows (STYLE.md, Model): the vine as made (or the pushed catheter or
+/// rod), the options, the anatomy and the clamp. Immutable after make_growth_model; shared by trials and threads.
+/// The world is borrowed (it must outlive the model); null is free space.
+struct GrowthModel {
+  VineParameters vine;     ///< as made: radius the body's made radius (the tube's or rod's when pushed); the
+                           ///< pressure, length and edges are not read (the state's)
+  GrowthOptions options;
+  const anatomy::CollisionWorld* world = nullptr;
+  Vec3 base_position = Vec3::Zero();     ///< the clamp [m]
+  Mat3 base_frame = Mat3::Identity();    ///< the clamp's frame (tangent = first column)
+  double edge_length = 0.0;  ///< h [m]
+  double dhat = 0.0;         ///< the barrier's activation distance d̂ [m]
+  double slip = 0.0;         ///< the static friction's slip ε [m]
+  /// A pushed catheter tube or rod rather than the vine's film: no pressure in its wall, no burst, no squeeze.
+  bool solid() const { return options.catheter.has_value() || options.rod.has_value(); }
+};
+
+/// Builds and checks a growth model (check_growth; InputError, VineParameterError for the vine's own parameters).
+/// `vine.length` and `vine.pressure` are the start's (start_growth), not the model's.
+GrowthModel make_growth_model(const VineParameters& vine, const GrowthOptions& options,
+                              const anatomy::CollisionWorld* world, const Vec3& base_position, const Mat3& base_frame);
+
+/// One node's contact history (GrowthState::nodes; node 0 is the clamp and carries none).
+struct GrowthNode {
+  /// Its friction reference: where its material was laid down or last held (NaN: none) [m].
+  Vec3 reference = Vec3::Constant(std::numeric_limits<double>::quiet_NaN());
+  Vec3 contact_axis = Vec3::Zero();  ///< the lagged contact axis (unit; zero: none)
+  double contact_force = 0.0;        ///< the lagged wall force λ [N]
+  double strip_force = 0.0;          ///< the lagged force of a flattened section's strips [N]
+  Vec3 wall_force = Vec3::Zero();    ///< the wall's net force on the body at the last solve [N]
+  /// Where its contact radius was last measured (reused while the node moves less than 2 % R) [m].
+  Vec3 radius_at = Vec3::Constant(std::numeric_limits<double>::quiet_NaN());
+  double radius = 0.0;               ///< its (squeezed) contact radius there [m]
+  Vec3 across = Vec3::UnitY();       ///< the pinch direction there
+};
+
+/// Everything of a growing body that changes in time (STYLE.md, State): plain and copyable, no pointers; a
+/// checkpoint is a copy, and grow_step from a copy repeats the same step bit for bit.
+struct GrowthState {
+  double time = 0.0;       ///< [s]
+  double pressure = 0.0;   ///< the pressure the body is at (the last step's) [Pa]
+  int edges = 0;           ///< N
+  double tip_length = 0.0; ///< the tip edge's made length [m] (between h/2 and 3h/2)
+  double tip_grown = 0.0;  ///< the tip's growth in the last step [m] (its friction's slip scale)
+  RodState body;           ///< nodes and frames
+  std::vector<GrowthNode> nodes;  ///< per node, its contact history (as many as body.x)
+  WallForces forces;       ///< the forces on the tissue after the last step
+  bool burst = false;
+  bool stalled = false;    ///< by the yield (a "stall" event was given)
+  bool blocked = false;    ///< by the wall or a narrowing (a "blocked" or "squeeze" event was given)
+  bool retract_refused = false;  ///< a "retract" event said the vine must be deflated
+  bool retracting = false;       ///< a "retract" event announced this retraction
+  bool placing = false;    ///< start_growth is everting the initial body: prescribed growth, no events
+};
+
+/// The everted length of a state [m]: (N − 1)·h plus the tip edge's made length.
+double everted_length(const GrowthModel& model, const GrowthState& state);
+
+/// Scratch of grow_step (STYLE.md, Workspace), reused between steps: the rod model of the body at the step's
+/// pressure, the rod solver's workspace, the checkpoint a failed step returns to.
+struct GrowthWorkspace {
+  RodModel body;            ///< the state's body as a rod at the step's pressure (derived: growth_body)
+  double radius = 0.0;      ///< the body's (extended) radius at that pressure [m]
+  double stiffness = 0.0;   ///< the barrier stiffness κ at that pressure [N/m]
+  RodWorkspace rod;
+  GrowthState checkpoint;   ///< the state before the step being tried
+  /// The friction lag's scratch, per node: the references, the lagged λ, strip forces and axes, and the last two
+  /// solves' inputs and outputs (the secant relaxation).
+  std::vector<Vec3> reference;
+  std::vector<double> lambda;
+  std::vector<double> strip;
+  std::vector<Vec3> axis;
+  std::vector<std::array<double, 4>> last;
+};
+
+/// The state's body as a rod (vine_rod of the vine with its N edges and tip edge, at `pressure`; the tube or the
+/// inserted part of the rod when pushed), into workspace.body, with the radius and barrier stiffness at that
+/// pressure.
+void growth_body(const GrowthModel& model, const GrowthState& state, double pressure, GrowthWorkspace& workspace);
+
+/// The first state: a body of `length` [m] (≥ one edge; rounded to whole edges) along the clamp's tangent at
+/// `pressure` [Pa], in equilibrium with the field and the wall; where the straight body would enter the wall it is
+/// cut and everted from there to its length (a "solver" event says how far it got if it cannot).
+GrowthStatus start_growth(const GrowthModel& model, const RodField& field, double length, double pressure,
+                          GrowthState& state, GrowthWorkspace& workspace);
+
+/// Advances `state` by dt [s] under `control` (the pressure and tether are this step's loads): one step of the
+/// growth law and the body's equilibrium with the wall together, a step that does not converge taken again as two
+/// halves (down to dt/16). Returns what happened; on failure (converged false, a kSolver event) the state is the
+/// last converged one with the time advanced. Throws InputError for dt ≤ 0 or a negative or non-finite pressure.
+GrowthStatus grow_step(const GrowthModel& model, const RodField& field, const GrowthControl& control,
+                       GrowthState& state, GrowthWorkspace& workspace, double dt);
+
+/// Σθ over the joints of the state's body [rad] (workspace.body must be the state's: growth_body).
+double growth_turning(const GrowthWorkspace& workspace, const GrowthState& state);
+
+/// A convenience over the step function for one run: a model, a state, a workspace, the field and the events so
+/// far. The world and the field are borrowed as in GrowthModel.
 class VineGrowth {
  public:
   /// `vine`: the body (vine.length the initial everted length, ≥ one edge; vine.edges ignored; for a pushed rod or
-  /// catheter only its length, the inserted length, is read); base pose of the clamp (tangent = first column of
-  /// base_frame). `world` may be null (free space). Throws InputError for bad
+  /// catheter only its length, the inserted length, is read), at vine.pressure; base pose of the clamp (tangent =
+  /// first column of base_frame). `world` may be null (free space). Throws InputError for bad
   /// parameters (VineParameterError for the vine's own).
   VineGrowth(const VineParameters& vine, const GrowthOptions& options, const anatomy::CollisionWorld* world,
              RodField field, const Vec3& base_position, const Mat3& base_frame);
 
-  /// Advances by dt [s] under `control`: one step of the growth law and the body's equilibrium with the wall
-  /// together (retried in halves where it does not converge).
-  GrowthStepReport advance(double dt, const GrowthControl& control);
+  /// grow_step by dt [s] under `control`; its events join events().
+  GrowthStatus advance(double dt, const GrowthControl& control);
 
   /// Replaces the magnetic field (a moved EPM).
   void set_field(RodField field) { m_field = std::move(field); }
 
-  const RodState& state() const { return m_state; }
-  const RodModel& model() const { return m_model; }
-  double time() const { return m_time; }
-  double length() const { return m_model.length; }  ///< everted length [m]
-  double edge_length() const { return m_h; }
-  double radius() const { return m_radius; }        ///< current (extended) radius [m]
-  double turning() const;                            ///< Σθ over the joints [rad]
-  bool burst() const { return m_burst; }
+  const RodState& state() const { return m_state.body; }
+  const GrowthState& growth_state() const { return m_state; }
+  const GrowthModel& growth_model() const { return m_model; }
+  const RodModel& model() const { return m_workspace.body; }
+  double time() const { return m_state.time; }
+  double length() const { return m_workspace.body.length; }  ///< everted length [m]
+  double edge_length() const { return m_model.edge_length; }
+  double radius() const { return m_workspace.radius; }        ///< current (extended) radius [m]
+  double turning() const { return growth_turning(m_workspace, m_state); }  ///< Σθ over the joints [rad]
+  bool burst() const { return m_state.burst; }
   const std::vector<GrowthEvent>& events() const { return m_events; }
-  const WallForces& wall_forces() const { return m_forces; }
+  const WallForces& wall_forces() const { return m_state.forces; }
 
  private:
-  void rebuild_model(double pressure);
-  /// A pushed catheter tube or rod rather than the vine's film: no pressure in its wall, no burst, no squeezed tip.
-  bool solid_body() const { return m_options.catheter.has_value() || m_options.rod.has_value(); }
-  /// ΔP of GrowthOptions::magnetorheology for the current body and field [Pa] (0 when off).
-  double magnetorheological_yield() const;
-  /// Inverts whole edges at the tip down to `length` (keeps one edge) and solves again; returns how many.
-  int retract_to(double length, GrowthStepReport& report);
-  /// Narrowest width of the lumen across the body at x (4 lines through x in the plane ⟂ frame.col(0), ray casts
-  /// up to 2R each way) [m]. With `recentrings` > 0, where that would squeeze the body the lines are cast again from
-  /// the mean of the chords' midpoints, up to that many times, so that a point off a round lumen's axis does not
-  /// read its short chords as a gap.
-  double lumen_width(const Vec3& x, const Mat3& frame, Vec3* across = nullptr, int recentrings = 0) const;
-  /// The body's contact radius at x: R, or half the lumen width at x or R ahead of or behind it when narrower.
-  /// `across`, if given, receives the direction of the narrowest line (the pinch); `recentrings` as lumen_width.
-  double node_radius(const Vec3& x, const Mat3& frame, Vec3* across = nullptr, int recentrings = 0) const;
-  /// Steps of dt from the growth law's speed on (advance's preamble done), a failed one retried as two
-  /// halves (down to dt/16); false when even those fail. `cap`: how far the tether and the made length let it grow.
-  bool barrier_steps(double dt, double pressure, double cap, GrowthStepReport& report, int depth = 0);
-  /// One converged step of dt (dt = 0: no growth). On failure the state is left as it was and
-  /// report.failure says why.
-  bool barrier_step(double dt, double pressure, double cap, GrowthStepReport& report);
-  void add_event(GrowthEventKind kind, std::string detail);
-
-  VineParameters m_vine;
-  GrowthOptions m_options;
-  const anatomy::CollisionWorld* m_world;
+  GrowthModel m_model;
   RodField m_field;
-  Vec3 m_base_position;
-  Mat3 m_base_frame;
-  double m_h = 0.0;
-  double m_radius = 0.0;
-  double m_pressure = 0.0;
-  double m_stiffness = 0.0;
-  double m_time = 0.0;
-  bool m_burst = false;
-  bool m_stalled = false;  ///< by the yield (a "stall" event was given)
-  bool m_blocked = false;  ///< by the wall or a narrowing (a "blocked" or "squeeze" event was given)
-  bool m_retract_refused = false;  ///< a "retract" event said the vine must be deflated
-  bool m_retracting = false;       ///< a "retract" event announced this retraction
-  RodModel m_model;
-  RodState m_state;
-  RodWorkspace m_workspace;
-  std::vector<Vec3> m_reference;     ///< per node, its friction reference (NaN: none)
-  std::vector<Vec3> m_contact_axis;  ///< per node, the lagged contact axis (unit; zero: none)
-  std::vector<double> m_contact_force;  ///< per node, the lagged wall force λ [N]
-  /// The last contact radius query per node (reused while the node does not move).
-  struct NodeCache {
-    Vec3 radius_at = Vec3::Constant(std::numeric_limits<double>::quiet_NaN());
-    double radius = 0.0;  ///< the node's squeezed radius there [m]
-    Vec3 across = Vec3::UnitY();  ///< the pinch direction there (node_radius)
-  };
-  std::vector<NodeCache> m_cache;
-  WallForces m_forces;
+  GrowthState m_state;
+  GrowthWorkspace m_workspace;
   std::vector<GrowthEvent> m_events;
-  double m_tip_length = 0.0;          ///< the tip edge's made length [m] (between h/2 and 3h/2)
-  bool m_placing = false;             ///< the constructor everts the initial body: prescribed growth, no events
-  double m_tip_grown = 0.0;           ///< the tip's growth in the last step [m] (its friction's slip scale)
-  double m_dhat = 0.0;                ///< d̂ [m]
-  double m_slip = 0.0;                ///< ε [m]
-  std::vector<Vec3> m_wall_force;     ///< per node, the wall's net force on the body at the last solve [N]
-  std::vector<double> m_strip_force;  ///< per node, the lagged force of a flattened section's strips [N]
 };
 
 }  // namespace magvine::robot

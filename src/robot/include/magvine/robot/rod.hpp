@@ -186,6 +186,9 @@ class RodWorkspace {
   ~RodWorkspace();
   RodWorkspace(RodWorkspace&&) noexcept;
   RodWorkspace& operator=(RodWorkspace&&) noexcept;
+  /// Drops the kept Hessian: the next solve starts from a fresh one, so that its result depends on its inputs only
+  /// (a step from a checkpoint repeats bit for bit with any workspace).
+  void forget_hessian();
   struct Impl;
   std::unique_ptr<Impl> impl;
 };
