@@ -84,6 +84,38 @@ TEST(GrowthLaw, SpeedYieldAndForceByHand) {
   EXPECT_EQ(growth_force(10e3, 20e3, 2.5e-3), 0.0);
 }
 
+TEST(ContactPressure, HertzLineContactAgreesWithItsOwnDistributionAndCurvature) {
+  // Johnson (1985) §4.2: under a cylinder pressed into a half-space with line load q the pressure is elliptical,
+  // p(x) = p0·√(1 − x²/b²), so it must integrate to q over [−b, b]; and the surfaces' curvature matching gives
+  // p0 = b·E*/(2R) (eq. 4.45), a second route to p0 from b. q = 50 N/m, R = 2 mm, E = 0.5 MPa, ν = 0.45.
+  const double q = 50.0;
+  const double r = 2e-3;
+  const double e = 0.5e6;
+  const double p0 = hertz_line_pressure(q, r, e);
+  const double b = hertz_half_width(q, r, e);
+  const int n = 20000;  // midpoint rule: the √ end singularity leaves ~n^-1.5 relative error
+  double integral = 0.0;
+  for (int k = 0; k < n; ++k) {
+    const double x = -b + (k + 0.5) * 2.0 * b / n;
+    integral += p0 * std::sqrt(1.0 - x * x / (b * b)) * 2.0 * b / n;
+  }
+  EXPECT_NEAR(integral, q, 1e-5 * q);
+  const double e_star = e / (1.0 - kTissuePoisson * kTissuePoisson);
+  EXPECT_NEAR(p0, b * e_star / (2.0 * r), 1e-12 * p0);
+  std::printf("  p0 %.1f kPa over 2b = %.3f mm\n", p0 / 1e3, 2e3 * b);
+  EXPECT_EQ(hertz_line_pressure(0.0, r, e), 0.0);
+}
+
+TEST(ContactPressure, AFilmPressesWithItsPressureUntilItsPatchIsFull) {
+  // A thin film flat on a wall carries its inflation pressure P there: a force F spreads over F/P, up to πR·ℓ.
+  const double p = 35e3;
+  const double r = 2.5e-3;
+  const double l = 2.5e-3;
+  EXPECT_EQ(film_contact_pressure(0.01, p, r, l), p);                 // a lying body's few mN: P
+  EXPECT_NEAR(film_contact_pressure(2.0, p, r, l), 2.0 / (kPi * r * l), 1e-9);  // 102 kPa: the patch is full
+  EXPECT_EQ(film_contact_pressure(0.0, p, r, l), 0.0);
+}
+
 TEST(Growth, FollowsTheGrowthLawToWhereTheYieldReachesThePressureAndStallsBelowIt) {
   // Free space, no gravity, straight: Y = Y0 + c_L L, so dL/dt = K (P − Y0 − c_L L) and
   // L(t) = L* − (L* − L0) e^(−K c_L t), L* = (P − Y0)/c_L = 125 mm, time constant 1/(K c_L) = 50 s. Whole edges

@@ -329,7 +329,7 @@ TEST(Experiment, OutputsCarryTheContractKeys) {
   const nlohmann::json m = nlohmann::json::parse(in);
   for (const char* key : {"success", "time_to_target_s", "final_tip_error_m", "tip_position_m", "everted_length_m",
                           "tip_path_length_m", "branches_reached", "max_wall_normal_N", "mean_wall_normal_N",
-                          "max_wall_shear_N", "max_force_imbalance", "stalls",
+                          "max_wall_shear_N", "max_contact_pressure_Pa", "max_force_imbalance", "stalls",
                           "magnet_travel_m", "runtime_s", "real_time_factor",
                           "converged", "seed"}) {
     EXPECT_TRUE(m.contains(key)) << key;
@@ -353,7 +353,7 @@ TEST(Experiment, OutputsCarryTheContractKeys) {
   std::string line;
   std::getline(shapes, line);
   EXPECT_EQ(line, "t_s,node,x_m,y_m,z_m,normal_N,shear_N,normal_x_N,normal_y_N,normal_z_N,shear_x_N,shear_y_N,"
-                  "shear_z_N");
+                  "shear_z_N,pressure_Pa");
   std::vector<std::string> rows;
   while (std::getline(shapes, line)) rows.push_back(line);
   ASSERT_EQ(rs.shapes.size(), 6u);

@@ -28,7 +28,7 @@ constexpr double kStill = 0.02;
 // those of the round section.
 constexpr double kSlack = 0.45;
 // Moves toward the middle of its chords of the point where the growth test measures the lumen ahead of a new tip
-// (VineGrowth::lumen_width): two leave a quarter of the offset in a round lumen.
+// (Stepper::lumen_width): two leave a quarter of the offset in a round lumen.
 constexpr int kRecentrings = 2;
 
 bool has_reference(const Vec3& a) { return !std::isnan(a.x()); }
@@ -451,6 +451,7 @@ bool Stepper::barrier_step(double dt, double pressure, double cap) {
   state.forces.shear.assign(nodes, 0.0);
   state.forces.normal_vector.assign(nodes, Vec3::Zero());
   state.forces.shear_vector.assign(nodes, Vec3::Zero());
+  state.forces.pressure.assign(nodes, 0.0);
   for (const NodeFriction& f : c.friction) {
     const auto i = static_cast<std::size_t>(f.node);
     state.forces.shear_vector[i] -= friction_force(f, state.body.x[i]);
@@ -468,6 +469,19 @@ bool Stepper::barrier_step(double dt, double pressure, double cap) {
     state.forces.max_shear = std::max(state.forces.max_shear, state.forces.shear[i]);
     state.forces.total_shear += state.forces.shear[i];
     if (fn > 0.0) ++state.forces.nodes_in_contact;
+    // The contact pressure: a node stands for an edge's length of body, the tip for half its edge and its cap (a
+    // hemisphere of radius R, whose film faces one way over πR·R).
+    const double share = i == tip ? 0.5 * robot::edge_length(ws.body, ws.body.edges - 1) + radius() : h();
+    // The walls within d̂ carry λ on one side; a flattened section's strips (or a pinched tube's ring) press two
+    // opposite walls with s/2 each, the film there flat at its pressure.
+    const double e = model.options.tissue_modulus;
+    const double p_contact =
+        model.solid() ? std::max(hertz_line_pressure(lambda[i] / share, radius(), e),
+                                 hertz_line_pressure(0.5 * strip[i] / share, radius(), e))
+                      : std::max(film_contact_pressure(lambda[i], pressure, radius(), share),
+                                 strip[i] > 0.0 ? pressure : 0.0);
+    state.forces.pressure[i] = p_contact;
+    state.forces.max_pressure = std::max(state.forces.max_pressure, p_contact);
     if (!(fn > 0.0) || pushed) reference[i] = Vec3::Constant(kNone);  // off the wall: released
   }
   if (state.forces.nodes_in_contact > 0) state.forces.mean_normal = state.forces.total_normal / state.forces.nodes_in_contact;
@@ -497,7 +511,9 @@ bool Stepper::barrier_step(double dt, double pressure, double cap) {
     state.body.x.insert(state.body.x.begin() + static_cast<std::ptrdiff_t>(n), at);
     state.body.frames.push_back(state.body.frames.back());
     state.nodes.insert(state.nodes.begin() + static_cast<std::ptrdiff_t>(n), GrowthNode{});
-    for (auto* v : {&state.forces.normal, &state.forces.shear}) v->insert(v->begin() + static_cast<std::ptrdiff_t>(n), 0.0);
+    for (auto* v : {&state.forces.normal, &state.forces.shear, &state.forces.pressure}) {
+      v->insert(v->begin() + static_cast<std::ptrdiff_t>(n), 0.0);
+    }
     for (auto* v : {&state.forces.normal_vector, &state.forces.shear_vector}) {
       v->insert(v->begin() + static_cast<std::ptrdiff_t>(n), Vec3::Zero());
     }
@@ -679,6 +695,23 @@ double growth_force(double pressure, double yield, double radius) {
   return std::max(0.0, pressure - yield) * kPi * radius * radius;
 }
 
+double film_contact_pressure(double force, double pressure, double radius, double length) {
+  if (!(force > 0.0)) return 0.0;
+  return std::max(pressure, force / (kPi * radius * length));
+}
+
+double hertz_line_pressure(double line_load, double radius, double modulus, double poisson) {
+  if (!(line_load > 0.0)) return 0.0;
+  const double e_star = modulus / (1.0 - poisson * poisson);
+  return std::sqrt(line_load * e_star / (kPi * radius));
+}
+
+double hertz_half_width(double line_load, double radius, double modulus, double poisson) {
+  if (!(line_load > 0.0)) return 0.0;
+  const double e_star = modulus / (1.0 - poisson * poisson);
+  return std::sqrt(4.0 * line_load * radius / (kPi * e_star));
+}
+
 std::string_view growth_event_name(GrowthEventKind kind) {
   switch (kind) {
     case GrowthEventKind::kStall: return "stall";
@@ -707,6 +740,8 @@ void check_growth(const VineParameters& vine, const GrowthOptions& options, cons
   check(finite_non_negative(options.edge_length), "edge_length", "edge_length must be finite and >= 0");
   check(finite_non_negative(options.contact_distance), "contact_distance", "contact_distance must be finite and >= 0");
   check(finite_non_negative(options.friction_slip), "friction_slip", "friction_slip must be finite and >= 0");
+  check(options.tissue_modulus > 0.0 && std::isfinite(options.tissue_modulus), "tissue_modulus",
+        "tissue_modulus must be finite and > 0");
   check(options.max_friction_iterations >= 1, "max_friction_iterations", "max_friction_iterations must be >= 1");
   check(options.friction_tolerance > 0.0 && options.friction_tolerance < 1.0, "friction_tolerance",
         "friction_tolerance must be in (0, 1)");

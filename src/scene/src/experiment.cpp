@@ -147,6 +147,7 @@ ExperimentResult run_experiment(const ExperimentScene& scene, const std::functio
     s.mean_normal = forces.mean_normal;
     s.total_normal = forces.total_normal;
     s.total_shear = forces.total_shear;
+    s.max_pressure = forces.max_pressure;
     s.imbalance = forces.largest_load > 0.0 ? forces.imbalance.norm() / forces.largest_load : 0.0;
     if (anatomy.graph) {
       const anatomy::CentrelinePoint near = anatomy::nearest_centreline_point(*anatomy.graph, s.tip);
@@ -156,7 +157,8 @@ ExperimentResult run_experiment(const ExperimentScene& scene, const std::functio
     out.samples.push_back(s);
     record_frame(t);
     if (scene.shape_interval > 0.0 && t >= next_shape - 1e-9) {
-      out.shapes.push_back({t, state.body.x, forces.normal, forces.shear, forces.normal_vector, forces.shear_vector});
+      out.shapes.push_back(
+          {t, state.body.x, forces.normal, forces.shear, forces.normal_vector, forces.shear_vector, forces.pressure});
       next_shape += scene.shape_interval;
     }
     if (scene.target && out.time_to_target < 0.0 && (s.tip - *scene.target).norm() <= scene.target_tolerance) {

@@ -49,6 +49,7 @@ struct RunFigures {
   double max_normal = 0.0;           ///< largest wall normal force on a node [N]
   double mean_normal = 0.0;          ///< time average of the total [N]
   double max_shear = 0.0;            ///< largest total shear [N]
+  double max_pressure = 0.0;         ///< largest contact pressure on a node [Pa]
   std::vector<std::string> branches; ///< graph branches the tip passed through, in order
   int generation = -1;               ///< the deepest generation among them (−1 without a graph)
   std::optional<double> centreline;       ///< tip to the nearest centreline at the end [m] (with a graph)

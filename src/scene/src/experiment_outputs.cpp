@@ -30,6 +30,7 @@ RunFigures figures_of(const ExperimentScene& scene, const ExperimentResult& resu
     last = s.tip;
     f.max_normal = std::max(f.max_normal, s.max_normal);
     f.max_shear = std::max(f.max_shear, s.total_shear);
+    f.max_pressure = std::max(f.max_pressure, s.max_pressure);
     f.mean_normal += s.total_normal / static_cast<double>(result.samples.size());
     if (scene.anatomy->graph && s.branch >= 0 && s.branch != last_branch) {
       f.branches.push_back(scene.anatomy->graph->branches[static_cast<std::size_t>(s.branch)].name);
@@ -109,6 +110,7 @@ void write_experiment_outputs(const ExperimentScene& scene, const ExperimentResu
   j["max_wall_normal_N"] = f.max_normal;
   j["mean_wall_normal_N"] = f.mean_normal;
   j["max_wall_shear_N"] = f.max_shear;
+  j["max_contact_pressure_Pa"] = f.max_pressure;
   double imbalance = 0.0;
   for (const ExperimentSample& s : result.samples) imbalance = std::max(imbalance, s.imbalance);
   j["max_force_imbalance"] = imbalance;
@@ -163,18 +165,19 @@ void write_experiment_outputs(const ExperimentScene& scene, const ExperimentResu
   // Per node: the position and the wall's forces on the tissue there (0 where a run's forces have fewer nodes).
   const auto node_row = [](std::ostream& o, const Vec3& x, const std::vector<double>& normal,
                            const std::vector<double>& shear, const std::vector<Vec3>& normal_vector,
-                           const std::vector<Vec3>& shear_vector, std::size_t i) {
+                           const std::vector<Vec3>& shear_vector, const std::vector<double>& pressure, std::size_t i) {
     const Vec3 n = i < normal_vector.size() ? normal_vector[i] : Vec3::Zero();
     const Vec3 s = i < shear_vector.size() ? shear_vector[i] : Vec3::Zero();
     o << x.x() << ',' << x.y() << ',' << x.z() << ',' << (i < normal.size() ? normal[i] : 0.0) << ','
       << (i < shear.size() ? shear[i] : 0.0) << ',' << n.x() << ',' << n.y() << ',' << n.z() << ',' << s.x() << ','
-      << s.y() << ',' << s.z() << '\n';
+      << s.y() << ',' << s.z() << ',' << (i < pressure.size() ? pressure[i] : 0.0) << '\n';
   };
-  const char* node_columns = "x_m,y_m,z_m,normal_N,shear_N,normal_x_N,normal_y_N,normal_z_N,shear_x_N,shear_y_N,shear_z_N\n";
+  const char* node_columns =
+      "x_m,y_m,z_m,normal_N,shear_N,normal_x_N,normal_y_N,normal_z_N,shear_x_N,shear_y_N,shear_z_N,pressure_Pa\n";
   shape << node_columns;
   for (std::size_t i = 0; i < result.final_state.x.size(); ++i) {
     node_row(shape, result.final_state.x[i], result.final_forces.normal, result.final_forces.shear,
-             result.final_forces.normal_vector, result.final_forces.shear_vector, i);
+             result.final_forces.normal_vector, result.final_forces.shear_vector, result.final_forces.pressure, i);
   }
 
   create_output_directory(dir);
@@ -187,7 +190,8 @@ void write_experiment_outputs(const ExperimentScene& scene, const ExperimentResu
     for (const ShapeSample& sample : result.shapes) {
       for (std::size_t i = 0; i < sample.nodes.size(); ++i) {
         shapes << sample.time << ',' << i << ',';
-        node_row(shapes, sample.nodes[i], sample.normal, sample.shear, sample.normal_vector, sample.shear_vector, i);
+        node_row(shapes, sample.nodes[i], sample.normal, sample.shear, sample.normal_vector, sample.shear_vector,
+                 sample.pressure, i);
       }
     }
     write_file_atomically(dir / "shapes.csv", shapes.str());

@@ -152,6 +152,10 @@ struct GrowthOptions {
   /// Negative: no retraction (the tether only caps growth).
   double retraction_pressure = -1.0;
   Vec3 gravity = Vec3(0.0, 0.0, -9.81);  ///< [m/s²] (bench phantoms: z up)
+  /// Young's modulus of the airway wall [Pa], for the contact pressure under a solid body (hertz_line_pressure;
+  /// the wall itself stays rigid in the solve). Human bronchial walls measure 0.17–1.65 MPa in compression, their
+  /// mucosa 0.02–0.28 MPa (Wang et al. 2011, arXiv:1111.5645); 0.5 MPa is an assumption within the walls' range.
+  double tissue_modulus = 0.5e6;
   RodSolveOptions solver = growth_solver_options();
 };
 
@@ -171,6 +175,23 @@ GrowthRate growth_rate(const GrowthLaw& law, double pressure, double length, dou
 /// The force a growing tip drives forward, (P − Y)·πR² [N] (0 at or below the yield): what an obstacle in front of a
 /// stalled tip carries, and the work per length that the growth test weighs against the energy a new edge stores.
 double growth_force(double pressure, double yield, double radius);
+
+/// The pressure on a wall under a pressurised thin film that lies on it [Pa]: flat over its contact patch, the film
+/// carries its inflation pressure P there (a membrane without bending stiffness has no other normal load), so a
+/// node's force F spreads over F/P, up to the half of its film that can face one wall, πR·ℓ (ℓ the body length the
+/// node stands for); a larger force is F/(πRℓ). 0 for F ≤ 0.
+double film_contact_pressure(double force, double pressure, double radius, double length);
+
+/// The poisson ratio of the airway wall in hertz_line_pressure: 0.45, nearly incompressible soft tissue (an
+/// assumption; at 0.5 the peak pressure is 4 % higher).
+constexpr double kTissuePoisson = 0.45;
+
+/// The peak pressure under a cylinder of radius R much stiffer than the tissue, pressed into it with a line load q
+/// [N/m] (Hertz line contact on an elastic half-space; Johnson, Contact Mechanics, 1985, §4.2, eq. 4.45):
+///   p0 = √(q·E*/(πR)),  E* = E/(1 − ν²),  over the half width b = √(4qR/(πE*)) (hertz_half_width) [Pa].
+double hertz_line_pressure(double line_load, double radius, double modulus, double poisson = kTissuePoisson);
+/// The half width b of that contact [m].
+double hertz_half_width(double line_load, double radius, double modulus, double poisson = kTissuePoisson);
 
 /// What happened (GrowthEvent): the yield stalled growth, growth resumed, the wall blocked the tip, a narrowing
 /// squeezed it out, the film burst, the tether retracted the tip (or was refused), the body's solve failed.
@@ -194,6 +215,11 @@ struct WallForces {
   /// The forces on the tissue as vectors [N] (normal: the barrier's push reversed; shear: the friction's).
   std::vector<Vec3> normal_vector;
   std::vector<Vec3> shear_vector;
+  /// The contact pressure on the tissue [Pa] (0 off the wall): a vine's film presses with its pressure
+  /// (film_contact_pressure, the node's force over its patch), a solid body with the Hertz peak of its line load
+  /// (hertz_line_pressure, GrowthOptions::tissue_modulus).
+  std::vector<double> pressure;
+  double max_pressure = 0.0;  ///< [Pa]
   /// The global balance of the converged body, Σ(wall normal + friction + magnetic + gravity + clamp)
   /// on the body [N] (zero at equilibrium), and the largest of those loads' magnitudes [N], its scale.
   Vec3 imbalance = Vec3::Zero();

@@ -25,6 +25,7 @@ struct ExperimentSample {
   double mean_normal = 0.0;    ///< over the nodes in contact [N]
   double total_normal = 0.0;   ///< [N]
   double total_shear = 0.0;    ///< [N]
+  double max_pressure = 0.0;   ///< largest contact pressure on the tissue (robot::WallForces::pressure) [Pa]
   int branch = -1;             ///< nearest branch of the phantom's graph to the tip (−1: no graph)
   double centreline = 0.0;     ///< the tip's distance from that branch's centreline [m] (0: no graph)
   /// The global balance of the converged body: |Σ(wall + friction + magnetic + gravity + clamp)| over the largest
@@ -47,6 +48,7 @@ struct ShapeSample {
   std::vector<double> shear;   ///< wall shear force on the tissue per node [N]
   std::vector<Vec3> normal_vector;  ///< the normal force on the tissue as a vector, per node [N]
   std::vector<Vec3> shear_vector;   ///< the friction force on the tissue as a vector, per node [N]
+  std::vector<double> pressure;     ///< the contact pressure on the tissue per node [Pa] (0 off the wall)
 };
 
 /// What a video frame needs of the run at one time (recorded when the scene has outputs.video).
@@ -89,9 +91,9 @@ ExperimentResult run_experiment(const ExperimentScene& scene,
 /// (graph names in order, with a graph), generation_reached, tip_to_centreline_m (at the end) and
 /// mean_tip_to_centreline_m (time average), path_progress (0–1 along the navigator's planned path to its target),
 /// max_wall_normal_N, mean_wall_normal_N (time average of the total), max_wall_shear_N (largest total over the
-/// steps), stalls, blocked, retractions (the navigator's), events, magnet_travel_m, simulated_s, runtime_s,
-/// real_time_factor, converged (the last step), failed_steps, failure, seed, and with outputs.video the videos
-/// (tip.mp4 / overview.mp4, or .avi) and "videos": [{camera, file, codec, frames, fps, size}].
+/// steps), max_contact_pressure_Pa (largest on a node over the steps), stalls, blocked, retractions (the
+/// navigator's), events, magnet_travel_m, simulated_s, runtime_s, real_time_factor, converged (the last step),
+/// failed_steps, failure, seed, and with outputs.video the videos (tip.mp4 / overview.mp4, or .avi) and "videos": [{camera, file, codec, frames, fps, size}].
 void write_experiment_outputs(const ExperimentScene& scene, const ExperimentResult& result,
                               const std::filesystem::path& dir);
 
