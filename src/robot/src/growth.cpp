@@ -30,6 +30,13 @@ constexpr double kSlack = 0.45;
 // Moves toward the middle of its chords of the point where the growth test measures the lumen ahead of a new tip
 // (Stepper::lumen_width): two leave a quarter of the offset in a round lumen.
 constexpr int kRecentrings = 2;
+// A step has not settled while a node's barrier radius, measured again where the solve moved it, shrinks by more
+// than this fraction of R (Stepper::barrier_step).
+constexpr double kRadiusChange = 0.01;
+// Solves of a step's friction lag before its corrections are damped, and the change of the lagged forces (a
+// fraction of their total) above which they are (Stepper::barrier_step).
+constexpr int kUndampedSolves = 10;
+constexpr double kCycleChange = 0.01;
 
 bool has_reference(const Vec3& a) { return !std::isnan(a.x()); }
 
@@ -275,18 +282,28 @@ bool Stepper::barrier_step(double dt, double pressure, double cap) {
   RodConstraints c;
   c.growth = growth;
   state.nodes.resize(nodes);
+  // Node i's barrier radius for its contact radius r where it is now: the tip's at most its room ahead, and at
+  // most its clearance (a finite barrier energy).
+  const auto barrier_radius = [&](std::size_t i, double r) {
+    if (i == tip) r = std::min(r, tip_room);  // the tip flattens into a slot
+    std::array<anatomy::NearTriangle, 1> near{};
+    if (world()->triangles_within(state.body.x[i], r, near) > 0) r = near[0].distance - 0.1 * model.dhat;
+    return r > 0.1 * radius() ? r : 0.0;
+  };
+  // Whether node i has moved 2 % R from where its contact radius was measured.
+  const auto moved = [&](std::size_t i) {
+    return !((state.body.x[i] - state.nodes[i].radius_at).norm() <= kStill * radius());
+  };
+  const auto frame_of = [&](std::size_t i) -> const Mat3& { return state.body.frames[std::min(i, nodes - 2)]; };
   if (world() != nullptr) {
     WallBarrier wall{world(), std::vector<double>(nodes, 0.0), model.dhat, ws.stiffness};
     for (std::size_t i = 1; i < nodes; ++i) {
       GrowthNode& cache = state.nodes[i];
-      if (!((state.body.x[i] - cache.radius_at).norm() <= kStill * radius())) {
+      if (moved(i)) {
         cache.radius_at = state.body.x[i];
-        cache.radius = node_radius(state.body.x[i], state.body.frames[std::min(i, nodes - 2)], &cache.across);
+        cache.radius = node_radius(state.body.x[i], frame_of(i), &cache.across);
       }
-      double r = i == tip ? std::min(cache.radius, tip_room) : cache.radius;  // the tip flattens into a slot
-      std::array<anatomy::NearTriangle, 1> near{};
-      if (world()->triangles_within(state.body.x[i], r, near) > 0) r = near[0].distance - 0.1 * model.dhat;
-      wall.radius[i] = r > 0.1 * radius() ? r : 0.0;
+      wall.radius[i] = barrier_radius(i, cache.radius);
     }
     c.wall = std::move(wall);
   }
@@ -403,9 +420,37 @@ bool Stepper::barrier_step(double dt, double pressure, double cap) {
     // The tip's slip scale settles with the rest: within 10 % (or ε).
     settled = change <= model.options.friction_tolerance * total &&
               std::abs(grown_now - tip_growth) <= 0.1 * std::max(tip_growth, model.slip);
+    // A pushed body's contact radii are lagged with the forces: every node slides by the step's insertion, and
+    // one the solve moved has its radius measured again where it is now; the step has not settled while a radius
+    // shrinks by more than kRadiusChange of R. Within a step a radius only shrinks (a node leaving a narrowing
+    // takes its round section back at the next step's start), so the radii cannot alternate. (Measured only at the
+    // step's start, a catheter pushed into the constriction's jaws met them with its round radius for one step:
+    // 88.7 N on one node, 1.3 N the step after.) A vine's everted nodes do not slide, and its tip flattens to the
+    // room ahead measured at the step's start (tip_room); lagged for vines too, the tip kept squeezing into the
+    // closing end of a generation-4 branch within a step, and a trial of the generation-4 batch (seed 0) failed.
+    for (std::size_t i = 1; i < nodes && pushed; ++i) {
+      if (!moved(i)) continue;
+      Vec3 across;
+      const double measured = node_radius(state.body.x[i], frame_of(i), &across);
+      const double now = barrier_radius(i, measured);
+      if (now < c.wall->radius[i] - kRadiusChange * radius()) {
+        GrowthNode& node = state.nodes[i];
+        node.radius_at = state.body.x[i];
+        node.radius = measured;
+        node.across = across;
+        c.wall->radius[i] = now;
+        settled = false;
+      }
+    }
     // (Halfway after the first solve: a tip between growing and held would otherwise alternate.)
     tip_growth += (grown_now - tip_growth) * (k > 0 ? 0.5 : 1.0);
     const double tolerance = model.options.friction_tolerance * scale;
+    // A lag still changing by more than kCycleChange of the total contact force after kUndampedSolves solves is a
+    // cycle among nodes (a contact lost and found again through a neighbour's friction), which the per-node secants
+    // below do not see: every correction is then halved, and halved again after as many solves more. Closer to the
+    // tolerance the corrections stay whole (damped there, the lag stalled at 1.5 tolerances after a deflation).
+    const bool cycling = k >= kUndampedSolves && change > kCycleChange * total;
+    const double damping = !cycling ? 1.0 : (k < 2 * kUndampedSolves ? 0.5 : 0.25);
     for (std::size_t i = 1; i < nodes; ++i) {
       if (f[i].magnitude > 10.0 * tolerance && lambda[i] > 0.0 && axis[i].cross(f[i].axis).norm() > 1e-2) {
         settled = false;
@@ -421,8 +466,8 @@ bool Stepper::barrier_step(double dt, double pressure, double cap) {
       };
       const double dl = f[i].magnitude - lambda[i];
       const double ds = next_strip[i] - strip[i];
-      const double w_lambda = relax(lambda[i], f[i].magnitude, last[i][0], last[i][1]);
-      const double w_strip = relax(strip[i], next_strip[i], last[i][2], last[i][3]);
+      const double w_lambda = std::min(damping, relax(lambda[i], f[i].magnitude, last[i][0], last[i][1]));
+      const double w_strip = std::min(damping, relax(strip[i], next_strip[i], last[i][2], last[i][3]));
       last[i] = {lambda[i], f[i].magnitude, strip[i], next_strip[i]};
       lambda[i] += w_lambda * dl;
       strip[i] += w_strip * ds;
