@@ -143,7 +143,8 @@ double Stepper::magnetorheological_yield() const {
   const std::vector<Vec3>& x = state.body.x;
   for (std::size_t j = 0; j + 1 < x.size(); ++j) {
     const Vec3 mid = 0.5 * (x[j] + x[j + 1]);
-    integral += magnetics::magnetorheological_yield_stress(field(mid).b.norm() / kMu0, model.vine.volume_fraction) * h();
+    const double field_h = field(mid).b.norm() / kMu0;  // H [A/m]
+    integral += magnetics::magnetorheological_yield_stress(field_h, model.vine.volume_fraction) * h();
   }
   return 2.0 * integral / radius();
 }
@@ -160,7 +161,9 @@ int Stepper::retract_to(double length) {
   if (removed == 0) return 0;
   state.tip_length = h();
   rebuild(state.pressure);  // (barrier_step sizes the per-node state to the shorter body)
-  if (!barrier_step(0.0, state.pressure, 0.0)) add_event(GrowthEventKind::kSolver, "after retracting: " + status.failure);
+  if (!barrier_step(0.0, state.pressure, 0.0)) {
+    add_event(GrowthEventKind::kSolver, "after retracting: " + status.failure);
+  }
   return removed;
 }
 
@@ -371,8 +374,9 @@ bool Stepper::barrier_step(double dt, double pressure, double cap) {
                               free_along(i, axis[i])});
       }
       if (strip[i] > 0.0) {
-        c.friction.push_back({static_cast<int>(i), reference[i], state.nodes[i].across, strip[i], model.options.friction,
-                              slip, free_along(i, state.nodes[i].across)});
+        const Vec3& across = state.nodes[i].across;
+        c.friction.push_back(
+            {static_cast<int>(i), reference[i], across, strip[i], model.options.friction, slip, free_along(i, across)});
       }
     }
     ++status.solves;
@@ -529,7 +533,9 @@ bool Stepper::barrier_step(double dt, double pressure, double cap) {
     state.forces.max_pressure = std::max(state.forces.max_pressure, p_contact);
     if (!(fn > 0.0) || pushed) reference[i] = Vec3::Constant(kNone);  // off the wall: released
   }
-  if (state.forces.nodes_in_contact > 0) state.forces.mean_normal = state.forces.total_normal / state.forces.nodes_in_contact;
+  if (state.forces.nodes_in_contact > 0) {
+    state.forces.mean_normal = state.forces.total_normal / state.forces.nodes_in_contact;
+  }
   {
     // The global balance: every force on the body, each computed from its own law.
     Vec3 wall = Vec3::Zero();
@@ -541,7 +547,8 @@ bool Stepper::barrier_step(double dt, double pressure, double cap) {
     const Vec3 load = body_load(ws.body, field, state.body);
     state.forces.clamp = clamp_force(ws.body, field, state.body);
     state.forces.imbalance = wall + friction + load + state.forces.clamp;
-    state.forces.largest_load = std::max({wall.norm(), friction.norm(), load.norm(), state.forces.clamp.norm(), growth.force});
+    state.forces.largest_load =
+        std::max({wall.norm(), friction.norm(), load.norm(), state.forces.clamp.norm(), growth.force});
   }
   for (std::size_t i = 0; i < nodes; ++i) state.nodes[i].reference = reference[i];
   // Growth: the tip edge's extension past its made length becomes made length; a tip edge of 3h/2 splits into an

@@ -93,7 +93,8 @@ ExperimentResult run_experiment(const ExperimentScene& scene,
 /// max_wall_normal_N, mean_wall_normal_N (time average of the total), max_wall_shear_N (largest total over the
 /// steps), max_contact_pressure_Pa (largest on a node over the steps), stalls, blocked, retractions (the
 /// navigator's), events, magnet_travel_m, simulated_s, runtime_s, real_time_factor, converged (the last step),
-/// failed_steps, failure, seed, and with outputs.video the videos (tip.mp4 / overview.mp4, or .avi) and "videos": [{camera, file, codec, frames, fps, size}].
+/// failed_steps, failure, seed, and with outputs.video the videos (tip.mp4 / overview.mp4, or .avi) and
+/// "videos": [{camera, file, codec, frames, fps, size}].
 void write_experiment_outputs(const ExperimentScene& scene, const ExperimentResult& result,
                               const std::filesystem::path& dir);
 
