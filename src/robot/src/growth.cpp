@@ -752,16 +752,19 @@ double film_contact_pressure(double force, double pressure, double radius, doubl
   return std::max(pressure, force / (kPi * radius * length));
 }
 
+namespace {
+/// The contact modulus E* = E/(1 − ν²) of an elastic half-space against a rigid body (Johnson 1985, §4.2).
+double contact_modulus(double modulus, double poisson) { return modulus / (1.0 - poisson * poisson); }
+}  // namespace
+
 double hertz_line_pressure(double line_load, double radius, double modulus, double poisson) {
   if (!(line_load > 0.0)) return 0.0;
-  const double e_star = modulus / (1.0 - poisson * poisson);
-  return std::sqrt(line_load * e_star / (kPi * radius));
+  return std::sqrt(line_load * contact_modulus(modulus, poisson) / (kPi * radius));
 }
 
 double hertz_half_width(double line_load, double radius, double modulus, double poisson) {
   if (!(line_load > 0.0)) return 0.0;
-  const double e_star = modulus / (1.0 - poisson * poisson);
-  return std::sqrt(4.0 * line_load * radius / (kPi * e_star));
+  return std::sqrt(4.0 * line_load * radius / (kPi * contact_modulus(modulus, poisson)));
 }
 
 std::string_view growth_event_name(GrowthEventKind kind) {
