@@ -588,6 +588,39 @@ TEST_F(TubeTest, CachedSphereContactsEqualTheUncached) {
   EXPECT_THROW(ContactCache(-1e-3), InputError);
 }
 
+TEST_F(TubeTest, CachedNearTrianglesEqualTheUncached) {
+  // NearCache: a node sliding along the wall, its query radius changing as a squeezed radius would, answered from the
+  // kept neighbourhood and refilled as it moves out; a cache too small for the neighbourhood is bypassed. Either way
+  // the answer is the uncached one, bit for bit (the same triangles and arithmetic, nearest first and ties by index),
+  // so == is the right test; and the kept neighbourhood must answer most queries, or it spares nothing.
+  const CollisionWorld other(make_tube({.radius = kRadius, .length = kLength, .segments = 32}));
+  NearCache small(0.1 * kMm, 2);
+  NearCache large(0.1 * kMm);
+  std::array<NearTriangle, 4> plain;  // fewer than the triangles in reach at times: the nearest four kept
+  std::array<NearTriangle, 4> cached;
+  int found = 0;
+  for (int i = 0; i < 2000; ++i) {
+    const double phi = 0.0005 * i;
+    const Vec3 c = (apothem() - 1.52 * kMm - 0.1 * kMm * std::sin(0.01 * i)) * radial(phi) + Vec3(0, 0, 20 * kMm);
+    const double r = (i % 7 == 3 ? 1.45 : 1.55) * kMm;
+    const CollisionWorld& w = i % 500 == 499 ? other : world;
+    const std::size_t n = w.triangles_within(c, r, plain);
+    found += n > 0 ? 1 : 0;
+    for (NearCache* cache : {&small, &large}) {
+      const std::size_t m = w.triangles_within(c, r, cached, *cache);
+      ASSERT_EQ(m, n) << "query " << i;
+      for (std::size_t k = 0; k < std::min(n, plain.size()); ++k) {
+        EXPECT_TRUE(cached[k].point == plain[k].point && cached[k].distance == plain[k].distance &&
+                    cached[k].triangle == plain[k].triangle)
+            << "query " << i << ", triangle " << k;
+      }
+    }
+  }
+  EXPECT_GT(found, 1000);
+  EXPECT_GT(large.hits(), 10 * large.fills());
+  EXPECT_THROW(NearCache(-1e-3), InputError);
+}
+
 TEST(CollisionWorldAllocation, QueriesDoNotAllocate) {
   const CollisionWorld world(make_tube({.radius = 5.0 * kMm, .length = 50.0 * kMm, .segments = 64}));
   std::array<Contact, 16> out;
@@ -598,12 +631,17 @@ TEST(CollisionWorldAllocation, QueriesDoNotAllocate) {
   std::size_t contacts = 0;
   int inside = 0;
   ContactCache cache(0.3 * kMm);
+  NearCache near_cache(0.3 * kMm);
+  std::array<NearTriangle, 8> near;
   const auto run = [&] {
     for (std::size_t i = 0; i + 1 < points.size(); ++i) {
       contacts += world.sphere_contacts(points[i], 1.5 * kMm, out);
       contacts += world.sphere_contacts(points[i], 1.5 * kMm, out, cache);                            // refill
       contacts += world.sphere_contacts(points[i] + Vec3(0, 0, 0.1 * kMm), 1.5 * kMm, out, cache);  // cached
       contacts += world.capsule_contacts(points[i], points[i + 1], 1.0 * kMm, out);
+      contacts += world.triangles_within(points[i], 1.5 * kMm, near);
+      contacts += world.triangles_within(points[i], 1.5 * kMm, near, near_cache);                            // refill
+      contacts += world.triangles_within(points[i] + Vec3(0, 0, 0.1 * kMm), 1.4 * kMm, near, near_cache);  // cached
       if (world.ray_cast(points[i], (points[i + 1] - points[i]).normalized(), 0.1).has_value()) ++inside;
       if (i % 8 == 0 && world.contains(points[i])) ++inside;
     }

@@ -968,36 +968,113 @@ MAGVINE_HOT_KERNEL std::size_t CollisionWorld::capsule_contacts(const Vec3& a, c
   return sink.finish();
 }
 
-MAGVINE_HOT_KERNEL std::size_t CollisionWorld::triangles_within(const Vec3& point, double radius,
-                                                                 std::span<NearTriangle> out) const {
-  MAGVINE_ASSERT(radius > 0.0 && point.allFinite());
-  const Tables& w = m_impl->tables;
+namespace {
+
+/// triangles_within's test of one triangle (slot) and its insertion into `out`, nearest first and ties by triangle
+/// index, so that the answer depends only on which triangles lie within the radius, not on the order they are
+/// tested in (a NearCache's kept triangles and the BVH walk give the same bits).
+struct NearSink {
+  const Tables& w;
+  const Vec3& point;
+  double radius;
+  std::span<NearTriangle> out;
   std::size_t found = 0;
   std::size_t kept = 0;
-  m_impl->bvh->visit_slots(detail::SphereBoxTest(point, radius), [&](std::uint32_t slot) {
+
+  /// Whether the triangle in `slot` lies within the radius (and, then, records it).
+  bool process(std::uint32_t slot) {
     const TriangleData& d = w.data[slot];
     // Farther from the triangle's plane than the radius (a degenerate triangle's offset is infinite: always).
-    if (!(std::abs(d.normal.dot(point) - d.offset) <= radius)) return;
-    if ((w.centroid(d) - point).squaredNorm() > (d.bound_radius + radius) * (d.bound_radius + radius)) return;
+    if (!(std::abs(d.normal.dot(point) - d.offset) <= radius)) return false;
+    if ((w.centroid(d) - point).squaredNorm() > (d.bound_radius + radius) * (d.bound_radius + radius)) return false;
     const auto v = w.corners(d);
     const Vec3 q = closest_point_on_triangle(point, *v[0], *v[1], *v[2]);
     const double distance = (q - point).norm();
-    if (distance > radius) return;
+    if (distance > radius) return false;
     ++found;
-    if (out.empty()) return;
-    // Insertion by distance; when full, the farthest kept one makes room (or the new one is dropped).
+    if (out.empty()) return true;
+    const auto before = [&](const NearTriangle& a) {
+      return a.distance < distance || (a.distance == distance && a.triangle < d.triangle);
+    };
+    // Insertion in order; when full, the last kept one makes room (or the new one is dropped).
     std::size_t i = kept;
     if (kept < out.size()) {
       ++kept;
-    } else if (out[kept - 1].distance <= distance) {
-      return;
+    } else if (before(out[kept - 1])) {
+      return true;
     } else {
       i = kept - 1;
     }
-    for (; i > 0 && out[i - 1].distance > distance; --i) out[i] = out[i - 1];
+    for (; i > 0 && !before(out[i - 1]); --i) out[i] = out[i - 1];
     out[i] = {q, distance, d.triangle};
+    return true;
+  }
+};
+
+}  // namespace
+
+MAGVINE_HOT_KERNEL std::size_t CollisionWorld::triangles_within(const Vec3& point, double radius,
+                                                                 std::span<NearTriangle> out) const {
+  MAGVINE_ASSERT(radius > 0.0 && point.allFinite());
+  NearSink sink{m_impl->tables, point, radius, out};
+  m_impl->bvh->visit_slots(detail::SphereBoxTest(point, radius), [&](std::uint32_t slot) { sink.process(slot); });
+  return sink.found;
+}
+
+NearCache::NearCache(double margin, std::size_t capacity) : m_margin(margin), m_capacity(capacity) {
+  if (!(margin >= 0.0 && std::isfinite(margin))) {
+    throw InputError("NearCache: margin must be finite and >= 0 m (got " + std::to_string(margin) + ")");
+  }
+  m_slots.reserve(capacity);
+}
+
+MAGVINE_HOT_KERNEL std::size_t CollisionWorld::triangles_within(const Vec3& point, double radius,
+                                                                 std::span<NearTriangle> out, NearCache& cache) const {
+  MAGVINE_ASSERT(radius > 0.0 && point.allFinite());
+  const Tables& w = m_impl->tables;
+  if (cache.m_world == &w && point == cache.m_last_point && radius == cache.m_last_radius &&
+      out.size() == cache.m_last.size()) {
+    ++cache.m_hits;
+    std::copy(cache.m_last.begin(), cache.m_last.end(), out.begin());
+    return cache.m_last_found;
+  }
+  const auto remember = [&](std::size_t found) {
+    cache.m_last_point = point;
+    cache.m_last_radius = radius;
+    cache.m_last_found = found;
+    cache.m_last.assign(out.begin(), out.end());
+    return found;
+  };
+  NearSink sink{w, point, radius, out};
+  // Inside the kept reach, every triangle within the radius of the point is within the reach of the fill point
+  // (the triangle inequality; 1e-12 of the coordinates spares the rounding of the two distances).
+  const double moved = (point - cache.m_centre).norm();
+  const double room = 1e-12 * (point.cwiseAbs().maxCoeff() + cache.m_reach);
+  if (cache.m_world == &w && moved + radius + room <= cache.m_reach) {
+    ++cache.m_hits;
+    for (const std::uint32_t slot : cache.m_slots) sink.process(slot);
+    return remember(sink.found);
+  }
+  // Refill: the triangles within radius + margin of this point, then this query's answer from them.
+  const double reach = radius + cache.m_margin;
+  NearSink fill{w, point, reach, {}};
+  cache.m_slots.clear();
+  bool fits = true;
+  m_impl->bvh->visit_slots(detail::SphereBoxTest(point, reach), [&](std::uint32_t slot) {
+    if (!fill.process(slot)) return;
+    fits = fits && cache.m_slots.size() < cache.m_capacity;
+    if (fits) cache.m_slots.push_back(slot);
   });
-  return found;
+  ++cache.m_fills;
+  if (!fits) {
+    cache.m_world = nullptr;
+    return triangles_within(point, radius, out);
+  }
+  cache.m_world = &w;
+  cache.m_centre = point;
+  cache.m_reach = reach;
+  for (const std::uint32_t slot : cache.m_slots) sink.process(slot);
+  return remember(sink.found);
 }
 
 namespace {

@@ -60,6 +60,7 @@ RodSolveOptions ramped_solver(const RodSolveOptions& fast) {
   o.tolerance = fast.tolerance;
   o.max_iterations = 600;
   o.max_snap_newton = 300;
+  o.reuse_hessian = fast.reuse_hessian;
   return o;
 }
 
@@ -129,8 +130,10 @@ struct Stepper {
   }
   double magnetorheological_yield() const;
   int retract_to(double length);
+  bool in_sight(const Vec3& a, const Vec3& b) const;
   double lumen_width(const Vec3& x, const Mat3& frame, Vec3* across = nullptr, int recentrings = 0) const;
-  double node_radius(const Vec3& x, const Mat3& frame, Vec3* across = nullptr, int recentrings = 0) const;
+  double node_radius(const Vec3& x, const Mat3& frame, const Vec3& seen_from, Vec3* across = nullptr,
+                     int recentrings = 0) const;
   bool barrier_steps(double dt, double pressure, double cap, int depth = 0);
   bool barrier_step(double dt, double pressure, double cap);
   void start(double length, double pressure);
@@ -167,6 +170,15 @@ int Stepper::retract_to(double length) {
   return removed;
 }
 
+/// Whether the segment from a to b crosses no wall: with a in the lumen, b is in it too and a body at a could reach
+/// it (a short ray cast; CollisionWorld::contains casts parity rays across the whole mesh, 10–20 times the cost).
+/// Unlike the parity test, a point in a neighbouring lumen behind tissue counts as out of sight.
+bool Stepper::in_sight(const Vec3& a, const Vec3& b) const {
+  const Vec3 d = b - a;
+  const double length = d.norm();
+  return length == 0.0 || !world()->ray_cast(a, d / length, length);
+}
+
 /// Narrowest width of the lumen across the body at x (4 lines through x in the plane ⟂ frame.col(0), ray casts up to
 /// 2R each way) [m]. With `recentrings` > 0, where that would squeeze the body the lines are cast again from the mean
 /// of the chords' midpoints, up to that many times, so that a point off a round lumen's axis does not read its short
@@ -197,7 +209,7 @@ double Stepper::lumen_width(const Vec3& x, const Mat3& frame, Vec3* across, int 
     // directions 45° apart average uuᵀ to I/2); across a slot it changes no chord's length.
     if (pass == recentrings || kSlack * width >= radius()) break;
     middle *= 0.25;
-    if ((middle - centre).norm() < 1e-3 * radius() || !world()->contains(middle)) break;
+    if ((middle - centre).norm() < 1e-3 * radius() || !in_sight(centre, middle)) break;
     centre = middle;
   }
   if (across != nullptr) *across = line;
@@ -205,23 +217,28 @@ double Stepper::lumen_width(const Vec3& x, const Mat3& frame, Vec3* across, int 
 }
 
 /// The body's contact radius at x: R, or half the lumen width at x or R ahead of or behind it when narrower.
-/// `across`, if given, receives the direction of the narrowest line (the pinch); `recentrings` as lumen_width.
-double Stepper::node_radius(const Vec3& x, const Mat3& frame, Vec3* across, int recentrings) const {
+/// `seen_from`: a point in the lumen (the node before, x itself when the caller knows x is in it); x out of its
+/// sight is in the tissue. `across`, if given, receives the direction of the narrowest line (the pinch);
+/// `recentrings` as lumen_width.
+double Stepper::node_radius(const Vec3& x, const Mat3& frame, const Vec3& seen_from, Vec3* across,
+                            int recentrings) const {
   if (world() == nullptr || model.options.rod) return radius();  // a solid rod does not flatten
   const Vec3 t = frame.col(0);
   Vec3 line = frame.col(1);
   double width = lumen_width(x, frame, &line, recentrings);
   // A centre pressed past the wall (a new tip placed into a carina's ridge before the solve pushes it out) sees the
   // tissue, not a gap: only the probes inside the lumen count then.
-  if (width < 4.0 * radius() && !world()->contains(x)) width = 4.0 * radius();
-  if (width < 4.0 * radius()) {  // near a narrowing: the sphere's front and back too
+  const bool narrow = width < 4.0 * radius();
+  const bool x_in = !narrow || in_sight(seen_from, x);
+  if (!x_in) width = 4.0 * radius();
+  if (narrow) {  // near a narrowing: the sphere's front and back too
     for (const double side : {1.0, -1.0}) {
       // Where the sphere's front is already past a wall (the tip against a carina's ridge), the rays would measure
       // the tissue between two branches, not a gap: the wall ahead is a contact, not a constriction.
       // Nor does a narrowing ahead that closes a radius further on (the notch of a carina's saddle, a blind end): a
       // slot squeezes a body that can go on into it.
       const Vec3 probe = x + side * radius() * t;
-      if (!world()->contains(probe) || (side > 0.0 && !world()->contains(probe + radius() * t))) continue;
+      if (!in_sight(x_in ? x : seen_from, probe) || (side > 0.0 && !in_sight(probe, probe + radius() * t))) continue;
       Vec3 u = line;
       const double w = lumen_width(probe, frame, &u, recentrings);
       if (w < width) line = u;
@@ -271,8 +288,8 @@ bool Stepper::barrier_step(double dt, double pressure, double cap) {
         // where the narrowing is one the tip can go on into (a carina's notch or a blind end closes a radius
         // further on: the tip meets it as a wall).
         const Vec3 ahead = state.body.x[tip] + radius() * tangent;
-        if (world()->contains(ahead) && world()->contains(ahead + radius() * tangent)) {
-          tip_room = node_radius(ahead, state.body.frames.back(), nullptr, kRecentrings);
+        if (in_sight(state.body.x[tip], ahead + radius() * tangent)) {
+          tip_room = node_radius(ahead, state.body.frames.back(), ahead, nullptr, kRecentrings);
         }
         squeeze = slot_area(radius(), tip_room / kSlack) / area;
       }
@@ -299,12 +316,12 @@ bool Stepper::barrier_step(double dt, double pressure, double cap) {
   };
   const auto frame_of = [&](std::size_t i) -> const Mat3& { return state.body.frames[std::min(i, nodes - 2)]; };
   if (world() != nullptr) {
-    WallBarrier wall{world(), std::vector<double>(nodes, 0.0), model.dhat, ws.stiffness};
+    WallBarrier wall{world(), std::vector<double>(nodes, 0.0), model.dhat, ws.stiffness, &ws.near};
     for (std::size_t i = 1; i < nodes; ++i) {
       GrowthNode& cache = state.nodes[i];
       if (moved(i)) {
         cache.radius_at = state.body.x[i];
-        cache.radius = node_radius(state.body.x[i], frame_of(i), &cache.across);
+        cache.radius = node_radius(state.body.x[i], frame_of(i), state.body.x[i - 1], &cache.across);
       }
       wall.radius[i] = barrier_radius(i, cache.radius);
     }
@@ -435,7 +452,7 @@ bool Stepper::barrier_step(double dt, double pressure, double cap) {
     for (std::size_t i = 1; i < nodes && pushed; ++i) {
       if (!moved(i)) continue;
       Vec3 across;
-      const double measured = node_radius(state.body.x[i], frame_of(i), &across);
+      const double measured = node_radius(state.body.x[i], frame_of(i), state.body.x[i - 1], &across);
       const double now = barrier_radius(i, measured);
       if (now < c.wall->radius[i] - kRadiusChange * radius()) {
         GrowthNode& node = state.nodes[i];

@@ -399,7 +399,7 @@ MAGVINE_HOT_KERNEL std::string newton(const RodModel& m, const RodField& field, 
                                       const RodSolveOptions& o, RodSolveReport& report, int max_iterations,
                                       NewtonScratch& w, const Inertia* inertia = nullptr,
                                       RodWorkspace::Impl* ws = nullptr, const RodConstraints* constraints = nullptr) {
-  bool fresh = ws == nullptr || ws->edges != m.edges;
+  bool fresh = ws == nullptr || ws->edges != m.edges || !o.reuse_hessian;
   bool last_was_chord = false;
   double previous_norm = std::numeric_limits<double>::infinity();
   const auto edges = static_cast<std::size_t>(m.edges);
@@ -460,7 +460,7 @@ MAGVINE_HOT_KERNEL std::string newton(const RodModel& m, const RodField& field, 
     delta = -delta;
     mu_hint = mu > 0.0 ? mu : 0.25 * mu_hint;
     last_was_chord = chord;
-    fresh = ws == nullptr;
+    fresh = ws == nullptr || !o.reuse_hessian;
     // Converged when the undamped Newton step itself is below 1e-10 rad and 1e-10 L: the gradient can stall above
     // its tolerance from round-off alone (the strains of short edges carry ~1e-16·N relative error, times a stiff
     // EA), while the step the exact model asks for is already negligible.

@@ -9,6 +9,8 @@
 #include <array>
 #include <cmath>
 #include <limits>
+#include <span>
+#include <vector>
 
 #include "../rod_system.hpp"
 #include "magvine/anatomy/collision_world.hpp"
@@ -34,6 +36,22 @@ inline double barrier_force(const WallBarrier& w, double g) { return -w.stiffnes
 /// The most triangles one node's barrier sums over (the nearest, should more lie within r + d̂).
 inline constexpr std::size_t kBarrierTriangles = 32;
 
+/// How far a node may move before its NearCache walks the BVH again, in d̂: the cache keeps the triangles within
+/// r + d̂ + kNearMargin·d̂. Measured on bench_growth (2026-12-04; the carina case, 0.58 M triangles): margins of
+/// 0.5, 1, 2, 4 and 8 d̂ took 106, 111, 116, 124 and 146 ms (refills every 20th query at 0.5 d̂, every 50th at 8 d̂:
+/// a wider neighbourhood costs more to fill and to test than the walks it spares).
+inline constexpr double kNearMargin = 0.5;
+
+/// The triangles within `reach` of node i at x (CollisionWorld::triangles_within), through the node's NearCache when
+/// the barrier keeps them.
+inline std::size_t barrier_triangles(const WallBarrier& w, std::size_t i, const Vec3& x, double reach,
+                                     std::span<anatomy::NearTriangle> out) {
+  if (w.near == nullptr) return w.world->triangles_within(x, reach, out);
+  std::vector<anatomy::NearCache>& near = *w.near;
+  if (near.size() <= i) near.resize(i + 1, anatomy::NearCache(kNearMargin * w.activation, 1024));
+  return w.world->triangles_within(x, reach, out, near[i]);
+}
+
 struct WallBarrierTerm {
   /// Calls visit(i, gap, unit normal) for every triangle within reach of node i; false when the node overlaps the
   /// wall (g ≤ 0) or, for a line-search trial moving from the iterate `from`, its centre's path crossed the wall.
@@ -51,7 +69,7 @@ struct WallBarrierTerm {
         const double length = move.norm();
         if (length >= r && w.world->ray_cast(from->x[i], move / length, length)) return false;
       }
-      const std::size_t found = std::min(w.world->triangles_within(x, r + w.activation, near), near.size());
+      const std::size_t found = std::min(barrier_triangles(w, i, x, r + w.activation, near), near.size());
       for (std::size_t k = 0; k < found; ++k) {
         const double gap = near[k].distance - r;
         if (!(gap > 0.0)) return false;

@@ -45,9 +45,11 @@
 
 #include <cstddef>
 #include <cstdint>
+#include <limits>
 #include <memory>
 #include <optional>
 #include <span>
+#include <vector>
 
 #include "magvine/anatomy/triangle_mesh.hpp"
 #include "magvine/core/units.hpp"
@@ -104,6 +106,43 @@ struct CollisionWorldStats {
 };
 
 class CollisionWorld;
+
+/// The triangles near one moving query point, kept across CollisionWorld::triangles_within queries (a robot node
+/// queried at every energy evaluation of a solve while it moves a little). A query that misses the cache walks the
+/// BVH out to its radius plus `margin` and keeps every triangle within that reach of its point; a later query whose
+/// sphere lies inside that reach (|point − fill point| + radius ≤ reach) tests those triangles only. Exact: the
+/// answer is the same triangles in the same order (nearest first, ties by index) as without a cache, whatever the
+/// cache holds, so results do not depend on it. A neighbourhood of more than `capacity` triangles is queried without
+/// it. One cache per query point; not shared between threads. Copyable (a workspace's scratch).
+class NearCache {
+ public:
+  /// `margin` [m] ≥ 0: how far the point may move (less the radius' growth) before a refill. Throws InputError for
+  /// a negative or non-finite margin.
+  explicit NearCache(double margin = 0.0, std::size_t capacity = 256);
+  /// Forgets the triangles: the next query refills.
+  void clear() { m_world = nullptr; }
+  double margin() const { return m_margin; }
+  /// Queries answered from the kept triangles, and refills, since construction (for benchmarks).
+  std::size_t hits() const { return m_hits; }
+  std::size_t fills() const { return m_fills; }
+
+ private:
+  friend class CollisionWorld;
+  double m_margin = 0.0;
+  std::size_t m_capacity = 0;
+  const void* m_world = nullptr;  ///< the tables that filled it; null when empty
+  Vec3 m_centre = Vec3::Zero();   ///< fill point [m]
+  double m_reach = 0.0;           ///< fill radius [m]
+  std::vector<std::uint32_t> m_slots;
+  /// The last query and its answer: asked again at the same point and radius (a solver's gradient and Hessian at
+  /// one state), it is returned as it was.
+  Vec3 m_last_point = Vec3::Constant(std::numeric_limits<double>::quiet_NaN());
+  double m_last_radius = 0.0;
+  std::size_t m_last_found = 0;
+  std::vector<NearTriangle> m_last;
+  std::size_t m_hits = 0;
+  std::size_t m_fills = 0;
+};
 
 /// The candidate triangles of one query sphere, kept across queries: a robot node queried again and again over a
 /// solver's iterations while it moves a little. Filled by a sphere query with the BVH leaves within radius + margin
@@ -165,6 +204,10 @@ class CollisionWorld {
   /// may exceed out.size(): then `out` holds the nearest out.size() of them. No sides, no merging: the raw
   /// proximity the robot's wall barrier sums over (robot/terms/wall_barrier.hpp). Allocation-free.
   std::size_t triangles_within(const Vec3& point, double radius, std::span<NearTriangle> out) const;
+
+  /// As triangles_within, with the neighbourhood kept in `cache` (NearCache): the same answer; a query inside the
+  /// cache's reach tests the kept triangles only, without a BVH walk.
+  std::size_t triangles_within(const Vec3& point, double radius, std::span<NearTriangle> out, NearCache& cache) const;
 
   /// First hit of the ray origin + s·direction, 0 ≤ s ≤ max_distance [m], `direction` a unit vector; nullopt when
   /// it hits nothing. Both faces count. A ray through a shared edge or vertex hits (inclusive test). Allocation-free.

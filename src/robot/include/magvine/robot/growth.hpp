@@ -53,6 +53,7 @@
 #include <string_view>
 #include <vector>
 
+#include "magvine/anatomy/collision_world.hpp"
 #include "magvine/core/eigen_types.hpp"
 #include "magvine/core/units.hpp"
 #include "magvine/robot/rod.hpp"
@@ -111,6 +112,7 @@ inline RodSolveOptions growth_solver_options() {
   o.max_snap_newton = 200;
   o.max_iterations = 200;
   o.tolerance = 1e-7;
+  o.reuse_hessian = false;
   return o;
 }
 
@@ -334,6 +336,8 @@ struct GrowthWorkspace {
   std::vector<double> strip;
   std::vector<Vec3> axis;
   std::vector<std::array<double, 4>> last;
+  /// Per node, its neighbourhood of the wall (the barrier's NearCache: spares BVH walks, changes no result).
+  std::vector<anatomy::NearCache> near;
 };
 
 /// The state's body as a rod (vine_rod of the vine with its N edges and tip edge, at `pressure`; the tube or the

@@ -36,6 +36,7 @@
 
 namespace magvine::anatomy {
 class CollisionWorld;
+class NearCache;
 }
 
 namespace magvine::robot {
@@ -162,6 +163,10 @@ struct RodSolveOptions {
   /// (a simulation step whose last equilibrium is already close: ramping from the unloaded state would throw that
   /// away).
   bool ramp = true;
+  /// Chord steps: with a RodWorkspace, Newton reuses its last Hessian while each step still cuts the gradient by a
+  /// fifth. false: a new Hessian every iteration (the wall barrier's growth steps: chords there converged linearly,
+  /// ~0.7 a step, and doubled the iterations; docs/benchmarks.md, vine growth).
+  bool reuse_hessian = true;
 };
 
 struct RodSolveReport {
@@ -216,6 +221,9 @@ struct WallBarrier {
   std::vector<double> radius;  ///< per node [m] (index = node); ≤ 0: the node does not touch the wall
   double activation = 0.0;     ///< d̂ [m]
   double stiffness = 0.0;      ///< κ [N/m]
+  /// Optional, per node: each node's neighbourhood of the wall kept across the solve's queries (NearCache; exact,
+  /// so the solve is the same with or without it). Sized by the barrier to the nodes it queries.
+  std::vector<anatomy::NearCache>* near = nullptr;
 };
 
 /// Smoothed Coulomb friction of one node against the wall, lagged (Li et al. 2020, §5): with the normal force λ and
