@@ -33,7 +33,10 @@ inline BarrierLaw barrier_law(double g, double dhat) {
 /// The wall's force on a node at gap g: −κ b'(g) ≥ 0 along the unit direction from the wall to the node [N].
 inline double barrier_force(const WallBarrier& w, double g) { return -w.stiffness * barrier_law(g, w.activation).slope; }
 
-/// The most triangles one node's barrier sums over (the nearest, should more lie within r + d̂).
+/// The triangles one node's barrier sums over on the stack; a node with more within r + d̂ sums over all of them
+/// from a thread's own buffer. (A cap on the sum made the energy jump as a triangle's rank crossed it: a node wedged in
+/// the closing end of a generation-4 branch had 40–50 triangles of the 0.3 mm wall within reach, and Newton stalled
+/// there with a line search that found no descent, 2 of the generation-4 batch's 80 trials on 2026-12-04.)
 inline constexpr std::size_t kBarrierTriangles = 32;
 
 /// How far a node may move before its NearCache walks the BVH again, in d̂: the cache keeps the triangles within
@@ -69,11 +72,18 @@ struct WallBarrierTerm {
         const double length = move.norm();
         if (length >= r && w.world->ray_cast(from->x[i], move / length, length)) return false;
       }
-      const std::size_t found = std::min(barrier_triangles(w, i, x, r + w.activation, near), near.size());
-      for (std::size_t k = 0; k < found; ++k) {
-        const double gap = near[k].distance - r;
+      const std::size_t found = barrier_triangles(w, i, x, r + w.activation, near);
+      std::span<const anatomy::NearTriangle> hits(near.data(), std::min(found, near.size()));
+      if (found > near.size()) {
+        thread_local std::vector<anatomy::NearTriangle> many;
+        many.resize(found);
+        barrier_triangles(w, i, x, r + w.activation, many);
+        hits = many;
+      }
+      for (const anatomy::NearTriangle& t : hits) {
+        const double gap = t.distance - r;
         if (!(gap > 0.0)) return false;
-        visit(i, gap, Vec3((x - near[k].point) / near[k].distance));
+        visit(i, gap, Vec3((x - t.point) / t.distance));
       }
     }
     return true;
