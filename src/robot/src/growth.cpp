@@ -473,7 +473,12 @@ bool Stepper::barrier_step(double dt, double pressure, double cap) {
     const bool cycling = k >= kUndampedSolves && change > kCycleChange * total;
     const double damping = !cycling ? 1.0 : (k < 2 * kUndampedSolves ? 0.5 : 0.25);
     for (std::size_t i = 1; i < nodes; ++i) {
-      if (f[i].magnitude > 10.0 * tolerance && lambda[i] > 0.0 && axis[i].cross(f[i].axis).norm() > 1e-2) {
+      // From the kUndampedSolves-th solve on, a node's contact axis is held where it is (and its turning no longer
+      // keeps the lag open): between two walls at a wide angle (a tip in the funnel of a lobar bifurcation) the
+      // principal direction of their normals swings with their balance, by 0.3–0.8 rad from solve to solve, and
+      // the axis has no fixed point to settle on; any plane between the walls is as good a lag. λ still settles.
+      const bool held = k >= kUndampedSolves && !axis[i].isZero();
+      if (!held && f[i].magnitude > 10.0 * tolerance && lambda[i] > 0.0 && axis[i].cross(f[i].axis).norm() > 1e-2) {
         settled = false;
       }
       // The lag is a fixed point λ = g(λ) per node. Where a node's friction moves it off the force it was lagged
@@ -495,7 +500,7 @@ bool Stepper::barrier_step(double dt, double pressure, double cap) {
       const double w = std::min(w_lambda, w_strip);
       const Vec3 turn = axis[i].isZero() ? Vec3::Zero() : Vec3(f[i].axis - axis[i]);
       const Vec3 blended = axis[i].isZero() ? f[i].axis : Vec3(axis[i] + w * turn);  // as its λ
-      axis[i] = blended.norm() > 1e-9 ? Vec3(blended.normalized()) : f[i].axis;
+      if (!held) axis[i] = blended.norm() > 1e-9 ? Vec3(blended.normalized()) : f[i].axis;
       state.nodes[i].wall_force = f[i].force;
     }
   }
