@@ -980,8 +980,14 @@ struct NearSink {
   std::span<NearTriangle> out;
   std::size_t found = 0;
   std::size_t kept = 0;
+  bool sorted = false;  ///< out[0, kept) in order (from the first triangle that found it full on)
 
-  /// Whether the triangle in `slot` lies within the radius (and, then, records it).
+  static bool before(const NearTriangle& a, const NearTriangle& b) {
+    return a.distance < b.distance || (a.distance == b.distance && a.triangle < b.triangle);
+  }
+
+  /// Whether the triangle in `slot` lies within the radius (and, then, records it). Kept unordered while the span has
+  /// room (sorted once by finish()); once full, in order, the farthest kept one making room for a nearer one.
   bool process(std::uint32_t slot) {
     const TriangleData& d = w.data[slot];
     // Farther from the triangle's plane than the radius (a degenerate triangle's offset is infinite: always).
@@ -993,21 +999,26 @@ struct NearSink {
     if (distance > radius) return false;
     ++found;
     if (out.empty()) return true;
-    const auto before = [&](const NearTriangle& a) {
-      return a.distance < distance || (a.distance == distance && a.triangle < d.triangle);
-    };
-    // Insertion in order; when full, the last kept one makes room (or the new one is dropped).
-    std::size_t i = kept;
+    const NearTriangle t{q, distance, d.triangle};
     if (kept < out.size()) {
-      ++kept;
-    } else if (before(out[kept - 1])) {
+      out[kept++] = t;
       return true;
-    } else {
-      i = kept - 1;
     }
-    for (; i > 0 && !before(out[i - 1]); --i) out[i] = out[i - 1];
-    out[i] = {q, distance, d.triangle};
+    if (!sorted) {
+      std::sort(out.begin(), out.end(), before);
+      sorted = true;
+    }
+    if (!before(t, out[kept - 1])) return true;
+    std::size_t i = kept - 1;
+    for (; i > 0 && before(t, out[i - 1]); --i) out[i] = out[i - 1];
+    out[i] = t;
     return true;
+  }
+
+  /// The count within the radius, with out[0, min(found, size)) nearest first.
+  std::size_t finish() {
+    if (!sorted) std::sort(out.begin(), out.begin() + static_cast<std::ptrdiff_t>(kept), before);
+    return found;
   }
 };
 
@@ -1018,7 +1029,7 @@ MAGVINE_HOT_KERNEL std::size_t CollisionWorld::triangles_within(const Vec3& poin
   MAGVINE_ASSERT(radius > 0.0 && point.allFinite());
   NearSink sink{m_impl->tables, point, radius, out};
   m_impl->bvh->visit_slots(detail::SphereBoxTest(point, radius), [&](std::uint32_t slot) { sink.process(slot); });
-  return sink.found;
+  return sink.finish();
 }
 
 NearCache::NearCache(double margin, std::size_t capacity) : m_margin(margin), m_capacity(capacity) {
@@ -1032,17 +1043,22 @@ MAGVINE_HOT_KERNEL std::size_t CollisionWorld::triangles_within(const Vec3& poin
                                                                  std::span<NearTriangle> out, NearCache& cache) const {
   MAGVINE_ASSERT(radius > 0.0 && point.allFinite());
   const Tables& w = m_impl->tables;
+  // The last answer holds its nearest min(found, its span) triangles: it answers a span that size or one that all of
+  // them fit in.
   if (cache.m_world == &w && point == cache.m_last_point && radius == cache.m_last_radius &&
-      out.size() == cache.m_last.size()) {
+      (out.size() == cache.m_last_span || (cache.m_last_found <= cache.m_last.size() &&
+                                           cache.m_last_found <= out.size()))) {
     ++cache.m_hits;
-    std::copy(cache.m_last.begin(), cache.m_last.end(), out.begin());
+    const std::size_t n = std::min(cache.m_last.size(), out.size());
+    std::copy(cache.m_last.begin(), cache.m_last.begin() + static_cast<std::ptrdiff_t>(n), out.begin());
     return cache.m_last_found;
   }
   const auto remember = [&](std::size_t found) {
     cache.m_last_point = point;
     cache.m_last_radius = radius;
     cache.m_last_found = found;
-    cache.m_last.assign(out.begin(), out.end());
+    cache.m_last_span = out.size();
+    cache.m_last.assign(out.begin(), out.begin() + static_cast<std::ptrdiff_t>(std::min(found, out.size())));
     return found;
   };
   NearSink sink{w, point, radius, out};
@@ -1053,7 +1069,7 @@ MAGVINE_HOT_KERNEL std::size_t CollisionWorld::triangles_within(const Vec3& poin
   if (cache.m_world == &w && moved + radius + room <= cache.m_reach) {
     ++cache.m_hits;
     for (const std::uint32_t slot : cache.m_slots) sink.process(slot);
-    return remember(sink.found);
+    return remember(sink.finish());
   }
   // Refill: the triangles within radius + margin of this point, then this query's answer from them.
   const double reach = radius + cache.m_margin;
@@ -1074,7 +1090,7 @@ MAGVINE_HOT_KERNEL std::size_t CollisionWorld::triangles_within(const Vec3& poin
   cache.m_centre = point;
   cache.m_reach = reach;
   for (const std::uint32_t slot : cache.m_slots) sink.process(slot);
-  return remember(sink.found);
+  return remember(sink.finish());
 }
 
 namespace {

@@ -33,11 +33,12 @@ inline BarrierLaw barrier_law(double g, double dhat) {
 /// The wall's force on a node at gap g: −κ b'(g) ≥ 0 along the unit direction from the wall to the node [N].
 inline double barrier_force(const WallBarrier& w, double g) { return -w.stiffness * barrier_law(g, w.activation).slope; }
 
-/// The triangles one node's barrier sums over on the stack; a node with more within r + d̂ sums over all of them
-/// from a thread's own buffer. (A cap on the sum made the energy jump as a triangle's rank crossed it: a node wedged in
-/// the closing end of a generation-4 branch had 40–50 triangles of the 0.3 mm wall within reach, and Newton stalled
-/// there with a line search that found no descent, 2 of the generation-4 batch's 80 trials on 2026-12-04.)
-inline constexpr std::size_t kBarrierTriangles = 32;
+/// The first size of a thread's buffer for the triangles one node's barrier sums over; it grows to hold all of them
+/// (no cap). A cap on the sum made the energy jump as a triangle's rank crossed it: with the nearest 32, a node
+/// wedged in the closing end of a generation-4 branch had 40–50 triangles of the 0.3 mm wall within reach, and
+/// Newton stalled there with a line search that found no descent (2 of the generation-4 batch's 80 trials,
+/// 2026-12-04). Past the carina in bench_growth some nodes have over 128.
+inline constexpr std::size_t kBarrierTriangles = 128;
 
 /// How far a node may move before its NearCache walks the BVH again, in d̂: the cache keeps the triangles within
 /// r + d̂ + kNearMargin·d̂. Measured on bench_growth (2026-12-04; the carina case, 0.58 M triangles): margins of
@@ -60,7 +61,9 @@ struct WallBarrierTerm {
   /// wall (g ≤ 0) or, for a line-search trial moving from the iterate `from`, its centre's path crossed the wall.
   template <class Visit>
   static bool for_each_gap(const RodState& state, const RodState* from, const WallBarrier& w, Visit&& visit) {
-    std::array<anatomy::NearTriangle, kBarrierTriangles> near{};
+    // The thread's own buffer, grown to the most triangles a node has had within reach (no cap: see
+    // kBarrierTriangles); a node that finds more than it holds is asked again with room for all.
+    thread_local std::vector<anatomy::NearTriangle> near(kBarrierTriangles);
     const std::size_t nodes = state.x.size();
     for (std::size_t i = 1; i < nodes && i < w.radius.size(); ++i) {
       const double r = w.radius[i];
@@ -72,15 +75,12 @@ struct WallBarrierTerm {
         const double length = move.norm();
         if (length >= r && w.world->ray_cast(from->x[i], move / length, length)) return false;
       }
-      const std::size_t found = barrier_triangles(w, i, x, r + w.activation, near);
-      std::span<const anatomy::NearTriangle> hits(near.data(), std::min(found, near.size()));
+      std::size_t found = barrier_triangles(w, i, x, r + w.activation, near);
       if (found > near.size()) {
-        thread_local std::vector<anatomy::NearTriangle> many;
-        many.resize(found);
-        barrier_triangles(w, i, x, r + w.activation, many);
-        hits = many;
+        near.resize(found);
+        found = barrier_triangles(w, i, x, r + w.activation, near);
       }
-      for (const anatomy::NearTriangle& t : hits) {
+      for (const anatomy::NearTriangle& t : std::span(near.data(), found)) {
         const double gap = t.distance - r;
         if (!(gap > 0.0)) return false;
         visit(i, gap, Vec3((x - t.point) / t.distance));

@@ -139,7 +139,8 @@ class NearCache {
   Vec3 m_last_point = Vec3::Constant(std::numeric_limits<double>::quiet_NaN());
   double m_last_radius = 0.0;
   std::size_t m_last_found = 0;
-  std::vector<NearTriangle> m_last;
+  std::size_t m_last_span = 0;     ///< the size of the span it was asked with
+  std::vector<NearTriangle> m_last;  ///< its nearest min(found, span) triangles
   std::size_t m_hits = 0;
   std::size_t m_fills = 0;
 };
