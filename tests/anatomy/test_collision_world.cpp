@@ -621,6 +621,38 @@ TEST_F(TubeTest, CachedNearTrianglesEqualTheUncached) {
   EXPECT_THROW(NearCache(-1e-3), InputError);
 }
 
+TEST_F(TubeTest, NearTrianglesStopAtTheFirstWithinTheStopDistance) {
+  // stop_within: a point with a triangle that close gets a partial answer led by such a triangle (the barrier refuses
+  // it whatever else lies near); a point without one gets the whole answer, as if no stop were asked.
+  NearCache cache(0.1 * kMm);
+  std::array<NearTriangle, 16> plain;
+  std::array<NearTriangle, 16> stopped;
+  int partial = 0;
+  int whole = 0;
+  for (int i = 0; i < 400; ++i) {
+    const double phi = 0.002 * i;
+    const Vec3 c = (apothem() - 1.5 * kMm + 0.6 * kMm * std::sin(0.05 * i)) * radial(phi) + Vec3(0, 0, 20 * kMm);
+    const double r = 1.55 * kMm;
+    const double stop = 1.4 * kMm;
+    const std::size_t n = world.triangles_within(c, r, plain);
+    const std::size_t m = world.triangles_within(c, r, stopped, cache, stop);
+    if (n > 0 && plain[0].distance <= stop) {
+      ++partial;
+      ASSERT_GE(m, 1u) << "query " << i;
+      EXPECT_LE(stopped[0].distance, stop) << "query " << i;
+    } else {
+      ++whole;
+      ASSERT_EQ(m, n) << "query " << i;
+      for (std::size_t k = 0; k < std::min(n, plain.size()); ++k) {
+        EXPECT_TRUE(stopped[k].distance == plain[k].distance && stopped[k].triangle == plain[k].triangle)
+            << "query " << i << ", triangle " << k;
+      }
+    }
+  }
+  EXPECT_GT(partial, 50);
+  EXPECT_GT(whole, 50);
+}
+
 TEST(CollisionWorldAllocation, QueriesDoNotAllocate) {
   const CollisionWorld world(make_tube({.radius = 5.0 * kMm, .length = 50.0 * kMm, .segments = 64}));
   std::array<Contact, 16> out;

@@ -981,6 +981,8 @@ struct NearSink {
   std::size_t found = 0;
   std::size_t kept = 0;
   bool sorted = false;  ///< out[0, kept) in order (from the first triangle that found it full on)
+  double stop = -1.0;   ///< a triangle within this distance ends the query (`stopped`)
+  bool stopped = false;
 
   static bool before(const NearTriangle& a, const NearTriangle& b) {
     return a.distance < b.distance || (a.distance == b.distance && a.triangle < b.triangle);
@@ -989,6 +991,7 @@ struct NearSink {
   /// Whether the triangle in `slot` lies within the radius (and, then, records it). Kept unordered while the span has
   /// room (sorted once by finish()); once full, in order, the farthest kept one making room for a nearer one.
   bool process(std::uint32_t slot) {
+    if (stopped) return false;
     const TriangleData& d = w.data[slot];
     // Farther from the triangle's plane than the radius (a degenerate triangle's offset is infinite: always).
     if (!(std::abs(d.normal.dot(point) - d.offset) <= radius)) return false;
@@ -998,6 +1001,7 @@ struct NearSink {
     const double distance = (q - point).norm();
     if (distance > radius) return false;
     ++found;
+    stopped = distance <= stop;
     if (out.empty()) return true;
     const NearTriangle t{q, distance, d.triangle};
     if (kept < out.size()) {
@@ -1040,7 +1044,8 @@ NearCache::NearCache(double margin, std::size_t capacity) : m_margin(margin), m_
 }
 
 MAGVINE_HOT_KERNEL std::size_t CollisionWorld::triangles_within(const Vec3& point, double radius,
-                                                                 std::span<NearTriangle> out, NearCache& cache) const {
+                                                                 std::span<NearTriangle> out, NearCache& cache,
+                                                                 double stop_within) const {
   MAGVINE_ASSERT(radius > 0.0 && point.allFinite());
   const Tables& w = m_impl->tables;
   // The last answer holds its nearest min(found, its span) triangles: it answers a span that size or one that all of
@@ -1062,19 +1067,29 @@ MAGVINE_HOT_KERNEL std::size_t CollisionWorld::triangles_within(const Vec3& poin
     return found;
   };
   NearSink sink{w, point, radius, out};
+  sink.stop = stop_within;
+  // A stopped answer is partial: returned, not kept.
+  const auto answer = [&] { return sink.stopped ? sink.finish() : remember(sink.finish()); };
   // Inside the kept reach, every triangle within the radius of the point is within the reach of the fill point
   // (the triangle inequality; 1e-12 of the coordinates spares the rounding of the two distances).
   const double moved = (point - cache.m_centre).norm();
   const double room = 1e-12 * (point.cwiseAbs().maxCoeff() + cache.m_reach);
   if (cache.m_world == &w && moved + radius + room <= cache.m_reach) {
     ++cache.m_hits;
-    for (const std::uint32_t slot : cache.m_slots) sink.process(slot);
-    return remember(sink.finish());
+    for (const std::uint32_t slot : cache.m_slots) {
+      sink.process(slot);
+      if (sink.stopped) break;
+    }
+    return answer();
   }
   // Refill: the triangles within radius + margin of this point, then this query's answer from them.
   const double reach = radius + cache.m_margin;
+  // A fill that meets a triangle within stop_within of the point ends there too (the cache is left empty): a
+  // line-search trial pushed into the wall is refused whatever else lies near it.
   NearSink fill{w, point, reach, {}};
+  fill.stop = stop_within;
   cache.m_slots.clear();
+  cache.m_world = nullptr;
   bool fits = true;
   m_impl->bvh->visit_slots(detail::SphereBoxTest(point, reach), [&](std::uint32_t slot) {
     if (!fill.process(slot)) return;
@@ -1082,15 +1097,24 @@ MAGVINE_HOT_KERNEL std::size_t CollisionWorld::triangles_within(const Vec3& poin
     if (fits) cache.m_slots.push_back(slot);
   });
   ++cache.m_fills;
+  if (fill.stopped) {
+    // Answered by a walk to the radius, which stops at the first triangle that close.
+    cache.m_slots.clear();
+    m_impl->bvh->visit_slots(detail::SphereBoxTest(point, radius), [&](std::uint32_t slot) { sink.process(slot); });
+    return sink.finish();
+  }
   if (!fits) {
-    cache.m_world = nullptr;
+    cache.m_slots.clear();
     return triangles_within(point, radius, out);
   }
   cache.m_world = &w;
   cache.m_centre = point;
   cache.m_reach = reach;
-  for (const std::uint32_t slot : cache.m_slots) sink.process(slot);
-  return remember(sink.finish());
+  for (const std::uint32_t slot : cache.m_slots) {
+    sink.process(slot);
+    if (sink.stopped) break;
+  }
+  return answer();
 }
 
 namespace {

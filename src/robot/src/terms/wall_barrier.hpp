@@ -47,13 +47,15 @@ inline constexpr std::size_t kBarrierTriangles = 128;
 inline constexpr double kNearMargin = 0.5;
 
 /// The triangles within `reach` of node i at x (CollisionWorld::triangles_within), through the node's NearCache when
-/// the barrier keeps them.
+/// the barrier keeps them; with a cache the query stops at the first triangle within `overlap` (the node's radius):
+/// a state whose sphere overlaps the wall is refused whatever else lies near (a line-search trial that pushed the
+/// tip 1 mm into the wall found 400–900 triangles within its reach past the carina).
 inline std::size_t barrier_triangles(const WallBarrier& w, std::size_t i, const Vec3& x, double reach,
-                                     std::span<anatomy::NearTriangle> out) {
+                                     std::span<anatomy::NearTriangle> out, double overlap) {
   if (w.near == nullptr) return w.world->triangles_within(x, reach, out);
   std::vector<anatomy::NearCache>& near = *w.near;
   if (near.size() <= i) near.resize(i + 1, anatomy::NearCache(kNearMargin * w.activation, 1024));
-  return w.world->triangles_within(x, reach, out, near[i]);
+  return w.world->triangles_within(x, reach, out, near[i], overlap);
 }
 
 struct WallBarrierTerm {
@@ -75,10 +77,10 @@ struct WallBarrierTerm {
         const double length = move.norm();
         if (length >= r && w.world->ray_cast(from->x[i], move / length, length)) return false;
       }
-      std::size_t found = barrier_triangles(w, i, x, r + w.activation, near);
+      std::size_t found = barrier_triangles(w, i, x, r + w.activation, near, r);
       if (found > near.size()) {
         near.resize(found);
-        found = barrier_triangles(w, i, x, r + w.activation, near);
+        found = barrier_triangles(w, i, x, r + w.activation, near, r);
       }
       for (const anatomy::NearTriangle& t : std::span(near.data(), found)) {
         const double gap = t.distance - r;

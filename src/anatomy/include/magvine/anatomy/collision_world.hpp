@@ -207,8 +207,12 @@ class CollisionWorld {
   std::size_t triangles_within(const Vec3& point, double radius, std::span<NearTriangle> out) const;
 
   /// As triangles_within, with the neighbourhood kept in `cache` (NearCache): the same answer; a query inside the
-  /// cache's reach tests the kept triangles only, without a BVH walk.
-  std::size_t triangles_within(const Vec3& point, double radius, std::span<NearTriangle> out, NearCache& cache) const;
+  /// cache's reach tests the kept triangles only, without a BVH walk. With `stop_within` > 0 the query ends at the
+  /// first triangle it meets within that distance of the point, and its answer is partial (that triangle, the
+  /// nearest of those it holds; the count so far): for a caller that refuses such a point whatever else lies near it
+  /// (the wall barrier's overlap). A partial answer is not kept as the cache's last.
+  std::size_t triangles_within(const Vec3& point, double radius, std::span<NearTriangle> out, NearCache& cache,
+                               double stop_within = -1.0) const;
 
   /// First hit of the ray origin + s·direction, 0 ≤ s ≤ max_distance [m], `direction` a unit vector; nullopt when
   /// it hits nothing. Both faces count. A ray through a shared edge or vertex hits (inclusive test). Allocation-free.
