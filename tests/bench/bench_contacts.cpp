@@ -378,9 +378,9 @@ void BM_SphereContacts(benchmark::State& state, Order order) {
   state.counters["full"] = per_iteration(state, static_cast<double>(full));
 }
 
-/// The wall barrier's query (robot/terms/wall_barrier.hpp): the triangles within r + d̂ of a node centre, nearest
-/// first, up to 32 (kBarrierTriangles), with r = 1.5 mm and the default d̂ = 0.2 mm. Counter `near` = triangles
-/// within reach per query.
+/// The wall barrier's query (robot/terms/wall_barrier.hpp) without its NearCache: the triangles within r + d̂ of a
+/// node centre, nearest first, the nearest 32 kept (the barrier keeps them all), with r = 1.5 mm and d̂ = 0.2 mm.
+/// Counter `near` = triangles within reach per query.
 void BM_TrianglesWithin(benchmark::State& state, Order order) {
   const CollisionWorld& w = world();
   const std::vector<Vec3>& c = centres_for(order);
