@@ -619,6 +619,19 @@ TEST_F(TubeTest, CachedNearTrianglesEqualTheUncached) {
   EXPECT_GT(found, 1000);
   EXPECT_GT(large.hits(), 10 * large.fills());
   EXPECT_THROW(NearCache(-1e-3), InputError);
+
+  // A cache filled in a world since destroyed is refilled in the next, even one built where the first one lay (the
+  // allocator often reuses the address): worlds are told apart by an id, not a pointer.
+  NearCache kept(0.5 * kMm);
+  const Vec3 c = (apothem() - 1.5 * kMm) * radial(0.3) + Vec3(0, 0, 20 * kMm);
+  {
+    const CollisionWorld gone(make_tube({.radius = kRadius + 0.3 * kMm, .length = kLength, .segments = 40}));
+    EXPECT_EQ(gone.triangles_within(c, 1.55 * kMm, cached, kept), 0u);  // that tube's wall is out of reach
+  }
+  const CollisionWorld next(make_tube({.radius = kRadius, .length = kLength, .segments = 64}));
+  const std::size_t n = next.triangles_within(c, 1.55 * kMm, plain);
+  ASSERT_GT(n, 0u);
+  EXPECT_EQ(next.triangles_within(c, 1.55 * kMm, cached, kept), n);
 }
 
 TEST_F(TubeTest, NearTrianglesStopAtTheFirstWithinTheStopDistance) {

@@ -3,6 +3,7 @@
 
 #include <algorithm>
 #include <array>
+#include <atomic>
 #include <chrono>
 #include <cmath>
 #include <limits>
@@ -797,6 +798,14 @@ struct CollisionWorld::Impl {
   CollisionWorldStats stats;
   Tables tables;
   std::optional<detail::TriangleBvh> bvh;
+  /// Unique to this world in the process (from 1), so that a NearCache filled in a world since destroyed is not
+  /// taken for one built later at the same address.
+  std::uint64_t id = next_id();
+
+  static std::uint64_t next_id() {
+    static std::atomic<std::uint64_t> counter{0};
+    return ++counter;
+  }
 };
 
 CollisionWorld::Impl::Impl(const TriangleMesh& source, const CollisionWorldOptions& opts)
@@ -1050,7 +1059,7 @@ MAGVINE_HOT_KERNEL std::size_t CollisionWorld::triangles_within(const Vec3& poin
   const Tables& w = m_impl->tables;
   // The last answer holds its nearest min(found, its span) triangles: it answers a span that size or one that all of
   // them fit in.
-  if (cache.m_world == &w && point == cache.m_last_point && radius == cache.m_last_radius &&
+  if (cache.m_world == m_impl->id && point == cache.m_last_point && radius == cache.m_last_radius &&
       (out.size() == cache.m_last_span || (cache.m_last_found <= cache.m_last.size() &&
                                            cache.m_last_found <= out.size()))) {
     ++cache.m_hits;
@@ -1074,7 +1083,7 @@ MAGVINE_HOT_KERNEL std::size_t CollisionWorld::triangles_within(const Vec3& poin
   // (the triangle inequality; 1e-12 of the coordinates spares the rounding of the two distances).
   const double moved = (point - cache.m_centre).norm();
   const double room = 1e-12 * (point.cwiseAbs().maxCoeff() + cache.m_reach);
-  if (cache.m_world == &w && moved + radius + room <= cache.m_reach) {
+  if (cache.m_world == m_impl->id && moved + radius + room <= cache.m_reach) {
     ++cache.m_hits;
     for (const std::uint32_t slot : cache.m_slots) {
       sink.process(slot);
@@ -1089,7 +1098,7 @@ MAGVINE_HOT_KERNEL std::size_t CollisionWorld::triangles_within(const Vec3& poin
   NearSink fill{w, point, reach, {}};
   fill.stop = stop_within;
   cache.m_slots.clear();
-  cache.m_world = nullptr;
+  cache.m_world = 0;
   bool fits = true;
   m_impl->bvh->visit_slots(detail::SphereBoxTest(point, reach), [&](std::uint32_t slot) {
     if (!fill.process(slot)) return;
@@ -1107,7 +1116,7 @@ MAGVINE_HOT_KERNEL std::size_t CollisionWorld::triangles_within(const Vec3& poin
     cache.m_slots.clear();
     return triangles_within(point, radius, out);
   }
-  cache.m_world = &w;
+  cache.m_world = m_impl->id;
   cache.m_centre = point;
   cache.m_reach = reach;
   for (const std::uint32_t slot : cache.m_slots) {

@@ -120,7 +120,7 @@ class NearCache {
   /// a negative or non-finite margin.
   explicit NearCache(double margin = 0.0, std::size_t capacity = 256);
   /// Forgets the triangles: the next query refills.
-  void clear() { m_world = nullptr; }
+  void clear() { m_world = 0; }
   double margin() const { return m_margin; }
   /// Queries answered from the kept triangles, and refills, since construction (for benchmarks).
   std::size_t hits() const { return m_hits; }
@@ -130,7 +130,7 @@ class NearCache {
   friend class CollisionWorld;
   double m_margin = 0.0;
   std::size_t m_capacity = 0;
-  const void* m_world = nullptr;  ///< the tables that filled it; null when empty
+  std::uint64_t m_world = 0;      ///< the id of the world that filled it; 0 when empty
   Vec3 m_centre = Vec3::Zero();   ///< fill point [m]
   double m_reach = 0.0;           ///< fill radius [m]
   std::vector<std::uint32_t> m_slots;
