@@ -1057,28 +1057,26 @@ MAGVINE_HOT_KERNEL std::size_t CollisionWorld::triangles_within(const Vec3& poin
                                                                  double stop_within) const {
   MAGVINE_ASSERT(radius > 0.0 && point.allFinite());
   const Tables& w = m_impl->tables;
-  // The last answer holds its nearest min(found, its span) triangles: it answers a span that size or one that all of
-  // them fit in.
+  // The last whole answer (every triangle it found fitted its span): again at the same point and radius, for any
+  // span it fits.
   if (cache.m_world == m_impl->id && point == cache.m_last_point && radius == cache.m_last_radius &&
-      (out.size() == cache.m_last_span || (cache.m_last_found <= cache.m_last.size() &&
-                                           cache.m_last_found <= out.size()))) {
+      cache.m_last.size() <= out.size()) {
     ++cache.m_hits;
-    const std::size_t n = std::min(cache.m_last.size(), out.size());
-    std::copy(cache.m_last.begin(), cache.m_last.begin() + static_cast<std::ptrdiff_t>(n), out.begin());
-    return cache.m_last_found;
+    std::copy(cache.m_last.begin(), cache.m_last.end(), out.begin());
+    return cache.m_last.size();
   }
-  const auto remember = [&](std::size_t found) {
-    cache.m_last_point = point;
-    cache.m_last_radius = radius;
-    cache.m_last_found = found;
-    cache.m_last_span = out.size();
-    cache.m_last.assign(out.begin(), out.begin() + static_cast<std::ptrdiff_t>(std::min(found, out.size())));
-    return found;
-  };
   NearSink sink{w, point, radius, out};
   sink.stop = stop_within;
-  // A stopped answer is partial: returned, not kept.
-  const auto answer = [&] { return sink.stopped ? sink.finish() : remember(sink.finish()); };
+  // The answer, kept as the last when it is whole (not stopped, nothing dropped from a full span).
+  const auto answer = [&] {
+    const std::size_t found = sink.finish();
+    if (!sink.stopped && found <= out.size()) {
+      cache.m_last_point = point;
+      cache.m_last_radius = radius;
+      cache.m_last.assign(out.begin(), out.begin() + static_cast<std::ptrdiff_t>(found));
+    }
+    return found;
+  };
   // Inside the kept reach, every triangle within the radius of the point is within the reach of the fill point
   // (the triangle inequality; 1e-12 of the coordinates spares the rounding of the two distances).
   const double moved = (point - cache.m_centre).norm();
@@ -1091,10 +1089,12 @@ MAGVINE_HOT_KERNEL std::size_t CollisionWorld::triangles_within(const Vec3& poin
     }
     return answer();
   }
-  // Refill: the triangles within radius + margin of this point, then this query's answer from them.
+  // Refill: one walk keeps the triangles within radius + margin of this point and answers this query from them (its
+  // sink tests each for the smaller radius). A fill that meets a triangle within stop_within of the point ends there
+  // and leaves the cache empty (a line-search trial pushed into the wall is refused whatever else lies near it), as
+  // does one with more triangles than the cache holds (its answer is still whole: every triangle within the radius
+  // was seen).
   const double reach = radius + cache.m_margin;
-  // A fill that meets a triangle within stop_within of the point ends there too (the cache is left empty): a
-  // line-search trial pushed into the wall is refused whatever else lies near it.
   NearSink fill{w, point, reach, {}};
   fill.stop = stop_within;
   cache.m_slots.clear();
@@ -1104,24 +1104,15 @@ MAGVINE_HOT_KERNEL std::size_t CollisionWorld::triangles_within(const Vec3& poin
     if (!fill.process(slot)) return;
     fits = fits && cache.m_slots.size() < cache.m_capacity;
     if (fits) cache.m_slots.push_back(slot);
+    sink.process(slot);
   });
   ++cache.m_fills;
-  if (fill.stopped) {
-    // Answered by a walk to the radius, which stops at the first triangle that close.
+  if (fill.stopped || !fits) {
     cache.m_slots.clear();
-    m_impl->bvh->visit_slots(detail::SphereBoxTest(point, radius), [&](std::uint32_t slot) { sink.process(slot); });
-    return sink.finish();
-  }
-  if (!fits) {
-    cache.m_slots.clear();
-    return triangles_within(point, radius, out);
-  }
-  cache.m_world = m_impl->id;
-  cache.m_centre = point;
-  cache.m_reach = reach;
-  for (const std::uint32_t slot : cache.m_slots) {
-    sink.process(slot);
-    if (sink.stopped) break;
+  } else {
+    cache.m_world = m_impl->id;
+    cache.m_centre = point;
+    cache.m_reach = reach;
   }
   return answer();
 }
@@ -1145,6 +1136,12 @@ std::optional<RayHit> CollisionWorld::ray_cast(const Vec3& origin, const Vec3& d
   RayQuery query(m_impl->tables, origin, direction, max_distance);
   walk_ray(*m_impl->bvh, m_impl->tables, origin, direction, query, [&] { return query.reach(); });
   return query.result();
+}
+
+bool CollisionWorld::segment_crosses(const Vec3& a, const Vec3& b) const {
+  const Vec3 d = b - a;
+  const double length = d.norm();
+  return length > 0.0 && ray_cast(a, d / length, length).has_value();
 }
 
 bool CollisionWorld::contains(const Vec3& point) const {

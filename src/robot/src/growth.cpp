@@ -173,11 +173,7 @@ int Stepper::retract_to(double length) {
 /// Whether the segment from a to b crosses no wall: with a in the lumen, b is in it too and a body at a could reach
 /// it (a short ray cast; CollisionWorld::contains casts parity rays across the whole mesh, 10–20 times the cost).
 /// Unlike the parity test, a point in a neighbouring lumen behind tissue counts as out of sight.
-bool Stepper::in_sight(const Vec3& a, const Vec3& b) const {
-  const Vec3 d = b - a;
-  const double length = d.norm();
-  return length == 0.0 || !world()->ray_cast(a, d / length, length);
-}
+bool Stepper::in_sight(const Vec3& a, const Vec3& b) const { return !world()->segment_crosses(a, b); }
 
 /// Narrowest width of the lumen across the body at x (4 lines through x in the plane ⟂ frame.col(0), ray casts up to
 /// 2R each way) [m]. With `recentrings` > 0, where that would squeeze the body the lines are cast again from the mean
@@ -498,9 +494,10 @@ bool Stepper::barrier_step(double dt, double pressure, double cap) {
       lambda[i] += w_lambda * dl;
       strip[i] += w_strip * ds;
       const double w = std::min(w_lambda, w_strip);
-      const Vec3 turn = axis[i].isZero() ? Vec3::Zero() : Vec3(f[i].axis - axis[i]);
-      const Vec3 blended = axis[i].isZero() ? f[i].axis : Vec3(axis[i] + w * turn);  // as its λ
-      if (!held) axis[i] = blended.norm() > 1e-9 ? Vec3(blended.normalized()) : f[i].axis;
+      if (!held) {
+        const Vec3 blended = axis[i].isZero() ? f[i].axis : Vec3(axis[i] + w * (f[i].axis - axis[i]));  // as its λ
+        axis[i] = blended.norm() > 1e-9 ? Vec3(blended.normalized()) : f[i].axis;
+      }
       state.nodes[i].wall_force = f[i].force;
     }
   }

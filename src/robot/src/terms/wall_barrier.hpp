@@ -6,7 +6,6 @@
 // κ b''(g) n nᵀ and drops the term κ b'(g) ∇²|x − q| of a closest point on an edge or corner, which is negative
 // semi-definite (b' < 0): the Newton matrix stays positive semi-definite.
 
-#include <array>
 #include <cmath>
 #include <limits>
 #include <span>
@@ -73,9 +72,7 @@ struct WallBarrierTerm {
       const Vec3& x = state.x[i];
       if (from != nullptr) {
         // A move shorter than r stays inside the wall-free ball of the feasible iterate.
-        const Vec3 move = x - from->x[i];
-        const double length = move.norm();
-        if (length >= r && w.world->ray_cast(from->x[i], move / length, length)) return false;
+        if ((x - from->x[i]).norm() >= r && w.world->segment_crosses(from->x[i], x)) return false;
       }
       std::size_t found = barrier_triangles(w, i, x, r + w.activation, near, r);
       if (found > near.size()) {

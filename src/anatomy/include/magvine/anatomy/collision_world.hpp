@@ -134,13 +134,11 @@ class NearCache {
   Vec3 m_centre = Vec3::Zero();   ///< fill point [m]
   double m_reach = 0.0;           ///< fill radius [m]
   std::vector<std::uint32_t> m_slots;
-  /// The last query and its answer: asked again at the same point and radius (a solver's gradient and Hessian at
-  /// one state), it is returned as it was.
+  /// The last whole answer and its query: asked again at the same point and radius (a solver's gradient and
+  /// Hessian at one state), it is returned as it was.
   Vec3 m_last_point = Vec3::Constant(std::numeric_limits<double>::quiet_NaN());
   double m_last_radius = 0.0;
-  std::size_t m_last_found = 0;
-  std::size_t m_last_span = 0;     ///< the size of the span it was asked with
-  std::vector<NearTriangle> m_last;  ///< its nearest min(found, span) triangles
+  std::vector<NearTriangle> m_last;
   std::size_t m_hits = 0;
   std::size_t m_fills = 0;
 };
@@ -217,6 +215,9 @@ class CollisionWorld {
   /// First hit of the ray origin + s·direction, 0 ≤ s ≤ max_distance [m], `direction` a unit vector; nullopt when
   /// it hits nothing. Both faces count. A ray through a shared edge or vertex hits (inclusive test). Allocation-free.
   std::optional<RayHit> ray_cast(const Vec3& origin, const Vec3& direction, double max_distance) const;
+
+  /// Whether the segment from a to b [m] passes through the wall (ray_cast along it; a zero-length one does not).
+  bool segment_crosses(const Vec3& a, const Vec3& b) const;
 
   /// Whether `point` [m] is inside the volume the mesh encloses (the lumen of a closed airway), by ray parity: rays
   /// along `parity_directions()` in order until three give an unambiguous count, then the majority of those.
