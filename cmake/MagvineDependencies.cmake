@@ -4,6 +4,12 @@ find_package(yaml-cpp REQUIRED)
 find_package(nlohmann_json 3 REQUIRED)
 find_package(CLI11 REQUIRED)
 
+# LBFGSpp (header-only, MIT): the design's bounded L-BFGS-B. Debian ships the headers without a CMake config.
+find_path(LBFGSPP_INCLUDE_DIR LBFGSB.h PATH_SUFFIXES include REQUIRED)
+add_library(magvine_lbfgspp INTERFACE)
+target_include_directories(magvine_lbfgspp SYSTEM INTERFACE ${LBFGSPP_INCLUDE_DIR})
+add_library(magvine::lbfgspp ALIAS magvine_lbfgspp)
+
 # Bullet in double precision: Debian ships *-float64 libraries beside the float ones, described by
 # bullet-float64.pc, whose Cflags carry -DBT_USE_DOUBLE_PRECISION. Mixing precisions corrupts memory
 # silently, so nothing in magvine may use the plain `bullet` package.

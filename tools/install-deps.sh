@@ -11,6 +11,7 @@ set -euo pipefail
 packages=(
   build-essential cmake pkg-config     # compiler, build system, .pc lookups (Bullet's float64 libraries)
   libeigen3-dev                        # linear algebra everywhere (MPL-2.0)
+  liblbfgspp-dev                       # design: bounded L-BFGS-B, header-only (MIT)
   libbullet-dev                        # reference for the edge bends in tests; *-float64 libraries (zlib licence)
   libassimp-dev                        # mesh import: STL/OBJ/PLY/glTF/OFF (BSD-3)
   libyaml-cpp-dev                      # scene and magnet files (MIT)

@@ -22,6 +22,7 @@
 #include "magvine/studies/growth_study.hpp"
 #include "magvine/scene/experiment.hpp"
 #include "magvine/scene/trials.hpp"
+#include "magvine/scene/design_scene.hpp"
 #if MAGVINE_WITH_MPM
 #include "magvine/scene/mpm_scene.hpp"
 #endif
@@ -278,6 +279,30 @@ int run_trials(const TrialsArgs& args) {
             << (out / "summary.md").string();
   if (args.keep_runs) std::cerr << ", each trial's outputs in " << (out / "runs").string() << "/<target>_r<repeat>";
   std::cerr << '\n';
+  return 0;
+}
+
+int run_design(const DesignArgs& args) {
+  const scene::DesignScene sc = scene::load_design_scene(args.scene);  // bad input fails before any output
+  const std::filesystem::path out = args.out.empty()
+                                        ? std::filesystem::path("runs") / (std::filesystem::path(args.scene).stem().string() + "-design")
+                                        : std::filesystem::path(args.out);
+  const char* method = sc.method == scene::DesignMethod::least_squares ? "Levenberg-Marquardt, exact Jacobian"
+                       : sc.method == scene::DesignMethod::lbfgsb      ? "L-BFGS-B, exact adjoint gradient"
+                                                                       : "Bayesian optimisation (derivative-free)";
+  std::cerr << "magvine design: " << sc.problem.spec.sections << " sections, " << sc.problem.spec.target.size()
+            << " target points, " << method << '\n';
+  const design::DesignResult r = scene::run_design(sc, [](int evaluations, double rms) {
+    std::cerr << "\r  evaluation " << evaluations << ": best RMS " << printf_string("%.3f", rms * 1e3) << " mm   "
+              << std::flush;
+  });
+  std::cerr << '\n';
+  scene::write_design_outputs(sc, r, out);
+  std::cout << printf_string("RMS %.3f mm, largest error %.3f mm after %d iterations (%d equilibria) in %.2f s: %s\n",
+                             r.rms * 1e3, r.max_error * 1e3, r.iterations, r.evaluations, r.runtime_s,
+                             r.message.c_str());
+  std::cerr << "magvine design: " << (out / "design.json").string() << ", " << (out / "scene.yaml").string()
+            << " (magvine run reproduces the shape), shape.csv, target.csv\n";
   return 0;
 }
 

@@ -90,6 +90,13 @@ void preload_videos(bool wanted, const std::string& scene, const std::string& wh
 std::function<void(double)> progress_bar();
 
 /// `magvine validate --out DIR`: the robot-mechanics studies (scene/mechanics_study.hpp).
+/// `magvine design DESIGN.yaml [--out DIR]` (issue 29; docs/design.md).
+struct DesignArgs {
+  std::string scene;
+  std::string out;
+};
+int run_design(const DesignArgs& args);
+
 int run_validate(const std::string& out_dir);
 
 }  // namespace magvine::cli

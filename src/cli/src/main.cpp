@@ -111,6 +111,13 @@ int main(int argc, char** argv) {
                        "also write each trial's outputs (metrics, events, trajectories; no videos) to "
                        "OUT/runs/<target>_r<repeat> (e.g. 0-1-0_r3)");
 
+  magvine::cli::DesignArgs design;
+  auto* design_cmd = app.add_subcommand(
+      "design", "computational design: the magnetisation sections (and a uniform field) that put a rod's equilibrium "
+                "on a target shape (design.json, scene.yaml for magvine run; docs/design.md)");
+  design_cmd->add_option("scene", design.scene, "design file: a free-space rod scene plus design:")->required();
+  design_cmd->add_option("--out", design.out, "output folder (default: runs/<file name>-design)");
+
   std::string validate_out;
   auto* validate_cmd = app.add_subcommand(
       "validate", "robot mechanics against the references: rod vs elastica (error against runtime), skin vine vs "
@@ -152,6 +159,7 @@ int main(int argc, char** argv) {
     if (run_cmd->parsed()) return magvine::cli::run_scene(run);
     if (validate_cmd->parsed()) return magvine::cli::run_validate(validate_out);
     if (trials_cmd->parsed()) return magvine::cli::run_trials(trials);
+    if (design_cmd->parsed()) return magvine::cli::run_design(design);
   } catch (const magvine::InputError& e) {
     std::cerr << "magvine: " << e.what() << '\n';
     return static_cast<int>(ExitCode::kBadInput);

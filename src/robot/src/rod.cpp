@@ -780,6 +780,48 @@ MatX rod_hessian(const RodModel& model, const RodField& field, const RodState& s
   return out;
 }
 
+MatX rod_moment_sensitivity(const RodModel& model, const RodField& field, const RodState& state) {
+  check_rod_model(model);
+  MatX out = MatX::Zero(6 * model.edges, 3 * model.edges);
+  const TermContext c{model, field, state};
+  detail::Magnetic::add_moment_sensitivity(c, out);
+  return out;
+}
+
+MatX rod_uniform_field_sensitivity(const RodModel& model, const RodState& state) {
+  check_rod_model(model);
+  if (model.induced) throw InputError("rod sensitivity: a uniform field's sensitivity needs hard moments only (no fill)");
+  MatX out = MatX::Zero(6 * model.edges, 3);
+  const RodField none;
+  const TermContext c{model, none, state};
+  detail::Magnetic::add_uniform_field_sensitivity(c, out);
+  return out;
+}
+
+std::optional<MatX> rod_hessian_solve(const RodModel& model, const RodField& field, const RodState& state,
+                                      const MatX& rhs, const RodConstraints* constraints) {
+  check_rod_model(model);
+  if (rhs.rows() != 6 * model.edges) throw InputError("rod sensitivity: the right-hand side has the wrong size");
+  System sys(model.edges);
+  analytic_hessian(model, field, state, 1.0, sys, nullptr, constraints);
+  BlockFactor factor;
+  if (!factor.factor(sys, 0.0)) return std::nullopt;
+  MatX out(rhs.rows(), rhs.cols());
+  VecX column;
+  for (Eigen::Index c = 0; c < rhs.cols(); ++c) {
+    if (!factor.solve(rhs.col(c), column)) return std::nullopt;
+    out.col(c) = column;
+  }
+  return out;
+}
+
+VecX rod_position_covector(const std::vector<Vec3>& per_node) {
+  const auto edges = static_cast<int>(per_node.size()) - 1;
+  VecX out = VecX::Zero(6 * std::max(0, edges));
+  for (int i = 1; i <= edges; ++i) out.segment<3>(6 * (i - 1)) = per_node[static_cast<std::size_t>(i)];
+  return out;
+}
+
 RodMotion rod_at_rest(const RodModel& model) {
   RodMotion out;
   out.velocity.assign(static_cast<std::size_t>(model.edges) + 1, Vec3::Zero());

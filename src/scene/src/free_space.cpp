@@ -7,6 +7,7 @@
 #include <sstream>
 
 #include "failed_run.hpp"
+#include "free_space_internal.hpp"
 #include "magnet_entries.hpp"
 #include "magvine/core/atomic_file.hpp"
 #include "magvine/core/error.hpp"
@@ -22,9 +23,20 @@ namespace magvine::scene {
 
 FreeSpaceScene parse_free_space_scene(const std::string& text, const std::string& file_label) {
   const YAML::Node root = parse_yaml(text, file_label);
+  return detail::parse_free_space_root(root, file_label, false, nullptr);
+}
+
+namespace detail {
+
+FreeSpaceScene parse_free_space_root(const YAML::Node& root, const std::string& file_label, bool with_design,
+                                     double* area) {
   if (!root || root.IsNull()) throw InputError(file_label, 0, "", "empty scene file (expected units: and robot:)");
   const YamlMap top(root, file_label, "");
-  top.allow_only({"units", "seed", "robot", "magnets", "simulation"});
+  if (with_design) {
+    top.allow_only({"units", "seed", "robot", "magnets", "simulation", "design"});
+  } else {
+    top.allow_only({"units", "seed", "robot", "magnets", "simulation"});
+  }
   const FileUnits units = file_units(top);
   (void)seed_of(top, 0);  // accepted (statics draws nothing)
 
@@ -32,7 +44,7 @@ FreeSpaceScene parse_free_space_scene(const std::string& text, const std::string
   const YamlMap robot = top.map("robot");
   const std::string kind = robot.text("kind");
   if (kind == "rod") {
-    scene.model = parse_rod(robot, units, {}, nullptr);
+    scene.model = parse_rod(robot, units, {}, nullptr, area);
   } else if (kind == "vine") {
     scene.vine = parse_vine(robot, units);
     scene.model = robot::vine_rod(*scene.vine);  // checked by parse_vine
@@ -53,6 +65,8 @@ FreeSpaceScene parse_free_space_scene(const std::string& text, const std::string
   }
   return scene;
 }
+
+}  // namespace detail
 
 FreeSpaceScene load_free_space_scene(const std::filesystem::path& file) {
   return parse_free_space_scene(read_text_file(file.string(), "scene file"), file.string());

@@ -31,6 +31,9 @@ inline constexpr Range kRemanence{-3.0, 3.0};                    ///< Br, J [T] 
 inline constexpr Range kPolarisation{0.0, 3.0, true};            ///< a magnet's J [T]
 inline constexpr Range kMoment{-1e6, 1e6};                       ///< a dipole's moment components [A·m²]
 inline constexpr Range kField{-10.0, 10.0};                      ///< uniform field components [T]
+inline constexpr Range kRemanenceMagnitude{0.0, 3.0, true};       ///< a design's |Br| [T]
+inline constexpr Range kRemanenceBound{0.0, 3.0};                 ///< a design's bounds on |Br| [T]
+inline constexpr Range kUniformFieldBound{0.0, 10.0, true};       ///< a design's bound on |B| [T]
 inline constexpr Range kFriction{0.0, 10.0};                     ///< Coulomb μ
 
 // Growth law.

@@ -144,7 +144,8 @@ FileUnits file_units(const YamlMap& top) {
 }
 
 robot::RodModel parse_rod(const YamlMap& robot, const FileUnits& units,
-                          std::initializer_list<std::string_view> extra_keys, double* contact_radius) {
+                          std::initializer_list<std::string_view> extra_keys, double* contact_radius,
+                          double* area_out) {
   std::vector<std::string_view> keys = {"kind",          "length", "section", "shear_modulus", "youngs_modulus",
                                         "density",       "magnetisation", "base", "nodes", "node_spacing"};
   keys.insert(keys.end(), extra_keys.begin(), extra_keys.end());
@@ -174,6 +175,7 @@ robot::RodModel parse_rod(const YamlMap& robot, const FileUnits& units,
     section.fail("shape", "must be rectangle or circle (got '" + shape + "')");
   }
   if (robot.has("magnetisation")) m.moment_per_length = magnetisation_of(robot, length, units, area, edges);
+  if (area_out != nullptr) *area_out = area;
   // Derived: the stiffnesses the solver needs (robot::check_rod_model), named against the robot entry.
   try {
     robot::check_rod_model(m);

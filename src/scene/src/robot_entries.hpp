@@ -48,9 +48,10 @@ std::uint64_t seed_of(const YamlMap& top, std::uint64_t fallback);
 /// A `robot: {kind: vine, ...}` entry (free_space.hpp).
 robot::VineParameters parse_vine(const YamlMap& robot, const FileUnits& units);
 /// A `robot: {kind: rod, ...}` entry (free_space.hpp), also allowing `extra_keys`; `contact_radius`, if given,
-/// receives the section's circumscribed radius [m].
+/// receives the section's circumscribed radius [m], `area` its cross-section [m²].
 robot::RodModel parse_rod(const YamlMap& robot, const FileUnits& units,
-                          std::initializer_list<std::string_view> extra_keys, double* contact_radius);
+                          std::initializer_list<std::string_view> extra_keys, double* contact_radius,
+                          double* area = nullptr);
 /// The vine's own derived checks (robot::vine_rod: burst, walls thinner than the radius, ...) as the error of the
 /// robot key they concern.
 void check_vine(const YamlMap& robot, const robot::VineParameters& vine);

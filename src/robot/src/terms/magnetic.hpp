@@ -63,6 +63,44 @@ struct Magnetic {
     }
   }
 
+  /// The derivative of the gradient (the unknowns of rod_gradient) with respect to each edge's hard moment per length
+  /// m̂_j (body frame), into the 6N × 3N matrix `out` (columns 3j..3j+2): the wrench is linear in the moment, so column
+  /// k of edge j is the gradient of the moment h_j R_j e_k, −½F on each end node and −τ on the frame (design
+  /// sensitivities, rod.hpp). A fill's induced moment does not depend on m̂.
+  static void add_moment_sensitivity(const TermContext& c, MatX& out) {
+    if (!c.field) return;
+    for (int j = 0; j < c.edges(); ++j) {
+      const auto ju = static_cast<std::size_t>(j);
+      const magnetics::FieldSample f = c.field(edge_midpoint(c.state, ju));
+      for (int k = 0; k < 3; ++k) {
+        const Vec3 unit = c.load * c.h(j) * c.state.frames[ju].col(k);  // h R e_k
+        const magnetics::Wrench w = magnetics::magnetic_wrench(unit, f);
+        add_column(out, position_slot(j), 3 * j + k, -0.5 * w.force);
+        add_column(out, position_slot(j + 1), 3 * j + k, -0.5 * w.force);
+        add_column(out, rotation_slot(j), 3 * j + k, -w.torque);
+      }
+    }
+  }
+
+  /// The derivative of the gradient with respect to a uniform field B added to the field, into the 6N × 3 matrix
+  /// `out`: −τ = −m × B is linear in B (the wrench of the effective moment in the sample {e_k, G = 0}); a uniform field
+  /// adds no force. Hard moments only (a fill's induced moment depends on B itself: InputError from the caller).
+  static void add_uniform_field_sensitivity(const TermContext& c, MatX& out) {
+    if (c.model.moment_per_length.empty()) return;
+    for (int j = 0; j < c.edges(); ++j) {
+      const auto ju = static_cast<std::size_t>(j);
+      const Vec3 m = hard_moment(c, ju);
+      for (int k = 0; k < 3; ++k) {
+        const magnetics::Wrench w = magnetics::magnetic_wrench(m, magnetics::FieldSample{Vec3::Unit(k), Mat3::Zero()});
+        add_column(out, rotation_slot(j), k, -w.torque);
+      }
+    }
+  }
+
+  static void add_column(MatX& out, const Slot& s, int column, const Vec3& v) {
+    if (s.block >= 0) out.block<3, 1>(6 * s.block + s.offset, column) += v;
+  }
+
   /// With w = dU/dB (world) = −m + R p (p = V de/db, P = V d²e/db², body frame), c the midpoint and G = ∂B/∂c:
   ///   δφδφ: sym(w Bᵀ) − w·B I + [B]ᵀRPRᵀ[B];  δφδc: ([w] − [B]RPRᵀ)G;  δcδc: GᵀRPRᵀG + Σ_i w_i ∇²B_i,
   /// the last from the field's closed-form curvature where it has one (dipoles), else from forward differences of G

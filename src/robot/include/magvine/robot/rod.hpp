@@ -356,4 +356,27 @@ enum class HessianMethod { analytic, finite_differences };
 MatX rod_hessian(const RodModel& model, const RodField& field, const RodState& state, double load = 1.0,
                  HessianMethod method = HessianMethod::analytic, const RodConstraints* constraints = nullptr);
 
+/// Design sensitivities (implicit differentiation of an equilibrium, issue 29). At an equilibrium x*(p) of parameters
+/// p, g(x*(p), p) = 0, so H dx*/dp = −∂g/∂p (H = rod_hessian) and an objective J(x*) has dJ/dp = −λᵀ ∂g/∂p with the
+/// adjoint H λ = ∂J/∂x: one solve with the equilibrium's Hessian per objective, whatever the number of parameters.
+///
+/// ∂g/∂m̂: the derivative of rod_gradient with respect to every edge's moment per length (RodModel::
+/// moment_per_length, body frame), 6N × 3N (columns 3j..3j+2 for edge j), at load 1. Exact: the magnetic wrench is
+/// linear in the moment.
+MatX rod_moment_sensitivity(const RodModel& model, const RodField& field, const RodState& state);
+
+/// ∂g/∂B: the derivative of rod_gradient with respect to a uniform field added to `field`, 6N × 3, for a rod with hard
+/// moments (InputError for an induced fill, whose moment depends on B). Exact: −m × B is linear in B.
+MatX rod_uniform_field_sensitivity(const RodModel& model, const RodState& state);
+
+/// H⁻¹ rhs for the analytic Hessian at `state` (rod_hessian), by the solver's block LDLᵀ in O(N) per column (one
+/// factorisation for all of rhs's columns: the adjoint of one objective, or the forward sensitivities dx*/dp =
+/// −H⁻¹ ∂g/∂p of every parameter); empty when H is not positive definite there (not a stable equilibrium).
+std::optional<MatX> rod_hessian_solve(const RodModel& model, const RodField& field, const RodState& state,
+                                      const MatX& rhs, const RodConstraints* constraints = nullptr);
+
+/// A covector on the node positions (∂J/∂x_i for i = 1..N; entry 0, the clamped node, is ignored) as a vector in the
+/// unknowns of rod_gradient (zero on the rotations).
+VecX rod_position_covector(const std::vector<Vec3>& per_node);
+
 }  // namespace magvine::robot

@@ -1,0 +1,158 @@
+#pragma once
+/// Computational design of magnetic soft rods (thesis appendix A.1; docs/design.md): the magnetisation direction
+/// (and optionally magnitude) of each of S equal sections along a clamped rod, and optionally the uniform field,
+/// chosen so that the rod's static equilibrium lies on a target shape.
+///
+/// Objective: J(p) = (1/K) Σ_k |x(s_k) − t_k|² over K target points t_k equally spaced in arc length from the base
+/// (s_k = k L/(K − 1)), x(s) the equilibrium's nodes interpolated linearly in arc length (thesis eq A.3 divided by K;
+/// RMS = √J). The equilibrium is solved from the straight rod each time, as `magvine run` does, so the objective is a
+/// function of p alone. Its gradient is exact: dJ/dp = −λᵀ ∂g/∂p with H λ = ∂J/∂x at the equilibrium
+/// (rod_hessian_solve), ∂g/∂p from rod_moment_sensitivity and rod_uniform_field_sensitivity through the
+/// parametrisation below.
+///
+/// Parameters p (bounded): per section its direction in the body frame d = (sin θ cos φ, sin θ sin φ, cos θ),
+/// θ ∈ [0, π], φ ∈ [−2π, 2π] (x = d1 along the rod, y = d2 the base normal), then its remanence Br ∈ [min, max] when
+/// the magnitudes are free; then, with a free field, B = |B| (sin θ_B cos φ_B, sin θ_B sin φ_B, cos θ_B) (world),
+/// |B| ∈ [0, max]. The moment per length of an edge in section s is Br_s d_s A/μ0 (the hard-magnetic law), A the
+/// rod's cross-section; an edge belongs to the section that holds its midpoint.
+
+#include <cstdint>
+#include <functional>
+#include <optional>
+#include <string>
+#include <vector>
+
+#include "magvine/core/eigen_types.hpp"
+#include "magvine/robot/rod.hpp"
+
+namespace magvine::design {
+
+/// What the design may change and the shape it aims at (DESIGN.yaml's `design:`; SI).
+struct DesignSpec {
+  int sections = 5;
+  double remanence = 0.125;  ///< |Br| of every section when the magnitudes are fixed [T]
+  /// The magnitudes are free within [min, max] [T] (then `remanence` is unused).
+  std::optional<std::pair<double, double>> remanence_bounds;
+  std::vector<Vec3> target;         ///< ≥ 2 points equally spaced in arc length from the base to the tip [m]
+  std::optional<double> field_max;  ///< the uniform field joins the unknowns, |B| ≤ field_max [T]
+};
+
+/// A design problem: the rod (its moment_per_length is what the design sets), the fixed field (the scene's magnets;
+/// empty with a free field), the free field's start, the cross-section for the hard-magnetic law.
+struct DesignProblem {
+  robot::RodModel model;
+  robot::RodField field;            ///< the fixed field (not with a free one)
+  Vec3 start_field = Vec3::Zero();  ///< a free field's first value [T]
+  double area = 0.0;                ///< the magnetised cross-section [m²]
+  DesignSpec spec;
+  robot::RodSolveOptions solver;
+};
+
+/// Checks a problem: sections within [1, edges] each holding an edge midpoint, remanence and bounds in (0, 3] T
+/// with min ≤ max, a field to act (fixed or free), and a target a rod of this length can lie on: ≥ 2 finite points,
+/// the first at the base, none farther from the base than its arc length, consecutive points no farther apart than
+/// their arc spacing (1 % slack each: the rod is nearly inextensible). InputError naming `where` and the field.
+void check_design_problem(const DesignProblem& problem, const std::string& where);
+
+/// A design: per section its unit direction (body frame) and remanence [T]; the uniform field [T] when free.
+struct Design {
+  std::vector<Vec3> directions;
+  std::vector<double> remanences;
+  std::optional<Vec3> field;
+};
+
+/// The objective and its exact gradient at parameters p (the layout above). Holds the last equilibrium.
+class DesignObjective {
+ public:
+  explicit DesignObjective(const DesignProblem& problem);
+
+  int parameters() const { return m_parameters; }
+  /// Lower and upper bounds of p.
+  VecX lower() const;
+  VecX upper() const;
+  /// p of a design (directions, magnitudes and field as in `design`).
+  VecX parameters_of(const Design& design) const;
+  Design design_of(const VecX& p) const;
+  /// The model with the design's moments and the field it acts in.
+  robot::RodModel model_of(const Design& design) const;
+  robot::RodField field_of(const Design& design) const;
+
+  /// J(p) [m²]; with `gradient`, dJ/dp. Infinite when the equilibrium fails or is unstable (the state is then the
+  /// straight rod). Counts evaluations.
+  double evaluate(const VecX& p, VecX* gradient);
+  /// The residuals r_k = (x(s_k) − t_k)/√K (3K values: |r|² = J) and, with `jacobian`, dr/dp (3K × P) from the
+  /// forward sensitivities dx*/dp = −H⁻¹ ∂g/∂p (one factorisation, one back-substitution per parameter). False when
+  /// the equilibrium fails or is unstable. Counts an evaluation.
+  bool residuals(const VecX& p, VecX& r, MatX* jacobian);
+  /// Whether parameter i is a bounded magnitude (a free remanence, |B|) rather than an angle.
+  bool is_magnitude(int i) const;
+  /// The last evaluation's equilibrium.
+  const robot::RodState& state() const { return m_state; }
+  int evaluations() const { return m_evaluations; }
+  /// The point on the body at each target's arc length, and the largest distance to its target [m].
+  std::vector<Vec3> points_on(const robot::RodState& state) const;
+  double max_error(const robot::RodState& state) const;
+
+ private:
+  /// Solves the equilibrium of p from the straight rod into m_state; false when it fails.
+  bool equilibrium(const VecX& p, Design& design, robot::RodModel& model, robot::RodField& field);
+  /// ∂g/∂p at m_state (6N × P): the moment sensitivities through m̂ = Br d A/μ0, the field's through B(|B|, θ, φ).
+  MatX gradient_sensitivity(const Design& design, const VecX& p, const robot::RodModel& model,
+                            const robot::RodField& field) const;
+  /// Where target k lies on the body: node i and the weight w of node i + 1.
+  std::pair<int, double> at_target(std::size_t k) const;
+
+  const DesignProblem& m_problem;
+  int m_parameters = 0;
+  std::vector<int> m_section_of_edge;
+  robot::RodState m_state;
+  int m_evaluations = 0;
+};
+
+struct DesignOptions {
+  int max_iterations = 100;
+  std::uint64_t seed = 1;  ///< the random first design (directions uniform on the sphere, field start)
+  /// Called after every evaluation: evaluations so far, the best RMS so far [m].
+  std::function<void(int, double)> progress;
+};
+
+struct DesignResult {
+  Design design;
+  robot::RodState state;   ///< the design's equilibrium (from the straight rod: what `magvine run` gives)
+  double rms = 0.0;        ///< [m]
+  double max_error = 0.0;  ///< [m]
+  int iterations = 0;
+  int evaluations = 0;  ///< equilibria solved (each with its adjoint for the gradient optimiser)
+  double runtime_s = 0.0;
+  bool converged = false;  ///< the optimiser's test met (not: the target reached)
+  std::string message;     ///< how it ended
+  /// One equilibrium solved (an evaluation of J, with its adjoint for the gradient optimiser).
+  struct Step {
+    int iteration;  ///< gradient (or Jacobian) evaluations so far; the Bayesian baseline: evaluations
+    int evaluation;
+    double rms;       ///< this evaluation's [m] (infinite where the equilibrium failed)
+    double best_rms;  ///< the best so far [m]
+    double time_s;    ///< since the start
+  };
+  std::vector<Step> history;
+};
+
+/// A random first design (seeded): directions uniform on the sphere, magnitudes mid-range, a free field at half its
+/// bound along a random direction.
+Design random_design(const DesignProblem& problem, std::uint64_t seed);
+
+/// Minimises J by L-BFGS-B (LBFGSpp) with the exact gradient from `start`.
+DesignResult optimise_design(const DesignProblem& problem, const Design& start, const DesignOptions& options);
+
+/// Minimises J as the least-squares problem it is: Levenberg–Marquardt (Eigen's unsupported module, a port of
+/// MINPACK's lmder) with the exact Jacobian of the residuals (DesignObjective::residuals); bounded magnitudes as
+/// lo + (hi − lo)(1 + sin u)/2, the angles free (the spherical map is periodic). One Jacobian per iteration.
+DesignResult least_squares_design(const DesignProblem& problem, const Design& start, const DesignOptions& options);
+
+/// The derivative-free baseline (the thesis's kind, appendix A.1.4): Bayesian optimisation, a Gaussian-process
+/// surrogate of log J (squared-exponential kernel, length scales fitted by marginal likelihood over a grid) and
+/// expected improvement maximised over random candidates, from `initial` random designs; one equilibrium per
+/// evaluation, no gradient. options.max_iterations counts evaluations after the initial ones.
+DesignResult bayesian_design(const DesignProblem& problem, const DesignOptions& options, int initial = 10);
+
+}  // namespace magvine::design

@@ -1,0 +1,417 @@
+#include "magvine/design/design.hpp"
+
+#include <LBFGSB.h>
+
+#include <algorithm>
+#include <cmath>
+#include <limits>
+#include <random>
+#include <stdexcept>
+
+#include "design_internal.hpp"
+#include "magvine/core/error.hpp"
+#include "magvine/core/stopwatch.hpp"
+#include "magvine/core/units.hpp"
+#include "magvine/magnetics/magnetisation.hpp"
+
+namespace magvine::design {
+
+namespace detail {
+
+Vec3 spherical(double theta, double phi) {
+  return {std::sin(theta) * std::cos(phi), std::sin(theta) * std::sin(phi), std::cos(theta)};
+}
+Vec3 spherical_d_theta(double theta, double phi) {
+  return {std::cos(theta) * std::cos(phi), std::cos(theta) * std::sin(phi), -std::sin(theta)};
+}
+Vec3 spherical_d_phi(double theta, double phi) {
+  return {-std::sin(theta) * std::sin(phi), std::sin(theta) * std::cos(phi), 0.0};
+}
+std::pair<double, double> angles_of(const Vec3& d) {
+  const double n = d.norm();
+  if (!(n > 0.0)) return {0.5 * kPi, 0.0};
+  return {std::acos(std::clamp(d.z() / n, -1.0, 1.0)), std::atan2(d.y(), d.x())};
+}
+
+}  // namespace detail
+
+namespace {
+
+constexpr double kReachSlack = 0.01;   // the target may stretch the rod by 1 % (it is nearly inextensible)
+constexpr double kMaxRemanence = 3.0;  // [T], as the scene files' range
+constexpr double kTwoPi = 2.0 * kPi;
+
+/// Per section: θ, φ and (free magnitudes) Br.
+int per_section(const DesignSpec& spec) {
+  return spec.remanence_bounds ? 3 : 2;
+}
+
+}  // namespace
+
+void check_design_problem(const DesignProblem& problem, const std::string& where) {
+  const DesignSpec& spec = problem.spec;
+  const robot::RodModel& m = problem.model;
+  const auto fail = [&](const std::string& key, const std::string& what) {
+    throw InputError(where, 0, "design." + key, what);
+  };
+  if (spec.sections < 1 || spec.sections > m.edges) {
+    fail("sections", "must be within [1, " + std::to_string(m.edges) + "] (the rod's edges; give more nodes)");
+  }
+  if (spec.remanence_bounds) {
+    const auto [lo, hi] = *spec.remanence_bounds;
+    if (!(lo >= 0.0 && hi > 0.0 && hi <= kMaxRemanence)) fail("remanence", "bounds must lie within [0, 3] T, max > 0");
+    if (lo > hi) fail("remanence", "min exceeds max: the bounds exclude every design");
+  } else if (!(spec.remanence > 0.0 && spec.remanence <= kMaxRemanence)) {
+    fail("remanence", "must be within (0, 3] T");
+  }
+  if (spec.field_max) {
+    if (!(*spec.field_max > 0.0 && *spec.field_max <= 10.0)) fail("field.free.max", "must be within (0, 10] T");
+    if (problem.field) fail("field", "a free field replaces the scene's magnets: give at most a uniform field there");
+  } else if (!problem.field) {
+    fail("field", "the scene has no magnets and the field is not free: nothing would move the rod");
+  }
+  if (!(problem.area > 0.0)) fail("sections", "the rod has no cross-section to magnetise");
+  const std::vector<Vec3>& t = spec.target;
+  if (t.size() < 2) fail("target.points", "needs at least 2 points (base to tip)");
+  const double spacing = m.length / static_cast<double>(t.size() - 1);
+  for (std::size_t k = 0; k < t.size(); ++k) {
+    const std::string key = "target.points[" + std::to_string(k) + "]";
+    if (!t[k].allFinite()) fail(key, "must be finite");
+    const double s = spacing * static_cast<double>(k);
+    const double reach = (t[k] - m.base_position).norm();
+    if (reach > s + kReachSlack * m.length) {
+      fail(key, "is " + std::to_string(reach * 1e3) + " mm from the base, beyond the rod's reach at its arc length " +
+                    std::to_string(s * 1e3) + " mm (the points run from the base to the tip, equally spaced)");
+    }
+    if (k > 0 && (t[k] - t[k - 1]).norm() > spacing * (1.0 + kReachSlack)) {
+      fail(key, "is " + std::to_string((t[k] - t[k - 1]).norm() * 1e3) +
+                    " mm from the point before, more than the "
+                    "rod's length between them (" +
+                    std::to_string(spacing * 1e3) + " mm): a target of the wrong length");
+    }
+  }
+  if (m.induced) fail("sections", "a rod with an induced fill cannot be designed (hard magnetisation only)");
+}
+
+DesignObjective::DesignObjective(const DesignProblem& problem) : m_problem(problem) {
+  const DesignSpec& spec = problem.spec;
+  m_parameters = spec.sections * per_section(spec) + (spec.field_max ? 3 : 0);
+  const int n = problem.model.edges;
+  m_section_of_edge.resize(static_cast<std::size_t>(n));
+  for (int j = 0; j < n; ++j) {
+    // The section holding the edge's midpoint (j + ½)h: sections of L/S.
+    const int s = static_cast<int>(std::floor((j + 0.5) * spec.sections / n));
+    m_section_of_edge[static_cast<std::size_t>(j)] = std::min(s, spec.sections - 1);
+  }
+  m_state = robot::straight_rod(problem.model);
+}
+
+VecX DesignObjective::lower() const {
+  VecX out(m_parameters);
+  const DesignSpec& spec = m_problem.spec;
+  int at = 0;
+  for (int s = 0; s < spec.sections; ++s) {
+    out[at++] = 0.0;
+    out[at++] = -kTwoPi;
+    if (spec.remanence_bounds) out[at++] = spec.remanence_bounds->first;
+  }
+  if (spec.field_max) {
+    out[at++] = 0.0;
+    out[at++] = 0.0;
+    out[at++] = -kTwoPi;
+  }
+  return out;
+}
+
+VecX DesignObjective::upper() const {
+  VecX out(m_parameters);
+  const DesignSpec& spec = m_problem.spec;
+  int at = 0;
+  for (int s = 0; s < spec.sections; ++s) {
+    out[at++] = kPi;
+    out[at++] = kTwoPi;
+    if (spec.remanence_bounds) out[at++] = spec.remanence_bounds->second;
+  }
+  if (spec.field_max) {
+    out[at++] = *spec.field_max;
+    out[at++] = kPi;
+    out[at++] = kTwoPi;
+  }
+  return out;
+}
+
+VecX DesignObjective::parameters_of(const Design& design) const {
+  const DesignSpec& spec = m_problem.spec;
+  VecX p(m_parameters);
+  int at = 0;
+  for (int s = 0; s < spec.sections; ++s) {
+    const auto [theta, phi] = detail::angles_of(design.directions[static_cast<std::size_t>(s)]);
+    p[at++] = theta;
+    p[at++] = phi;
+    if (spec.remanence_bounds) p[at++] = design.remanences[static_cast<std::size_t>(s)];
+  }
+  if (spec.field_max) {
+    const Vec3 b = design.field.value_or(Vec3::Zero());
+    const auto [theta, phi] = detail::angles_of(b);
+    p[at++] = b.norm();
+    p[at++] = theta;
+    p[at++] = phi;
+  }
+  return p.cwiseMax(lower()).cwiseMin(upper());
+}
+
+Design DesignObjective::design_of(const VecX& p) const {
+  const DesignSpec& spec = m_problem.spec;
+  Design d;
+  int at = 0;
+  for (int s = 0; s < spec.sections; ++s) {
+    d.directions.push_back(detail::spherical(p[at], p[at + 1]));
+    at += 2;
+    d.remanences.push_back(spec.remanence_bounds ? p[at++] : spec.remanence);
+  }
+  if (spec.field_max) {
+    d.field = p[at] * detail::spherical(p[at + 1], p[at + 2]);
+    at += 3;
+  }
+  return d;
+}
+
+robot::RodModel DesignObjective::model_of(const Design& design) const {
+  robot::RodModel m = m_problem.model;
+  m.moment_per_length.assign(static_cast<std::size_t>(m.edges), Vec3::Zero());
+  for (std::size_t j = 0; j < m.moment_per_length.size(); ++j) {
+    const auto s = static_cast<std::size_t>(m_section_of_edge[j]);
+    m.moment_per_length[j] =
+        magnetics::hard_magnetic_moment<3>(Vec3(design.remanences[s] * design.directions[s]), m_problem.area);
+  }
+  return m;
+}
+
+robot::RodField DesignObjective::field_of(const Design& design) const {
+  if (!design.field) return m_problem.field;
+  const Vec3 b = *design.field;
+  return robot::RodField([b](const Vec3&) { return magnetics::FieldSample{b, Mat3::Zero()}; });
+}
+
+std::pair<int, double> DesignObjective::at_target(std::size_t k) const {
+  const int n = m_problem.model.edges;
+  const double u = static_cast<double>(k) * n / static_cast<double>(m_problem.spec.target.size() - 1);  // in edges
+  const int i = std::min(static_cast<int>(std::floor(u)), n - 1);
+  return {i, u - i};
+}
+
+std::vector<Vec3> DesignObjective::points_on(const robot::RodState& state) const {
+  std::vector<Vec3> out(m_problem.spec.target.size());
+  for (std::size_t k = 0; k < out.size(); ++k) {
+    const auto [i, w] = at_target(k);
+    out[k] = (1.0 - w) * state.x[static_cast<std::size_t>(i)] + w * state.x[static_cast<std::size_t>(i) + 1];
+  }
+  return out;
+}
+
+double DesignObjective::max_error(const robot::RodState& state) const {
+  const std::vector<Vec3> x = points_on(state);
+  double worst = 0.0;
+  for (std::size_t k = 0; k < x.size(); ++k) worst = std::max(worst, (x[k] - m_problem.spec.target[k]).norm());
+  return worst;
+}
+
+bool DesignObjective::is_magnitude(int i) const {
+  const DesignSpec& spec = m_problem.spec;
+  const int stride = per_section(spec);
+  if (i < spec.sections * stride) return spec.remanence_bounds && i % stride == 2;
+  return i == spec.sections * stride;  // |B| (then θ_B, φ_B)
+}
+
+bool DesignObjective::equilibrium(const VecX& p, Design& design, robot::RodModel& model, robot::RodField& field) {
+  ++m_evaluations;
+  design = design_of(p);
+  model = model_of(design);
+  field = field_of(design);
+  // From the straight rod, as `magvine run` solves the scene: J is a function of p alone.
+  m_state = robot::straight_rod(model);
+  return robot::solve_rod_statics(model, field, m_state, m_problem.solver).converged;
+}
+
+MatX DesignObjective::gradient_sensitivity(const Design& design, const VecX& p, const robot::RodModel& model,
+                                           const robot::RodField& field) const {
+  const DesignSpec& spec = m_problem.spec;
+  const int n = model.edges;
+  MatX out = MatX::Zero(6 * n, m_parameters);
+  const MatX by_moment = robot::rod_moment_sensitivity(model, field, m_state);                     // 6N × 3N
+  const double per_tesla = magnetics::hard_magnetic_moment<3>(Vec3::UnitX(), m_problem.area).x();  // A/μ0
+  const int stride = per_section(spec);
+  for (int j = 0; j < n; ++j) {
+    const int s = m_section_of_edge[static_cast<std::size_t>(j)];
+    const int at = s * stride;
+    const auto block = by_moment.middleCols<3>(3 * j);
+    const double br = design.remanences[static_cast<std::size_t>(s)];
+    out.col(at) += br * per_tesla * (block * detail::spherical_d_theta(p[at], p[at + 1]));
+    out.col(at + 1) += br * per_tesla * (block * detail::spherical_d_phi(p[at], p[at + 1]));
+    if (spec.remanence_bounds) out.col(at + 2) += per_tesla * (block * design.directions[static_cast<std::size_t>(s)]);
+  }
+  if (spec.field_max) {
+    const int at = spec.sections * stride;
+    const MatX by_field = robot::rod_uniform_field_sensitivity(model, m_state);  // 6N × 3
+    out.col(at) = by_field * detail::spherical(p[at + 1], p[at + 2]);
+    out.col(at + 1) = p[at] * (by_field * detail::spherical_d_theta(p[at + 1], p[at + 2]));
+    out.col(at + 2) = p[at] * (by_field * detail::spherical_d_phi(p[at + 1], p[at + 2]));
+  }
+  return out;
+}
+
+double DesignObjective::evaluate(const VecX& p, VecX* gradient) {
+  const DesignSpec& spec = m_problem.spec;
+  if (gradient != nullptr) *gradient = VecX::Zero(m_parameters);
+  const double failed = std::numeric_limits<double>::infinity();
+  Design design;
+  robot::RodModel model;
+  robot::RodField field;
+  if (!equilibrium(p, design, model, field)) return failed;
+  const std::vector<Vec3> x = points_on(m_state);
+  const std::vector<Vec3>& t = spec.target;
+  const double k_count = static_cast<double>(t.size());
+  double j_value = 0.0;
+  for (std::size_t k = 0; k < t.size(); ++k) j_value += (x[k] - t[k]).squaredNorm() / k_count;
+  if (gradient == nullptr) return j_value;
+  // ∂J/∂x_i through the interpolation (points_on); the adjoint H λ = ∂J/∂x; dJ/dp = −(∂g/∂p)ᵀ λ.
+  std::vector<Vec3> per_node(static_cast<std::size_t>(model.edges) + 1, Vec3::Zero());
+  for (std::size_t k = 0; k < t.size(); ++k) {
+    const auto [i, w] = at_target(k);
+    const Vec3 r = 2.0 / k_count * (x[k] - t[k]);
+    per_node[static_cast<std::size_t>(i)] += (1.0 - w) * r;
+    per_node[static_cast<std::size_t>(i) + 1] += w * r;
+  }
+  const std::optional<MatX> lambda =
+      robot::rod_hessian_solve(model, field, m_state, robot::rod_position_covector(per_node));
+  if (!lambda) return failed;  // not a stable equilibrium
+  *gradient = -(gradient_sensitivity(design, p, model, field).transpose() * lambda->col(0));
+  return j_value;
+}
+
+bool DesignObjective::residuals(const VecX& p, VecX& r, MatX* jacobian) {
+  const DesignSpec& spec = m_problem.spec;
+  Design design;
+  robot::RodModel model;
+  robot::RodField field;
+  if (!equilibrium(p, design, model, field)) return false;
+  const std::vector<Vec3> x = points_on(m_state);
+  const auto count = static_cast<Eigen::Index>(spec.target.size());
+  const double scale = 1.0 / std::sqrt(static_cast<double>(count));
+  r.resize(3 * count);
+  for (Eigen::Index k = 0; k < count; ++k) {
+    r.segment<3>(3 * k) = scale * (x[static_cast<std::size_t>(k)] - spec.target[static_cast<std::size_t>(k)]);
+  }
+  if (jacobian == nullptr) return true;
+  const std::optional<MatX> dx =
+      robot::rod_hessian_solve(model, field, m_state, -gradient_sensitivity(design, p, model, field));
+  if (!dx) return false;
+  jacobian->setZero(3 * count, m_parameters);
+  for (Eigen::Index k = 0; k < count; ++k) {
+    const auto [i, w] = at_target(static_cast<std::size_t>(k));
+    // Node i's position unknowns sit in block i − 1 (node 0 is clamped).
+    if (i >= 1) jacobian->middleRows<3>(3 * k) += scale * (1.0 - w) * dx->middleRows<3>(6 * (i - 1));
+    jacobian->middleRows<3>(3 * k) += scale * w * dx->middleRows<3>(6 * i);
+  }
+  return true;
+}
+
+Design random_design(const DesignProblem& problem, std::uint64_t seed) {
+  std::mt19937_64 rng(seed);
+  std::normal_distribution<double> normal(0.0, 1.0);
+  const auto on_sphere = [&] {
+    Vec3 v;
+    do {
+      v = Vec3(normal(rng), normal(rng), normal(rng));
+    } while (!(v.norm() > 1e-6));
+    return Vec3(v.normalized());
+  };
+  Design d;
+  const DesignSpec& spec = problem.spec;
+  for (int s = 0; s < spec.sections; ++s) {
+    d.directions.push_back(on_sphere());
+    d.remanences.push_back(spec.remanence_bounds ? 0.5 * (spec.remanence_bounds->first + spec.remanence_bounds->second)
+                                                 : spec.remanence);
+  }
+  if (spec.field_max)
+    d.field = problem.start_field.isZero() ? Vec3(0.5 * *spec.field_max * on_sphere()) : problem.start_field;
+  return d;
+}
+
+DesignResult optimise_design(const DesignProblem& problem, const Design& start, const DesignOptions& options) {
+  const Stopwatch clock;
+  DesignObjective objective(problem);
+  detail::BestTracker best(objective, clock, options.progress);
+  LBFGSpp::LBFGSBParam<double> param;
+  param.m = 10;
+  param.max_iterations = options.max_iterations;
+  // Converged when the projected gradient is below 1e-6 mm²/rad (J in mm²), or J has fallen by less than 1e-10 of
+  // itself over the last 3 iterations.
+  param.epsilon = 1e-6;
+  param.epsilon_rel = 0.0;
+  param.past = 3;
+  param.delta = 1e-10;
+  param.max_linesearch = 40;
+  LBFGSpp::LBFGSBSolver<double> solver(param);
+  const double to_mm2 = 1e6;  // the optimiser sees J in mm² (its tolerances are absolute)
+  const auto f = [&](const VecX& p, VecX& grad) {
+    const double j = objective.evaluate(p, &grad);
+    best.record(p, j);
+    grad *= to_mm2;
+    return std::isfinite(j) ? to_mm2 * j : std::numeric_limits<double>::max();
+  };
+  VecX p = objective.parameters_of(start);
+  double fx = 0.0;
+  DesignResult out;
+  try {
+    out.iterations = solver.minimize(f, p, fx, objective.lower(), objective.upper());
+    out.converged = out.iterations < options.max_iterations;
+    out.message = out.converged ? "converged (the projected gradient or J's decrease below tolerance)"
+                                : "stopped at the iteration limit";
+  } catch (const std::exception& e) {  // LBFGSpp's line search gives up where no descent is left
+    out.iterations = -1;
+    out.converged = false;
+    out.message = std::string("the optimiser stopped: ") + e.what();
+  }
+  best.finish(out);
+  return out;
+}
+
+namespace detail {
+
+BestTracker::BestTracker(DesignObjective& objective, const Stopwatch& clock, std::function<void(int, double)> progress,
+                         bool counts_iterations)
+    : m_objective(objective), m_clock(clock), m_progress(std::move(progress)), m_counts_iterations(counts_iterations) {}
+
+void BestTracker::record(const VecX& p, double j) {
+  const double rms = std::isfinite(j) ? std::sqrt(j) : std::numeric_limits<double>::infinity();
+  if (rms < m_best_rms) {
+    m_best_rms = rms;
+    m_best_p = p;
+    m_best_state = m_objective.state();
+  }
+  const int iteration = m_counts_iterations ? m_iterations : m_objective.evaluations();
+  m_history.push_back({iteration, m_objective.evaluations(), rms, m_best_rms, m_clock.seconds()});
+  if (m_progress) m_progress(m_objective.evaluations(), m_best_rms);
+}
+
+void BestTracker::finish(DesignResult& out) const {
+  out.evaluations = m_objective.evaluations();
+  out.history = m_history;
+  out.runtime_s = m_clock.seconds();
+  if (m_best_p.size() == 0) {
+    out.rms = std::numeric_limits<double>::infinity();
+    out.max_error = std::numeric_limits<double>::infinity();
+    out.message = "no design had an equilibrium: " + out.message;
+    out.converged = false;
+    return;
+  }
+  out.design = m_objective.design_of(m_best_p);
+  out.state = m_best_state;
+  out.rms = m_best_rms;
+  out.max_error = m_objective.max_error(m_best_state);
+}
+
+}  // namespace detail
+
+}  // namespace magvine::design

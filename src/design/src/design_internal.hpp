@@ -1,0 +1,47 @@
+#pragma once
+// Shared by the design optimisers (design.cpp, bayesian.cpp). Private to the design module.
+
+#include <functional>
+#include <limits>
+#include <utility>
+#include <vector>
+
+#include "magvine/core/stopwatch.hpp"
+#include "magvine/design/design.hpp"
+
+namespace magvine::design::detail {
+
+/// The unit vector (sin θ cos φ, sin θ sin φ, cos θ) and its derivatives in θ and φ.
+Vec3 spherical(double theta, double phi);
+Vec3 spherical_d_theta(double theta, double phi);
+Vec3 spherical_d_phi(double theta, double phi);
+/// (θ, φ) of a direction (θ = π/2, φ = 0 for zero).
+std::pair<double, double> angles_of(const Vec3& d);
+
+/// Keeps the best design evaluated so far, the history of evaluations and the progress calls.
+class BestTracker {
+ public:
+  /// `counts_iterations`: the optimiser calls iterate(); otherwise every evaluation is an iteration.
+  BestTracker(DesignObjective& objective, const Stopwatch& clock, std::function<void(int, double)> progress,
+              bool counts_iterations = false);
+  /// After objective.evaluate(p) returned j.
+  void record(const VecX& p, double j);
+  /// An iteration began (a gradient or Jacobian was taken).
+  void iterate() { ++m_iterations; }
+  double best_rms() const { return m_best_rms; }
+  /// Fills the result's design, state, RMS, maximum error, evaluations, history and runtime from the best.
+  void finish(DesignResult& out) const;
+
+ private:
+  DesignObjective& m_objective;
+  const Stopwatch& m_clock;
+  std::function<void(int, double)> m_progress;
+  double m_best_rms = std::numeric_limits<double>::infinity();
+  VecX m_best_p;
+  robot::RodState m_best_state;
+  std::vector<DesignResult::Step> m_history;
+  int m_iterations = 0;
+  bool m_counts_iterations = false;
+};
+
+}  // namespace magvine::design::detail

@@ -1,0 +1,246 @@
+#include "magvine/scene/design_scene.hpp"
+
+#include <cmath>
+#include <nlohmann/json.hpp>
+#include <sstream>
+
+#include "free_space_internal.hpp"
+#include "magvine/core/atomic_file.hpp"
+#include "magvine/core/error.hpp"
+#include "magvine/core/units.hpp"
+#include "magvine/magnetics/field_function.hpp"
+#include "ranges.hpp"
+#include "robot_entries.hpp"
+#include "yaml_reader.hpp"
+
+namespace magvine::scene {
+namespace {
+
+constexpr int kMaxIterations = 100000;
+
+/// The target points: a list of [x, y, z] in file length units, as SI.
+std::vector<Vec3> target_points(const YamlMap& target, const Unit& length) {
+  target.allow_only({"points"});
+  const YAML::Node list = target.node("points");
+  if (!list.IsSequence()) target.fail("points", "must be a list of [x, y, z] points");
+  std::vector<Vec3> out;
+  for (std::size_t k = 0; k < list.size(); ++k) {
+    const std::string path = target.key_path("points[" + std::to_string(k) + "]");
+    const YAML::Node p = list[k];
+    if (!p.IsSequence() || p.size() != 3) target.fail_at(p, path, "must be a point [x, y, z]");
+    Vec3 v;
+    for (int i = 0; i < 3; ++i) {
+      const double x = checked_number(p[static_cast<std::size_t>(i)], target.file(), path);
+      v[i] = checked_quantity(x, length, range::kCoordinate, target.file(), p, path);
+    }
+    out.push_back(v);
+  }
+  return out;
+}
+
+}  // namespace
+
+DesignScene parse_design_scene(const std::string& text, const std::string& file_label) {
+  const YAML::Node root = parse_yaml(text, file_label);
+  DesignScene out;
+  double area = 0.0;
+  out.scene = detail::parse_free_space_root(root, file_label, true, &area);
+  out.file = file_label;
+  out.text = text;
+  const YamlMap top(root, file_label, "");
+  const FileUnits units = file_units(top);
+  out.length_unit = units.len.si;
+  out.seed = seed_of(top, 1);
+  if (out.scene.vine) top.map("robot").fail("kind", "a design needs a rod (kind: rod): vines are not designed");
+  if (!top.has("design")) top.fail("design", "missing required key (the design file's design: section)");
+  const YamlMap d = top.map("design");
+  d.allow_only({"sections", "remanence", "target", "field", "iterations", "method"});
+  design::DesignProblem& p = out.problem;
+  p.model = out.scene.model;
+  p.area = area;
+  p.solver = out.scene.solver;
+  p.spec.sections = static_cast<int>(d.whole("sections", 1, 1000));
+  if (d.has("remanence")) {
+    if (d.node("remanence").IsMap()) {
+      const YamlMap r = d.map("remanence");
+      r.allow_only({"min", "max"});
+      const double lo = r.quantity("min", kTesla, range::kRemanenceBound);
+      const double hi = r.quantity("max", kTesla, range::kRemanenceBound);
+      if (lo > hi) r.fail("min", "exceeds max: the bounds exclude every design");
+      if (!(hi > 0.0)) r.fail("max", "must be > 0");
+      p.spec.remanence_bounds = std::make_pair(lo, hi);
+    } else {
+      p.spec.remanence = d.quantity("remanence", kTesla, range::kRemanenceMagnitude);
+    }
+  }
+  p.spec.target = target_points(d.map("target"), units.len);
+  if (d.has("field")) {
+    const YamlMap f = d.map("field");
+    f.allow_only({"free"});
+    const YamlMap free = f.map("free");
+    free.allow_only({"max"});
+    p.spec.field_max = free.quantity("max", kTesla, range::kUniformFieldBound);
+  }
+  if (d.has("iterations")) out.max_iterations = static_cast<int>(d.whole("iterations", 1, kMaxIterations));
+  if (d.has("method")) {
+    const std::string method = d.text("method");
+    if (method == "least-squares") {
+      out.method = DesignMethod::least_squares;
+    } else if (method == "lbfgsb") {
+      out.method = DesignMethod::lbfgsb;
+    } else if (method == "bayesian") {
+      out.method = DesignMethod::bayesian;
+    } else {
+      d.fail("method", "must be least-squares, lbfgsb or bayesian (got '" + method + "')");
+    }
+  }
+  // The field: the scene's magnets, fixed; or, free, a uniform field that starts at the scene's uniform one.
+  if (out.scene.magnets) {
+    const magnetics::FieldModel& magnets = *out.scene.magnets;
+    if (p.spec.field_max) {
+      for (std::size_t i = 0; i < magnets.size(); ++i) {
+        if (!std::holds_alternative<magnetics::UniformSource>(magnets.sources[i])) {
+          d.fail("field", "a free field is uniform: the scene's magnets may hold uniform fields only (its start)");
+        }
+      }
+      p.start_field = magnetics::field(magnets, magnets.rest_poses, Vec3::Zero());
+      if (p.start_field.norm() > *p.spec.field_max) p.start_field *= *p.spec.field_max / p.start_field.norm();
+    } else {
+      p.field = magnetics::field_function(magnets, magnets.rest_poses);
+    }
+  }
+  design::check_design_problem(p, file_label);
+  return out;
+}
+
+DesignScene load_design_scene(const std::filesystem::path& file) {
+  return parse_design_scene(read_text_file(file.string(), "design file"), file.string());
+}
+
+const char* method_name(DesignMethod m) {
+  switch (m) {
+    case DesignMethod::least_squares:
+      return "least-squares";
+    case DesignMethod::lbfgsb:
+      return "lbfgsb";
+    case DesignMethod::bayesian:
+      return "bayesian";
+  }
+  return "?";
+}
+
+design::DesignResult run_design(const DesignScene& scene, const std::function<void(int, double)>& progress) {
+  design::DesignOptions options;
+  options.max_iterations = scene.max_iterations;
+  options.seed = scene.seed;
+  options.progress = progress;
+  const design::Design start = design::random_design(scene.problem, scene.seed);
+  switch (scene.method) {
+    case DesignMethod::bayesian:
+      return design::bayesian_design(scene.problem, options);
+    case DesignMethod::lbfgsb:
+      return design::optimise_design(scene.problem, start, options);
+    case DesignMethod::least_squares:
+      break;
+  }
+  return design::least_squares_design(scene.problem, start, options);
+}
+
+std::string designed_scene_yaml(const DesignScene& scene, const design::Design& design) {
+  YAML::Node root = YAML::Clone(parse_yaml(scene.text, scene.file));
+  root.remove("design");
+  const double length = scene.problem.model.length / scene.length_unit;  // file units
+  const int sections = scene.problem.spec.sections;
+  YAML::Node list(YAML::NodeType::Sequence);
+  for (int s = 0; s < sections; ++s) {
+    YAML::Node entry(YAML::NodeType::Map);
+    entry["from"] = length * s / sections;
+    entry["to"] = s + 1 == sections ? length : length * (s + 1) / sections;
+    entry["remanence"] = design.remanences[static_cast<std::size_t>(s)];
+    YAML::Node dir(YAML::NodeType::Sequence);
+    for (int i = 0; i < 3; ++i) dir.push_back(design.directions[static_cast<std::size_t>(s)][i]);
+    dir.SetStyle(YAML::EmitterStyle::Flow);
+    entry["direction"] = dir;
+    entry.SetStyle(YAML::EmitterStyle::Flow);
+    list.push_back(entry);
+  }
+  root["robot"]["magnetisation"] = list;
+  if (design.field) {
+    YAML::Node magnets(YAML::NodeType::Sequence);
+    YAML::Node uniform(YAML::NodeType::Map);
+    uniform["kind"] = "uniform";
+    YAML::Node b(YAML::NodeType::Sequence);
+    for (int i = 0; i < 3; ++i) b.push_back((*design.field)[i]);
+    b.SetStyle(YAML::EmitterStyle::Flow);
+    uniform["field"] = b;
+    uniform.SetStyle(YAML::EmitterStyle::Flow);
+    magnets.push_back(uniform);
+    root["magnets"] = magnets;
+  }
+  YAML::Emitter emitter;
+  emitter << root;
+  return "# The rod designed by `magvine design " + scene.file + "` (run it with `magvine run`).\n" +
+         std::string(emitter.c_str()) + "\n";
+}
+
+void write_design_outputs(const DesignScene& scene, const design::DesignResult& result,
+                          const std::filesystem::path& dir) {
+  const auto vec = [](const Vec3& v) { return nlohmann::json::array({v.x(), v.y(), v.z()}); };
+  const design::DesignProblem& p = scene.problem;
+  nlohmann::json j;
+  j["method"] = method_name(scene.method);
+  j["rms_m"] = result.rms;
+  j["max_error_m"] = result.max_error;
+  j["iterations"] = result.iterations;
+  j["evaluations"] = result.evaluations;
+  j["runtime_s"] = result.runtime_s;
+  j["converged"] = result.converged;
+  j["message"] = result.message;
+  j["seed"] = scene.seed;
+  nlohmann::json sections = nlohmann::json::array();
+  const int count = p.spec.sections;
+  for (int s = 0; s < count; ++s) {
+    const auto su = static_cast<std::size_t>(s);
+    sections.push_back({{"from_m", p.model.length * s / count},
+                        {"to_m", p.model.length * (s + 1) / count},
+                        {"direction", vec(result.design.directions[su])},
+                        {"remanence_T", result.design.remanences[su]}});
+  }
+  j["sections"] = sections;
+  if (result.design.field) j["field_T"] = vec(*result.design.field);
+  nlohmann::json history = nlohmann::json::array();
+  for (const design::DesignResult::Step& s : result.history) {
+    history.push_back({{"iteration", s.iteration},
+                       {"evaluation", s.evaluation},
+                       {"rms_m", std::isfinite(s.rms) ? nlohmann::json(s.rms) : nlohmann::json(nullptr)},
+                       {"best_rms_m", std::isfinite(s.best_rms) ? nlohmann::json(s.best_rms) : nlohmann::json(nullptr)},
+                       {"time_s", s.time_s}});
+  }
+  j["history"] = history;
+  create_output_directory(dir);
+  std::ostringstream shape;
+  shape.precision(12);
+  shape << "s_m,x,y,z\n";
+  const double h = p.model.length / p.model.edges;
+  for (std::size_t i = 0; i < result.state.x.size(); ++i) {
+    const Vec3& x = result.state.x[i];
+    shape << static_cast<double>(i) * h << ',' << x.x() << ',' << x.y() << ',' << x.z() << '\n';
+  }
+  std::ostringstream target;
+  target.precision(12);
+  target << "s_m,target_x,target_y,target_z,x,y,z,error_m\n";
+  const design::DesignObjective objective(p);
+  const std::vector<Vec3> on = result.state.x.empty() ? std::vector<Vec3>() : objective.points_on(result.state);
+  for (std::size_t k = 0; k < on.size(); ++k) {
+    const Vec3& t = p.spec.target[k];
+    target << p.model.length * static_cast<double>(k) / static_cast<double>(on.size() - 1) << ',' << t.x() << ','
+           << t.y() << ',' << t.z() << ',' << on[k].x() << ',' << on[k].y() << ',' << on[k].z() << ','
+           << (on[k] - t).norm() << '\n';
+  }
+  write_file_atomically(dir / "shape.csv", shape.str());
+  write_file_atomically(dir / "target.csv", target.str());
+  write_file_atomically(dir / "scene.yaml", designed_scene_yaml(scene, result.design));
+  write_file_atomically(dir / "design.json", j.dump(2) + "\n");
+}
+
+}  // namespace magvine::scene
