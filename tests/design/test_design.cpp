@@ -180,7 +180,7 @@ TEST(Design, BadProblemsNameTheirField) {
   EXPECT_EQ(message(ok), "accepted");
   DesignProblem far = ok;
   far.spec.target.back() = Vec3(0.045, 0, 0);  // the tip 45 mm from the base of a 40 mm rod
-  EXPECT_NE(message(far).find("design.target.points[8]: is 45"), std::string::npos) << message(far);
+  EXPECT_NE(message(far).find("design.target.points[8]: is 45.00 mm"), std::string::npos) << message(far);
   DesignProblem stretched = ok;
   stretched.spec.target[4] = Vec3(0.020, 0.004, 0);  // 6.4 mm from its neighbours, 5 mm of rod between them
   EXPECT_NE(message(stretched).find("the wrong length"), std::string::npos) << message(stretched);

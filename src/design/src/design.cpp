@@ -11,6 +11,7 @@
 #include "design_internal.hpp"
 #include "magvine/core/error.hpp"
 #include "magvine/core/stopwatch.hpp"
+#include "magvine/core/text.hpp"
 #include "magvine/core/units.hpp"
 #include "magvine/magnetics/magnetisation.hpp"
 
@@ -80,14 +81,14 @@ void check_design_problem(const DesignProblem& problem, const std::string& where
     const double s = spacing * static_cast<double>(k);
     const double reach = (t[k] - m.base_position).norm();
     if (reach > s + kReachSlack * m.length) {
-      fail(key, "is " + std::to_string(reach * 1e3) + " mm from the base, beyond the rod's reach at its arc length " +
-                    std::to_string(s * 1e3) + " mm (the points run from the base to the tip, equally spaced)");
+      fail(key, printf_string("is %.2f mm from the base, beyond the rod's reach at its arc length %.2f mm (the points "
+                              "run from the base to the tip, equally spaced)",
+                              reach * 1e3, s * 1e3));
     }
     if (k > 0 && (t[k] - t[k - 1]).norm() > spacing * (1.0 + kReachSlack)) {
-      fail(key, "is " + std::to_string((t[k] - t[k - 1]).norm() * 1e3) +
-                    " mm from the point before, more than the "
-                    "rod's length between them (" +
-                    std::to_string(spacing * 1e3) + " mm): a target of the wrong length");
+      fail(key, printf_string("is %.2f mm from the point before, more than the rod's %.2f mm between them: a target "
+                              "of the wrong length",
+                              (t[k] - t[k - 1]).norm() * 1e3, spacing * 1e3));
     }
   }
   if (m.induced) fail("sections", "a rod with an induced fill cannot be designed (hard magnetisation only)");

@@ -28,6 +28,7 @@ class BestTracker {
   void record(const VecX& p, double j);
   /// An iteration began (a gradient or Jacobian was taken).
   void iterate() { ++m_iterations; }
+  int iterations() const { return m_iterations; }
   double best_rms() const { return m_best_rms; }
   /// Fills the result's design, state, RMS, maximum error, evaluations, history and runtime from the best.
   void finish(DesignResult& out) const;

@@ -27,8 +27,9 @@ struct Residuals : Eigen::DenseFunctor<double> {
     VecX u = p;
     for (Eigen::Index i = 0; i < p.size(); ++i) {
       if (!objective.is_magnitude(static_cast<int>(i))) continue;
+      // A start on a bound would sit where dp/du = 0, and LM could never move it: start within 90 % of the range.
       const double span = hi[i] - lo[i];
-      u[i] = span > 0.0 ? std::asin(std::clamp(2.0 * (p[i] - lo[i]) / span - 1.0, -1.0, 1.0)) : 0.0;
+      u[i] = span > 0.0 ? std::asin(std::clamp(2.0 * (p[i] - lo[i]) / span - 1.0, -0.9, 0.9)) : 0.0;
     }
     return u;
   }
@@ -49,6 +50,7 @@ struct Residuals : Eigen::DenseFunctor<double> {
   }
 
   int df(const VecX& u, MatX& jacobian) {
+    if (best.iterations() >= max_iterations) return -1;  // LM stops (UserAsked)
     best.iterate();
     const VecX p = to_p(u);
     VecX own;
@@ -64,6 +66,7 @@ struct Residuals : Eigen::DenseFunctor<double> {
 
   DesignObjective& objective;
   detail::BestTracker& best;
+  int max_iterations = 100;
   VecX lo;
   VecX hi;
 };
@@ -77,6 +80,7 @@ DesignResult least_squares_design(const DesignProblem& problem, const Design& st
   // MINPACK needs at least as many residuals as unknowns: zeros pad a short target.
   const int values = std::max(3 * static_cast<int>(problem.spec.target.size()), objective.parameters());
   Residuals f(objective, best, values);
+  f.max_iterations = options.max_iterations;
   VecX u = f.to_u(objective.parameters_of(start));
   Eigen::LevenbergMarquardt<Residuals> lm(f);
   // Tolerances: relative changes of 1e-10 in J and in the parameters, and a Jacobian-residual cosine of 1e-12, all
@@ -84,10 +88,10 @@ DesignResult least_squares_design(const DesignProblem& problem, const Design& st
   lm.setFtol(1e-10);
   lm.setXtol(1e-10);
   lm.setGtol(1e-12);
-  lm.setMaxfev(4 * options.max_iterations);
+  lm.setMaxfev(10 * options.max_iterations);  // (the iterations are capped in Residuals::df)
   const Eigen::LevenbergMarquardtSpace::Status status = lm.minimize(u);
   DesignResult out;
-  out.iterations = static_cast<int>(lm.iterations());
+  out.iterations = best.iterations();
   using Eigen::LevenbergMarquardtSpace::Status;
   switch (status) {
     case Status::RelativeReductionTooSmall:
@@ -97,8 +101,11 @@ DesignResult least_squares_design(const DesignProblem& problem, const Design& st
       out.converged = true;
       out.message = "converged (J's relative reduction, the step or the gradient below tolerance)";
       break;
+    case Status::UserAsked:
+      out.message = "stopped at the iteration limit";
+      break;
     case Status::TooManyFunctionEvaluation:
-      out.message = "stopped at the evaluation limit (4 per allowed iteration)";
+      out.message = "stopped at the evaluation limit (10 per allowed iteration)";
       break;
     default:
       out.message = "stopped: no further progress at the equilibria's precision (MINPACK status " +
