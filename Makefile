@@ -54,11 +54,12 @@ demo: build
 
 bench: deps
 	cmake -S . -B $(BUILD) -DCMAKE_BUILD_TYPE=Release -DMAGVINE_BUILD_BENCHMARKS=ON $(CMAKE_FLAGS)
-	cmake --build $(BUILD) -j $(JOBS) --target bench_fields bench_mesh_import bench_contacts bench_rod bench_render bench_centerline
+	cmake --build $(BUILD) -j $(JOBS) --target bench_fields bench_mesh_import bench_contacts bench_rod bench_design bench_render bench_centerline
 	$(BUILD)/tests/bench/bench_fields --benchmark_min_time=0.5
 	$(BUILD)/tests/bench/bench_mesh_import
 	$(BUILD)/tests/bench/bench_contacts --benchmark_min_time=0.5
 	$(BUILD)/tests/bench/bench_rod
+	$(BUILD)/tests/bench/bench_design
 	$(BUILD)/tests/bench/bench_render
 	$(BUILD)/tests/bench/bench_centerline
 
@@ -73,6 +74,8 @@ figures: build
 	$(PYTHON) tools/plot_centerline_study.py docs/figures
 	$(BUILD)/src/cli/magvine validate --out docs/figures
 	$(PYTHON) tools/plot_mechanics.py docs/figures
+	$(BUILD)/src/cli/magvine study design --out docs/figures
+	$(PYTHON) tools/plot_design_study.py docs/figures --out docs/figures/design_study.png
 	sed 's/speed: 0.5}/speed: 0.5, frames: true}/' assets/scenes/bronchial_tree_navigator.yaml \
 	    > $(BUILD)/navigator_frames.yaml
 	$(BUILD)/src/cli/magvine run $(BUILD)/navigator_frames.yaml --out $(BUILD)/navigator_frames

@@ -20,6 +20,7 @@
 #include "magvine/scene/field_map.hpp"
 #include "magvine/studies/field_study.hpp"
 #include "magvine/studies/growth_study.hpp"
+#include "magvine/studies/design_study.hpp"
 #include "magvine/scene/experiment.hpp"
 #include "magvine/scene/trials.hpp"
 #include "magvine/scene/design_scene.hpp"
@@ -130,6 +131,19 @@ int run_study_growth(const std::string& out_dir, bool quick) {
   });
   std::cerr << "magvine study growth: " << out_dir << "/growth_study.csv (tools/plot_growth_study.py " << out_dir
             << ")\n";
+  return 0;
+}
+
+int run_study_design(const std::string& out_dir, int reachable) {
+  studies::run_design_study(out_dir, reachable, [](const studies::DesignStudyRun& r) {
+    std::cerr << printf_string("  %-14s %-13s start %d: RMS %7.3f mm, %4d iterations, %4d evaluations, %6.3f s; "
+                               "2 mm after %d evaluations, 0.5 mm after %d\n",
+                               r.target.c_str(), r.method.c_str(), static_cast<int>(r.start_seed), r.result.rms * 1e3,
+                               r.result.iterations, r.result.evaluations, r.result.runtime_s, r.evaluations_to_2mm,
+                               r.evaluations_to_half_mm);
+  });
+  std::cerr << "magvine study design: " << out_dir << "/design_study.csv, design_history.csv, design_shapes.csv "
+            << "(tools/plot_design_study.py " << out_dir << ")\n";
   return 0;
 }
 

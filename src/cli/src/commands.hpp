@@ -59,6 +59,7 @@ struct MeshGraphArgs {
 int run_mesh_graph(const MeshGraphArgs& args);
 int run_study_centerline(const std::string& out_dir);
 int run_study_growth(const std::string& out_dir, bool quick);
+int run_study_design(const std::string& out_dir, int reachable);
 
 struct RunArgs {
   std::string scene;

@@ -66,6 +66,15 @@ int main(int argc, char** argv) {
   study_growth->add_option("--out", growth_out, "output folder")->required();
   study_growth->add_flag("--quick", growth_quick, "two settings per knob (a check, not a study)");
 
+  std::string design_study_out;
+  int design_study_reachable = 8;
+  auto* study_design = study_cmd->add_subcommand(
+      "design", "computational design of thesis A.1.5.1's catheter: least-squares, L-BFGS-B and Bayesian optimisation "
+                "on reachable and arbitrary targets, RMS against iterations and time (CSV; tools/plot_design_study.py)");
+  study_design->add_option("--out", design_study_out, "output folder")->required();
+  study_design->add_option("--reachable", design_study_reachable, "reachable targets (random designs' shapes)")
+      ->capture_default_str()->check(CLI::Range(0, 1000));
+
   magvine::cli::MeshCheckArgs mesh_check;
   auto* mesh_cmd = app.add_subcommand("mesh", "anatomy mesh tools");
   mesh_cmd->require_subcommand(1);
@@ -150,6 +159,7 @@ int main(int argc, char** argv) {
     if (study_fields->parsed()) return magvine::cli::run_study_field_models(study);
     if (study_meshing->parsed()) return magvine::cli::run_study_phantom_meshing(meshing_out);
     if (study_growth->parsed()) return magvine::cli::run_study_growth(growth_out, growth_quick);
+    if (study_design->parsed()) return magvine::cli::run_study_design(design_study_out, design_study_reachable);
     if (study_centerline->parsed()) return magvine::cli::run_study_centerline(centerline_out);
     if (mesh_check_cmd->parsed()) return magvine::cli::run_mesh_check(mesh_check);
     if (mesh_graph_cmd->parsed()) return magvine::cli::run_mesh_graph(mesh_graph);

@@ -225,13 +225,18 @@ bool DesignObjective::is_magnitude(int i) const {
 }
 
 bool DesignObjective::equilibrium(const VecX& p, Design& design, robot::RodModel& model, robot::RodField& field) {
-  ++m_evaluations;
   design = design_of(p);
   model = model_of(design);
   field = field_of(design);
+  // The same p as the last solve (Levenberg–Marquardt asks for the Jacobian where it has just taken the residuals):
+  // the same equilibrium, not solved or counted again.
+  if (m_solved_p.size() == p.size() && m_solved_p == p) return m_solved_ok;
+  ++m_evaluations;
   // From the straight rod, as `magvine run` solves the scene: J is a function of p alone.
   m_state = robot::straight_rod(model);
-  return robot::solve_rod_statics(model, field, m_state, m_problem.solver).converged;
+  m_solved_ok = robot::solve_rod_statics(model, field, m_state, m_problem.solver).converged;
+  m_solved_p = p;
+  return m_solved_ok;
 }
 
 MatX DesignObjective::gradient_sensitivity(const Design& design, const VecX& p, const robot::RodModel& model,

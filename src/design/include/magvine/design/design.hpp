@@ -78,11 +78,11 @@ class DesignObjective {
   robot::RodField field_of(const Design& design) const;
 
   /// J(p) [m²]; with `gradient`, dJ/dp. Infinite when the equilibrium fails or is unstable (the state is then the
-  /// straight rod). Counts evaluations.
+  /// straight rod). Counts evaluations (the p of the last solve is not solved again).
   double evaluate(const VecX& p, VecX* gradient);
   /// The residuals r_k = (x(s_k) − t_k)/√K (3K values: |r|² = J) and, with `jacobian`, dr/dp (3K × P) from the
   /// forward sensitivities dx*/dp = −H⁻¹ ∂g/∂p (one factorisation, one back-substitution per parameter). False when
-  /// the equilibrium fails or is unstable. Counts an evaluation.
+  /// the equilibrium fails or is unstable. Counts an evaluation as evaluate does.
   bool residuals(const VecX& p, VecX& r, MatX* jacobian);
   /// Whether parameter i is a bounded magnitude (a free remanence, |B|) rather than an angle.
   bool is_magnitude(int i) const;
@@ -106,6 +106,8 @@ class DesignObjective {
   int m_parameters = 0;
   std::vector<int> m_section_of_edge;
   robot::RodState m_state;
+  VecX m_solved_p;  ///< the parameters m_state was solved for
+  bool m_solved_ok = false;
   int m_evaluations = 0;
 };
 

@@ -1,0 +1,84 @@
+// The design's iterations (DESIGN.md target: one design iteration, equilibrium + adjoint, of the 5-section catheter
+// ≤ 5 ms; the thesis's magneticMPM took 20–25 s per evaluation). The catheter of assets/scenes/design_catheter.yaml
+// (40 × Ø4 mm, 40 edges, 5 sections, 20 mT), its S target, a seeded random design; each equilibrium from the straight
+// rod, as the design solves it:
+//   /gradient   J and its adjoint gradient (one equilibrium, one block-LDLT solve);
+//   /jacobian   the residuals and their Jacobian (one equilibrium, one factorisation, a back-substitution per parameter);
+//   /value      J alone (what the Bayesian baseline pays per evaluation);
+//   /design     a whole Levenberg–Marquardt design of the S from that start (counter `evaluations`).
+//
+//   cmake --build build --target bench_design && build/tests/bench/bench_design
+
+#include <benchmark/benchmark.h>
+
+#include <cmath>
+
+#include "magvine/core/units.hpp"
+#include "magvine/design/design.hpp"
+
+namespace {
+
+using namespace magvine;
+using namespace magvine::design;
+
+DesignProblem catheter() {
+  DesignProblem p;
+  p.model = robot::circular_rod(0.040, 0.004, 120e3, 1882.0, 40);
+  p.area = 0.25 * kPi * 0.004 * 0.004;
+  const Vec3 b(0.0, 0.020, 0.0);
+  p.field = robot::RodField([b](const Vec3&) { return magnetics::FieldSample{b, Mat3::Zero()}; });
+  p.spec.sections = 5;
+  p.spec.remanence = 0.125;
+  // The S of design_catheter.yaml [mm].
+  const double s[9][2] = {{0, 0},           {4.8766, 0.9557},   {9.1077, 3.5763},   {12.3964, 7.3240},
+                          {14.7826, 11.7096}, {17.1668, 16.0962}, {20.4526, 19.8466}, {24.6807, 22.4721},
+                          {29.5559, 23.4349}};
+  for (const auto& q : s) p.spec.target.emplace_back(q[0] * 1e-3, q[1] * 1e-3, 0.0);
+  return p;
+}
+
+void gradient(benchmark::State& state) {
+  const DesignProblem p = catheter();
+  DesignObjective o(p);
+  const VecX x = o.parameters_of(random_design(p, 1));
+  VecX g;
+  for (auto _ : state) benchmark::DoNotOptimize(o.evaluate(x, &g));
+}
+
+void jacobian(benchmark::State& state) {
+  const DesignProblem p = catheter();
+  DesignObjective o(p);
+  const VecX x = o.parameters_of(random_design(p, 1));
+  VecX r;
+  MatX j;
+  for (auto _ : state) benchmark::DoNotOptimize(o.residuals(x, r, &j));
+}
+
+void value(benchmark::State& state) {
+  const DesignProblem p = catheter();
+  DesignObjective o(p);
+  const VecX x = o.parameters_of(random_design(p, 1));
+  for (auto _ : state) benchmark::DoNotOptimize(o.evaluate(x, nullptr));
+}
+
+void whole_design(benchmark::State& state) {
+  const DesignProblem p = catheter();
+  int evaluations = 0;
+  double rms = 0.0;
+  for (auto _ : state) {
+    const DesignResult r = least_squares_design(p, random_design(p, 1), {});
+    evaluations = r.evaluations;
+    rms = r.rms;
+  }
+  state.counters["evaluations"] = evaluations;
+  state.counters["rms_mm"] = rms * 1e3;
+}
+
+BENCHMARK(gradient)->Name("design/gradient")->Unit(benchmark::kMillisecond);
+BENCHMARK(jacobian)->Name("design/jacobian")->Unit(benchmark::kMillisecond);
+BENCHMARK(value)->Name("design/value")->Unit(benchmark::kMillisecond);
+BENCHMARK(whole_design)->Name("design/design")->Unit(benchmark::kMillisecond);
+
+}  // namespace
+
+BENCHMARK_MAIN();
