@@ -10,32 +10,35 @@
 #include <filesystem>
 #include <fstream>
 #include <limits>
+#include <nlohmann/json.hpp>
 #include <numeric>
 #include <sstream>
 #include <string>
 #include <vector>
 
-#include <nlohmann/json.hpp>
-
 #include "magvine/anatomy/collision_world.hpp"
-#include "magvine/core/error.hpp"
-#include "magvine/scene/experiment.hpp"
-#include "magvine/scene/navigator.hpp"
-#include "magvine/scene/trials.hpp"
 #include "magvine/config.hpp"
+#include "magvine/core/error.hpp"
 #include "magvine/magnetics/cylinder.hpp"
 #include "magvine/magnetics/field_model.hpp"
+#include "magvine/scene/design_scene.hpp"
+#include "magvine/scene/experiment.hpp"
 #include "magvine/scene/free_space.hpp"
+#include "magvine/scene/navigator.hpp"
+#include "magvine/scene/trials.hpp"
 #include "support/text_file.hpp"
 
 namespace magvine::scene {
 namespace {
 
-const std::filesystem::path kDemo = std::filesystem::path(MAGVINE_SOURCE_DIR) / "assets/scenes/y_bifurcation_fluid_vine.yaml";
+const std::filesystem::path kDemo =
+    std::filesystem::path(MAGVINE_SOURCE_DIR) / "assets/scenes/y_bifurcation_fluid_vine.yaml";
 
 using test::text_of;
 
-std::string demo_text() { return text_of(kDemo); }
+std::string demo_text() {
+  return text_of(kDemo);
+}
 
 /// The InputError a scene text (as "bad.yaml") gives when it is loaded, or "no error"; with `run`, when it is run.
 std::string error_of(const std::string& scene, bool run = false) {
@@ -132,8 +135,9 @@ TEST(Experiment, NavigatorSteersIntoEitherDaughterOfTheYAndToGenerationTwoOfTheT
   const std::filesystem::path dir = std::filesystem::path(MAGVINE_SOURCE_DIR) / "assets/scenes";
   std::ifstream in(kDemo);
   std::string y(std::istreambuf_iterator<char>(in), {});
-  y = replaced(y, "  magnets:\n    - {magnet: 0, keyframes: [{time: 0, position: [90, 250, 0], axis: [0, -1, 0]},\n"
-                  "                              {time: 1, position: [70, 110, 0], axis: [0, -1, 0]}]}",
+  y = replaced(y,
+               "  magnets:\n    - {magnet: 0, keyframes: [{time: 0, position: [90, 250, 0], axis: [0, -1, 0]},\n"
+               "                              {time: 1, position: [70, 110, 0], axis: [0, -1, 0]}]}",
                "  navigator: {target: \"0-1\", magnet: 0, distance: 110}");
   y = replaced(y, "target: {position: [100, 24, 0], tolerance: 6}\n", "");
   const std::filesystem::path y_file = std::filesystem::temp_directory_path() / "magvine_y_navigator.yaml";
@@ -159,7 +163,8 @@ TEST(Experiment, TheNavigatorSteersAPushedMagneticRodIntoEitherDaughterOfTheY) {
   // issue 28, the baseline and the AVX2 builds of the same commit part there), so that run is printed, and only
   // its insertion asserted. The inserted part carries the rod's distal magnetisation (the tip's 20 mm, 13–14 of
   // its 1.5 mm edges, whatever the insertion) and the body has no pressure.
-  const std::filesystem::path scene = std::filesystem::path(MAGVINE_SOURCE_DIR) / "assets/scenes/y_bifurcation_magnetic_rod.yaml";
+  const std::filesystem::path scene =
+      std::filesystem::path(MAGVINE_SOURCE_DIR) / "assets/scenes/y_bifurcation_magnetic_rod.yaml";
   for (const auto& [daughter, side] : {std::pair<const char*, double>{"0-0", 1.0}, {"0-1", -1.0}}) {
     const ExperimentResult r = navigate_to(scene, "target: \"0-0\"", "target: \"" + std::string(daughter) + "\"");
     EXPECT_TRUE(r.success) << daughter;
@@ -169,8 +174,10 @@ TEST(Experiment, TheNavigatorSteersAPushedMagneticRodIntoEitherDaughterOfTheY) {
   }
   std::ifstream in(scene);
   std::string text(std::istreambuf_iterator<char>(in), {});
-  text = replaced(text, "magnets:\n  - {kind: cylinder, diameter: 101.6, length: 101.6, polarisation: 1.48, "
-                        "position: [90, 250, 0], axis: [0, -1, 0]}\n", "");
+  text = replaced(text,
+                  "magnets:\n  - {kind: cylinder, diameter: 101.6, length: 101.6, polarisation: 1.48, "
+                  "position: [90, 250, 0], axis: [0, -1, 0]}\n",
+                  "");
   text = replaced(text, "  navigator: {target: \"0-0\", magnet: 0, distance: 110}", "  tether: [[0, 5], [8, 125]]");
   text += "target: {position: [100, 24, 0], tolerance: 6}\n";
   const ExperimentScene plain = parse_experiment_scene(text, "rod.yaml", MAGVINE_SOURCE_DIR);
@@ -193,8 +200,9 @@ TEST(Experiment, TrialsPerturbEachRunAndGiveTheSameOutcomesOnOneThreadOrTwo) {
   // outcomes in the same order (each trial's perturbation is drawn from its own seed); every trial reaches its
   // daughter (the placement is off by ~2 mm, the pressure by ~0.5 kPa: far inside what the steering tolerates).
   std::string y = demo_text();
-  y = replaced(y, "  magnets:\n    - {magnet: 0, keyframes: [{time: 0, position: [90, 250, 0], axis: [0, -1, 0]},\n"
-                  "                              {time: 1, position: [70, 110, 0], axis: [0, -1, 0]}]}",
+  y = replaced(y,
+               "  magnets:\n    - {magnet: 0, keyframes: [{time: 0, position: [90, 250, 0], axis: [0, -1, 0]},\n"
+               "                              {time: 1, position: [70, 110, 0], axis: [0, -1, 0]}]}",
                "  navigator: {target: \"0-1\", magnet: 0, distance: 110}");
   y = replaced(y, "target: {position: [100, 24, 0], tolerance: 6}\n", "");
   const ExperimentScene scene = parse_experiment_scene(y, "y.yaml", MAGVINE_SOURCE_DIR);
@@ -291,7 +299,9 @@ TEST(Experiment, EveryBundledSceneLoads) {
         !std::filesystem::exists(kDemo.parent_path() / "../../../shared/airways")) {
       continue;  // their meshes are third-party data outside the repository (their tests skip too)
     }
-    if (is_experiment_scene(entry.path())) {
+    if (is_design_scene(entry.path())) {
+      EXPECT_NO_THROW((void)load_design_scene(entry.path()));  // a free-space rod scene plus design:
+    } else if (is_experiment_scene(entry.path())) {
       EXPECT_NO_THROW((void)load_experiment_scene(entry.path()));
       ++experiments;
     } else {
@@ -327,11 +337,10 @@ TEST(Experiment, OutputsCarryTheContractKeys) {
   }
   std::ifstream in(dir / "metrics.json");
   const nlohmann::json m = nlohmann::json::parse(in);
-  for (const char* key : {"success", "time_to_target_s", "final_tip_error_m", "tip_position_m", "everted_length_m",
-                          "tip_path_length_m", "branches_reached", "max_wall_normal_N", "mean_wall_normal_N",
-                          "max_wall_shear_N", "max_contact_pressure_Pa", "max_force_imbalance", "stalls",
-                          "magnet_travel_m", "runtime_s", "real_time_factor",
-                          "converged", "seed"}) {
+  for (const char* key :
+       {"success", "time_to_target_s", "final_tip_error_m", "tip_position_m", "everted_length_m", "tip_path_length_m",
+        "branches_reached", "max_wall_normal_N", "mean_wall_normal_N", "max_wall_shear_N", "max_contact_pressure_Pa",
+        "max_force_imbalance", "stalls", "magnet_travel_m", "runtime_s", "real_time_factor", "converged", "seed"}) {
     EXPECT_TRUE(m.contains(key)) << key;
   }
   // The magnet moves 140 mm towards the axis and 20 mm back along it in the first second, in a straight line: in
@@ -352,8 +361,9 @@ TEST(Experiment, OutputsCarryTheContractKeys) {
   std::ifstream shapes(dir / "shapes.csv");
   std::string line;
   std::getline(shapes, line);
-  EXPECT_EQ(line, "t_s,node,x_m,y_m,z_m,normal_N,shear_N,normal_x_N,normal_y_N,normal_z_N,shear_x_N,shear_y_N,"
-                  "shear_z_N,pressure_Pa");
+  EXPECT_EQ(line,
+            "t_s,node,x_m,y_m,z_m,normal_N,shear_N,normal_x_N,normal_y_N,normal_z_N,shear_x_N,shear_y_N,"
+            "shear_z_N,pressure_Pa");
   std::vector<std::string> rows;
   while (std::getline(shapes, line)) rows.push_back(line);
   ASSERT_EQ(rs.shapes.size(), 6u);
@@ -428,17 +438,20 @@ TEST(Experiment, BadScenesNameTheFileAndKey) {
       replaced(text, "  pressure: [[0, 35]]\n", "  pressure: [[0, 35]]\n  navigator: {target: \"0-7\"}\n");
   expect_error(navigated, "control.navigator.target: no branch '0-7'");  // (and magnet 0 is also keyframed)
   // A magnet inside the body: its rest pose or a keyframe with the Ø101.6 mm EPM on the phantom.
-  expect_error(replaced(text, "position: [90, 250, 0], axis: [0, -1, 0]}\n", "position: [60, 30, 0], axis: [0, -1, 0]}\n"),
-               "magnets[0].position: the magnet would overlap the anatomy");
+  expect_error(
+      replaced(text, "position: [90, 250, 0], axis: [0, -1, 0]}\n", "position: [60, 30, 0], axis: [0, -1, 0]}\n"),
+      "magnets[0].position: the magnet would overlap the anatomy");
   expect_error(replaced(text, "{time: 1, position: [70, 110, 0]", "{time: 1, position: [70, 40, 0]"),
                "control.magnets[0].keyframes[1].position: on its way there");
   // control.navigator.recover retracts a deflated vine: the growth must say at what pressure it inverts.
   const std::string recovering =
-      replaced(text, "  magnets:\n    - {magnet: 0, keyframes: [{time: 0, position: [90, 250, 0], axis: [0, -1, 0]},\n"
-                     "                              {time: 1, position: [70, 110, 0], axis: [0, -1, 0]}]}",
+      replaced(text,
+               "  magnets:\n    - {magnet: 0, keyframes: [{time: 0, position: [90, 250, 0], axis: [0, -1, 0]},\n"
+               "                              {time: 1, position: [70, 110, 0], axis: [0, -1, 0]}]}",
                "  navigator: {target: \"0-1\", magnet: 0, recover: {retries: 2}}");
-  expect_error(recovering, "control.navigator.recover.retries: the navigator retracts a deflated vine: set "
-                           "growth.retraction_pressure");
+  expect_error(recovering,
+               "control.navigator.recover.retries: the navigator retracts a deflated vine: set "
+               "growth.retraction_pressure");
   const std::string retractable =
       replaced(recovering, "growth: {yield_pressure: 20}", "growth: {yield_pressure: 20, retraction_pressure: 5}");
   expect_error(replaced(retractable, "retries: 2", "retries: 1.5"),
@@ -481,11 +494,11 @@ TEST(Experiment, GamepadCommandsBecomeTheSameKeyframesAsWrittenOut) {
                   "move: [-20, -140, 0]}\n    - {time: 2, pressure: -5}\n    - {time: 3, over: 2, grow: 20}\n"
                   "    - {time: 4, rotate: {axis: [0, 0, 1], angle: 90}}");
   const ExperimentScene c = parse_experiment_scene(more, "c.yaml", MAGVINE_SOURCE_DIR);
-  EXPECT_DOUBLE_EQ(c.pressure.at(1.0), 35e3);      // robot.pressure until the command
-  EXPECT_DOUBLE_EQ(c.pressure.at(2.25), 32.5e3);   // half way down the 0.5 s ramp
+  EXPECT_DOUBLE_EQ(c.pressure.at(1.0), 35e3);     // robot.pressure until the command
+  EXPECT_DOUBLE_EQ(c.pressure.at(2.25), 32.5e3);  // half way down the 0.5 s ramp
   EXPECT_DOUBLE_EQ(c.pressure.at(9.0), 30e3);
   ASSERT_TRUE(c.tether.has_value());
-  EXPECT_DOUBLE_EQ(c.tether->at(0.0), 5e-3);       // the initial everted length
+  EXPECT_DOUBLE_EQ(c.tether->at(0.0), 5e-3);  // the initial everted length
   EXPECT_DOUBLE_EQ(c.tether->at(4.0), 15e-3);
   EXPECT_DOUBLE_EQ(c.tether->at(6.0), 25e-3);
   const MagnetKeyframe turned = c.magnet_keyframes[0].back();
@@ -519,8 +532,8 @@ TEST(Experiment, ASwingAcrossAnObstacleDoesNotCarryTheBodyThroughIt) {
   const std::filesystem::path file = std::filesystem::path(MAGVINE_SOURCE_DIR) / "assets/scenes/s_bend_gamepad.yaml";
   std::ifstream in(file);
   const std::string text(std::istreambuf_iterator<char>(in), {});
-  const ExperimentScene scene = parse_experiment_scene(
-      replaced(text, "move: [0, 215, 0]}", "move: [-10, 215, 0]}"), file.string(), file.parent_path());
+  const ExperimentScene scene = parse_experiment_scene(replaced(text, "move: [0, 215, 0]}", "move: [-10, 215, 0]}"),
+                                                       file.string(), file.parent_path());
   const ExperimentResult r = run_experiment(scene);
   const anatomy::CollisionWorld& world = scene.anatomy->world;
   for (const ExperimentSample& s : r.samples) {
@@ -611,8 +624,8 @@ TEST(Experiment, TheNavigatorDeflatesTheSkinVineAtTheCarinaAndSteersItIntoAMainB
   // assets/scenes/bronchial_tree_skin_navigator.yaml: the navigator's pressure regulation and gradient mode for a
   // magnetic skin. Asserted: the pressure held at 1 kPa for 2 s exactly once (at the carina, the only junction before
   // 0-0's end), at 12 kPa otherwise, and the tip pulled to the magnet's side of the carina (+x). Whether it then
-  // reaches 0-0's end turns on round-off (1 of 4 perturbed trials does, none towards 0-1: docs/experiments.md), so it is printed,
-  // not asserted.
+  // reaches 0-0's end turns on round-off (1 of 4 perturbed trials does, none towards 0-1: docs/experiments.md), so it
+  // is printed, not asserted.
   const std::filesystem::path file =
       std::filesystem::path(MAGVINE_SOURCE_DIR) / "assets/scenes/bronchial_tree_skin_navigator.yaml";
   const ExperimentScene scene = load_experiment_scene(file);
@@ -635,7 +648,7 @@ TEST(Experiment, TheNavigatorDeflatesTheSkinVineAtTheCarinaAndSteersItIntoAMainB
               1e3 * r.final_state.tip().y(), 1e3 * r.final_state.tip().z());
   EXPECT_EQ(drops, 1);
   EXPECT_NEAR(low_to - low_from, 2.0, 0.1 + 1e-9);  // steps of 0.1 s
-  EXPECT_GT(r.final_state.tip().x(), 2e-3);  // towards 0-0 (+x)
+  EXPECT_GT(r.final_state.tip().x(), 2e-3);         // towards 0-0 (+x)
 }
 
 TEST(Experiment, TheNavigatorsTorqueModeTurnsASkinTowardsTheAimAndItsGradientModeAlignsTheField) {
@@ -670,10 +683,11 @@ TEST(Experiment, TheNavigatorsTorqueModeTurnsASkinTowardsTheAimAndItsGradientMod
   const MagnetKeyframe turned = navigate(nav, path, tip, frame, Vec3::UnitY(), 0.0, Vec3::Zero(), line);
   const Vec3 b_turn = field_at_tip(turned);
   const Vec3 omega(0.0, -1.0, 0.0);
-  std::printf("  gradient mode: |B| %.1f mT, %.1f deg from m; torque mode: |B| %.1f mT, %.1f deg from m, m x B %.1f "
-              "deg from the turning axis\n",
-              1e3 * b_pull.norm(), degrees(b_pull, m), 1e3 * b_turn.norm(), degrees(b_turn, m),
-              degrees(m.cross(b_turn), omega));
+  std::printf(
+      "  gradient mode: |B| %.1f mT, %.1f deg from m; torque mode: |B| %.1f mT, %.1f deg from m, m x B %.1f "
+      "deg from the turning axis\n",
+      1e3 * b_pull.norm(), degrees(b_pull, m), 1e3 * b_turn.norm(), degrees(b_turn, m),
+      degrees(m.cross(b_turn), omega));
   EXPECT_LT(degrees(b_pull, m), 10.0);
   EXPECT_NEAR(degrees(b_turn, m), 90.0, 10.0);
   EXPECT_LT(degrees(m.cross(b_turn), omega), 10.0);
@@ -684,13 +698,13 @@ TEST(Experiment, TheNavigatorsTorqueModeTurnsASkinTowardsTheAimAndItsGradientMod
   const MagnetKeyframe along_axis_pull = navigate(nav, path, tip, frame, Vec3::UnitZ(), 0.0, Vec3::Zero(), line);
   EXPECT_TRUE(along_axis.axis.isApprox(along_axis_pull.axis, 1e-12));
   // A scene asks for it by name, for a skin only.
-  const std::string text = text_of(std::filesystem::path(MAGVINE_SOURCE_DIR) /
-                                   "assets/scenes/bronchial_tree_skin_navigator.yaml");
+  const std::string text =
+      text_of(std::filesystem::path(MAGVINE_SOURCE_DIR) / "assets/scenes/bronchial_tree_skin_navigator.yaml");
   const std::string wrong = error_of(replaced(text, "lateral: 0.7}", "lateral: 0.7, mode: twist}"));
   EXPECT_NE(wrong.find("control.navigator.mode: must be gradient or torque"), std::string::npos) << wrong;
-  const std::string fluid = error_of(replaced(text_of(std::filesystem::path(MAGVINE_SOURCE_DIR) /
-                                                      "assets/scenes/bronchial_tree_generation4.yaml"),
-                                              "boost_pressure: 42\n", "boost_pressure: 42\n    mode: torque\n"));
+  const std::string fluid = error_of(
+      replaced(text_of(std::filesystem::path(MAGVINE_SOURCE_DIR) / "assets/scenes/bronchial_tree_generation4.yaml"),
+               "boost_pressure: 42\n", "boost_pressure: 42\n    mode: torque\n"));
   EXPECT_NE(fluid.find("control.navigator.mode: steers a magnetic skin (robot.skin)"), std::string::npos) << fluid;
 }
 
@@ -842,8 +856,8 @@ TEST(Experiment, TheNavigatorBacksTheVineOutOfAWrongBranchAndGrowsItAgain) {
   aimed.perturbation.magnet_position_sd = 30e-3;
   ExperimentScene scene = perturbed(aimed, 1 * 1000003ULL + 1 * 10007ULL + 2);
   const auto describe = [](const char* label, const ExperimentResult& r) {
-    std::printf("  %s: %s at %.2f s, %.0f mm everted, %d retraction(s)\n", label,
-                r.success ? "reached" : "not reached", r.time_to_target, 1e3 * r.samples.back().length, r.recoveries);
+    std::printf("  %s: %s at %.2f s, %.0f mm everted, %d retraction(s)\n", label, r.success ? "reached" : "not reached",
+                r.time_to_target, 1e3 * r.samples.back().length, r.recoveries);
     for (const RunEvent& e : r.events) {
       if (e.kind != EventKind::kRecover && e.kind != EventKind::kBlocked) continue;
       std::printf("    %.2f s %s: %s\n", e.time, std::string(event_name(e.kind)).c_str(), e.detail.c_str());
@@ -864,13 +878,14 @@ TEST(Experiment, TheNavigatorBacksTheVineOutOfAWrongBranchAndGrowsItAgain) {
   EXPECT_FALSE(r.success);
   EXPECT_EQ(r.recoveries, 3);
   bool wrong = false;
-  double peak = 0.0;     // the everted length when the first retraction began
-  double lowest = 1.0;   // and where it ended
+  double peak = 0.0;    // the everted length when the first retraction began
+  double lowest = 1.0;  // and where it ended
   bool retracting = false;
   bool first_done = false;
   double previous = scene.vine.length;
   for (const ExperimentSample& s : r.samples) {
-    wrong = wrong || (s.branch >= 0 && scene.anatomy->graph->branches[static_cast<std::size_t>(s.branch)].name == "0-1-1");
+    wrong =
+        wrong || (s.branch >= 0 && scene.anatomy->graph->branches[static_cast<std::size_t>(s.branch)].name == "0-1-1");
     if (s.length < previous) {
       EXPECT_LE(s.pressure, 5e3) << s.time << " s";
       if (!retracting && !first_done) peak = previous;
@@ -977,7 +992,8 @@ void expect_reaches(const ExperimentScene& scene, const std::string& target, con
   std::cout << "[ " << label << " ] " << target << ": " << (r.success ? "reached" : "NOT reached") << " at "
             << r.time_to_target << " s, " << 1e3 * r.samples.back().length << " mm everted, " << r.events.size()
             << " events, " << r.runtime_s << " s of computing\n";
-  for (const auto& e : r.events) std::cout << "   " << e.time << " s " << event_name(e.kind) << ": " << e.detail << "\n";
+  for (const auto& e : r.events)
+    std::cout << "   " << e.time << " s " << event_name(e.kind) << ": " << e.detail << "\n";
   EXPECT_TRUE(r.success) << target;
 }
 
@@ -1029,12 +1045,14 @@ TEST(Experiment, ANavigatorTargetGivenAsAPointSnapsToTheNearestBranchAndTheMetri
   ASSERT_TRUE(b);
   const auto& branch = by_name.anatomy->graph->branches[static_cast<std::size_t>(*b)];
   const Vec3 mid = by_name.anatomy->graph->nodes[branch.nodes[branch.nodes.size() / 2]].position;
-  const Vec3 axis = (by_name.anatomy->graph->nodes[branch.nodes.back()].position - by_name.anatomy->graph->nodes[branch.nodes.front()].position).normalized();
+  const Vec3 axis = (by_name.anatomy->graph->nodes[branch.nodes.back()].position -
+                     by_name.anatomy->graph->nodes[branch.nodes.front()].position)
+                        .normalized();
   const Vec3 point = mid + 3e-3 * axis.unitOrthogonal();
   std::ostringstream target;
   target << "target: [" << 1e3 * point.x() << ", " << 1e3 * point.y() << ", " << 1e3 * point.z() << "]";
-  ExperimentScene scene = parse_experiment_scene(replaced(text, "target: \"0-0-1\"", target.str()), file.string(),
-                                                 file.parent_path());
+  ExperimentScene scene =
+      parse_experiment_scene(replaced(text, "target: \"0-0-1\"", target.str()), file.string(), file.parent_path());
   scene.videos.clear();  // the demo scene films itself; not needed here
   ASSERT_TRUE(scene.navigator);
   EXPECT_EQ(scene.navigator->target, "0-0-1");
@@ -1048,8 +1066,9 @@ TEST(Experiment, ANavigatorTargetGivenAsAPointSnapsToTheNearestBranchAndTheMetri
   std::ifstream metrics_file(dir / "metrics.json");
   const auto m = nlohmann::json::parse(metrics_file);
   std::cout << "[ point target ] reached at " << r.time_to_target << " s; generation " << m["generation_reached"]
-            << ", progress " << m["path_progress"] << ", tip to centreline " << 1e3 * m["tip_to_centreline_m"].get<double>()
-            << " mm (mean " << 1e3 * m["mean_tip_to_centreline_m"].get<double>() << " mm)\n";
+            << ", progress " << m["path_progress"] << ", tip to centreline "
+            << 1e3 * m["tip_to_centreline_m"].get<double>() << " mm (mean "
+            << 1e3 * m["mean_tip_to_centreline_m"].get<double>() << " mm)\n";
   EXPECT_EQ(m["generation_reached"], 2);
   // Success puts the tip within 1.5 radii of the snapped point, which lies about half-way along 0-0-1.
   EXPECT_GT(m["path_progress"].get<double>(), 0.8);

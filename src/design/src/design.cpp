@@ -50,48 +50,61 @@ int per_section(const DesignSpec& spec) {
 }  // namespace
 
 void check_design_problem(const DesignProblem& problem, const std::string& where) {
+  if (const std::optional<DesignProblemIssue> issue = design_problem_issue(problem)) {
+    throw InputError(where, 0, "design." + issue->key, issue->what);
+  }
+}
+
+std::optional<DesignProblemIssue> design_problem_issue(const DesignProblem& problem) {
   const DesignSpec& spec = problem.spec;
   const robot::RodModel& m = problem.model;
-  const auto fail = [&](const std::string& key, const std::string& what) {
-    throw InputError(where, 0, "design." + key, what);
+  struct Found {
+    DesignProblemIssue issue;
   };
-  if (spec.sections < 1 || spec.sections > m.edges) {
-    fail("sections", "must be within [1, " + std::to_string(m.edges) + "] (the rod's edges; give more nodes)");
-  }
-  if (spec.remanence_bounds) {
-    const auto [lo, hi] = *spec.remanence_bounds;
-    if (!(lo >= 0.0 && hi > 0.0 && hi <= kMaxRemanence)) fail("remanence", "bounds must lie within [0, 3] T, max > 0");
-    if (lo > hi) fail("remanence", "min exceeds max: the bounds exclude every design");
-  } else if (!(spec.remanence > 0.0 && spec.remanence <= kMaxRemanence)) {
-    fail("remanence", "must be within (0, 3] T");
-  }
-  if (spec.field_max) {
-    if (!(*spec.field_max > 0.0 && *spec.field_max <= 10.0)) fail("field.free.max", "must be within (0, 10] T");
-    if (problem.field) fail("field", "a free field replaces the scene's magnets: give at most a uniform field there");
-  } else if (!problem.field) {
-    fail("field", "the scene has no magnets and the field is not free: nothing would move the rod");
-  }
-  if (!(problem.area > 0.0)) fail("sections", "the rod has no cross-section to magnetise");
-  const std::vector<Vec3>& t = spec.target;
-  if (t.size() < 2) fail("target.points", "needs at least 2 points (base to tip)");
-  const double spacing = m.length / static_cast<double>(t.size() - 1);
-  for (std::size_t k = 0; k < t.size(); ++k) {
-    const std::string key = "target.points[" + std::to_string(k) + "]";
-    if (!t[k].allFinite()) fail(key, "must be finite");
-    const double s = spacing * static_cast<double>(k);
-    const double reach = (t[k] - m.base_position).norm();
-    if (reach > s + kReachSlack * m.length) {
-      fail(key, printf_string("is %.2f mm from the base, beyond the rod's reach at its arc length %.2f mm (the points "
-                              "run from the base to the tip, equally spaced)",
-                              reach * 1e3, s * 1e3));
+  const auto fail = [&](const std::string& key, const std::string& what) { throw Found{{key, what}}; };
+  try {
+    if (spec.sections < 1 || spec.sections > m.edges) {
+      fail("sections", "must be within [1, " + std::to_string(m.edges) + "] (the rod's edges; give more nodes)");
     }
-    if (k > 0 && (t[k] - t[k - 1]).norm() > spacing * (1.0 + kReachSlack)) {
-      fail(key, printf_string("is %.2f mm from the point before, more than the rod's %.2f mm between them: a target "
-                              "of the wrong length",
-                              (t[k] - t[k - 1]).norm() * 1e3, spacing * 1e3));
+    if (spec.remanence_bounds) {
+      const auto [lo, hi] = *spec.remanence_bounds;
+      if (!(lo >= 0.0 && hi > 0.0 && hi <= kMaxRemanence))
+        fail("remanence", "bounds must lie within [0, 3] T, max > 0");
+      if (lo > hi) fail("remanence", "min exceeds max: the bounds exclude every design");
+    } else if (!(spec.remanence > 0.0 && spec.remanence <= kMaxRemanence)) {
+      fail("remanence", "must be within (0, 3] T");
     }
+    if (spec.field_max) {
+      if (!(*spec.field_max > 0.0 && *spec.field_max <= 10.0)) fail("field.free.max", "must be within (0, 10] T");
+      if (problem.field) fail("field", "a free field replaces the scene's magnets: give at most a uniform field there");
+    } else if (!problem.field) {
+      fail("field", "the scene has no magnets and the field is not free: nothing would move the rod");
+    }
+    if (!(problem.area > 0.0)) fail("sections", "the rod has no cross-section to magnetise");
+    const std::vector<Vec3>& t = spec.target;
+    if (t.size() < 2) fail("target.points", "needs at least 2 points (base to tip)");
+    const double spacing = m.length / static_cast<double>(t.size() - 1);
+    for (std::size_t k = 0; k < t.size(); ++k) {
+      const std::string key = "target.points[" + std::to_string(k) + "]";
+      if (!t[k].allFinite()) fail(key, "must be finite");
+      const double s = spacing * static_cast<double>(k);
+      const double reach = (t[k] - m.base_position).norm();
+      if (reach > s + kReachSlack * m.length) {
+        fail(key, printf_string("is %.2f mm from the base (robot.base.position), beyond the rod's reach at its arc "
+                                "length %.2f mm (the points run from the base to the tip, equally spaced)",
+                                reach * 1e3, s * 1e3));
+      }
+      if (k > 0 && (t[k] - t[k - 1]).norm() > spacing * (1.0 + kReachSlack)) {
+        fail(key, printf_string("is %.2f mm from the point before, more than the rod's %.2f mm between them: a target "
+                                "of the wrong length",
+                                (t[k] - t[k - 1]).norm() * 1e3, spacing * 1e3));
+      }
+    }
+    if (m.induced) fail("sections", "a rod with an induced fill cannot be designed (hard magnetisation only)");
+  } catch (const Found& found) {
+    return found.issue;
   }
-  if (m.induced) fail("sections", "a rod with an induced fill cannot be designed (hard magnetisation only)");
+  return std::nullopt;
 }
 
 DesignObjective::DesignObjective(const DesignProblem& problem) : m_problem(problem) {

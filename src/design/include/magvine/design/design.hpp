@@ -54,6 +54,14 @@ struct DesignProblem {
 /// their arc spacing (1 % slack each: the rod is nearly inextensible). InputError naming `where` and the field.
 void check_design_problem(const DesignProblem& problem, const std::string& where);
 
+/// What check_design_problem refuses: the key under `design.` ("sections", "target.points[3]", ...) and why.
+struct DesignProblemIssue {
+  std::string key;
+  std::string what;
+};
+/// The first issue check_design_problem would throw for, or none (a file parser names the key's line).
+std::optional<DesignProblemIssue> design_problem_issue(const DesignProblem& problem);
+
 /// A design: per section its unit direction (body frame) and remanence [T]; the uniform field [T] when free.
 struct Design {
   std::vector<Vec3> directions;

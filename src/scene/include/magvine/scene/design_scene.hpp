@@ -30,6 +30,9 @@ struct DesignScene {
   double length_unit = 1e-3;  ///< one file length unit [m]
 };
 
+/// Whether `file` is a design file (YAML with a top-level `design:`); false for anything unreadable.
+bool is_design_scene(const std::filesystem::path& file);
+
 /// Reads and checks a design file; InputError (exit 2) naming the file, line and key otherwise.
 DesignScene load_design_scene(const std::filesystem::path& file);
 DesignScene parse_design_scene(const std::string& text, const std::string& file_label);
