@@ -42,6 +42,30 @@ assert abs(rms - d['rms_m']) < 1e-9, (rms, d['rms_m'])
   expect_rc(${rc} 0 "design ${case} outputs: ${err}")
 endforeach()
 
+# Follow-the-leader (thesis A.1.5.2): the bundled insertion design, eight steps with a field of at most 10 mT each;
+# RMS over all steps within the issue's 1 mm (measured 0.25 mm); the fully inserted scene reproduces the last step.
+execute_process(COMMAND ${MAGVINE} design ${SRC}/assets/scenes/design_insertion.yaml --out ${WORK}/insertion
+                RESULT_VARIABLE rc ERROR_VARIABLE err)
+expect_rc(${rc} 0 "insertion design: ${err}")
+execute_process(COMMAND ${MAGVINE} run ${WORK}/insertion/scene.yaml --out ${WORK}/insertion_run
+                RESULT_VARIABLE rc ERROR_VARIABLE err)
+expect_rc(${rc} 0 "run of the inserted scene: ${err}")
+execute_process(COMMAND ${PYTHON} -c "
+import csv, json, math
+d = json.load(open('${WORK}/insertion/design.json'))
+ins = d['insertion']
+assert ins['steps'] == 8 and len(ins['fields_T']) == 8 and len(ins['step_rms_m']) == 8
+assert all(math.hypot(*b) <= 0.010 * (1 + 1e-12) for b in ins['fields_T']), ins['fields_T']
+assert d['rms_m'] <= 1e-3, d['rms_m']
+rows = list(csv.DictReader(open('${WORK}/insertion/insertion.csv')))
+assert sorted({int(r['step']) for r in rows}) == list(range(1, 9))
+assert len([r for r in rows if r['step'] == '8']) == 57
+design = [list(map(float, r)) for r in list(csv.reader(open('${WORK}/insertion/shape.csv')))[1:]]
+run = [list(map(float, r)) for r in list(csv.reader(open('${WORK}/insertion_run/shape.csv')))[1:]]
+assert max(math.dist(a[1:], b[1:]) for a, b in zip(design, run)) < 1e-6
+" RESULT_VARIABLE rc ERROR_VARIABLE err)
+expect_rc(${rc} 0 "insertion outputs: ${err}")
+
 # Bad design files: exit 2, one line naming the file and the key, no output folder.
 string(REPLACE "[29.5559, 23.4349, 0]" "[45, 0, 0]" far "${design}")
 string(REPLACE "[14.7826, 11.7096, 0]" "[12, 12, 0]" stretched "${design}")

@@ -101,6 +101,12 @@ std::optional<DesignProblemIssue> design_problem_issue(const DesignProblem& prob
       }
     }
     if (m.induced) fail("sections", "a rod with an induced fill cannot be designed (hard magnetisation only)");
+    if (problem.insertion_steps < 0 || problem.insertion_steps > m.edges) {
+      fail("insertion.steps", "must be within [1, " + std::to_string(m.edges) + "] (the rod's edges)");
+    }
+    if (problem.insertion_steps > 0 && !spec.field_max) {
+      fail("insertion.steps", "a follow-the-leader insertion needs design.field.free (one field per step)");
+    }
   } catch (const Found& found) {
     return found.issue;
   }
@@ -109,15 +115,43 @@ std::optional<DesignProblemIssue> design_problem_issue(const DesignProblem& prob
 
 DesignObjective::DesignObjective(const DesignProblem& problem) : m_problem(problem) {
   const DesignSpec& spec = problem.spec;
-  m_parameters = spec.sections * per_section(spec) + (spec.field_max ? 3 : 0);
-  const int n = problem.model.edges;
-  m_section_of_edge.resize(static_cast<std::size_t>(n));
-  for (int j = 0; j < n; ++j) {
-    // The section holding the edge's midpoint (j + ½)h: sections of L/S.
-    const int s = static_cast<int>(std::floor((j + 0.5) * spec.sections / n));
-    m_section_of_edge[static_cast<std::size_t>(j)] = std::min(s, spec.sections - 1);
+  const int steps = problem.insertion_steps;
+  m_fields = spec.field_max ? std::max(1, steps) : 0;
+  m_parameters = spec.sections * per_section(spec) + 3 * m_fields;
+  const robot::RodModel& full = problem.model;
+  const int n = full.edges;
+  const std::size_t k_count = spec.target.size();
+  const double spacing = full.length / static_cast<double>(k_count - 1);
+  const int configurations = std::max(1, steps);
+  for (int c = 0; c < configurations; ++c) {
+    Configuration conf;
+    // Follow-the-leader: step c + 1 of `steps` has the distal (c + 1)/steps of the rod inserted (its distal end went
+    // in first), with about the full rod's edge length; statics: the whole rod.
+    const double inserted = steps > 0 ? full.length * (c + 1) / steps : full.length;
+    const int edges = steps > 0 ? std::max(1, static_cast<int>(std::lround(n * inserted / full.length))) : n;
+    conf.model = full;
+    conf.model.length = inserted;
+    conf.model.edges = edges;
+    conf.model.moment_per_length.clear();
+    const double h = inserted / edges;
+    for (int j = 0; j < edges; ++j) {
+      // The section holding the edge's midpoint, in the material's own coordinate from the proximal end.
+      const double material = full.length - inserted + (j + 0.5) * h;
+      const int section = static_cast<int>(std::floor(material * spec.sections / full.length));
+      conf.section_of_edge.push_back(std::clamp(section, 0, spec.sections - 1));
+    }
+    for (std::size_t k = 0; k < k_count; ++k) {
+      const double s = spacing * static_cast<double>(k);
+      if (s > inserted * (1.0 + 1e-9)) break;
+      const double u = std::min(s / h, static_cast<double>(edges));  // arc length in edges
+      const int i = std::min(static_cast<int>(std::floor(u)), edges - 1);
+      conf.targets.push_back({k, i, u - i});
+    }
+    conf.field = spec.field_max ? (steps > 0 ? c : 0) : -1;
+    conf.state = robot::straight_rod(conf.model);
+    m_target_count += conf.targets.size();
+    m_configurations.push_back(std::move(conf));
   }
-  m_state = robot::straight_rod(problem.model);
 }
 
 VecX DesignObjective::lower() const {
@@ -129,7 +163,7 @@ VecX DesignObjective::lower() const {
     out[at++] = -kTwoPi;
     if (spec.remanence_bounds) out[at++] = spec.remanence_bounds->first;
   }
-  if (spec.field_max) {
+  for (int f = 0; f < m_fields; ++f) {
     out[at++] = 0.0;
     out[at++] = 0.0;
     out[at++] = -kTwoPi;
@@ -146,12 +180,16 @@ VecX DesignObjective::upper() const {
     out[at++] = kTwoPi;
     if (spec.remanence_bounds) out[at++] = spec.remanence_bounds->second;
   }
-  if (spec.field_max) {
+  for (int f = 0; f < m_fields; ++f) {
     out[at++] = *spec.field_max;
     out[at++] = kPi;
     out[at++] = kTwoPi;
   }
   return out;
+}
+
+int DesignObjective::field_offset(int field) const {
+  return m_problem.spec.sections * per_section(m_problem.spec) + 3 * field;
 }
 
 VecX DesignObjective::parameters_of(const Design& design) const {
@@ -164,8 +202,10 @@ VecX DesignObjective::parameters_of(const Design& design) const {
     p[at++] = phi;
     if (spec.remanence_bounds) p[at++] = design.remanences[static_cast<std::size_t>(s)];
   }
-  if (spec.field_max) {
-    const Vec3 b = design.field.value_or(Vec3::Zero());
+  for (int f = 0; f < m_fields; ++f) {
+    const Vec3 b = static_cast<std::size_t>(f) < design.fields.size() ? design.fields[static_cast<std::size_t>(f)]
+                   : design.fields.empty()                            ? Vec3::Zero()
+                                                                      : design.fields.back();
     const auto [theta, phi] = detail::angles_of(b);
     p[at++] = b.norm();
     p[at++] = theta;
@@ -183,50 +223,56 @@ Design DesignObjective::design_of(const VecX& p) const {
     at += 2;
     d.remanences.push_back(spec.remanence_bounds ? p[at++] : spec.remanence);
   }
-  if (spec.field_max) {
-    d.field = p[at] * detail::spherical(p[at + 1], p[at + 2]);
+  for (int f = 0; f < m_fields; ++f) {
+    d.fields.push_back(p[at] * detail::spherical(p[at + 1], p[at + 2]));
     at += 3;
   }
   return d;
 }
 
-robot::RodModel DesignObjective::model_of(const Design& design) const {
-  robot::RodModel m = m_problem.model;
+robot::RodModel DesignObjective::model_of(const Design& design, std::size_t configuration) const {
+  const Configuration& conf = m_configurations[configuration];
+  robot::RodModel m = conf.model;
   m.moment_per_length.assign(static_cast<std::size_t>(m.edges), Vec3::Zero());
   for (std::size_t j = 0; j < m.moment_per_length.size(); ++j) {
-    const auto s = static_cast<std::size_t>(m_section_of_edge[j]);
+    const auto s = static_cast<std::size_t>(conf.section_of_edge[j]);
     m.moment_per_length[j] =
         magnetics::hard_magnetic_moment<3>(Vec3(design.remanences[s] * design.directions[s]), m_problem.area);
   }
   return m;
 }
 
-robot::RodField DesignObjective::field_of(const Design& design) const {
-  if (!design.field) return m_problem.field;
-  const Vec3 b = *design.field;
+robot::RodField DesignObjective::field_of(const Design& design, std::size_t configuration) const {
+  const int f = m_configurations[configuration].field;
+  if (f < 0) return m_problem.field;
+  const Vec3 b = design.fields[static_cast<std::size_t>(f)];
   return robot::RodField([b](const Vec3&) { return magnetics::FieldSample{b, Mat3::Zero()}; });
 }
 
-std::pair<int, double> DesignObjective::at_target(std::size_t k) const {
-  const int n = m_problem.model.edges;
-  const double u = static_cast<double>(k) * n / static_cast<double>(m_problem.spec.target.size() - 1);  // in edges
-  const int i = std::min(static_cast<int>(std::floor(u)), n - 1);
-  return {i, u - i};
-}
-
-std::vector<Vec3> DesignObjective::points_on(const robot::RodState& state) const {
-  std::vector<Vec3> out(m_problem.spec.target.size());
-  for (std::size_t k = 0; k < out.size(); ++k) {
-    const auto [i, w] = at_target(k);
-    out[k] = (1.0 - w) * state.x[static_cast<std::size_t>(i)] + w * state.x[static_cast<std::size_t>(i) + 1];
+std::vector<Vec3> DesignObjective::points_on(std::size_t configuration, const robot::RodState& state) const {
+  const Configuration& conf = m_configurations[configuration];
+  std::vector<Vec3> out;
+  for (const TargetOnBody& t : conf.targets) {
+    const auto i = static_cast<std::size_t>(t.node);
+    out.push_back((1.0 - t.weight) * state.x[i] + t.weight * state.x[i + 1]);
   }
   return out;
 }
 
-double DesignObjective::max_error(const robot::RodState& state) const {
-  const std::vector<Vec3> x = points_on(state);
+std::vector<std::size_t> DesignObjective::targets_of(std::size_t configuration) const {
+  std::vector<std::size_t> out;
+  for (const TargetOnBody& t : m_configurations[configuration].targets) out.push_back(t.index);
+  return out;
+}
+
+double DesignObjective::max_error(const std::vector<robot::RodState>& states) const {
   double worst = 0.0;
-  for (std::size_t k = 0; k < x.size(); ++k) worst = std::max(worst, (x[k] - m_problem.spec.target[k]).norm());
+  for (std::size_t c = 0; c < m_configurations.size() && c < states.size(); ++c) {
+    const std::vector<Vec3> x = points_on(c, states[c]);
+    for (std::size_t k = 0; k < x.size(); ++k) {
+      worst = std::max(worst, (x[k] - m_problem.spec.target[m_configurations[c].targets[k].index]).norm());
+    }
+  }
   return worst;
 }
 
@@ -234,34 +280,46 @@ bool DesignObjective::is_magnitude(int i) const {
   const DesignSpec& spec = m_problem.spec;
   const int stride = per_section(spec);
   if (i < spec.sections * stride) return spec.remanence_bounds && i % stride == 2;
-  return i == spec.sections * stride;  // |B| (then θ_B, φ_B)
+  return (i - spec.sections * stride) % 3 == 0;  // |B| of a field (then θ_B, φ_B)
 }
 
-bool DesignObjective::equilibrium(const VecX& p, Design& design, robot::RodModel& model, robot::RodField& field) {
+std::vector<robot::RodState> DesignObjective::states() const {
+  std::vector<robot::RodState> out;
+  for (const Configuration& c : m_configurations) out.push_back(c.state);
+  return out;
+}
+
+bool DesignObjective::equilibria(const VecX& p, Design& design) {
   design = design_of(p);
-  model = model_of(design);
-  field = field_of(design);
   // The same p as the last solve (Levenberg–Marquardt asks for the Jacobian where it has just taken the residuals):
-  // the same equilibrium, not solved or counted again.
+  // the same equilibria, not solved or counted again.
   if (m_solved_p.size() == p.size() && m_solved_p == p) return m_solved_ok;
   ++m_evaluations;
-  // From the straight rod, as `magvine run` solves the scene: J is a function of p alone.
-  m_state = robot::straight_rod(model);
-  m_solved_ok = robot::solve_rod_statics(model, field, m_state, m_problem.solver).converged;
   m_solved_p = p;
+  m_solved_ok = true;
+  for (std::size_t c = 0; c < m_configurations.size(); ++c) {
+    Configuration& conf = m_configurations[c];
+    const robot::RodModel model = model_of(design, c);
+    // From the straight rod, as `magvine run` solves the scene: J is a function of p alone.
+    conf.state = robot::straight_rod(model);
+    m_solved_ok =
+        m_solved_ok && robot::solve_rod_statics(model, field_of(design, c), conf.state, m_problem.solver).converged;
+  }
   return m_solved_ok;
 }
 
-MatX DesignObjective::gradient_sensitivity(const Design& design, const VecX& p, const robot::RodModel& model,
-                                           const robot::RodField& field) const {
+MatX DesignObjective::gradient_sensitivity(const Design& design, const VecX& p, std::size_t configuration) const {
   const DesignSpec& spec = m_problem.spec;
+  const Configuration& conf = m_configurations[configuration];
+  const robot::RodModel model = model_of(design, configuration);
+  const robot::RodField field = field_of(design, configuration);
   const int n = model.edges;
   MatX out = MatX::Zero(6 * n, m_parameters);
-  const MatX by_moment = robot::rod_moment_sensitivity(model, field, m_state);                     // 6N × 3N
+  const MatX by_moment = robot::rod_moment_sensitivity(model, field, conf.state);                  // 6N × 3N
   const double per_tesla = magnetics::hard_magnetic_moment<3>(Vec3::UnitX(), m_problem.area).x();  // A/μ0
   const int stride = per_section(spec);
   for (int j = 0; j < n; ++j) {
-    const int s = m_section_of_edge[static_cast<std::size_t>(j)];
+    const int s = conf.section_of_edge[static_cast<std::size_t>(j)];
     const int at = s * stride;
     const auto block = by_moment.middleCols<3>(3 * j);
     const double br = design.remanences[static_cast<std::size_t>(s)];
@@ -269,9 +327,9 @@ MatX DesignObjective::gradient_sensitivity(const Design& design, const VecX& p, 
     out.col(at + 1) += br * per_tesla * (block * detail::spherical_d_phi(p[at], p[at + 1]));
     if (spec.remanence_bounds) out.col(at + 2) += per_tesla * (block * design.directions[static_cast<std::size_t>(s)]);
   }
-  if (spec.field_max) {
-    const int at = spec.sections * stride;
-    const MatX by_field = robot::rod_uniform_field_sensitivity(model, m_state);  // 6N × 3
+  if (conf.field >= 0) {
+    const int at = field_offset(conf.field);
+    const MatX by_field = robot::rod_uniform_field_sensitivity(model, conf.state);  // 6N × 3
     out.col(at) = by_field * detail::spherical(p[at + 1], p[at + 2]);
     out.col(at + 1) = p[at] * (by_field * detail::spherical_d_theta(p[at + 1], p[at + 2]));
     out.col(at + 2) = p[at] * (by_field * detail::spherical_d_phi(p[at + 1], p[at + 2]));
@@ -284,53 +342,59 @@ double DesignObjective::evaluate(const VecX& p, VecX* gradient) {
   if (gradient != nullptr) *gradient = VecX::Zero(m_parameters);
   const double failed = std::numeric_limits<double>::infinity();
   Design design;
-  robot::RodModel model;
-  robot::RodField field;
-  if (!equilibrium(p, design, model, field)) return failed;
-  const std::vector<Vec3> x = points_on(m_state);
-  const std::vector<Vec3>& t = spec.target;
-  const double k_count = static_cast<double>(t.size());
+  if (!equilibria(p, design)) return failed;
+  const double count = static_cast<double>(m_target_count);
   double j_value = 0.0;
-  for (std::size_t k = 0; k < t.size(); ++k) j_value += (x[k] - t[k]).squaredNorm() / k_count;
-  if (gradient == nullptr) return j_value;
-  // ∂J/∂x_i through the interpolation (points_on); the adjoint H λ = ∂J/∂x; dJ/dp = −(∂g/∂p)ᵀ λ.
-  std::vector<Vec3> per_node(static_cast<std::size_t>(model.edges) + 1, Vec3::Zero());
-  for (std::size_t k = 0; k < t.size(); ++k) {
-    const auto [i, w] = at_target(k);
-    const Vec3 r = 2.0 / k_count * (x[k] - t[k]);
-    per_node[static_cast<std::size_t>(i)] += (1.0 - w) * r;
-    per_node[static_cast<std::size_t>(i) + 1] += w * r;
+  for (std::size_t c = 0; c < m_configurations.size(); ++c) {
+    const Configuration& conf = m_configurations[c];
+    const std::vector<Vec3> x = points_on(c, conf.state);
+    for (std::size_t k = 0; k < x.size(); ++k)
+      j_value += (x[k] - spec.target[conf.targets[k].index]).squaredNorm() / count;
+    if (gradient == nullptr) continue;
+    // ∂J/∂x_i through the interpolation; the adjoint H λ = ∂J/∂x; dJ/dp = −(∂g/∂p)ᵀ λ.
+    std::vector<Vec3> per_node(static_cast<std::size_t>(conf.model.edges) + 1, Vec3::Zero());
+    for (std::size_t k = 0; k < x.size(); ++k) {
+      const TargetOnBody& t = conf.targets[k];
+      const Vec3 r = 2.0 / count * (x[k] - spec.target[t.index]);
+      per_node[static_cast<std::size_t>(t.node)] += (1.0 - t.weight) * r;
+      per_node[static_cast<std::size_t>(t.node) + 1] += t.weight * r;
+    }
+    const std::optional<MatX> lambda = robot::rod_hessian_solve(model_of(design, c), field_of(design, c), conf.state,
+                                                                robot::rod_position_covector(per_node));
+    if (!lambda) return failed;  // not a stable equilibrium
+    *gradient -= gradient_sensitivity(design, p, c).transpose() * lambda->col(0);
   }
-  const std::optional<MatX> lambda =
-      robot::rod_hessian_solve(model, field, m_state, robot::rod_position_covector(per_node));
-  if (!lambda) return failed;  // not a stable equilibrium
-  *gradient = -(gradient_sensitivity(design, p, model, field).transpose() * lambda->col(0));
   return j_value;
 }
 
 bool DesignObjective::residuals(const VecX& p, VecX& r, MatX* jacobian) {
   const DesignSpec& spec = m_problem.spec;
   Design design;
-  robot::RodModel model;
-  robot::RodField field;
-  if (!equilibrium(p, design, model, field)) return false;
-  const std::vector<Vec3> x = points_on(m_state);
-  const auto count = static_cast<Eigen::Index>(spec.target.size());
+  if (!equilibria(p, design)) return false;
+  const auto count = static_cast<Eigen::Index>(m_target_count);
   const double scale = 1.0 / std::sqrt(static_cast<double>(count));
   r.resize(3 * count);
-  for (Eigen::Index k = 0; k < count; ++k) {
-    r.segment<3>(3 * k) = scale * (x[static_cast<std::size_t>(k)] - spec.target[static_cast<std::size_t>(k)]);
-  }
-  if (jacobian == nullptr) return true;
-  const std::optional<MatX> dx =
-      robot::rod_hessian_solve(model, field, m_state, -gradient_sensitivity(design, p, model, field));
-  if (!dx) return false;
-  jacobian->setZero(3 * count, m_parameters);
-  for (Eigen::Index k = 0; k < count; ++k) {
-    const auto [i, w] = at_target(static_cast<std::size_t>(k));
-    // Node i's position unknowns sit in block i − 1 (node 0 is clamped).
-    if (i >= 1) jacobian->middleRows<3>(3 * k) += scale * (1.0 - w) * dx->middleRows<3>(6 * (i - 1));
-    jacobian->middleRows<3>(3 * k) += scale * w * dx->middleRows<3>(6 * i);
+  if (jacobian != nullptr) jacobian->setZero(3 * count, m_parameters);
+  Eigen::Index row = 0;
+  for (std::size_t c = 0; c < m_configurations.size(); ++c) {
+    const Configuration& conf = m_configurations[c];
+    const std::vector<Vec3> x = points_on(c, conf.state);
+    for (std::size_t k = 0; k < x.size(); ++k) {
+      r.segment<3>(3 * (row + static_cast<Eigen::Index>(k))) = scale * (x[k] - spec.target[conf.targets[k].index]);
+    }
+    if (jacobian != nullptr) {
+      const std::optional<MatX> dx = robot::rod_hessian_solve(model_of(design, c), field_of(design, c), conf.state,
+                                                              -gradient_sensitivity(design, p, c));
+      if (!dx) return false;
+      for (std::size_t k = 0; k < x.size(); ++k) {
+        const TargetOnBody& t = conf.targets[k];
+        const Eigen::Index at = 3 * (row + static_cast<Eigen::Index>(k));
+        // Node i's position unknowns sit in block i − 1 (node 0 is clamped).
+        if (t.node >= 1) jacobian->middleRows<3>(at) += scale * (1.0 - t.weight) * dx->middleRows<3>(6 * (t.node - 1));
+        jacobian->middleRows<3>(at) += scale * t.weight * dx->middleRows<3>(6 * t.node);
+      }
+    }
+    row += static_cast<Eigen::Index>(x.size());
   }
   return true;
 }
@@ -352,8 +416,10 @@ Design random_design(const DesignProblem& problem, std::uint64_t seed) {
     d.remanences.push_back(spec.remanence_bounds ? 0.5 * (spec.remanence_bounds->first + spec.remanence_bounds->second)
                                                  : spec.remanence);
   }
-  if (spec.field_max)
-    d.field = problem.start_field.isZero() ? Vec3(0.5 * *spec.field_max * on_sphere()) : problem.start_field;
+  if (spec.field_max) {
+    const Vec3 b = problem.start_field.isZero() ? Vec3(0.5 * *spec.field_max * on_sphere()) : problem.start_field;
+    d.fields.assign(static_cast<std::size_t>(std::max(1, problem.insertion_steps)), b);
+  }
   return d;
 }
 
@@ -396,6 +462,44 @@ DesignResult optimise_design(const DesignProblem& problem, const Design& start, 
   return out;
 }
 
+DesignResult multi_start_design(const DesignProblem& problem, DesignMethod method, const DesignOptions& options) {
+  if (method == DesignMethod::bayesian) return bayesian_design(problem, options);
+  DesignResult best;
+  int iterations = 0;
+  int evaluations = 0;
+  double runtime = 0.0;
+  std::vector<DesignResult::Step> history;
+  for (int start = 0; start < std::max(1, options.starts); ++start) {
+    DesignOptions one = options;
+    one.seed = options.seed + static_cast<std::uint64_t>(start);
+    if (options.progress) {
+      one.progress = [&, evaluations](int e, double rms) {
+        options.progress(evaluations + e, std::min(rms, best.rms));
+      };
+    }
+    const Design first = random_design(problem, one.seed);
+    DesignResult r = method == DesignMethod::lbfgsb ? optimise_design(problem, first, one)
+                                                    : least_squares_design(problem, first, one);
+    for (DesignResult::Step s : r.history) {
+      s.iteration += iterations;
+      s.evaluation += evaluations;
+      s.time_s += runtime;
+      s.best_rms = std::min(s.best_rms, start == 0 ? s.best_rms : best.rms);
+      history.push_back(s);
+    }
+    iterations += std::max(0, r.iterations);
+    evaluations += r.evaluations;
+    runtime += r.runtime_s;
+    if (start == 0 || r.rms < best.rms) best = std::move(r);
+  }
+  best.iterations = iterations;
+  best.evaluations = evaluations;
+  best.runtime_s = runtime;
+  best.history = std::move(history);
+  if (options.starts > 1) best.message += " (the best of " + std::to_string(options.starts) + " starts)";
+  return best;
+}
+
 namespace detail {
 
 BestTracker::BestTracker(DesignObjective& objective, const Stopwatch& clock, std::function<void(int, double)> progress,
@@ -407,7 +511,7 @@ void BestTracker::record(const VecX& p, double j) {
   if (rms < m_best_rms) {
     m_best_rms = rms;
     m_best_p = p;
-    m_best_state = m_objective.state();
+    m_best_states = m_objective.states();
   }
   const int iteration = m_counts_iterations ? m_iterations : m_objective.evaluations();
   m_history.push_back({iteration, m_objective.evaluations(), rms, m_best_rms, m_clock.seconds()});
@@ -426,9 +530,10 @@ void BestTracker::finish(DesignResult& out) const {
     return;
   }
   out.design = m_objective.design_of(m_best_p);
-  out.state = m_best_state;
+  out.states = m_best_states;
+  out.state = m_best_states.back();
   out.rms = m_best_rms;
-  out.max_error = m_objective.max_error(m_best_state);
+  out.max_error = m_objective.max_error(m_best_states);
 }
 
 }  // namespace detail

@@ -39,7 +39,7 @@ class BestTracker {
   std::function<void(int, double)> m_progress;
   double m_best_rms = std::numeric_limits<double>::infinity();
   VecX m_best_p;
-  robot::RodState m_best_state;
+  std::vector<robot::RodState> m_best_states;
   std::vector<DesignResult::Step> m_history;
   int m_iterations = 0;
   bool m_counts_iterations = false;

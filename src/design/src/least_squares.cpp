@@ -78,7 +78,7 @@ DesignResult least_squares_design(const DesignProblem& problem, const Design& st
   DesignObjective objective(problem);
   detail::BestTracker best(objective, clock, options.progress, true);
   // MINPACK needs at least as many residuals as unknowns: zeros pad a short target.
-  const int values = std::max(3 * static_cast<int>(problem.spec.target.size()), objective.parameters());
+  const int values = std::max(objective.residual_count(), objective.parameters());
   Residuals f(objective, best, values);
   f.max_iterations = options.max_iterations;
   VecX u = f.to_u(objective.parameters_of(start));

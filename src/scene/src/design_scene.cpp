@@ -19,13 +19,13 @@ namespace {
 constexpr int kMaxIterations = 100000;
 
 /// The target points: a list of [x, y, z] in file length units, as SI.
-std::vector<Vec3> target_points(const YamlMap& target, const Unit& length) {
-  target.allow_only({"points"});
-  const YAML::Node list = target.node("points");
-  if (!list.IsSequence()) target.fail("points", "must be a list of [x, y, z] points");
+std::vector<Vec3> target_points(const YamlMap& target, const Unit& length, const std::string& key) {
+  if (key == "points") target.allow_only({"points"});
+  const YAML::Node list = target.node(key);
+  if (!list.IsSequence()) target.fail(key, "must be a list of [x, y, z] points");
   std::vector<Vec3> out;
   for (std::size_t k = 0; k < list.size(); ++k) {
-    const std::string path = target.key_path("points[" + std::to_string(k) + "]");
+    const std::string path = target.key_path(key + "[" + std::to_string(k) + "]");
     const YAML::Node p = list[k];
     if (!p.IsSequence() || p.size() != 3) target.fail_at(p, path, "must be a point [x, y, z]");
     Vec3 v;
@@ -54,7 +54,7 @@ DesignScene parse_design_scene(const std::string& text, const std::string& file_
   if (out.scene.vine) top.map("robot").fail("kind", "a design needs a rod (kind: rod): vines are not designed");
   if (!top.has("design")) top.fail("design", "missing required key (the design file's design: section)");
   const YamlMap d = top.map("design");
-  d.allow_only({"sections", "remanence", "target", "field", "iterations", "method"});
+  d.allow_only({"sections", "remanence", "target", "field", "iterations", "method", "starts", "insertion"});
   design::DesignProblem& p = out.problem;
   p.model = out.scene.model;
   p.area = area;
@@ -73,7 +73,17 @@ DesignScene parse_design_scene(const std::string& text, const std::string& file_
       p.spec.remanence = d.quantity("remanence", kTesla, range::kRemanenceMagnitude);
     }
   }
-  p.spec.target = target_points(d.map("target"), units.len);
+  // The target: a shape (target.points), or the path of a follow-the-leader insertion (insertion.path).
+  if (d.has("insertion")) {
+    const YamlMap ins = d.map("insertion");
+    ins.allow_only({"steps", "path"});
+    if (d.has("target")) d.fail("target", "give either target or insertion.path (the insertion's target), not both");
+    p.insertion_steps = static_cast<int>(ins.whole("steps", 1, 1000));
+    p.spec.target = target_points(ins, units.len, "path");
+    if (!d.has("field")) ins.fail("steps", "a follow-the-leader insertion needs design.field.free (a field per step)");
+  } else {
+    p.spec.target = target_points(d.map("target"), units.len, "points");
+  }
   if (d.has("field")) {
     const YamlMap f = d.map("field");
     f.allow_only({"free"});
@@ -82,6 +92,7 @@ DesignScene parse_design_scene(const std::string& text, const std::string& file_
     p.spec.field_max = free.quantity("max", kTesla, range::kUniformFieldBound);
   }
   if (d.has("iterations")) out.max_iterations = static_cast<int>(d.whole("iterations", 1, kMaxIterations));
+  if (d.has("starts")) out.starts = static_cast<int>(d.whole("starts", 1, 1000));
   if (d.has("method")) {
     const std::string method = d.text("method");
     if (method == "least-squares") {
@@ -113,7 +124,13 @@ DesignScene parse_design_scene(const std::string& text, const std::string& file_
   if (const std::optional<design::DesignProblemIssue> issue = design::design_problem_issue(p)) {
     const std::string& key = issue->key;
     const std::string path = d.key_path(key);
-    if (key.rfind("target.points", 0) == 0) d.map("target").fail_at(d.map("target").node("points"), path, issue->what);
+    if (key.rfind("target.points", 0) == 0) {
+      // A target point's (the list's line, which holds them all), or the insertion path's.
+      const YamlMap holder = d.has("insertion") ? d.map("insertion") : d.map("target");
+      const std::string list = d.has("insertion") ? "path" : "points";
+      holder.fail_at(holder.node(list), holder.key_path(list + key.substr(std::string("target.points").size())),
+                     issue->what);
+    }
     const std::string top_key = key.substr(0, key.find_first_of(".["));
     if (d.has(top_key)) d.fail_at(d.node(top_key), path, issue->what);
     d.fail(top_key, issue->what);
@@ -149,18 +166,10 @@ const char* method_name(DesignMethod m) {
 design::DesignResult run_design(const DesignScene& scene, const std::function<void(int, double)>& progress) {
   design::DesignOptions options;
   options.max_iterations = scene.max_iterations;
+  options.starts = scene.starts;
   options.seed = scene.seed;
   options.progress = progress;
-  const design::Design start = design::random_design(scene.problem, scene.seed);
-  switch (scene.method) {
-    case DesignMethod::bayesian:
-      return design::bayesian_design(scene.problem, options);
-    case DesignMethod::lbfgsb:
-      return design::optimise_design(scene.problem, start, options);
-    case DesignMethod::least_squares:
-      break;
-  }
-  return design::least_squares_design(scene.problem, start, options);
+  return design::multi_start_design(scene.problem, scene.method, options);
 }
 
 std::string designed_scene_yaml(const DesignScene& scene, const design::Design& design) {
@@ -182,12 +191,12 @@ std::string designed_scene_yaml(const DesignScene& scene, const design::Design& 
     list.push_back(entry);
   }
   root["robot"]["magnetisation"] = list;
-  if (design.field) {
+  if (!design.fields.empty()) {
     YAML::Node magnets(YAML::NodeType::Sequence);
     YAML::Node uniform(YAML::NodeType::Map);
     uniform["kind"] = "uniform";
     YAML::Node b(YAML::NodeType::Sequence);
-    for (int i = 0; i < 3; ++i) b.push_back((*design.field)[i]);
+    for (int i = 0; i < 3; ++i) b.push_back(design.fields.back()[i]);
     b.SetStyle(YAML::EmitterStyle::Flow);
     uniform["field"] = b;
     uniform.SetStyle(YAML::EmitterStyle::Flow);
@@ -224,7 +233,31 @@ void write_design_outputs(const DesignScene& scene, const design::DesignResult& 
                         {"remanence_T", result.design.remanences[su]}});
   }
   j["sections"] = sections;
-  if (result.design.field) j["field_T"] = vec(*result.design.field);
+  const design::DesignObjective objective(p);
+  if (p.insertion_steps > 0) {
+    // Follow-the-leader: every step's field and how far its inserted part lies from the path.
+    nlohmann::json fields = nlohmann::json::array();
+    nlohmann::json rms = nlohmann::json::array();
+    nlohmann::json worst = nlohmann::json::array();
+    for (std::size_t c = 0; c < objective.configurations() && c < result.states.size(); ++c) {
+      const std::vector<Vec3> on = objective.points_on(c, result.states[c]);
+      const std::vector<std::size_t> targets = objective.targets_of(c);
+      double sum = 0.0;
+      double most = 0.0;
+      for (std::size_t k = 0; k < on.size(); ++k) {
+        const double e = (on[k] - p.spec.target[targets[k]]).norm();
+        sum += e * e;
+        most = std::max(most, e);
+      }
+      fields.push_back(vec(result.design.fields[c]));
+      rms.push_back(std::sqrt(sum / static_cast<double>(on.size())));
+      worst.push_back(most);
+    }
+    j["insertion"] = {
+        {"steps", p.insertion_steps}, {"fields_T", fields}, {"step_rms_m", rms}, {"step_max_error_m", worst}};
+  } else if (result.design.fields.size() == 1) {
+    j["field_T"] = vec(result.design.fields.front());
+  }
   nlohmann::json history = nlohmann::json::array();
   for (const design::DesignResult::Step& s : result.history) {
     history.push_back({{"iteration", s.iteration},
@@ -246,8 +279,19 @@ void write_design_outputs(const DesignScene& scene, const design::DesignResult& 
   std::ostringstream target;
   target.precision(12);
   target << "s_m,target_x,target_y,target_z,x,y,z,error_m\n";
-  const design::DesignObjective objective(p);
   const std::vector<Vec3> on = result.state.x.empty() ? std::vector<Vec3>() : objective.points_on(result.state);
+  std::ostringstream insertion;
+  insertion.precision(12);
+  insertion << "step,inserted_m,s_m,x,y,z\n";
+  for (std::size_t c = 0; c < result.states.size() && p.insertion_steps > 0; ++c) {
+    const robot::RodState& st = result.states[c];
+    const double inserted = p.model.length * static_cast<double>(c + 1) / p.insertion_steps;
+    const double step_h = inserted / static_cast<double>(st.x.size() - 1);
+    for (std::size_t i = 0; i < st.x.size(); ++i) {
+      insertion << c + 1 << ',' << inserted << ',' << static_cast<double>(i) * step_h << ',' << st.x[i].x() << ','
+                << st.x[i].y() << ',' << st.x[i].z() << '\n';
+    }
+  }
   for (std::size_t k = 0; k < on.size(); ++k) {
     const Vec3& t = p.spec.target[k];
     target << p.model.length * static_cast<double>(k) / static_cast<double>(on.size() - 1) << ',' << t.x() << ','
@@ -256,6 +300,7 @@ void write_design_outputs(const DesignScene& scene, const design::DesignResult& 
   }
   write_file_atomically(dir / "shape.csv", shape.str());
   write_file_atomically(dir / "target.csv", target.str());
+  if (p.insertion_steps > 0) write_file_atomically(dir / "insertion.csv", insertion.str());
   write_file_atomically(dir / "scene.yaml", designed_scene_yaml(scene, result.design));
   write_file_atomically(dir / "design.json", j.dump(2) + "\n");
 }

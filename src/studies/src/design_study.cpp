@@ -1,7 +1,6 @@
 #include "magvine/studies/design_study.hpp"
 
 #include <Eigen/Geometry>
-
 #include <cmath>
 #include <sstream>
 
@@ -85,7 +84,8 @@ std::vector<DesignStudyRun> run_design_study(const std::filesystem::path& out, i
                      curve_target(l, 9, [l](double s) { return Vec3(0, (s < l / 2 ? 1.0 : -1.0) * kPi / l, 0); }),
                      {1, 2, 3, 4}});
   targets.push_back(
-      {"hook", curve_target(l, 9, [l](double s) { return s < l / 2 ? Vec3(0, kPi / l, 0) : Vec3(0, 0, kPi / l); }),
+      {"hook",
+       curve_target(l, 9, [l](double s) { return s < l / 2 ? Vec3(0, kPi / l, 0) : Vec3(0, 0, kPi / l); }),
        {1, 2, 3, 4}});
 
   std::vector<DesignStudyRun> runs;

@@ -39,6 +39,13 @@ struct DesignSpec {
 
 /// A design problem: the rod (its moment_per_length is what the design sets), the fixed field (the scene's magnets;
 /// empty with a free field), the free field's start, the cross-section for the hard-magnetic law.
+///
+/// Follow-the-leader insertion (thesis A.1.5.2; `insertion_steps` > 0, with a free field): the rod is pushed out of
+/// its base in `insertion_steps` equal steps, its distal end first. At step c the distal c/steps of it is out, a
+/// clamped rod of that length with about the full rod's edge length, its edges magnetised by the section of the
+/// material they carry; it has its own uniform field (|B| ≤ field_max), and the target points within its length
+/// (the path, from the base) are its targets. J is the mean over every step's targets: one shared profile, one field
+/// per step.
 struct DesignProblem {
   robot::RodModel model;
   robot::RodField field;            ///< the fixed field (not with a free one)
@@ -46,6 +53,7 @@ struct DesignProblem {
   double area = 0.0;                ///< the magnetised cross-section [m²]
   DesignSpec spec;
   robot::RodSolveOptions solver;
+  int insertion_steps = 0;  ///< 0: the static design; n: follow-the-leader in n steps
 };
 
 /// Checks a problem: sections within [1, edges] each holding an edge midpoint, remanence and bounds in (0, 3] T
@@ -62,14 +70,16 @@ struct DesignProblemIssue {
 /// The first issue check_design_problem would throw for, or none (a file parser names the key's line).
 std::optional<DesignProblemIssue> design_problem_issue(const DesignProblem& problem);
 
-/// A design: per section its unit direction (body frame) and remanence [T]; the uniform field [T] when free.
+/// A design: per section its unit direction (body frame) and remanence [T]; the uniform fields [T] when free (one,
+/// or one per insertion step).
 struct Design {
   std::vector<Vec3> directions;
   std::vector<double> remanences;
-  std::optional<Vec3> field;
+  std::vector<Vec3> fields;
 };
 
-/// The objective and its exact gradient at parameters p (the layout above). Holds the last equilibrium.
+/// The objective and its exact gradient at parameters p (the layout above; free fields one after another). Holds the
+/// last equilibria, one per configuration: the whole rod, or each insertion step.
 class DesignObjective {
  public:
   explicit DesignObjective(const DesignProblem& problem);
@@ -78,59 +88,87 @@ class DesignObjective {
   /// Lower and upper bounds of p.
   VecX lower() const;
   VecX upper() const;
-  /// p of a design (directions, magnitudes and field as in `design`).
+  /// p of a design (directions, magnitudes and fields as in `design`).
   VecX parameters_of(const Design& design) const;
   Design design_of(const VecX& p) const;
-  /// The model with the design's moments and the field it acts in.
-  robot::RodModel model_of(const Design& design) const;
-  robot::RodField field_of(const Design& design) const;
+  /// The configurations: 1 (statics) or the insertion steps.
+  std::size_t configurations() const { return m_configurations.size(); }
+  /// A configuration's model with the design's moments, and the field it acts in (default: the last, the whole rod).
+  robot::RodModel model_of(const Design& design, std::size_t configuration) const;
+  robot::RodModel model_of(const Design& design) const { return model_of(design, configurations() - 1); }
+  robot::RodField field_of(const Design& design, std::size_t configuration) const;
+  robot::RodField field_of(const Design& design) const { return field_of(design, configurations() - 1); }
 
-  /// J(p) [m²]; with `gradient`, dJ/dp. Infinite when the equilibrium fails or is unstable (the state is then the
-  /// straight rod). Counts evaluations (the p of the last solve is not solved again).
+  /// J(p) [m²]; with `gradient`, dJ/dp. Infinite when an equilibrium fails or is unstable. Counts evaluations (the p
+  /// of the last solve is not solved again).
   double evaluate(const VecX& p, VecX* gradient);
-  /// The residuals r_k = (x(s_k) − t_k)/√K (3K values: |r|² = J) and, with `jacobian`, dr/dp (3K × P) from the
-  /// forward sensitivities dx*/dp = −H⁻¹ ∂g/∂p (one factorisation, one back-substitution per parameter). False when
-  /// the equilibrium fails or is unstable. Counts an evaluation as evaluate does.
+  /// The residuals (x(s_k) − t_k)/√T over every configuration's targets (T of them: |r|² = J) and, with `jacobian`,
+  /// dr/dp from the forward sensitivities dx*/dp = −H⁻¹ ∂g/∂p (one factorisation per configuration, one
+  /// back-substitution per parameter). False when an equilibrium fails or is unstable. Counts as evaluate does.
   bool residuals(const VecX& p, VecX& r, MatX* jacobian);
+  /// The number of residuals, 3T.
+  int residual_count() const { return 3 * static_cast<int>(m_target_count); }
   /// Whether parameter i is a bounded magnitude (a free remanence, |B|) rather than an angle.
   bool is_magnitude(int i) const;
-  /// The last evaluation's equilibrium.
-  const robot::RodState& state() const { return m_state; }
+  /// The last evaluation's equilibria (one per configuration) and the last configuration's.
+  std::vector<robot::RodState> states() const;
+  const robot::RodState& state() const { return m_configurations.back().state; }
   int evaluations() const { return m_evaluations; }
-  /// The point on the body at each target's arc length, and the largest distance to its target [m].
-  std::vector<Vec3> points_on(const robot::RodState& state) const;
-  double max_error(const robot::RodState& state) const;
+  /// The points on a configuration's body at its targets' arc lengths (default: the last configuration).
+  std::vector<Vec3> points_on(std::size_t configuration, const robot::RodState& state) const;
+  std::vector<Vec3> points_on(const robot::RodState& state) const { return points_on(configurations() - 1, state); }
+  /// The target indices of a configuration (into spec.target).
+  std::vector<std::size_t> targets_of(std::size_t configuration) const;
+  /// The largest distance of any configuration's body from its targets [m].
+  double max_error(const std::vector<robot::RodState>& states) const;
 
  private:
-  /// Solves the equilibrium of p from the straight rod into m_state; false when it fails.
-  bool equilibrium(const VecX& p, Design& design, robot::RodModel& model, robot::RodField& field);
-  /// ∂g/∂p at m_state (6N × P): the moment sensitivities through m̂ = Br d A/μ0, the field's through B(|B|, θ, φ).
-  MatX gradient_sensitivity(const Design& design, const VecX& p, const robot::RodModel& model,
-                            const robot::RodField& field) const;
-  /// Where target k lies on the body: node i and the weight w of node i + 1.
-  std::pair<int, double> at_target(std::size_t k) const;
+  /// A target point on a configuration's body: its index in spec.target, node i and the weight w of node i + 1.
+  struct TargetOnBody {
+    std::size_t index;
+    int node;
+    double weight;
+  };
+  struct Configuration {
+    robot::RodModel model;  ///< without moments (model_of sets them)
+    std::vector<int> section_of_edge;
+    std::vector<TargetOnBody> targets;
+    int field = -1;  ///< which free field acts on it (−1: the fixed field)
+    robot::RodState state;
+  };
+  /// Solves every configuration's equilibrium of p from the straight rod; false when one fails.
+  bool equilibria(const VecX& p, Design& design);
+  /// ∂g/∂p at a configuration's equilibrium (6N × P): the moments through m̂ = Br d A/μ0, its field's through
+  /// B(|B|, θ, φ).
+  MatX gradient_sensitivity(const Design& design, const VecX& p, std::size_t configuration) const;
+  /// Where free field f's three parameters start in p.
+  int field_offset(int field) const;
 
   const DesignProblem& m_problem;
   int m_parameters = 0;
-  std::vector<int> m_section_of_edge;
-  robot::RodState m_state;
-  VecX m_solved_p;  ///< the parameters m_state was solved for
+  int m_fields = 0;
+  std::vector<Configuration> m_configurations;
+  std::size_t m_target_count = 0;
+  VecX m_solved_p;  ///< the parameters the states were solved for
   bool m_solved_ok = false;
   int m_evaluations = 0;
 };
 
 struct DesignOptions {
-  int max_iterations = 100;
-  std::uint64_t seed = 1;  ///< the random first design (directions uniform on the sphere, field start)
+  int max_iterations = 100;  ///< per start
+  int starts = 1;            ///< random starts (seeds seed, seed + 1, …): multi_start_design keeps the best
+  std::uint64_t seed = 1;    ///< the random first design (directions uniform on the sphere, field start)
   /// Called after every evaluation: evaluations so far, the best RMS so far [m].
   std::function<void(int, double)> progress;
 };
 
 struct DesignResult {
   Design design;
-  robot::RodState state;   ///< the design's equilibrium (from the straight rod: what `magvine run` gives)
-  double rms = 0.0;        ///< [m]
-  double max_error = 0.0;  ///< [m]
+  robot::RodState state;  ///< the design's equilibrium (from the straight rod: what `magvine run` gives); the last
+                          ///< insertion step's with insertion
+  std::vector<robot::RodState> states;  ///< every configuration's (statics: one)
+  double rms = 0.0;                     ///< [m]
+  double max_error = 0.0;               ///< [m]
   int iterations = 0;
   int evaluations = 0;  ///< equilibria solved (each with its adjoint for the gradient optimiser)
   double runtime_s = 0.0;
@@ -158,6 +196,13 @@ DesignResult optimise_design(const DesignProblem& problem, const Design& start, 
 /// MINPACK's lmder) with the exact Jacobian of the residuals (DesignObjective::residuals); bounded magnitudes as
 /// lo + (hi − lo)(1 + sin u)/2, the angles free (the spherical map is periodic). One Jacobian per iteration.
 DesignResult least_squares_design(const DesignProblem& problem, const Design& start, const DesignOptions& options);
+
+enum class DesignMethod { least_squares, lbfgsb, bayesian };
+
+/// `options.starts` designs by `method` from the random designs of seeds seed, seed + 1, …; the best one, with the
+/// iterations, evaluations, time and history of all (the history's evaluations counted on across the starts). The
+/// Bayesian baseline runs once (its own initial designs are its starts).
+DesignResult multi_start_design(const DesignProblem& problem, DesignMethod method, const DesignOptions& options);
 
 /// The derivative-free baseline (the thesis's kind, appendix A.1.4): Bayesian optimisation, a Gaussian-process
 /// surrogate of log J (squared-exponential kernel, length scales fitted by marginal likelihood over a grid) and

@@ -14,7 +14,7 @@ namespace magvine::scene {
 
 /// design.method: `least-squares` (default: Levenberg–Marquardt with the exact Jacobian), `lbfgsb` (L-BFGS-B with the
 /// exact adjoint gradient) or `bayesian` (the derivative-free baseline).
-enum class DesignMethod { least_squares, lbfgsb, bayesian };
+using DesignMethod = design::DesignMethod;
 
 /// The method's name in files.
 const char* method_name(DesignMethod m);
@@ -24,6 +24,7 @@ struct DesignScene {
   design::DesignProblem problem;
   DesignMethod method = DesignMethod::least_squares;
   int max_iterations = 100;   ///< design.iterations (the Bayesian baseline: evaluations after its initial ones)
+  int starts = 1;             ///< design.starts: random starts (seeds seed, seed + 1, …), the best kept
   std::uint64_t seed = 1;     ///< the scene's seed: the random first design
   std::string file;           ///< as given (messages)
   std::string text;           ///< the file's text: scene.yaml is written from it
@@ -37,7 +38,7 @@ bool is_design_scene(const std::filesystem::path& file);
 DesignScene load_design_scene(const std::filesystem::path& file);
 DesignScene parse_design_scene(const std::string& text, const std::string& file_label);
 
-/// Runs the scene's method from its seeded random start.
+/// Runs the scene's method from its seeded random starts (design::multi_start_design).
 design::DesignResult run_design(const DesignScene& scene, const std::function<void(int, double)>& progress = {});
 
 /// The designed rod as a scene file: the design file without `design:`, its `robot.magnetisation` replaced by the

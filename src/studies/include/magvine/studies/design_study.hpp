@@ -26,8 +26,8 @@ design::DesignProblem thesis_catheter_problem();
 std::vector<Vec3> curve_target(double length, int points, const std::function<Vec3(double)>& curvature);
 
 struct DesignStudyRun {
-  std::string target;   ///< "reachable-<seed>", "S" or "hook"
-  std::string method;   ///< "least-squares", "lbfgsb", "bayesian"
+  std::string target;  ///< "reachable-<seed>", "S" or "hook"
+  std::string method;  ///< "least-squares", "lbfgsb", "bayesian"
   std::uint64_t start_seed = 0;
   design::DesignResult result;
   /// The first history step at which the best RMS was at most 2 mm and 0.5 mm (−1: never).
