@@ -66,6 +66,29 @@ assert max(math.dist(a[1:], b[1:]) for a, b in zip(design, run)) < 1e-6
 " RESULT_VARIABLE rc ERROR_VARIABLE err)
 expect_rc(${rc} 0 "insertion outputs: ${err}")
 
+# The MPM check's plumbing (`--mpm-check`): a coarse grid (2 cells across the Ø4 mm rod, 2 particles per cell per axis:
+# seconds, not the resolution docs/design.md measures with) writes the MPM scene, its outputs and the comparison.
+if(WITH_MPM)
+  execute_process(COMMAND ${MAGVINE} design ${WORK}/fixed.yaml --out ${WORK}/mpm --mpm-check --mpm-cell 2
+                          --mpm-particles 2
+                  RESULT_VARIABLE rc OUTPUT_VARIABLE out ERROR_VARIABLE err)
+  expect_rc(${rc} 0 "design --mpm-check: ${err}")
+  execute_process(COMMAND ${PYTHON} -c "
+import json, os
+d = json.load(open('${WORK}/mpm/design.json'))
+m = d['mpm_check']
+for key in ('rms_m', 'max_m', 'target_rms_m', 'settled', 'simulated_s', 'runtime_s', 'steps', 'particles'):
+    assert key in m, key
+assert m['failure'] == '' and m['particles'] > 100 and 0.0 < m['rms_m'] < 0.04, m
+assert os.path.exists('${WORK}/mpm/mpm_check.yaml') and os.path.exists('${WORK}/mpm/mpm_check/probes.csv')
+" RESULT_VARIABLE rc ERROR_VARIABLE err)
+  expect_rc(${rc} 0 "design --mpm-check outputs: ${err}")
+else()
+  execute_process(COMMAND ${MAGVINE} design ${WORK}/fixed.yaml --out ${WORK}/mpm --mpm-check
+                  RESULT_VARIABLE rc ERROR_VARIABLE err)
+  expect_rc(${rc} 2 "design --mpm-check without the MPM module: ${err}")
+endif()
+
 # Bad design files: exit 2, one line naming the file and the key, no output folder.
 string(REPLACE "[29.5559, 23.4349, 0]" "[45, 0, 0]" far "${design}")
 string(REPLACE "[14.7826, 11.7096, 0]" "[12, 12, 0]" stretched "${design}")

@@ -1,6 +1,6 @@
 // MPM scenes: the gradient force (a bar stretched by a magnet's pull against the same energy reduced to a 1D bar,
-// with the exact cylinder field), a cantilever under gravity against Euler–Bernoulli/Timoshenko, the Zhao beam against the elastica, stiff
-// and soft materials with the automatic step, failure detection, and bad scenes.
+// with the exact cylinder field), a cantilever under gravity against Euler–Bernoulli/Timoshenko, the Zhao beam against
+// the elastica, stiff and soft materials with the automatic step, failure detection, and bad scenes.
 
 #include <gtest/gtest.h>
 
@@ -15,6 +15,7 @@
 #include "magvine/magnetics/cylinder.hpp"
 #include "magvine/magnetics/field_model.hpp"
 #include "magvine/mpm/cantilever.hpp"
+#include "magvine/scene/design_scene.hpp"
 #include "magvine/scene/magnets_file.hpp"
 #include "magvine/scene/mpm_scene.hpp"
 #include "magvine/studies/mpm_study.hpp"
@@ -105,7 +106,8 @@ TEST(MpmScene, AMagnetsPullStretchesABarAsTheOneDimensionalEnergyPredicts) {
 units: {length: mm}
 magnets:
   - {kind: cylinder, diameter: 100, length: 100, polarisation: 1.44, position: [0, 0, -50], axis: [0, 0, 1]}
-)", "magnet");
+)",
+                                                     "magnet");
   const mpm::Material mat{33000.0, 20.0 * 33000.0, 1840.0};
   const double z0 = 100.25e-3, zc = 138e-3, br = 0.101;
   const int n = 4000;
@@ -152,8 +154,8 @@ TEST(MpmScene, ACantileverUnderGravityConvergesToTimoshenkosBeam) {
     o.max_time = 0.5;
     o.window = 0.01;
     o.tolerance = 1e-3 * expect;
-    const mpm::SettleResult r =
-        mpm::settle<2>(beam.model, beam.state, ws, [](double) { return mpm::AppliedField{}; }, beam.tip, o);
+    const mpm::SettleResult r = mpm::settle<2>(
+        beam.model, beam.state, ws, [](double) { return mpm::AppliedField{}; }, beam.tip, o);
     EXPECT_TRUE(r.status.ok) << r.status.cause;
     EXPECT_TRUE(r.settled);
     const double tip = -mpm::mean_position(beam.state, beam.tip).y();
@@ -242,14 +244,15 @@ TEST(MpmScene, BadScenesNameTheKey) {
     return t.replace(at, from.size(), to);
   };
   EXPECT_EQ(error_of(ok), "");
-  EXPECT_NE(error_of(with("  damping: 400", "  damping: 400\n  time_step: 0.01")).find("mpm.time_step: is above the stable step"),
+  EXPECT_NE(error_of(with("  damping: 400", "  damping: 400\n  time_step: 0.01"))
+                .find("mpm.time_step: is above the stable step"),
             std::string::npos);
   EXPECT_NE(error_of(with("shear_modulus: 33000", "shear_modulus: -1")).find("bodies[0].material.shear_modulus"),
             std::string::npos);
   EXPECT_NE(error_of(with("  damping: 400", "  dampign: 400")).find("damping"), std::string::npos);
   EXPECT_NE(error_of(with("to: [0, 0, 140]", "to: [0, 0, 160]")).find("domain"), std::string::npos);
-  EXPECT_NE(error_of(with("{name: bottom, at: [0, 0, 100.25], radius: 0.6}", "{name: b, at: [9, 9, 9]}")).find(
-                "probes[0].at"),
+  EXPECT_NE(error_of(with("{name: bottom, at: [0, 0, 100.25], radius: 0.6}", "{name: b, at: [9, 9, 9]}"))
+                .find("probes[0].at"),
             std::string::npos);
   EXPECT_NE(error_of(with("dimension: 3", "dimension: 4")).find("mpm.dimension"), std::string::npos);
 }
@@ -264,6 +267,38 @@ TEST(MpmScene, EveryBundledMpmSceneLoads) {
     ++n;
   }
   EXPECT_GE(n, 4);
+}
+
+TEST(MpmScene, ADesignWrittenAsAnMpmSceneCarriesItsSections) {
+  // `magvine design --mpm-check` (issue 29): the bundled catheter design with five known directions, as an MPM scene:
+  // every particle of the rod past the clamp carries its section's B̃r = Br R_base d_s, the clamp's particles none, and
+  // a probe sits at each target point past the base.
+  const DesignScene d = load_design_scene(std::string(MAGVINE_SOURCE_DIR) + "/assets/scenes/design_catheter.yaml");
+  design::Design design;
+  for (int s = 0; s < 5; ++s) {
+    design.directions.push_back(Vec3(std::cos(s), std::sin(s), 0.1 * s).normalized());
+    design.remanences.push_back(0.125);
+  }
+  const MpmScene m = parse_mpm_scene(design_mpm_scene_yaml(d, design, 1e-3, 2), "design-check.yaml");
+  ASSERT_EQ(m.dimension, 3);
+  EXPECT_EQ(m.probes.size(), 8u);
+  const double length = d.problem.model.length;
+  int magnetised = 0;
+  for (std::size_t i = 0; i < m.positions.size(); ++i) {
+    const double s = m.positions[i].x();  // the base at the origin, along x
+    const Vec3& br = m.model3.remanence[i];
+    if (s < 0.0) {
+      EXPECT_TRUE(br.isZero()) << "a clamp particle at " << s;
+      continue;
+    }
+    const auto section = static_cast<std::size_t>(std::min(4.0, std::floor(s / length * 5.0)));
+    EXPECT_LT((br - 0.125 * design.directions[section]).norm(), 1e-12) << "particle at " << s;
+    ++magnetised;
+  }
+  EXPECT_GT(magnetised, 1000);
+  for (std::size_t k = 0; k < m.probes.size(); ++k) {
+    EXPECT_NEAR(m.probes[k].at.x(), length * static_cast<double>(k + 1) / 8.0, 1e-12);
+  }
 }
 
 }  // namespace

@@ -11,28 +11,29 @@
 #include "magvine/anatomy/centerline.hpp"
 #include "magvine/anatomy/mesh_io.hpp"
 #include "magvine/anatomy/mesh_report.hpp"
+#include "magvine/config.hpp"
 #include "magvine/core/atomic_file.hpp"
 #include "magvine/core/error.hpp"
 #include "magvine/core/text.hpp"
 #include "magvine/core/units.hpp"
 #include "magvine/magnetics/field_model.hpp"
-#include "magvine/studies/centerline_study.hpp"
+#include "magvine/scene/design_scene.hpp"
+#include "magvine/scene/experiment.hpp"
 #include "magvine/scene/field_map.hpp"
+#include "magvine/scene/trials.hpp"
+#include "magvine/studies/centerline_study.hpp"
+#include "magvine/studies/design_study.hpp"
 #include "magvine/studies/field_study.hpp"
 #include "magvine/studies/growth_study.hpp"
-#include "magvine/studies/design_study.hpp"
-#include "magvine/scene/experiment.hpp"
-#include "magvine/scene/trials.hpp"
-#include "magvine/scene/design_scene.hpp"
 #if MAGVINE_WITH_MPM
 #include "magvine/scene/mpm_scene.hpp"
 #endif
 #include "magvine/scene/free_space.hpp"
-#include "magvine/studies/mechanics_study.hpp"
 #include "magvine/scene/magnets_file.hpp"
-#include "magvine/studies/meshing_study.hpp"
 #include "magvine/scene/points_csv.hpp"
 #include "magvine/scene/video_plugin.hpp"
+#include "magvine/studies/mechanics_study.hpp"
+#include "magvine/studies/meshing_study.hpp"
 
 namespace magvine::cli {
 
@@ -123,11 +124,12 @@ int run_study_centerline(const std::string& out_dir) {
 int run_study_growth(const std::string& out_dir, bool quick) {
   create_output_directory(out_dir);
   studies::run_growth_study(out_dir, quick, [](const studies::GrowthStudyRun& r) {
-    std::cerr << printf_string("  %-6s %-16s %8.4g  %s  %6.1f mm grown  %5d steps  %6d Newton  %7.2f s  "
-                               "peak node %.3f N, total %.3f N\n",
-                               r.which == studies::GrowthStudyCase::kY ? "y" : "carina", r.knob.c_str(),
-                               r.knob == "dt" ? r.value : 1e3 * r.value, r.ok ? "ok    " : "FAILED", 1e3 * r.grown,
-                               r.steps, r.newton, r.seconds, r.peak_node_normal, r.peak_total_normal);
+    std::cerr << printf_string(
+        "  %-6s %-16s %8.4g  %s  %6.1f mm grown  %5d steps  %6d Newton  %7.2f s  "
+        "peak node %.3f N, total %.3f N\n",
+        r.which == studies::GrowthStudyCase::kY ? "y" : "carina", r.knob.c_str(),
+        r.knob == "dt" ? r.value : 1e3 * r.value, r.ok ? "ok    " : "FAILED", 1e3 * r.grown, r.steps, r.newton,
+        r.seconds, r.peak_node_normal, r.peak_total_normal);
   });
   std::cerr << "magvine study growth: " << out_dir << "/growth_study.csv (tools/plot_growth_study.py " << out_dir
             << ")\n";
@@ -136,11 +138,11 @@ int run_study_growth(const std::string& out_dir, bool quick) {
 
 int run_study_design(const std::string& out_dir, int reachable) {
   studies::run_design_study(out_dir, reachable, [](const studies::DesignStudyRun& r) {
-    std::cerr << printf_string("  %-14s %-13s start %d: RMS %7.3f mm, %4d iterations, %4d evaluations, %6.3f s; "
-                               "2 mm after %d evaluations, 0.5 mm after %d\n",
-                               r.target.c_str(), r.method.c_str(), static_cast<int>(r.start_seed), r.result.rms * 1e3,
-                               r.result.iterations, r.result.evaluations, r.result.runtime_s, r.evaluations_to_2mm,
-                               r.evaluations_to_half_mm);
+    std::cerr << printf_string(
+        "  %-14s %-13s start %d: RMS %7.3f mm, %4d iterations, %4d evaluations, %6.3f s; "
+        "2 mm after %d evaluations, 0.5 mm after %d\n",
+        r.target.c_str(), r.method.c_str(), static_cast<int>(r.start_seed), r.result.rms * 1e3, r.result.iterations,
+        r.result.evaluations, r.result.runtime_s, r.evaluations_to_2mm, r.evaluations_to_half_mm);
   });
   std::cerr << "magvine study design: " << out_dir << "/design_study.csv, design_history.csv, design_shapes.csv "
             << "(tools/plot_design_study.py " << out_dir << ")\n";
@@ -189,9 +191,10 @@ int run_mesh_graph(const MeshGraphArgs& args) {
   std::cout << args.file << ": " << graph.branches.size() << " branches, " << anatomy::leaves(graph).size()
             << " leaves, generations 0-" << deepest << "; voxel " << report.voxel / unit << " " << args.units << " ("
             << report.dims[0] << " x " << report.dims[1] << " x " << report.dims[2] << ", " << report.inside_voxels
-            << " in the lumen, " << report.components << (report.components == 1 ? " component" : " components, the largest kept")
-            << "), " << report.spurs_pruned << " spurs pruned, " << report.seconds << " s -> " << args.out
-            << (args.png.empty() ? "" : " + " + args.png) << "\n";
+            << " in the lumen, " << report.components
+            << (report.components == 1 ? " component" : " components, the largest kept") << "), " << report.spurs_pruned
+            << " spurs pruned, " << report.seconds << " s -> " << args.out << (args.png.empty() ? "" : " + " + args.png)
+            << "\n";
   return 0;
 }
 
@@ -234,8 +237,8 @@ int run_experiment_scene(const RunArgs& args, const std::filesystem::path& out) 
   if (!result.converged) return failed_run(result.failure, out);
   const Vec3 tip = result.final_state.tip() / kMmToM;
   std::cerr << "magvine run: " << result.samples.back().length / kMmToM << (rod ? " mm inserted" : " mm everted")
-            << ", tip at (" << tip.x() << ", "
-            << tip.y() << ", " << tip.z() << ") mm, " << result.events.size() << " events"
+            << ", tip at (" << tip.x() << ", " << tip.y() << ", " << tip.z() << ") mm, " << result.events.size()
+            << " events"
             << (sc.target ? (result.success ? ", target reached at " + std::to_string(result.time_to_target) + " s"
                                             : std::string(", target not reached"))
                           : std::string())
@@ -249,8 +252,9 @@ int run_experiment_scene(const RunArgs& args, const std::filesystem::path& out) 
 }
 
 int run_scene(const RunArgs& args) {
-  const std::filesystem::path out =
-      args.out.empty() ? std::filesystem::path("runs") / std::filesystem::path(args.scene).stem() : std::filesystem::path(args.out);
+  const std::filesystem::path out = args.out.empty()
+                                        ? std::filesystem::path("runs") / std::filesystem::path(args.scene).stem()
+                                        : std::filesystem::path(args.out);
 #if MAGVINE_WITH_MPM
   if (scene::is_mpm_scene(args.scene)) {
     throw InputError(args.scene + ": an MPM scene (it has mpm:); run it with magvine mpm " + args.scene);
@@ -262,29 +266,31 @@ int run_scene(const RunArgs& args) {
   scene::write_free_space_outputs(sc, result, out);
   if (!result.report.converged) return failed_run("static equilibrium: " + result.report.failure, out);
   const Vec3 tip = result.state.tip() / kMmToM;
-  std::cerr << "magvine run: " << sc.kind() << ", " << sc.model.edges + 1 << " nodes, converged in " << result.report.iterations
-            << " Newton iterations (" << result.runtime_s * 1e3 << " ms); tip at (" << tip.x() << ", " << tip.y()
-            << ", " << tip.z() << ") mm -> " << (out / "metrics.json").string() << ", "
+  std::cerr << "magvine run: " << sc.kind() << ", " << sc.model.edges + 1 << " nodes, converged in "
+            << result.report.iterations << " Newton iterations (" << result.runtime_s * 1e3 << " ms); tip at ("
+            << tip.x() << ", " << tip.y() << ", " << tip.z() << ") mm -> " << (out / "metrics.json").string() << ", "
             << (out / "shape.csv").string() << '\n';
   return 0;
 }
 
 int run_trials(const TrialsArgs& args) {
   const scene::ExperimentScene sc = scene::load_experiment_scene(args.scene);
-  const std::filesystem::path out = args.out.empty()
-                                        ? std::filesystem::path("runs") / (std::filesystem::path(args.scene).stem().string() + "-trials")
-                                        : std::filesystem::path(args.out);
+  const std::filesystem::path out =
+      args.out.empty() ? std::filesystem::path("runs") / (std::filesystem::path(args.scene).stem().string() + "-trials")
+                       : std::filesystem::path(args.out);
   const int jobs = args.jobs > 0 ? args.jobs : static_cast<int>(std::max(1u, std::thread::hardware_concurrency()));
   for (const std::string& t : args.targets) (void)scene::with_target(sc, t);  // bad names fail before any output
   const std::size_t targets = args.targets.empty() ? 1 : args.targets.size();
   std::cerr << "magvine trials: " << targets * static_cast<std::size_t>(args.repeats) << " runs (" << targets
             << " target(s) x " << args.repeats << " repeats) on " << jobs << " thread(s)\n";
-  const std::vector<scene::TrialOutcome> outcomes =
-      scene::run_trials(sc, args.targets, args.repeats, jobs, [](int done, int total) {
+  const std::vector<scene::TrialOutcome> outcomes = scene::run_trials(
+      sc, args.targets, args.repeats, jobs,
+      [](int done, int total) {
         const int bar = 20 * done / total;
         std::cerr << "\r  [" << std::string(static_cast<std::size_t>(bar), '#')
                   << std::string(static_cast<std::size_t>(20 - bar), '.') << "] " << done << "/" << total << std::flush;
-      }, args.keep_runs ? out / "runs" : std::filesystem::path());
+      },
+      args.keep_runs ? out / "runs" : std::filesystem::path());
   std::cerr << '\n';
   scene::write_trial_outputs(outcomes, out);
   std::ifstream md(out / "summary.md");
@@ -298,9 +304,13 @@ int run_trials(const TrialsArgs& args) {
 
 int run_design(const DesignArgs& args) {
   const scene::DesignScene sc = scene::load_design_scene(args.scene);  // bad input fails before any output
-  const std::filesystem::path out = args.out.empty()
-                                        ? std::filesystem::path("runs") / (std::filesystem::path(args.scene).stem().string() + "-design")
-                                        : std::filesystem::path(args.out);
+  if (args.mpm_check && !config::kWithMpm) {
+    throw InputError(
+        "--mpm-check: this magvine was built without the MPM module (configure with -DMAGVINE_WITH_MPM=ON)");
+  }
+  const std::filesystem::path out =
+      args.out.empty() ? std::filesystem::path("runs") / (std::filesystem::path(args.scene).stem().string() + "-design")
+                       : std::filesystem::path(args.out);
   const char* method = sc.method == scene::DesignMethod::least_squares ? "Levenberg-Marquardt, exact Jacobian"
                        : sc.method == scene::DesignMethod::lbfgsb      ? "L-BFGS-B, exact adjoint gradient"
                                                                        : "Bayesian optimisation (derivative-free)";
@@ -311,7 +321,23 @@ int run_design(const DesignArgs& args) {
               << std::flush;
   });
   std::cerr << '\n';
+  if (args.mpm_check) {
+    (void)scene::design_mpm_scene_yaml(sc, r.design, args.mpm_cell_mm * 1e-3, args.mpm_particles);  // refusals first
+  }
   scene::write_design_outputs(sc, r, out);
+  if (args.mpm_check) {
+    std::cerr << "magvine design: the MPM check\n";
+    const scene::DesignMpmCheck m = scene::run_design_mpm_check(
+        sc, r, out, args.mpm_cell_mm * 1e-3, args.mpm_particles,
+        [](double f) { std::cerr << "\r  " << static_cast<int>(100.0 * f) << " %   " << std::flush; });
+    std::cerr << '\n';
+    scene::add_mpm_check_to_design_json(m, out);
+    std::cout << printf_string(
+        "MPM check: rod-MPM RMS %.3f mm (largest %.3f mm), MPM-target RMS %.3f mm; %ld particles, "
+        "%.2f s simulated (%s) in %.1f s%s\n",
+        m.rms * 1e3, m.max * 1e3, m.target_rms * 1e3, m.particles, m.simulated_s, m.settled ? "settled" : "not settled",
+        m.runtime_s, m.failure.empty() ? "" : (": " + m.failure).c_str());
+  }
   std::cout << printf_string("RMS %.3f mm, largest error %.3f mm after %d iterations (%d equilibria) in %.2f s: %s\n",
                              r.rms * 1e3, r.max_error * 1e3, r.iterations, r.evaluations, r.runtime_s,
                              r.message.c_str());

@@ -95,6 +95,9 @@ std::function<void(double)> progress_bar();
 struct DesignArgs {
   std::string scene;
   std::string out;
+  bool mpm_check = false;
+  double mpm_cell_mm = 0.0;  ///< 0: a quarter of the diameter
+  int mpm_particles = 4;     ///< particles per cell per axis
 };
 int run_design(const DesignArgs& args);
 

@@ -5,16 +5,17 @@
 #include <iostream>
 
 #include "commands.hpp"
-#include "mpm_command.hpp"
-#include "phantom_command.hpp"
 #include "magvine/config.hpp"
 #include "magvine/core/error.hpp"
+#include "mpm_command.hpp"
+#include "phantom_command.hpp"
 #include "render_command.hpp"
 
 namespace {
 
 std::string build_info() {
-  std::string s = std::string("magvine ") + MAGVINE_VERSION + " (render: " + (magvine::config::kWithRender ? "on" : "off") +
+  std::string s = std::string("magvine ") + MAGVINE_VERSION +
+                  " (render: " + (magvine::config::kWithRender ? "on" : "off") +
                   ", mpm: " + (magvine::config::kWithMpm ? "on" : "off") + ")";
   return s;
 }
@@ -34,7 +35,8 @@ int main(int argc, char** argv) {
   field_cmd->add_option("--out", field.out, "output CSV (default: stdout); written atomically");
 
   magvine::cli::FieldMapArgs map;
-  auto* map_cmd = app.add_subcommand("field-map", "|B| and |grad B| on a plane (CSV + JSON for tools/plot_field_map.py)");
+  auto* map_cmd =
+      app.add_subcommand("field-map", "|B| and |grad B| on a plane (CSV + JSON for tools/plot_field_map.py)");
   map_cmd->add_option("--magnets", map.magnets, "magnets file (YAML)")->required();
   map_cmd->add_option("--plane", map.plane, "plane axes, e.g. xz (u = first, v = second)")->capture_default_str();
   map_cmd->add_option("--center", map.center, "centre x,y,z in --units")->capture_default_str();
@@ -61,19 +63,22 @@ int main(int argc, char** argv) {
   std::string growth_out;
   bool growth_quick = false;
   auto* study_growth = study_cmd->add_subcommand(
-      "growth", "vine growth past the carina and into the Y: tip path and peak wall forces against edge length, dt "
-                "and d-hat, each against its finest run (CSV; tools/plot_growth_study.py draws it)");
+      "growth",
+      "vine growth past the carina and into the Y: tip path and peak wall forces against edge length, dt "
+      "and d-hat, each against its finest run (CSV; tools/plot_growth_study.py draws it)");
   study_growth->add_option("--out", growth_out, "output folder")->required();
   study_growth->add_flag("--quick", growth_quick, "two settings per knob (a check, not a study)");
 
   std::string design_study_out;
   int design_study_reachable = 8;
   auto* study_design = study_cmd->add_subcommand(
-      "design", "computational design of thesis A.1.5.1's catheter: least-squares, L-BFGS-B and Bayesian optimisation "
-                "on reachable and arbitrary targets, RMS against iterations and time (CSV; tools/plot_design_study.py)");
+      "design",
+      "computational design of thesis A.1.5.1's catheter: least-squares, L-BFGS-B and Bayesian optimisation "
+      "on reachable and arbitrary targets, RMS against iterations and time (CSV; tools/plot_design_study.py)");
   study_design->add_option("--out", design_study_out, "output folder")->required();
   study_design->add_option("--reachable", design_study_reachable, "reachable targets (random designs' shapes)")
-      ->capture_default_str()->check(CLI::Range(0, 1000));
+      ->capture_default_str()
+      ->check(CLI::Range(0, 1000));
 
   magvine::cli::MeshCheckArgs mesh_check;
   auto* mesh_cmd = app.add_subcommand("mesh", "anatomy mesh tools");
@@ -88,31 +93,38 @@ int main(int argc, char** argv) {
   auto* mesh_graph_cmd = mesh_cmd->add_subcommand(
       "graph", "centreline graph of a closed airway mesh: branches named from the root, generations, radii (JSON)");
   mesh_graph_cmd->add_option("file", mesh_graph.file, "mesh file (STL, OBJ, PLY, glTF/GLB, OFF, ...)")->required();
-  mesh_graph_cmd->add_option("--units", mesh_graph.units, "unit of the file's coordinates, --voxel and --root: "
-                                                          "mm | cm | m")->capture_default_str();
+  mesh_graph_cmd
+      ->add_option("--units", mesh_graph.units,
+                   "unit of the file's coordinates, --voxel and --root: "
+                   "mm | cm | m")
+      ->capture_default_str();
   mesh_graph_cmd->add_option("--voxel", mesh_graph.voxel, "voxel edge (default: auto, about 2 M lumen voxels)");
   mesh_graph_cmd->add_option("--root", mesh_graph.root, "X,Y,Z near the trachea's end (default: the widest end)")
-      ->delimiter(',')->expected(3);
+      ->delimiter(',')
+      ->expected(3);
   mesh_graph_cmd->add_option("--out", mesh_graph.out, "the graph (.json)")->required();
   mesh_graph_cmd->add_option("--png", mesh_graph.png, "also a picture of the graph over the mesh (.png)");
   mesh_check_cmd->add_option("--out", mesh_check.out, "also write the JSON report to this file");
 
   magvine::cli::RunArgs run;
-  auto* run_cmd = app.add_subcommand("run", "one experiment: a free-space equilibrium (metrics.json, shape.csv) or, for "
-                                            "a scene with anatomy:, growth under its control schedule (metrics, "
-                                            "trajectories, events); exit 3 when it does not converge");
+  auto* run_cmd = app.add_subcommand("run",
+                                     "one experiment: a free-space equilibrium (metrics.json, shape.csv) or, for "
+                                     "a scene with anatomy:, growth under its control schedule (metrics, "
+                                     "trajectories, events); exit 3 when it does not converge");
   run_cmd->add_option("scene", run.scene, "scene file (YAML)")->required();
   run_cmd->add_option("--out", run.out, "output folder (default: runs/<scene name>)");
 
   magvine::cli::TrialsArgs trials;
   auto* trials_cmd = app.add_subcommand(
-      "trials", "repeated experiments with seeded perturbations (EPM placement, pressure, material), in parallel; a "
-                "summary table like thesis table 5.2 (CSV + Markdown)");
+      "trials",
+      "repeated experiments with seeded perturbations (EPM placement, pressure, material), in parallel; a "
+      "summary table like thesis table 5.2 (CSV + Markdown)");
   trials_cmd->add_option("scene", trials.scene, "experiment scene (YAML, with control.navigator for --targets)")
       ->required();
   trials_cmd->add_option("--targets", trials.targets, "branch names to aim the navigator at (default: the scene's)")
       ->delimiter(',');
-  trials_cmd->add_option("--repeats", trials.repeats, "trials per target")->capture_default_str()
+  trials_cmd->add_option("--repeats", trials.repeats, "trials per target")
+      ->capture_default_str()
       ->check(CLI::Range(1, 100000));
   trials_cmd->add_option("--jobs", trials.jobs, "threads (default: every core)")->check(CLI::Range(1, 1024));
   trials_cmd->add_option("--out", trials.out, "output folder (default: runs/<scene name>-trials)");
@@ -122,15 +134,24 @@ int main(int argc, char** argv) {
 
   magvine::cli::DesignArgs design;
   auto* design_cmd = app.add_subcommand(
-      "design", "computational design: the magnetisation sections (and a uniform field) that put a rod's equilibrium "
-                "on a target shape (design.json, scene.yaml for magvine run; docs/design.md)");
+      "design",
+      "computational design: the magnetisation sections (and a uniform field) that put a rod's equilibrium "
+      "on a target shape (design.json, scene.yaml for magvine run; docs/design.md)");
   design_cmd->add_option("scene", design.scene, "design file: a free-space rod scene plus design:")->required();
   design_cmd->add_option("--out", design.out, "output folder (default: runs/<file name>-design)");
+  design_cmd->add_flag("--mpm-check", design.mpm_check,
+                       "also simulate the design in 3D MPM (the thesis's method) and report the rod-MPM difference");
+  design_cmd->add_option("--mpm-cell", design.mpm_cell_mm, "the MPM check's grid spacing [mm] (default: diameter/4)")
+      ->check(CLI::Range(0.01, 100.0));
+  design_cmd->add_option("--mpm-particles", design.mpm_particles, "the MPM check's particles per cell per axis")
+      ->capture_default_str()
+      ->check(CLI::Range(1, 8));
 
   std::string validate_out;
   auto* validate_cmd = app.add_subcommand(
-      "validate", "robot mechanics against the references: rod vs elastica (error against runtime), skin vine vs "
-                  "the two-stage model, magnetic-fluid vines vs EPM distance (CSV)");
+      "validate",
+      "robot mechanics against the references: rod vs elastica (error against runtime), skin vine vs "
+      "the two-stage model, magnetic-fluid vines vs EPM distance (CSV)");
   validate_cmd->add_option("--out", validate_out, "output folder")->required();
 
   magvine::cli::PhantomCommand phantom;

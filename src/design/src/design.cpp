@@ -465,6 +465,7 @@ DesignResult optimise_design(const DesignProblem& problem, const Design& start, 
 DesignResult multi_start_design(const DesignProblem& problem, DesignMethod method, const DesignOptions& options) {
   if (method == DesignMethod::bayesian) return bayesian_design(problem, options);
   DesignResult best;
+  best.rms = std::numeric_limits<double>::infinity();  // (until the first start ends)
   int iterations = 0;
   int evaluations = 0;
   double runtime = 0.0;

@@ -51,4 +51,40 @@ std::string designed_scene_yaml(const DesignScene& scene, const design::Design& 
 void write_design_outputs(const DesignScene& scene, const design::DesignResult& result,
                           const std::filesystem::path& dir);
 
+/// The MPM check of a design (issue 29): the designed rod (the fully inserted one with insertion) as a 3D MPM scene
+/// in the thesis's own method. A cylinder of the rod's diameter from a clamp behind the base to the tip, its sections
+/// as slabs of the design's remanence along the base axis (which must be a coordinate axis), the design's uniform
+/// field, gravity as the scene's, the material of the file's robot (circular sections only), and a probe at each target
+/// point's arc length on the straight rod (but the first, the clamped base). `cell`: the grid spacing [m] (0: a quarter
+/// of the diameter); `particles_per_cell` per axis (4: the Zhao beam study's choice, docs/validation.md). The damping
+/// is about twice the rod's first bending frequency (near critical for that mode); the run stops when the probes settle
+/// (every probe moved less than 1e-4 L over 0.05 s) or after `duration`. InputError when the design cannot be
+/// written as one (an oblique base, a rectangular section, a field that is not uniform).
+std::string design_mpm_scene_yaml(const DesignScene& scene, const design::Design& design, double cell = 0.0,
+                                  int particles_per_cell = 4, double duration = 2.0);
+
+/// The rod against MPM: each probe's final position against the rod equilibrium's point at its arc length (the target
+/// points but the clamped first).
+struct DesignMpmCheck {
+  double rms = 0.0;         ///< rod–MPM [m]
+  double max = 0.0;         ///< [m]
+  double target_rms = 0.0;  ///< MPM against the target [m]
+  bool settled = false;
+  double simulated_s = 0.0;
+  double runtime_s = 0.0;
+  long steps = 0;
+  long particles = 0;
+  std::string failure;  ///< the MPM run's, when it failed
+};
+
+/// Writes DIR/mpm_check.yaml (design_mpm_scene_yaml), runs it (MPM builds only: InputError otherwise) into
+/// DIR/mpm_check/ (magvine mpm's outputs), and returns the comparison.
+DesignMpmCheck run_design_mpm_check(const DesignScene& scene, const design::DesignResult& result,
+                                    const std::filesystem::path& dir, double cell = 0.0, int particles_per_cell = 4,
+                                    const std::function<void(double)>& progress = {});
+
+/// Adds the check to DIR/design.json as `mpm_check`: rms_m, max_m, target_rms_m, settled, simulated_s, runtime_s,
+/// steps, particles, failure.
+void add_mpm_check_to_design_json(const DesignMpmCheck& check, const std::filesystem::path& dir);
+
 }  // namespace magvine::scene
