@@ -42,6 +42,29 @@ assert abs(rms - d['rms_m']) < 1e-9, (rms, d['rms_m'])
   expect_rc(${rc} 0 "design ${case} outputs: ${err}")
 endforeach()
 
+# Where the EPM goes as a design variable (the thesis EPM, exact cylinder, in a 100 mm box): the S in its gradient field;
+# scene.yaml carries the placed magnet and reproduces the shape.
+string(REPLACE "  - {kind: uniform, field: [0, 0.02, 0]}"
+               "  - {kind: cylinder, diameter: 101.6, length: 101.6, polarisation: 1.48, position: [20, -150, 0], axis: [0, 1, 0]}"
+               epm "${design}")
+string(REPLACE "  remanence: 0.125 " "  magnet: {index: 0, min: [-30, -200, -50], max: [70, -100, 50]}\n  starts: 2\n  remanence: 0.125 " epm "${epm}")
+file(WRITE ${WORK}/epm.yaml "${epm}")
+execute_process(COMMAND ${MAGVINE} design ${WORK}/epm.yaml --out ${WORK}/epm RESULT_VARIABLE rc ERROR_VARIABLE err)
+expect_rc(${rc} 0 "EPM design: ${err}")
+execute_process(COMMAND ${MAGVINE} run ${WORK}/epm/scene.yaml --out ${WORK}/epm_run RESULT_VARIABLE rc ERROR_VARIABLE err)
+expect_rc(${rc} 0 "run of the EPM design: ${err}")
+execute_process(COMMAND ${PYTHON} -c "
+import csv, json, math
+d = json.load(open('${WORK}/epm/design.json'))
+p = d['magnet_position_m']
+assert -0.030 - 1e-12 <= p[0] <= 0.070 + 1e-12 and -0.200 - 1e-12 <= p[1] <= -0.100 + 1e-12, p
+assert d['rms_m'] < 0.70e-3, d['rms_m']   # the gradient field shapes the S better than the uniform 20 mT (0.70 mm)
+design = [list(map(float, r)) for r in list(csv.reader(open('${WORK}/epm/shape.csv')))[1:]]
+run = [list(map(float, r)) for r in list(csv.reader(open('${WORK}/epm_run/shape.csv')))[1:]]
+assert max(math.dist(a[1:], b[1:]) for a, b in zip(design, run)) < 1e-6
+" RESULT_VARIABLE rc ERROR_VARIABLE err)
+expect_rc(${rc} 0 "EPM design outputs: ${err}")
+
 # Follow-the-leader (thesis A.1.5.2): the bundled insertion design, eight steps with a field of at most 10 mT each;
 # RMS over all steps within the issue's 1 mm (measured 0.25 mm); the fully inserted scene reproduces the last step.
 execute_process(COMMAND ${MAGVINE} design ${SRC}/assets/scenes/design_insertion.yaml --out ${WORK}/insertion

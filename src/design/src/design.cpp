@@ -104,6 +104,12 @@ std::optional<DesignProblemIssue> design_problem_issue(const DesignProblem& prob
     if (problem.insertion_steps < 0 || problem.insertion_steps > m.edges) {
       fail("insertion.steps", "must be within [1, " + std::to_string(m.edges) + "] (the rod's edges)");
     }
+    if (problem.magnet) {
+      const DesignProblem::MagnetPosition& mp = *problem.magnet;
+      if (mp.index >= mp.magnets.size()) fail("magnet.index", "names no magnet of the scene");
+      if (!(mp.min.array() <= mp.max.array()).all()) fail("magnet.min", "exceeds max: the box holds no position");
+      if (spec.field_max) fail("magnet", "a designed magnet and a free uniform field exclude each other");
+    }
     if (problem.insertion_steps > 0 && !spec.field_max) {
       fail("insertion.steps", "a follow-the-leader insertion needs design.field.free (one field per step)");
     }
@@ -117,7 +123,7 @@ DesignObjective::DesignObjective(const DesignProblem& problem) : m_problem(probl
   const DesignSpec& spec = problem.spec;
   const int steps = problem.insertion_steps;
   m_fields = spec.field_max ? std::max(1, steps) : 0;
-  m_parameters = spec.sections * per_section(spec) + 3 * m_fields;
+  m_parameters = spec.sections * per_section(spec) + 3 * m_fields + (problem.magnet ? 3 : 0);
   const robot::RodModel& full = problem.model;
   const int n = full.edges;
   const std::size_t k_count = spec.target.size();
@@ -168,6 +174,7 @@ VecX DesignObjective::lower() const {
     out[at++] = 0.0;
     out[at++] = -kTwoPi;
   }
+  if (m_problem.magnet) out.segment<3>(at) = m_problem.magnet->min;
   return out;
 }
 
@@ -185,6 +192,7 @@ VecX DesignObjective::upper() const {
     out[at++] = kPi;
     out[at++] = kTwoPi;
   }
+  if (m_problem.magnet) out.segment<3>(at) = m_problem.magnet->max;
   return out;
 }
 
@@ -211,6 +219,10 @@ VecX DesignObjective::parameters_of(const Design& design) const {
     p[at++] = theta;
     p[at++] = phi;
   }
+  if (m_problem.magnet) {
+    const magnetics::FieldModel& magnets = m_problem.magnet->magnets;
+    p.segment<3>(at) = design.magnet_position.value_or(magnets.rest_poses[m_problem.magnet->index].position);
+  }
   return p.cwiseMax(lower()).cwiseMin(upper());
 }
 
@@ -227,6 +239,7 @@ Design DesignObjective::design_of(const VecX& p) const {
     d.fields.push_back(p[at] * detail::spherical(p[at + 1], p[at + 2]));
     at += 3;
   }
+  if (m_problem.magnet) d.magnet_position = p.segment<3>(at);
   return d;
 }
 
@@ -244,6 +257,11 @@ robot::RodModel DesignObjective::model_of(const Design& design, std::size_t conf
 
 robot::RodField DesignObjective::field_of(const Design& design, std::size_t configuration) const {
   const int f = m_configurations[configuration].field;
+  if (f < 0 && m_problem.magnet && design.magnet_position) {
+    std::vector<magnetics::Pose> poses = m_problem.magnet->magnets.rest_poses;
+    poses[m_problem.magnet->index].position = *design.magnet_position;
+    return magnetics::field_function(m_problem.magnet->magnets, std::move(poses));
+  }
   if (f < 0) return m_problem.field;
   const Vec3 b = design.fields[static_cast<std::size_t>(f)];
   return robot::RodField([b](const Vec3&) { return magnetics::FieldSample{b, Mat3::Zero()}; });
@@ -280,7 +298,8 @@ bool DesignObjective::is_magnitude(int i) const {
   const DesignSpec& spec = m_problem.spec;
   const int stride = per_section(spec);
   if (i < spec.sections * stride) return spec.remanence_bounds && i % stride == 2;
-  return (i - spec.sections * stride) % 3 == 0;  // |B| of a field (then θ_B, φ_B)
+  if (m_problem.magnet && i >= magnet_offset()) return true;  // a coordinate of the magnet's box
+  return (i - spec.sections * stride) % 3 == 0;               // |B| of a field (then θ_B, φ_B)
 }
 
 std::vector<robot::RodState> DesignObjective::states() const {
@@ -326,6 +345,16 @@ MatX DesignObjective::gradient_sensitivity(const Design& design, const VecX& p, 
     out.col(at) += br * per_tesla * (block * detail::spherical_d_theta(p[at], p[at + 1]));
     out.col(at + 1) += br * per_tesla * (block * detail::spherical_d_phi(p[at], p[at + 1]));
     if (spec.remanence_bounds) out.col(at + 2) += per_tesla * (block * design.directions[static_cast<std::size_t>(s)]);
+  }
+  if (m_problem.magnet && design.magnet_position) {
+    // Moving the magnet by δ translates its own field by δ (the others stay): the sensitivity to that source alone.
+    const magnetics::FieldModel& all = m_problem.magnet->magnets;
+    magnetics::FieldModel one;
+    one.add(all.sources[m_problem.magnet->index], all.rest_poses[m_problem.magnet->index]);
+    magnetics::Pose pose = all.rest_poses[m_problem.magnet->index];
+    pose.position = *design.magnet_position;
+    out.middleCols<3>(magnet_offset()) =
+        robot::rod_field_translation_sensitivity(model, magnetics::field_function(one, {pose}), conf.state);
   }
   if (conf.field >= 0) {
     const int at = field_offset(conf.field);
@@ -419,6 +448,10 @@ Design random_design(const DesignProblem& problem, std::uint64_t seed) {
   if (spec.field_max) {
     const Vec3 b = problem.start_field.isZero() ? Vec3(0.5 * *spec.field_max * on_sphere()) : problem.start_field;
     d.fields.assign(static_cast<std::size_t>(std::max(1, problem.insertion_steps)), b);
+  }
+  if (problem.magnet) {  // where the scene puts it, within its box
+    const Vec3 at = problem.magnet->magnets.rest_poses[problem.magnet->index].position;
+    d.magnet_position = at.cwiseMax(problem.magnet->min).cwiseMin(problem.magnet->max);
   }
   return d;
 }

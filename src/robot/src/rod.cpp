@@ -798,6 +798,14 @@ MatX rod_uniform_field_sensitivity(const RodModel& model, const RodState& state)
   return out;
 }
 
+MatX rod_field_translation_sensitivity(const RodModel& model, const RodField& field, const RodState& state) {
+  check_rod_model(model);
+  MatX out = MatX::Zero(6 * model.edges, 3);
+  const TermContext c{model, field, state};
+  detail::Magnetic::add_field_translation_sensitivity(c, out);
+  return out;
+}
+
 std::optional<MatX> rod_hessian_solve(const RodModel& model, const RodField& field, const RodState& state,
                                       const MatX& rhs, const RodConstraints* constraints) {
   check_rod_model(model);

@@ -54,7 +54,7 @@ DesignScene parse_design_scene(const std::string& text, const std::string& file_
   if (out.scene.vine) top.map("robot").fail("kind", "a design needs a rod (kind: rod): vines are not designed");
   if (!top.has("design")) top.fail("design", "missing required key (the design file's design: section)");
   const YamlMap d = top.map("design");
-  d.allow_only({"sections", "remanence", "target", "field", "iterations", "method", "starts", "insertion"});
+  d.allow_only({"sections", "remanence", "target", "field", "iterations", "method", "starts", "insertion", "magnet"});
   design::DesignProblem& p = out.problem;
   p.model = out.scene.model;
   p.area = area;
@@ -119,6 +119,18 @@ DesignScene parse_design_scene(const std::string& text, const std::string& file_
     } else {
       p.field = magnetics::field_function(magnets, magnets.rest_poses);
     }
+    if (d.has("magnet")) {  // where the EPM goes joins the unknowns
+      const YamlMap mg = d.map("magnet");
+      mg.allow_only({"index", "min", "max"});
+      design::DesignProblem::MagnetPosition position;
+      position.magnets = magnets;
+      position.index = static_cast<std::size_t>(mg.has("index") ? mg.whole("index", 0, 65535) : 0);
+      position.min = mg.vec3_quantity("min", units.len, range::kCoordinate);
+      position.max = mg.vec3_quantity("max", units.len, range::kCoordinate);
+      p.magnet = position;
+    }
+  } else if (d.has("magnet")) {
+    d.fail("magnet", "the scene has no magnets to place");
   }
   // The design's own checks, at the line of the key they name (a target point's: the list's, which holds them all).
   if (const std::optional<design::DesignProblemIssue> issue = design::design_problem_issue(p)) {
@@ -203,6 +215,12 @@ std::string designed_scene_yaml(const DesignScene& scene, const design::Design& 
     magnets.push_back(uniform);
     root["magnets"] = magnets;
   }
+  if (design.magnet_position && scene.problem.magnet) {
+    YAML::Node at(YAML::NodeType::Sequence);
+    for (int i = 0; i < 3; ++i) at.push_back((*design.magnet_position)[i] / scene.length_unit);
+    at.SetStyle(YAML::EmitterStyle::Flow);
+    root["magnets"][scene.problem.magnet->index]["position"] = at;
+  }
   YAML::Emitter emitter;
   emitter << root;
   return "# The rod designed by `magvine design " + scene.file + "` (run it with `magvine run`).\n" +
@@ -258,6 +276,7 @@ void write_design_outputs(const DesignScene& scene, const design::DesignResult& 
   } else if (result.design.fields.size() == 1) {
     j["field_T"] = vec(result.design.fields.front());
   }
+  if (result.design.magnet_position) j["magnet_position_m"] = vec(*result.design.magnet_position);
   nlohmann::json history = nlohmann::json::array();
   for (const design::DesignResult::Step& s : result.history) {
     history.push_back({{"iteration", s.iteration},

@@ -101,62 +101,107 @@ struct Magnetic {
     if (s.block >= 0) out.block<3, 1>(6 * s.block + s.offset, column) += v;
   }
 
-  /// With w = dU/dB (world) = −m + R p (p = V de/db, P = V d²e/db², body frame), c the midpoint and G = ∂B/∂c:
-  ///   δφδφ: sym(w Bᵀ) − w·B I + [B]ᵀRPRᵀ[B];  δφδc: ([w] − [B]RPRᵀ)G;  δcδc: GᵀRPRᵀG + Σ_i w_i ∇²B_i,
-  /// the last from the field's closed-form curvature where it has one (dipoles), else from forward differences of G
-  /// (skipped when the field has no gradient at any midpoint: uniform).
+  /// The Hessian blocks of every edge (edge_blocks).
   static void add_hessian(const TermContext& c, System& sys) {
     if (!active(c)) return;
-    const RodModel& m = c.model;
-    const bool hard = !m.moment_per_length.empty();
     const auto n = static_cast<std::size_t>(c.edges());
     FieldSamples local;
     FieldSamples& samples = c.samples != nullptr ? *c.samples : local;
     if (c.samples == nullptr) local.reset(n);
+    const bool uniform = uniform_at_edges(c, samples);
+    for (std::size_t ju = 0; ju < n; ++ju) {
+      EdgeBlocks b;
+      if (!edge_blocks(c, ju, samples.value[ju], uniform, b)) continue;
+      add_edge_element(sys, static_cast<int>(ju), EdgeVector::midpoint, b.cc, b.phic.transpose(), b.phiphi);
+    }
+  }
+
+  /// The derivative of the gradient with respect to a translation p of every field source (the field becomes
+  /// B(x − p)), into the 6N × 3 matrix `out`: the edge's energy depends on c − p, so the rotation rows take −H_φc and
+  /// each end node −½ H_cc (the Hessian's own blocks, edge_blocks; design sensitivities, rod.hpp).
+  static void add_field_translation_sensitivity(const TermContext& c, MatX& out) {
+    if (!active(c)) return;
+    const auto n = static_cast<std::size_t>(c.edges());
+    FieldSamples samples;
+    samples.reset(n);
+    const bool uniform = uniform_at_edges(c, samples);
+    for (std::size_t ju = 0; ju < n; ++ju) {
+      EdgeBlocks b;
+      if (!edge_blocks(c, ju, samples.value[ju], uniform, b)) continue;
+      const int j = static_cast<int>(ju);
+      for (int k = 0; k < 3; ++k) {
+        add_column(out, rotation_slot(j), k, -b.phic.col(k));
+        add_column(out, position_slot(j), k, -0.5 * b.cc.col(k));
+        add_column(out, position_slot(j + 1), k, -0.5 * b.cc.col(k));
+      }
+    }
+  }
+
+ private:
+  /// The second derivatives of one edge's energy in its frame rotation φ and its midpoint c.
+  struct EdgeBlocks {
+    Mat3 cc = Mat3::Zero();
+    Mat3 phic = Mat3::Zero();  ///< rows φ, columns c
+    Mat3 phiphi = Mat3::Zero();
+  };
+
+  /// Samples the field at every edge midpoint; true when it has no gradient at any (uniform: no curvature terms).
+  static bool uniform_at_edges(const TermContext& c, FieldSamples& samples) {
     bool uniform = true;
-    for (std::size_t j = 0; j < n; ++j) {
-      const bool flat = samples.at(c.field, c.state, j).g.isZero(0.0);  // sampled at every edge, even past the first gradient
+    for (std::size_t j = 0; j < static_cast<std::size_t>(c.edges()); ++j) {
+      const bool flat =
+          samples.at(c.field, c.state, j).g.isZero(0.0);  // sampled at every edge, even past the first gradient
       uniform = uniform && flat;
     }
-    // Without a closed-form curvature, forward differences of G: truncation ~step/d relative (d the distance to the
-    // magnet, ≫ L/1e6 here) and round-off ~ε·d/step, both far below what Newton's convergence notices; half the
-    // field samples of central ones. (For a dipole the closed form took a tenth off a cold 100-node solve.)
-    const double step = 1e-6 * m.length;
-    for (std::size_t ju = 0; ju < n; ++ju) {
-      const int j = static_cast<int>(ju);
-      const double volume = fill_volume(c, j);
-      const Mat3& r = c.state.frames[ju];
-      const magnetics::FieldSample& f = samples.value[ju];
-      Vec3 w = hard ? Vec3(-hard_moment(c, ju)) : Vec3::Zero();  // dU/dB of the hard moment
-      Mat3 p_world = Mat3::Zero();  // R P Rᵀ
-      if (volume > 0.0) {
-        Vec3 de_db;
-        Mat3 d2e;
-        m.induced->law.energy_density(r.transpose() * f.b, de_db, &d2e);
-        w += volume * (r * de_db);
-        p_world = volume * r * d2e * r.transpose();
-      }
-      if (w.isZero(0.0) && volume == 0.0) continue;
-      Mat3 h_phiphi = cross_squared(w, f.b);
-      Mat3 h_phic = skew(w) * f.g;
-      Mat3 h_cc = Mat3::Zero();
-      if (volume > 0.0) {  // the induced moment's terms (a hard moment has P = 0)
-        const Mat3 bx = skew(f.b);
-        h_phiphi += bx.transpose() * p_world * bx;
-        h_phic -= bx * p_world * f.g;
-        h_cc = f.g.transpose() * p_world * f.g;
-      }
-      if (!uniform) {
-        const Vec3 mid = edge_midpoint(c.state, ju);
-        if (c.field.curvature()) {
-          h_cc += c.field.curvature()(mid, w);
-        } else {
-          for (int k = 0; k < 3; ++k) h_cc.col(k) += (c.field(mid + step * Vec3::Unit(k)).g - f.g).transpose() * w / step;
-          h_cc = 0.5 * (h_cc + h_cc.transpose()).eval();
-        }
-      }
-      add_edge_element(sys, j, EdgeVector::midpoint, h_cc, h_phic.transpose(), h_phiphi);
+    return uniform;
+  }
+
+  /// With w = dU/dB (world) = −m + R p (p = V de/db, P = V d²e/db², body frame), c the midpoint and G = ∂B/∂c:
+  ///   δφδφ: sym(w Bᵀ) − w·B I + [B]ᵀRPRᵀ[B];  δφδc: ([w] − [B]RPRᵀ)G;  δcδc: GᵀRPRᵀG + Σ_i w_i ∇²B_i,
+  /// the last from the field's closed-form curvature where it has one (dipoles), else from forward differences of G
+  /// (skipped when the field has no gradient at any midpoint: uniform). False for an edge without moment or fill.
+  static bool edge_blocks(const TermContext& c, std::size_t ju, const magnetics::FieldSample& f, bool uniform,
+                          EdgeBlocks& out) {
+    const RodModel& m = c.model;
+    const bool hard = !m.moment_per_length.empty();
+    const int j = static_cast<int>(ju);
+    const double volume = fill_volume(c, j);
+    const Mat3& r = c.state.frames[ju];
+    Vec3 w = hard ? Vec3(-hard_moment(c, ju)) : Vec3::Zero();  // dU/dB of the hard moment
+    Mat3 p_world = Mat3::Zero();                               // R P Rᵀ
+    if (volume > 0.0) {
+      Vec3 de_db;
+      Mat3 d2e;
+      m.induced->law.energy_density(r.transpose() * f.b, de_db, &d2e);
+      w += volume * (r * de_db);
+      p_world = volume * r * d2e * r.transpose();
     }
+    if (w.isZero(0.0) && volume == 0.0) return false;
+    out.phiphi = cross_squared(w, f.b);
+    out.phic = skew(w) * f.g;
+    out.cc = Mat3::Zero();
+    if (volume > 0.0) {  // the induced moment's terms (a hard moment has P = 0)
+      const Mat3 bx = skew(f.b);
+      out.phiphi += bx.transpose() * p_world * bx;
+      out.phic -= bx * p_world * f.g;
+      out.cc = f.g.transpose() * p_world * f.g;
+    }
+    if (!uniform) {
+      // Without a closed-form curvature, forward differences of G: truncation ~step/d relative (d the distance to
+      // the magnet, ≫ L/1e6 here) and round-off ~ε·d/step, both far below what Newton's convergence notices; half
+      // the field samples of central ones. (For a dipole the closed form took a tenth off a cold 100-node solve.)
+      const double step = 1e-6 * m.length;
+      const Vec3 mid = edge_midpoint(c.state, ju);
+      if (c.field.curvature()) {
+        out.cc += c.field.curvature()(mid, w);
+      } else {
+        for (int k = 0; k < 3; ++k) {
+          out.cc.col(k) += (c.field(mid + step * Vec3::Unit(k)).g - f.g).transpose() * w / step;
+        }
+        out.cc = 0.5 * (out.cc + out.cc.transpose()).eval();
+      }
+    }
+    return true;
   }
 };
 

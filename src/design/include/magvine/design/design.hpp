@@ -23,6 +23,7 @@
 #include <vector>
 
 #include "magvine/core/eigen_types.hpp"
+#include "magvine/magnetics/field_model.hpp"
 #include "magvine/robot/rod.hpp"
 
 namespace magvine::design {
@@ -54,6 +55,16 @@ struct DesignProblem {
   DesignSpec spec;
   robot::RodSolveOptions solver;
   int insertion_steps = 0;  ///< 0: the static design; n: follow-the-leader in n steps
+  /// A magnet whose position joins the unknowns (a design of where the EPM goes): the scene's magnets with their rest
+  /// poses (`field` is then theirs, unused), the designed one's index and the box its centre may move in [m]. Not with
+  /// a free field.
+  struct MagnetPosition {
+    magnetics::FieldModel magnets;
+    std::size_t index = 0;
+    Vec3 min = Vec3::Zero();
+    Vec3 max = Vec3::Zero();
+  };
+  std::optional<MagnetPosition> magnet;
 };
 
 /// Checks a problem: sections within [1, edges] each holding an edge midpoint, remanence and bounds in (0, 3] T
@@ -76,6 +87,7 @@ struct Design {
   std::vector<Vec3> directions;
   std::vector<double> remanences;
   std::vector<Vec3> fields;
+  std::optional<Vec3> magnet_position;  ///< the designed magnet's centre [m]
 };
 
 /// The objective and its exact gradient at parameters p (the layout above; free fields one after another). Holds the
@@ -108,7 +120,8 @@ class DesignObjective {
   bool residuals(const VecX& p, VecX& r, MatX* jacobian);
   /// The number of residuals, 3T.
   int residual_count() const { return 3 * static_cast<int>(m_target_count); }
-  /// Whether parameter i is a bounded magnitude (a free remanence, |B|) rather than an angle.
+  /// Whether parameter i is bounded on both sides by nature (a free remanence, |B|, a magnet's coordinate) rather than
+  /// an angle.
   bool is_magnitude(int i) const;
   /// The last evaluation's equilibria (one per configuration) and the last configuration's.
   std::vector<robot::RodState> states() const;
@@ -143,6 +156,8 @@ class DesignObjective {
   MatX gradient_sensitivity(const Design& design, const VecX& p, std::size_t configuration) const;
   /// Where free field f's three parameters start in p.
   int field_offset(int field) const;
+  /// Where the magnet's position starts in p (after the fields).
+  int magnet_offset() const { return field_offset(m_fields); }
 
   const DesignProblem& m_problem;
   int m_parameters = 0;

@@ -369,6 +369,11 @@ MatX rod_moment_sensitivity(const RodModel& model, const RodField& field, const 
 /// moments (InputError for an induced fill, whose moment depends on B). Exact: −m × B is linear in B.
 MatX rod_uniform_field_sensitivity(const RodModel& model, const RodState& state);
 
+/// ∂g/∂p: the derivative of rod_gradient with respect to a translation p of every source of `field` (the field becomes
+/// B(x − p): a magnet moved by p), 6N × 3, from the magnetic term's own Hessian blocks (exact where the field's
+/// curvature is closed-form, as for dipoles; from differences of its gradient otherwise, as the Newton Hessian).
+MatX rod_field_translation_sensitivity(const RodModel& model, const RodField& field, const RodState& state);
+
 /// H⁻¹ rhs for the analytic Hessian at `state` (rod_hessian), by the solver's block LDLᵀ in O(N) per column (one
 /// factorisation for all of rhs's columns: the adjoint of one objective, or the forward sensitivities dx*/dp =
 /// −H⁻¹ ∂g/∂p of every parameter); empty when H is not positive definite there (not a stable equilibrium).
