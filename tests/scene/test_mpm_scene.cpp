@@ -296,6 +296,10 @@ TEST(MpmScene, ADesignWrittenAsAnMpmSceneCarriesItsSections) {
     ++magnetised;
   }
   EXPECT_GT(magnetised, 1000);
+  // The clamp holds the grid behind the base only (padded along the axis as well, it once held 3 mm of the free rod).
+  ASSERT_EQ(m.model3.clamps.size(), 1u);
+  EXPECT_LE(m.model3.clamps[0].second.x(), 1e-12);
+  EXPECT_GT(m.model3.clamps[0].second.y(), 0.002);  // and across it, the whole section
   for (std::size_t k = 0; k < m.probes.size(); ++k) {
     EXPECT_NEAR(m.probes[k].at.x(), length * static_cast<double>(k + 1) / 8.0, 1e-12);
   }

@@ -308,6 +308,11 @@ int run_design(const DesignArgs& args) {
     throw InputError(
         "--mpm-check: this magvine was built without the MPM module (configure with -DMAGVINE_WITH_MPM=ON)");
   }
+  if (args.mpm_check) {  // what the check refuses (an oblique base, a section that is not round, a gradient field),
+                         // first
+    (void)scene::design_mpm_scene_yaml(sc, design::random_design(sc.problem, sc.seed), args.mpm_cell_mm * 1e-3,
+                                       args.mpm_particles);
+  }
   const std::filesystem::path out =
       args.out.empty() ? std::filesystem::path("runs") / (std::filesystem::path(args.scene).stem().string() + "-design")
                        : std::filesystem::path(args.out);
@@ -321,9 +326,10 @@ int run_design(const DesignArgs& args) {
               << std::flush;
   });
   std::cerr << '\n';
-  if (args.mpm_check) {
-    (void)scene::design_mpm_scene_yaml(sc, r.design, args.mpm_cell_mm * 1e-3, args.mpm_particles);  // refusals first
+  if (!std::isfinite(r.rms)) {
+    throw NumericalError("design " + args.scene + ": no design had a stable equilibrium (" + r.message + ")");
   }
+  if (args.mpm_check) scene::check_design_mpm_scene(sc, r.design, args.mpm_cell_mm * 1e-3, args.mpm_particles);
   scene::write_design_outputs(sc, r, out);
   if (args.mpm_check) {
     std::cerr << "magvine design: the MPM check\n";

@@ -43,18 +43,18 @@ int run_study_phantom_meshing(const std::string& out_dir);
 struct MeshCheckArgs {
   std::string file;
   std::string units = "mm";
-  bool json = false;     // JSON on stdout instead of the summary
-  std::string out;       // also write the JSON report here (atomically)
+  bool json = false;  // JSON on stdout instead of the summary
+  std::string out;    // also write the JSON report here (atomically)
 };
 int run_mesh_check(const MeshCheckArgs& args);
 
 struct MeshGraphArgs {
   std::string file;
   std::string units = "mm";
-  double voxel = 0.0;          // in --units; 0: auto
-  std::vector<double> root;    // X,Y,Z in --units; empty: the widest end
-  std::string out;             // graph.json
-  std::string png;             // the graph over the mesh (render module)
+  double voxel = 0.0;        // in --units; 0: auto
+  std::vector<double> root;  // X,Y,Z in --units; empty: the widest end
+  std::string out;           // graph.json
+  std::string png;           // the graph over the mesh (render module)
 };
 int run_mesh_graph(const MeshGraphArgs& args);
 int run_study_centerline(const std::string& out_dir);
@@ -72,9 +72,9 @@ struct TrialsArgs {
   std::string scene;
   std::vector<std::string> targets;  // branch names; empty: the scene's own target
   int repeats = 4;
-  int jobs = 0;                      // 0: every core
-  std::string out;                   // empty: runs/<scene stem>-trials
-  bool keep_runs = false;            // each trial's outputs in <out>/runs/<target>_r<repeat>
+  int jobs = 0;            // 0: every core
+  std::string out;         // empty: runs/<scene stem>-trials
+  bool keep_runs = false;  // each trial's outputs in <out>/runs/<target>_r<repeat>
 };
 /// `magvine trials`: seeded perturbed repeats of an experiment towards each target, in parallel (scene/experiment.hpp).
 int run_trials(const TrialsArgs& args);
@@ -90,8 +90,7 @@ void preload_videos(bool wanted, const std::string& scene, const std::string& wh
 /// A progress callback for a run: a ten-step bar with the percentage on stderr, redrawn only when a tenth passes.
 std::function<void(double)> progress_bar();
 
-/// `magvine validate --out DIR`: the robot-mechanics studies (scene/mechanics_study.hpp).
-/// `magvine design DESIGN.yaml [--out DIR]` (issue 29; docs/design.md).
+/// `magvine design DESIGN.yaml [--out DIR] [--mpm-check …]` (issue 29; docs/design.md).
 struct DesignArgs {
   std::string scene;
   std::string out;
@@ -101,6 +100,7 @@ struct DesignArgs {
 };
 int run_design(const DesignArgs& args);
 
+/// `magvine validate --out DIR`: the robot-mechanics studies (scene/mechanics_study.hpp).
 int run_validate(const std::string& out_dir);
 
 }  // namespace magvine::cli

@@ -7,6 +7,7 @@
 #include <limits>
 #include <random>
 #include <stdexcept>
+#include <variant>
 
 #include "design_internal.hpp"
 #include "magvine/core/error.hpp"
@@ -58,63 +59,63 @@ void check_design_problem(const DesignProblem& problem, const std::string& where
 std::optional<DesignProblemIssue> design_problem_issue(const DesignProblem& problem) {
   const DesignSpec& spec = problem.spec;
   const robot::RodModel& m = problem.model;
-  struct Found {
-    DesignProblemIssue issue;
+  using Issue = std::optional<DesignProblemIssue>;
+  const auto issue = [](std::string key, std::string what) {
+    return Issue(DesignProblemIssue{std::move(key), std::move(what)});
   };
-  const auto fail = [&](const std::string& key, const std::string& what) { throw Found{{key, what}}; };
-  try {
-    if (spec.sections < 1 || spec.sections > m.edges) {
-      fail("sections", "must be within [1, " + std::to_string(m.edges) + "] (the rod's edges; give more nodes)");
+  if (spec.sections < 1 || spec.sections > m.edges) {
+    return issue("sections", "must be within [1, " + std::to_string(m.edges) + "] (the rod's edges; give more nodes)");
+  }
+  if (spec.remanence_bounds) {
+    const auto [lo, hi] = *spec.remanence_bounds;
+    if (!(lo >= 0.0 && hi > 0.0 && hi <= kMaxRemanence))
+      return issue("remanence", "bounds must lie within [0, 3] T, max > 0");
+    if (lo > hi) return issue("remanence", "min exceeds max: the bounds exclude every design");
+  } else if (!(spec.remanence > 0.0 && spec.remanence <= kMaxRemanence)) {
+    return issue("remanence", "must be within (0, 3] T");
+  }
+  if (spec.field_max) {
+    if (!(*spec.field_max > 0.0 && *spec.field_max <= 10.0)) return issue("field.free.max", "must be within (0, 10] T");
+    if (problem.field)
+      return issue("field", "a free field replaces the scene's magnets: give at most a uniform field there");
+  } else if (!problem.field) {
+    return issue("field", "the scene has no magnets and the field is not free: nothing would move the rod");
+  }
+  if (!(problem.area > 0.0)) return issue("sections", "the rod has no cross-section to magnetise");
+  const std::vector<Vec3>& t = spec.target;
+  if (t.size() < 2) return issue("target.points", "needs at least 2 points (base to tip)");
+  const double spacing = m.length / static_cast<double>(t.size() - 1);
+  for (std::size_t k = 0; k < t.size(); ++k) {
+    const std::string key = "target.points[" + std::to_string(k) + "]";
+    if (!t[k].allFinite()) return issue(key, "must be finite");
+    const double s = spacing * static_cast<double>(k);
+    const double reach = (t[k] - m.base_position).norm();
+    if (reach > s + kReachSlack * m.length) {
+      return issue(key, printf_string("is %.2f mm from the base (robot.base.position), beyond the rod's reach at its "
+                                      "arc length %.2f mm (the points run from the base to the tip, equally spaced)",
+                                      reach * 1e3, s * 1e3));
     }
-    if (spec.remanence_bounds) {
-      const auto [lo, hi] = *spec.remanence_bounds;
-      if (!(lo >= 0.0 && hi > 0.0 && hi <= kMaxRemanence))
-        fail("remanence", "bounds must lie within [0, 3] T, max > 0");
-      if (lo > hi) fail("remanence", "min exceeds max: the bounds exclude every design");
-    } else if (!(spec.remanence > 0.0 && spec.remanence <= kMaxRemanence)) {
-      fail("remanence", "must be within (0, 3] T");
+    if (k > 0 && (t[k] - t[k - 1]).norm() > spacing * (1.0 + kReachSlack)) {
+      return issue(key, printf_string("is %.2f mm from the point before, more than the rod's %.2f mm between them: a "
+                                      "target of the wrong length",
+                                      (t[k] - t[k - 1]).norm() * 1e3, spacing * 1e3));
     }
-    if (spec.field_max) {
-      if (!(*spec.field_max > 0.0 && *spec.field_max <= 10.0)) fail("field.free.max", "must be within (0, 10] T");
-      if (problem.field) fail("field", "a free field replaces the scene's magnets: give at most a uniform field there");
-    } else if (!problem.field) {
-      fail("field", "the scene has no magnets and the field is not free: nothing would move the rod");
+  }
+  if (m.induced) return issue("sections", "a rod with an induced fill cannot be designed (hard magnetisation only)");
+  if (problem.insertion_steps < 0 || problem.insertion_steps > m.edges) {
+    return issue("insertion.steps", "must be within [1, " + std::to_string(m.edges) + "] (the rod's edges)");
+  }
+  if (problem.magnet) {
+    const DesignProblem::MagnetPosition& mp = *problem.magnet;
+    if (mp.index >= mp.magnets.size()) return issue("magnet.index", "names no magnet of the scene");
+    if (std::holds_alternative<magnetics::UniformSource>(mp.magnets.sources[mp.index])) {
+      return issue("magnet.index", "names a uniform field, which has no position to design");
     }
-    if (!(problem.area > 0.0)) fail("sections", "the rod has no cross-section to magnetise");
-    const std::vector<Vec3>& t = spec.target;
-    if (t.size() < 2) fail("target.points", "needs at least 2 points (base to tip)");
-    const double spacing = m.length / static_cast<double>(t.size() - 1);
-    for (std::size_t k = 0; k < t.size(); ++k) {
-      const std::string key = "target.points[" + std::to_string(k) + "]";
-      if (!t[k].allFinite()) fail(key, "must be finite");
-      const double s = spacing * static_cast<double>(k);
-      const double reach = (t[k] - m.base_position).norm();
-      if (reach > s + kReachSlack * m.length) {
-        fail(key, printf_string("is %.2f mm from the base (robot.base.position), beyond the rod's reach at its arc "
-                                "length %.2f mm (the points run from the base to the tip, equally spaced)",
-                                reach * 1e3, s * 1e3));
-      }
-      if (k > 0 && (t[k] - t[k - 1]).norm() > spacing * (1.0 + kReachSlack)) {
-        fail(key, printf_string("is %.2f mm from the point before, more than the rod's %.2f mm between them: a target "
-                                "of the wrong length",
-                                (t[k] - t[k - 1]).norm() * 1e3, spacing * 1e3));
-      }
-    }
-    if (m.induced) fail("sections", "a rod with an induced fill cannot be designed (hard magnetisation only)");
-    if (problem.insertion_steps < 0 || problem.insertion_steps > m.edges) {
-      fail("insertion.steps", "must be within [1, " + std::to_string(m.edges) + "] (the rod's edges)");
-    }
-    if (problem.magnet) {
-      const DesignProblem::MagnetPosition& mp = *problem.magnet;
-      if (mp.index >= mp.magnets.size()) fail("magnet.index", "names no magnet of the scene");
-      if (!(mp.min.array() <= mp.max.array()).all()) fail("magnet.min", "exceeds max: the box holds no position");
-      if (spec.field_max) fail("magnet", "a designed magnet and a free uniform field exclude each other");
-    }
-    if (problem.insertion_steps > 0 && !spec.field_max) {
-      fail("insertion.steps", "a follow-the-leader insertion needs design.field.free (one field per step)");
-    }
-  } catch (const Found& found) {
-    return found.issue;
+    if (!(mp.min.array() <= mp.max.array()).all()) return issue("magnet.min", "exceeds max: the box holds no position");
+    if (spec.field_max) return issue("magnet", "a designed magnet and a free uniform field exclude each other");
+  }
+  if (problem.insertion_steps > 0 && !spec.field_max) {
+    return issue("insertion.steps", "a follow-the-leader insertion needs design.field.free (one field per step)");
   }
   return std::nullopt;
 }
@@ -277,6 +278,18 @@ std::vector<Vec3> DesignObjective::points_on(std::size_t configuration, const ro
   return out;
 }
 
+std::vector<std::pair<double, double>> DesignObjective::section_spans() const {
+  const Configuration& whole = m_configurations.back();
+  const double h = whole.model.length / whole.model.edges;
+  std::vector<std::pair<double, double>> out(static_cast<std::size_t>(m_problem.spec.sections), {-1.0, -1.0});
+  for (std::size_t j = 0; j < whole.section_of_edge.size(); ++j) {
+    auto& span = out[static_cast<std::size_t>(whole.section_of_edge[j])];
+    if (span.first < 0.0) span.first = static_cast<double>(j) * h;
+    span.second = j + 1 == whole.section_of_edge.size() ? whole.model.length : static_cast<double>(j + 1) * h;
+  }
+  return out;
+}
+
 std::vector<std::size_t> DesignObjective::targets_of(std::size_t configuration) const {
   std::vector<std::size_t> out;
   for (const TargetOnBody& t : m_configurations[configuration].targets) out.push_back(t.index);
@@ -321,8 +334,11 @@ bool DesignObjective::equilibria(const VecX& p, Design& design) {
     const robot::RodModel model = model_of(design, c);
     // From the straight rod, as `magvine run` solves the scene: J is a function of p alone.
     conf.state = robot::straight_rod(model);
-    m_solved_ok =
-        m_solved_ok && robot::solve_rod_statics(model, field_of(design, c), conf.state, m_problem.solver).converged;
+    const robot::RodField field = field_of(design, c);
+    // Converged and stable: an equilibrium whose Hessian is not positive definite (a saddle the solver stopped on)
+    // has no sensitivity and would not stay where it is; every method refuses it alike.
+    m_solved_ok = m_solved_ok && robot::solve_rod_statics(model, field, conf.state, m_problem.solver).converged &&
+                  robot::rod_hessian_solve(model, field, conf.state, MatX::Zero(6 * model.edges, 1)).has_value();
   }
   return m_solved_ok;
 }
@@ -514,8 +530,9 @@ DesignResult multi_start_design(const DesignProblem& problem, DesignMethod metho
     const Design first = random_design(problem, one.seed);
     DesignResult r = method == DesignMethod::lbfgsb ? optimise_design(problem, first, one)
                                                     : least_squares_design(problem, first, one);
+    const int iteration_offset = history.empty() ? 0 : history.back().iteration;
     for (DesignResult::Step s : r.history) {
-      s.iteration += iterations;
+      s.iteration += iteration_offset;
       s.evaluation += evaluations;
       s.time_s += runtime;
       s.best_rms = std::min(s.best_rms, start == 0 ? s.best_rms : best.rms);

@@ -56,7 +56,10 @@ struct Residuals : Eigen::DenseFunctor<double> {
     VecX own;
     MatX j;
     jacobian = MatX::Zero(values(), inputs());
-    if (!objective.residuals(p, own, &j)) return 0;  // a zero Jacobian: LM raises its damping
+    if (!objective.residuals(p, own, &j)) {  // (LM asks at accepted points, whose equilibria were stable)
+      jacobian_failed = true;
+      return -1;
+    }
     for (Eigen::Index i = 0; i < u.size(); ++i) {
       if (objective.is_magnitude(static_cast<int>(i))) j.col(i) *= (hi[i] - lo[i]) * 0.5 * std::cos(u[i]);
     }
@@ -67,6 +70,7 @@ struct Residuals : Eigen::DenseFunctor<double> {
   DesignObjective& objective;
   detail::BestTracker& best;
   int max_iterations = 100;
+  bool jacobian_failed = false;
   VecX lo;
   VecX hi;
 };
@@ -102,7 +106,8 @@ DesignResult least_squares_design(const DesignProblem& problem, const Design& st
       out.message = "converged (J's relative reduction, the step or the gradient below tolerance)";
       break;
     case Status::UserAsked:
-      out.message = "stopped at the iteration limit";
+      out.message = f.jacobian_failed ? "stopped: no sensitivity at an accepted design (its equilibrium failed)"
+                                      : "stopped at the iteration limit";
       break;
     case Status::TooManyFunctionEvaluation:
       out.message = "stopped at the evaluation limit (10 per allowed iteration)";

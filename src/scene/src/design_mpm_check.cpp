@@ -34,31 +34,23 @@ std::string plain(const Vec3& v) {
   return o.str();
 }
 
-/// The rod's circular section and material from the design file's robot entry [m, Pa, kg/m³].
+/// The rod's circular section and material, from its model: A = πr², EI = E πr⁴/4 with E = 3G, ρ = ρA/A
+/// [m, Pa, kg/m³].
 struct RodMaterial {
   double radius = 0.0;
   double shear_modulus = 0.0;
   double density = 0.0;
 };
 RodMaterial material_of(const DesignScene& scene) {
-  const YAML::Node root = parse_yaml(scene.text, scene.file);
-  const YAML::Node robot = root["robot"];
-  const YAML::Node section = robot["section"];
-  if (!section["shape"] || section["shape"].as<std::string>() != "circle") {
-    throw InputError(scene.file, line_of(section), "robot.section",
-                     "the MPM check takes a circular section (a catheter) only");
+  if (!scene.circular_section) {
+    throw InputError(scene.file, 0, "robot.section", "the MPM check takes a circular section (a catheter) only");
   }
-  RodMaterial m;
-  m.radius = 0.5 * section["diameter"].as<double>() * scene.length_unit;
-  m.shear_modulus =
-      robot["shear_modulus"] ? robot["shear_modulus"].as<double>() : robot["youngs_modulus"].as<double>() / 3.0;
-  if (root["units"] && root["units"]["pressure"]) {
-    // Moduli in the file's pressure unit (the robot entry's parser checked it).
-    const std::string unit = root["units"]["pressure"].as<std::string>();
-    m.shear_modulus *= unit == "kPa" ? 1e3 : unit == "MPa" ? 1e6 : 1.0;
-  }
-  m.density = robot["density"].as<double>();
-  return m;
+  const robot::RodModel& m = scene.problem.model;
+  RodMaterial out;
+  out.radius = std::sqrt(scene.problem.area / kPi);
+  out.shear_modulus = m.bending_stiffness_2 / (3.0 * 0.25 * kPi * std::pow(out.radius, 4));
+  out.density = m.mass_per_length / scene.problem.area;
+  return out;
 }
 
 }  // namespace
@@ -103,9 +95,8 @@ std::string design_mpm_scene_yaml(const DesignScene& scene, const design::Design
   lo -= Vec3::Constant(margin);
   hi += Vec3::Constant(margin);
   // The first bending mode of the clamped rod: ω = 1.875² √(EI/(ρA L⁴)); damping c ≈ 2ω.
-  const double area = kPi * mat.radius * mat.radius;
-  const double ei = 3.0 * mat.shear_modulus * 0.25 * kPi * std::pow(mat.radius, 4);
-  const double omega = 1.875 * 1.875 * std::sqrt(ei / (mat.density * area * std::pow(rod.length, 4)));
+  const double omega =
+      1.875 * 1.875 * std::sqrt(rod.bending_stiffness_2 / (rod.mass_per_length * std::pow(rod.length, 4)));
   std::ostringstream y;
   y.precision(17);
   y << "# The MPM check of the design of " << scene.file << " (magvine design --mpm-check; docs/design.md).\n"
@@ -130,16 +121,17 @@ std::string design_mpm_scene_yaml(const DesignScene& scene, const design::Design
   const char* axes[] = {"x", "y", "z"};
   const double sign = t[axis] > 0.0 ? 1.0 : -1.0;
   const double base = rod.base_position[axis];
-  const int count = p.spec.sections;
-  for (int s = 0; s < count; ++s) {
-    const auto su = static_cast<std::size_t>(s);
-    const double a = base + sign * rod.length * s / count;
-    const double e = base + sign * rod.length * (s + 1) / count;
+  const std::vector<std::pair<double, double>> spans = design::DesignObjective(p).section_spans();
+  for (std::size_t su = 0; su < spans.size(); ++su) {
+    const double a = base + sign * spans[su].first;
+    const double e = base + sign * spans[su].second;
     y << "      - {axis: " << axes[axis] << ", from: " << std::min(a, e) * 1e3 << ", to: " << std::max(a, e) * 1e3
       << ", remanence: " << design.remanences[su] << ", direction: " << plain(rod.base_frame * design.directions[su])
       << "}\n";
   }
-  const Vec3 side = Vec3::Constant(mat.radius + h);
+  // The clamp holds the grid behind the base only: padded across the axis, not along it (padded along it too, it
+  // held r + h of the free rod as well, 3 mm of 40, and the rod bent about a fifth less; found in review).
+  const Vec3 side = (mat.radius + h) * (Vec3::Ones() - t.cwiseAbs());
   y << "clamps:\n"
     << "  - {min: " << mm((rod.base_position - (clamp + h) * t).cwiseMin(rod.base_position) - side)
     << ", max: " << mm((rod.base_position - (clamp + h) * t).cwiseMax(rod.base_position) + side) << "}\n"
@@ -152,6 +144,19 @@ std::string design_mpm_scene_yaml(const DesignScene& scene, const design::Design
       << "}\n";
   }
   return y.str();
+}
+
+void check_design_mpm_scene(const DesignScene& scene, const design::Design& design, double cell,
+                            int particles_per_cell) {
+#if MAGVINE_WITH_MPM
+  (void)parse_mpm_scene(design_mpm_scene_yaml(scene, design, cell, particles_per_cell), scene.file + " (MPM check)");
+#else
+  (void)scene;
+  (void)design;
+  (void)cell;
+  (void)particles_per_cell;
+  throw InputError("--mpm-check: this magvine was built without the MPM module (configure with -DMAGVINE_WITH_MPM=ON)");
+#endif
 }
 
 DesignMpmCheck run_design_mpm_check(const DesignScene& scene, const design::DesignResult& result,

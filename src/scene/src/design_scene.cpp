@@ -52,6 +52,7 @@ DesignScene parse_design_scene(const std::string& text, const std::string& file_
   out.length_unit = units.len.si;
   out.seed = seed_of(top, 1);
   if (out.scene.vine) top.map("robot").fail("kind", "a design needs a rod (kind: rod): vines are not designed");
+  out.circular_section = top.map("robot").map("section").text("shape") == "circle";  // (checked by parse_rod)
   if (!top.has("design")) top.fail("design", "missing required key (the design file's design: section)");
   const YamlMap d = top.map("design");
   d.allow_only({"sections", "remanence", "target", "field", "iterations", "method", "starts", "insertion", "magnet"});
@@ -187,13 +188,13 @@ design::DesignResult run_design(const DesignScene& scene, const std::function<vo
 std::string designed_scene_yaml(const DesignScene& scene, const design::Design& design) {
   YAML::Node root = YAML::Clone(parse_yaml(scene.text, scene.file));
   root.remove("design");
-  const double length = scene.problem.model.length / scene.length_unit;  // file units
   const int sections = scene.problem.spec.sections;
+  const std::vector<std::pair<double, double>> spans = design::DesignObjective(scene.problem).section_spans();
   YAML::Node list(YAML::NodeType::Sequence);
   for (int s = 0; s < sections; ++s) {
     YAML::Node entry(YAML::NodeType::Map);
-    entry["from"] = length * s / sections;
-    entry["to"] = s + 1 == sections ? length : length * (s + 1) / sections;
+    entry["from"] = spans[static_cast<std::size_t>(s)].first / scene.length_unit;  // file units
+    entry["to"] = spans[static_cast<std::size_t>(s)].second / scene.length_unit;
     entry["remanence"] = design.remanences[static_cast<std::size_t>(s)];
     YAML::Node dir(YAML::NodeType::Sequence);
     for (int i = 0; i < 3; ++i) dir.push_back(design.directions[static_cast<std::size_t>(s)][i]);
@@ -241,17 +242,18 @@ void write_design_outputs(const DesignScene& scene, const design::DesignResult& 
   j["converged"] = result.converged;
   j["message"] = result.message;
   j["seed"] = scene.seed;
+  const design::DesignObjective objective(p);
   nlohmann::json sections = nlohmann::json::array();
   const int count = p.spec.sections;
+  const std::vector<std::pair<double, double>> spans = objective.section_spans();
   for (int s = 0; s < count; ++s) {
     const auto su = static_cast<std::size_t>(s);
-    sections.push_back({{"from_m", p.model.length * s / count},
-                        {"to_m", p.model.length * (s + 1) / count},
+    sections.push_back({{"from_m", spans[su].first},
+                        {"to_m", spans[su].second},
                         {"direction", vec(result.design.directions[su])},
                         {"remanence_T", result.design.remanences[su]}});
   }
   j["sections"] = sections;
-  const design::DesignObjective objective(p);
   if (p.insertion_steps > 0) {
     // Follow-the-leader: every step's field and how far its inserted part lies from the path.
     nlohmann::json fields = nlohmann::json::array();

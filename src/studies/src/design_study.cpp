@@ -116,7 +116,7 @@ std::vector<DesignStudyRun> run_design_study(const std::filesystem::path& out, i
           history << t.name << ',' << method << ',' << seed << ',' << s.iteration << ',' << s.evaluation << ','
                   << (std::isfinite(s.rms) ? s.rms : -1.0) << ',' << s.best_rms << ',' << s.time_s << '\n';
         }
-        if (m == "least-squares" && t.name.rfind("reachable", 0) != 0) {
+        if (m == "least-squares" && t.name.rfind("reachable", 0) != 0 && !run.result.state.x.empty()) {
           const design::DesignObjective o(p);
           const std::vector<Vec3> on = o.points_on(run.result.state);
           for (std::size_t k = 0; k < on.size(); ++k) {

@@ -130,6 +130,10 @@ class DesignObjective {
   /// The points on a configuration's body at its targets' arc lengths (default: the last configuration).
   std::vector<Vec3> points_on(std::size_t configuration, const robot::RodState& state) const;
   std::vector<Vec3> points_on(const robot::RodState& state) const { return points_on(configurations() - 1, state); }
+  /// Where each section lies on the whole rod [m from the base]: from its first edge's start to its last edge's end
+  /// (node positions, so that no edge midpoint sits on a boundary: a scene written with these spans magnetises every
+  /// edge as the design did).
+  std::vector<std::pair<double, double>> section_spans() const;
   /// The target indices of a configuration (into spec.target).
   std::vector<std::size_t> targets_of(std::size_t configuration) const;
   /// The largest distance of any configuration's body from its targets [m].

@@ -23,12 +23,13 @@ struct DesignScene {
   FreeSpaceScene scene;
   design::DesignProblem problem;
   DesignMethod method = DesignMethod::least_squares;
-  int max_iterations = 100;   ///< design.iterations (the Bayesian baseline: evaluations after its initial ones)
-  int starts = 1;             ///< design.starts: random starts (seeds seed, seed + 1, …), the best kept
-  std::uint64_t seed = 1;     ///< the scene's seed: the random first design
-  std::string file;           ///< as given (messages)
-  std::string text;           ///< the file's text: scene.yaml is written from it
-  double length_unit = 1e-3;  ///< one file length unit [m]
+  int max_iterations = 100;       ///< design.iterations (the Bayesian baseline: evaluations after its initial ones)
+  int starts = 1;                 ///< design.starts: random starts (seeds seed, seed + 1, …), the best kept
+  std::uint64_t seed = 1;         ///< the scene's seed: the random first design
+  std::string file;               ///< as given (messages)
+  std::string text;               ///< the file's text: scene.yaml is written from it
+  double length_unit = 1e-3;      ///< one file length unit [m]
+  bool circular_section = false;  ///< robot.section.shape is circle (the MPM check needs it)
 };
 
 /// Whether `file` is a design file (YAML with a top-level `design:`); false for anything unreadable.
@@ -62,6 +63,11 @@ void write_design_outputs(const DesignScene& scene, const design::DesignResult& 
 /// written as one (an oblique base, a rectangular section, a field that is not uniform).
 std::string design_mpm_scene_yaml(const DesignScene& scene, const design::Design& design, double cell = 0.0,
                                   int particles_per_cell = 4, double duration = 2.0);
+
+/// Writes the design's MPM scene and parses it as magvine mpm would (particles sampled), writing nothing: an
+/// InputError before a design's outputs are written (MPM builds only).
+void check_design_mpm_scene(const DesignScene& scene, const design::Design& design, double cell = 0.0,
+                            int particles_per_cell = 4);
 
 /// The rod against MPM: each probe's final position against the rod equilibrium's point at its arc length (the target
 /// points but the clamped first).
