@@ -15,31 +15,18 @@
 
 #include "magvine/core/units.hpp"
 #include "magvine/design/design.hpp"
+#include "magvine/studies/design_study.hpp"
 
 namespace {
 
 using namespace magvine;
 using namespace magvine::design;
 
+/// The S of design_catheter.yaml: ±90° over each half, in the field's plane.
 DesignProblem catheter() {
-  DesignProblem p;
-  p.model = robot::circular_rod(0.040, 0.004, 120e3, 1882.0, 40);
-  p.area = 0.25 * kPi * 0.004 * 0.004;
-  const Vec3 b(0.0, 0.020, 0.0);
-  p.field = robot::RodField([b](const Vec3&) { return magnetics::FieldSample{b, Mat3::Zero()}; });
-  p.spec.sections = 5;
-  p.spec.remanence = 0.125;
-  // The S of design_catheter.yaml [mm].
-  const double s[9][2] = {{0, 0},
-                          {4.8766, 0.9557},
-                          {9.1077, 3.5763},
-                          {12.3964, 7.3240},
-                          {14.7826, 11.7096},
-                          {17.1668, 16.0962},
-                          {20.4526, 19.8466},
-                          {24.6807, 22.4721},
-                          {29.5559, 23.4349}};
-  for (const auto& q : s) p.spec.target.emplace_back(q[0] * 1e-3, q[1] * 1e-3, 0.0);
+  DesignProblem p = studies::thesis_catheter_problem();
+  const double l = p.model.length;
+  p.spec.target = studies::curve_target(l, 9, [l](double s) { return Vec3(0, (s < l / 2 ? 1.0 : -1.0) * kPi / l, 0); });
   return p;
 }
 

@@ -14,23 +14,16 @@
 #include "magvine/magnetics/field_function.hpp"
 #include "magvine/magnetics/field_model.hpp"
 #include "magvine/magnetics/magnetisation.hpp"
+#include "magvine/studies/design_study.hpp"
 
 namespace magvine::design {
 namespace {
 
-/// The thesis's A.1.5.1 catheter: 40 mm × Ø4 mm, 5 sections (thesis appendix A.1), here NdFeB–silicone as the
-/// bundled rod scene (G = 120 kPa, Br = 0.125 T), 40 edges, clamped along x, in a fixed uniform 20 mT field along y.
-DesignProblem catheter_problem(int points = 9) {
-  DesignProblem p;
-  p.model = robot::circular_rod(0.040, 0.004, 120e3, 1882.0, 40);
-  p.area = 0.25 * kPi * 0.004 * 0.004;
-  const Vec3 b(0.0, 0.020, 0.0);
-  p.field = robot::RodField([b](const Vec3&) { return magnetics::FieldSample{b, Mat3::Zero()}; });
-  p.spec.sections = 5;
-  p.spec.remanence = 0.125;
-  p.spec.target.resize(static_cast<std::size_t>(points));
-  for (int k = 0; k < points; ++k) p.spec.target[static_cast<std::size_t>(k)] = Vec3(0.040 * k / (points - 1), 0, 0);
-  return p;
+/// The thesis's A.1.5.1 catheter (studies::thesis_catheter_problem): 40 mm × Ø4 mm, 5 sections, NdFeB–silicone as the
+/// bundled rod scene (G = 120 kPa, Br = 0.125 T), 40 edges, clamped along x, in a fixed uniform 20 mT field along y,
+/// aimed at 9 points of the straight rod.
+DesignProblem catheter_problem() {
+  return studies::thesis_catheter_problem();
 }
 
 /// A target the rod reaches: the forward model's shape for a random design (seeded).
@@ -43,27 +36,30 @@ std::vector<Vec3> reachable_target(DesignProblem& p, std::uint64_t seed) {
   return o.points_on(s);
 }
 
-/// A curve of length L from the base along x, integrated from its curvature vector κ(s) (world frame, ⟂ tangent
-/// taken care of by the rotation), sampled at `points` equally spaced arc lengths: thesis-like arbitrary targets.
+/// Thesis-like arbitrary targets: a curve integrated from its curvature vector (studies::curve_target).
 std::vector<Vec3> curve(double length, int points, const std::function<Vec3(double)>& curvature) {
-  constexpr int kSteps = 4000;
-  const double ds = length / kSteps;
-  Vec3 x = Vec3::Zero();
-  Vec3 t = Vec3::UnitX();
-  std::vector<Vec3> out{x};
-  int next = 1;
-  for (int i = 1; i <= kSteps; ++i) {
-    const Vec3 k = curvature((i - 0.5) * ds);
-    const Vec3 axis = t.cross(k.cross(t));  // the curvature's part ⟂ t
-    const Vec3 turn = t.cross(axis) * ds;   // rotation vector
-    x += ds * t;
-    if (turn.norm() > 0.0) t = Eigen::AngleAxisd(turn.norm(), turn.normalized()) * t;
-    if (i * (points - 1) == next * kSteps) {
-      out.push_back(x);
-      ++next;
-    }
-  }
-  return out;
+  return studies::curve_target(length, points, curvature);
+}
+
+/// Central differences of J and of the residuals along parameter i, step 1e-6 (rad, T or m).
+constexpr double kStep = 1e-6;
+double difference_of_j(DesignObjective& o, const VecX& x, int i) {
+  VecX a = x;
+  VecX b = x;
+  a[i] += kStep;
+  b[i] -= kStep;
+  return (o.evaluate(a, nullptr) - o.evaluate(b, nullptr)) / (2.0 * kStep);
+}
+bool difference_of_residuals(DesignObjective& o, const VecX& x, int i, VecX& out) {
+  VecX a = x;
+  VecX b = x;
+  a[i] += kStep;
+  b[i] -= kStep;
+  VecX ra;
+  VecX rb;
+  if (!o.residuals(a, ra, nullptr) || !o.residuals(b, rb, nullptr)) return false;
+  out = (ra - rb) / (2.0 * kStep);
+  return true;
 }
 
 TEST(Design, GradientMatchesFiniteDifferences) {
@@ -83,13 +79,7 @@ TEST(Design, GradientMatchesFiniteDifferences) {
   const double j = o.evaluate(x, &g);
   ASSERT_TRUE(std::isfinite(j));
   for (int i = 0; i < o.parameters(); ++i) {
-    const double step = 1e-6;
-    VecX a = x;
-    VecX b = x;
-    a[i] += step;
-    b[i] -= step;
-    const double fd = (o.evaluate(a, nullptr) - o.evaluate(b, nullptr)) / (2.0 * step);
-    EXPECT_NEAR(g[i], fd, 1e-5 * g.cwiseAbs().maxCoeff()) << "parameter " << i;
+    EXPECT_NEAR(g[i], difference_of_j(o, x, i), 1e-5 * g.cwiseAbs().maxCoeff()) << "parameter " << i;
   }
 }
 
@@ -109,16 +99,8 @@ TEST(Design, ResidualJacobianMatchesFiniteDifferences) {
   ASSERT_TRUE(o.residuals(x, r, &jac));
   EXPECT_NEAR(r.squaredNorm(), o.evaluate(x, nullptr), 1e-12 * r.squaredNorm());  // |r|² = J
   for (int i = 0; i < o.parameters(); ++i) {
-    const double step = 1e-6;
-    VecX a = x;
-    VecX b = x;
-    a[i] += step;
-    b[i] -= step;
-    VecX ra;
-    VecX rb;
-    ASSERT_TRUE(o.residuals(a, ra, nullptr));
-    ASSERT_TRUE(o.residuals(b, rb, nullptr));
-    const VecX fd = (ra - rb) / (2.0 * step);
+    VecX fd;
+    ASSERT_TRUE(difference_of_residuals(o, x, i, fd));
     EXPECT_LE((jac.col(i) - fd).norm(), 1e-5 * jac.norm()) << "parameter " << i;
   }
 }
@@ -308,12 +290,8 @@ TEST(Design, MagnetPositionSensitivityMatchesFiniteDifferences) {
     if (!cylinder) continue;
     const int at = o.parameters() - 3;
     for (int i = at; i < o.parameters(); ++i) {
-      VecX a = x;
-      VecX b = x;
-      a[i] += 1e-6;
-      b[i] -= 1e-6;
-      const double fd = (o.evaluate(a, nullptr) - o.evaluate(b, nullptr)) / 2e-6;
-      EXPECT_NEAR(g[i], fd, 1e-5 * g.segment<3>(at).cwiseAbs().maxCoeff()) << "coordinate " << i - at;
+      EXPECT_NEAR(g[i], difference_of_j(o, x, i), 1e-5 * g.segment<3>(at).cwiseAbs().maxCoeff())
+          << "coordinate " << i - at;
     }
   }
 }
@@ -375,18 +353,10 @@ TEST(Design, InsertionGradientMatchesFiniteDifferences) {
   ASSERT_TRUE(o.residuals(x, r, &jac));
   EXPECT_EQ(o.parameters(), 5 * 2 + 8 * 3);
   for (int i = 0; i < o.parameters(); ++i) {
-    const double step = 1e-6;
-    VecX a = x;
-    VecX b = x;
-    a[i] += step;
-    b[i] -= step;
-    const double fd = (o.evaluate(a, nullptr) - o.evaluate(b, nullptr)) / (2.0 * step);
-    EXPECT_NEAR(g[i], fd, 1e-5 * g.cwiseAbs().maxCoeff()) << "parameter " << i;
-    VecX ra;
-    VecX rb;
-    ASSERT_TRUE(o.residuals(a, ra, nullptr));
-    ASSERT_TRUE(o.residuals(b, rb, nullptr));
-    EXPECT_LE((jac.col(i) - (ra - rb) / (2.0 * step)).norm(), 1e-5 * jac.norm()) << "parameter " << i;
+    EXPECT_NEAR(g[i], difference_of_j(o, x, i), 1e-5 * g.cwiseAbs().maxCoeff()) << "parameter " << i;
+    VecX fd;
+    ASSERT_TRUE(difference_of_residuals(o, x, i, fd));
+    EXPECT_LE((jac.col(i) - fd).norm(), 1e-5 * jac.norm()) << "parameter " << i;
   }
 }
 
