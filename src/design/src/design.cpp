@@ -321,33 +321,48 @@ std::vector<robot::RodState> DesignObjective::states() const {
   return out;
 }
 
-bool DesignObjective::equilibria(const VecX& p, Design& design) {
+bool DesignObjective::equilibria(const VecX& p, Design& design, bool sensitivities_follow) {
   design = design_of(p);
   // The same p as the last solve (Levenberg–Marquardt asks for the Jacobian where it has just taken the residuals):
   // the same equilibria, not solved or counted again.
-  if (m_solved_p.size() == p.size() && m_solved_p == p) return m_solved_ok;
-  ++m_evaluations;
-  m_solved_p = p;
-  m_solved_ok = true;
-  for (std::size_t c = 0; c < m_configurations.size(); ++c) {
-    Configuration& conf = m_configurations[c];
-    const robot::RodModel model = model_of(design, c);
-    // From the straight rod, as `magvine run` solves the scene: J is a function of p alone.
-    conf.state = robot::straight_rod(model);
-    const robot::RodField field = field_of(design, c);
-    // Converged and stable: an equilibrium whose Hessian is not positive definite (a saddle the solver stopped on)
-    // has no sensitivity and would not stay where it is; every method refuses it alike.
-    m_solved_ok = m_solved_ok && robot::solve_rod_statics(model, field, conf.state, m_problem.solver).converged &&
-                  robot::rod_hessian_solve(model, field, conf.state, MatX::Zero(6 * model.edges, 1)).has_value();
+  if (!(m_solved_p.size() == p.size() && m_solved_p == p)) {
+    ++m_evaluations;
+    m_solved_p = p;
+    m_solved_ok = true;
+    m_stability_known = false;
+    for (std::size_t c = 0; c < m_configurations.size(); ++c) {
+      Configuration& conf = m_configurations[c];
+      conf.magnetised = model_of(design, c);
+      conf.acting = field_of(design, c);
+      // From the straight rod, as `magvine run` solves the scene: J is a function of p alone.
+      conf.state = robot::straight_rod(conf.magnetised);
+      m_solved_ok =
+          m_solved_ok && robot::solve_rod_statics(conf.magnetised, conf.acting, conf.state, m_problem.solver).converged;
+    }
+  }
+  // Stable as well: an equilibrium whose Hessian is not positive definite (a saddle the solver stopped on) has no
+  // sensitivity and would not stay where it is; every method refuses it alike. A caller about to solve with the
+  // Hessian learns it from that factorisation, so the check costs a factorisation only where none follows.
+  if (m_solved_ok && !m_stability_known && !sensitivities_follow) {
+    for (const Configuration& conf : m_configurations) {
+      const MatX none = MatX::Zero(6 * conf.magnetised.edges, 1);
+      m_solved_ok = m_solved_ok && robot::rod_hessian_solve(conf.magnetised, conf.acting, conf.state, none).has_value();
+    }
+    m_stability_known = true;
   }
   return m_solved_ok;
+}
+
+void DesignObjective::mark_unstable() {
+  m_solved_ok = false;
+  m_stability_known = true;
 }
 
 MatX DesignObjective::gradient_sensitivity(const Design& design, const VecX& p, std::size_t configuration) const {
   const DesignSpec& spec = m_problem.spec;
   const Configuration& conf = m_configurations[configuration];
-  const robot::RodModel model = model_of(design, configuration);
-  const robot::RodField field = field_of(design, configuration);
+  const robot::RodModel& model = conf.magnetised;
+  const robot::RodField& field = conf.acting;
   const int n = model.edges;
   MatX out = MatX::Zero(6 * n, m_parameters);
   const MatX by_moment = robot::rod_moment_sensitivity(model, field, conf.state);                  // 6N × 3N
@@ -387,7 +402,7 @@ double DesignObjective::evaluate(const VecX& p, VecX* gradient) {
   if (gradient != nullptr) *gradient = VecX::Zero(m_parameters);
   const double failed = std::numeric_limits<double>::infinity();
   Design design;
-  if (!equilibria(p, design)) return failed;
+  if (!equilibria(p, design, gradient != nullptr)) return failed;
   const double count = static_cast<double>(m_target_count);
   double j_value = 0.0;
   for (std::size_t c = 0; c < m_configurations.size(); ++c) {
@@ -404,18 +419,22 @@ double DesignObjective::evaluate(const VecX& p, VecX* gradient) {
       per_node[static_cast<std::size_t>(t.node)] += (1.0 - t.weight) * r;
       per_node[static_cast<std::size_t>(t.node) + 1] += t.weight * r;
     }
-    const std::optional<MatX> lambda = robot::rod_hessian_solve(model_of(design, c), field_of(design, c), conf.state,
-                                                                robot::rod_position_covector(per_node));
-    if (!lambda) return failed;  // not a stable equilibrium
+    const std::optional<MatX> lambda =
+        robot::rod_hessian_solve(conf.magnetised, conf.acting, conf.state, robot::rod_position_covector(per_node));
+    if (!lambda) {  // not a stable equilibrium
+      mark_unstable();
+      return failed;
+    }
     *gradient -= gradient_sensitivity(design, p, c).transpose() * lambda->col(0);
   }
+  if (gradient != nullptr) m_stability_known = true;  // every configuration's Hessian factored
   return j_value;
 }
 
 bool DesignObjective::residuals(const VecX& p, VecX& r, MatX* jacobian) {
   const DesignSpec& spec = m_problem.spec;
   Design design;
-  if (!equilibria(p, design)) return false;
+  if (!equilibria(p, design, jacobian != nullptr)) return false;
   const auto count = static_cast<Eigen::Index>(m_target_count);
   const double scale = 1.0 / std::sqrt(static_cast<double>(count));
   r.resize(3 * count);
@@ -428,9 +447,12 @@ bool DesignObjective::residuals(const VecX& p, VecX& r, MatX* jacobian) {
       r.segment<3>(3 * (row + static_cast<Eigen::Index>(k))) = scale * (x[k] - spec.target[conf.targets[k].index]);
     }
     if (jacobian != nullptr) {
-      const std::optional<MatX> dx = robot::rod_hessian_solve(model_of(design, c), field_of(design, c), conf.state,
-                                                              -gradient_sensitivity(design, p, c));
-      if (!dx) return false;
+      const std::optional<MatX> dx =
+          robot::rod_hessian_solve(conf.magnetised, conf.acting, conf.state, -gradient_sensitivity(design, p, c));
+      if (!dx) {  // not a stable equilibrium
+        mark_unstable();
+        return false;
+      }
       for (std::size_t k = 0; k < x.size(); ++k) {
         const TargetOnBody& t = conf.targets[k];
         const Eigen::Index at = 3 * (row + static_cast<Eigen::Index>(k));
@@ -441,6 +463,7 @@ bool DesignObjective::residuals(const VecX& p, VecX& r, MatX* jacobian) {
     }
     row += static_cast<Eigen::Index>(x.size());
   }
+  if (jacobian != nullptr) m_stability_known = true;  // every configuration's Hessian factored
   return true;
 }
 

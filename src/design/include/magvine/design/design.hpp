@@ -150,11 +150,16 @@ class DesignObjective {
     robot::RodModel model;  ///< without moments (model_of sets them)
     std::vector<int> section_of_edge;
     std::vector<TargetOnBody> targets;
-    int field = -1;  ///< which free field acts on it (−1: the fixed field)
+    int field = -1;              ///< which free field acts on it (−1: the fixed field)
+    robot::RodModel magnetised;  ///< the last solve's model (model_of) and the field it acted in (field_of)
+    robot::RodField acting;
     robot::RodState state;
   };
-  /// Solves every configuration's equilibrium of p from the straight rod; false when one fails.
-  bool equilibria(const VecX& p, Design& design);
+  /// Solves every configuration's equilibrium of p from the straight rod; false when one fails or, unless
+  /// `sensitivities_follow` (their factorisation tells: mark_unstable), is not stable.
+  bool equilibria(const VecX& p, Design& design, bool sensitivities_follow);
+  /// A sensitivity solve found the last equilibria unstable: they fail from now on, for every caller.
+  void mark_unstable();
   /// ∂g/∂p at a configuration's equilibrium (6N × P): the moments through m̂ = Br d A/μ0, its field's through
   /// B(|B|, θ, φ).
   MatX gradient_sensitivity(const Design& design, const VecX& p, std::size_t configuration) const;
@@ -170,6 +175,7 @@ class DesignObjective {
   std::size_t m_target_count = 0;
   VecX m_solved_p;  ///< the parameters the states were solved for
   bool m_solved_ok = false;
+  bool m_stability_known = false;  ///< m_solved_ok includes the stability of the states
   int m_evaluations = 0;
 };
 
