@@ -307,7 +307,7 @@ double DesignObjective::max_error(const std::vector<robot::RodState>& states) co
   return worst;
 }
 
-bool DesignObjective::is_magnitude(int i) const {
+bool DesignObjective::is_bounded(int i) const {
   const DesignSpec& spec = m_problem.spec;
   const int stride = per_section(spec);
   if (i < spec.sections * stride) return spec.remanence_bounds && i % stride == 2;

@@ -19,14 +19,14 @@ struct Residuals : Eigen::DenseFunctor<double> {
   VecX to_p(const VecX& u) const {
     VecX p = u;
     for (Eigen::Index i = 0; i < u.size(); ++i) {
-      if (objective.is_magnitude(static_cast<int>(i))) p[i] = lo[i] + (hi[i] - lo[i]) * 0.5 * (1.0 + std::sin(u[i]));
+      if (objective.is_bounded(static_cast<int>(i))) p[i] = lo[i] + (hi[i] - lo[i]) * 0.5 * (1.0 + std::sin(u[i]));
     }
     return p;
   }
   VecX to_u(const VecX& p) const {
     VecX u = p;
     for (Eigen::Index i = 0; i < p.size(); ++i) {
-      if (!objective.is_magnitude(static_cast<int>(i))) continue;
+      if (!objective.is_bounded(static_cast<int>(i))) continue;
       // A start on a bound would sit where dp/du = 0, and LM could never move it: start within 90 % of the range.
       const double span = hi[i] - lo[i];
       u[i] = span > 0.0 ? std::asin(std::clamp(2.0 * (p[i] - lo[i]) / span - 1.0, -0.9, 0.9)) : 0.0;
@@ -61,7 +61,7 @@ struct Residuals : Eigen::DenseFunctor<double> {
       return -1;
     }
     for (Eigen::Index i = 0; i < u.size(); ++i) {
-      if (objective.is_magnitude(static_cast<int>(i))) j.col(i) *= (hi[i] - lo[i]) * 0.5 * std::cos(u[i]);
+      if (objective.is_bounded(static_cast<int>(i))) j.col(i) *= (hi[i] - lo[i]) * 0.5 * std::cos(u[i]);
     }
     jacobian.topRows(j.rows()) = j;
     return 0;

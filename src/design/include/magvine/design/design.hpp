@@ -122,7 +122,7 @@ class DesignObjective {
   int residual_count() const { return 3 * static_cast<int>(m_target_count); }
   /// Whether parameter i is bounded on both sides by nature (a free remanence, |B|, a magnet's coordinate) rather than
   /// an angle.
-  bool is_magnitude(int i) const;
+  bool is_bounded(int i) const;
   /// The last evaluation's equilibria (one per configuration) and the last configuration's.
   std::vector<robot::RodState> states() const;
   const robot::RodState& state() const { return m_configurations.back().state; }
