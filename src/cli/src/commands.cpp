@@ -17,6 +17,7 @@
 #include "magvine/core/text.hpp"
 #include "magvine/core/units.hpp"
 #include "magvine/magnetics/field_model.hpp"
+#include "magvine/scene/calibrate_scene.hpp"
 #include "magvine/scene/design_scene.hpp"
 #include "magvine/scene/experiment.hpp"
 #include "magvine/scene/field_map.hpp"
@@ -349,6 +350,40 @@ int run_design(const DesignArgs& args) {
                              r.message.c_str());
   std::cerr << "magvine design: " << (out / "design.json").string() << ", " << (out / "scene.yaml").string()
             << " (magvine run reproduces the shape), shape.csv, target.csv\n";
+  return 0;
+}
+
+int run_calibrate(const CalibrateArgs& args) {
+  const scene::CalibrateScene sc = scene::load_calibrate_scene(args.scene);  // bad input fails before any output
+  const std::filesystem::path out =
+      args.out.empty()
+          ? std::filesystem::path("runs") / (std::filesystem::path(args.scene).stem().string() + "-calibrate")
+          : std::filesystem::path(args.out);
+  int fitted = 0;
+  for (const design::Measurement& m : sc.problem.measurements) fitted += m.holdout ? 0 : 1;
+  std::cerr << "magvine calibrate: " << sc.problem.parameters.size() << " parameters, " << fitted
+            << " measurements fitted, " << sc.problem.measurements.size() - static_cast<std::size_t>(fitted)
+            << " held out, " << sc.problem.cases.size() << " cases (Levenberg-Marquardt, exact sensitivities)\n";
+  design::CalibrationOptions options;
+  options.max_iterations = sc.max_iterations;
+  options.progress = [](int iteration, double chi) {
+    std::cerr << "\r  iteration " << iteration << ": chi " << printf_string("%.4g", chi) << "   " << std::flush;
+  };
+  const design::CalibrationResult r = design::calibrate(sc.problem, options);
+  std::cerr << '\n';
+  scene::write_calibration_outputs(sc, r, out);
+  for (std::size_t i = 0; i < sc.keys.size(); ++i) {
+    const auto k = static_cast<Eigen::Index>(i);
+    const double unit = sc.keys[i].second;
+    std::cout << printf_string("robot.%s = %.6g ± %.3g %s\n", sc.keys[i].first.c_str(), r.theta[k] / unit,
+                               r.sigma[k] / unit, sc.unit_names[i].c_str());
+  }
+  std::cout << printf_string(
+      "chi2 %.4g over %d fitted measurements after %d iterations (%d equilibria) in %.2f s: %s\n", r.chi2, r.fitted,
+      r.iterations, r.equilibria, r.runtime_s, r.message.c_str());
+  std::cerr << "magvine calibrate: " << (out / "calibration.json").string() << ", "
+            << (out / "predictions.csv").string() << " (held-out predictions with z-scores), "
+            << (out / "scene.yaml").string() << "\n";
   return 0;
 }
 

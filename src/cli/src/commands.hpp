@@ -100,6 +100,13 @@ struct DesignArgs {
 };
 int run_design(const DesignArgs& args);
 
+/// `magvine calibrate CALIBRATE.yaml [--out DIR]` (issue 29; docs/design.md#calibration).
+struct CalibrateArgs {
+  std::string scene;
+  std::string out;
+};
+int run_calibrate(const CalibrateArgs& args);
+
 /// `magvine validate --out DIR`: the robot-mechanics studies (scene/mechanics_study.hpp).
 int run_validate(const std::string& out_dir);
 

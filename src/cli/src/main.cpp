@@ -147,6 +147,15 @@ int main(int argc, char** argv) {
       ->capture_default_str()
       ->check(CLI::Range(1, 8));
 
+  magvine::cli::CalibrateArgs calibrate;
+  auto* calibrate_cmd = app.add_subcommand(
+      "calibrate",
+      "fit uncertain parameters of a vine scene (film modulus, iron fraction, ...) to measured equilibria under an "
+      "approaching magnet, with their uncertainty and held-out predictions (docs/design.md#calibration)");
+  calibrate_cmd->add_option("scene", calibrate.scene, "calibration file: a free-space vine scene plus calibrate:")
+      ->required();
+  calibrate_cmd->add_option("--out", calibrate.out, "output folder (default: runs/<file name>-calibrate)");
+
   std::string validate_out;
   auto* validate_cmd = app.add_subcommand(
       "validate",
@@ -191,6 +200,7 @@ int main(int argc, char** argv) {
     if (validate_cmd->parsed()) return magvine::cli::run_validate(validate_out);
     if (trials_cmd->parsed()) return magvine::cli::run_trials(trials);
     if (design_cmd->parsed()) return magvine::cli::run_design(design);
+    if (calibrate_cmd->parsed()) return magvine::cli::run_calibrate(calibrate);
   } catch (const magvine::InputError& e) {
     std::cerr << "magvine: " << e.what() << '\n';
     return static_cast<int>(ExitCode::kBadInput);

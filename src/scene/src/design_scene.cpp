@@ -44,7 +44,7 @@ DesignScene parse_design_scene(const std::string& text, const std::string& file_
   const YAML::Node root = parse_yaml(text, file_label);
   DesignScene out;
   double area = 0.0;
-  out.scene = detail::parse_free_space_root(root, file_label, true, &area);
+  out.scene = detail::parse_free_space_root(root, file_label, "design", &area);
   out.file = file_label;
   out.text = text;
   const YamlMap top(root, file_label, "");

@@ -1,9 +1,8 @@
 #include "magvine/scene/free_space.hpp"
 
-#include <nlohmann/json.hpp>
-
 #include <algorithm>
 #include <cmath>
+#include <nlohmann/json.hpp>
 #include <sstream>
 
 #include "failed_run.hpp"
@@ -23,17 +22,17 @@ namespace magvine::scene {
 
 FreeSpaceScene parse_free_space_scene(const std::string& text, const std::string& file_label) {
   const YAML::Node root = parse_yaml(text, file_label);
-  return detail::parse_free_space_root(root, file_label, false, nullptr);
+  return detail::parse_free_space_root(root, file_label, nullptr, nullptr);
 }
 
 namespace detail {
 
-FreeSpaceScene parse_free_space_root(const YAML::Node& root, const std::string& file_label, bool with_design,
+FreeSpaceScene parse_free_space_root(const YAML::Node& root, const std::string& file_label, const char* section,
                                      double* area) {
   if (!root || root.IsNull()) throw InputError(file_label, 0, "", "empty scene file (expected units: and robot:)");
   const YamlMap top(root, file_label, "");
-  if (with_design) {
-    top.allow_only({"units", "seed", "robot", "magnets", "simulation", "design"});
+  if (section != nullptr) {
+    top.allow_only({"units", "seed", "robot", "magnets", "simulation", section});
   } else {
     top.allow_only({"units", "seed", "robot", "magnets", "simulation"});
   }
@@ -61,7 +60,8 @@ FreeSpaceScene parse_free_space_root(const YAML::Node& root, const std::string& 
     sim.allow_only({"gravity", "tolerance", "max_load_steps"});
     if (sim.has("gravity")) scene.model.gravity = sim.vec3_quantity("gravity", kMetresPerS2, range::kGravity);
     if (sim.has("tolerance")) scene.solver.tolerance = sim.quantity("tolerance", kPlain, range::kSolverTolerance);
-    if (sim.has("max_load_steps")) scene.solver.max_load_steps = static_cast<int>(sim.whole("max_load_steps", 1, 1000000));
+    if (sim.has("max_load_steps"))
+      scene.solver.max_load_steps = static_cast<int>(sim.whole("max_load_steps", 1, 1000000));
   }
   return scene;
 }
