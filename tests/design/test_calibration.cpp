@@ -156,6 +156,76 @@ TEST(Calibration, CovarianceMatchesTheScatterOfNoisyFits) {
   }
 }
 
+/// The thesis's skin MVR in the torque setup (4.7.1, fig 4.5B): 80 mm, Ø8 mm, vertical against gravity, its skin
+/// magnetised towards the EPM, whose axis is vertical, 65 mm above the base, approaching along x from 300 mm to 132 mm
+/// (d > L + R_EPM). θ = (film modulus [Pa], skin remanence [T]).
+CalibrationCase skin_vine_case(double pressure) {
+  CalibrationCase c;
+  c.label = std::to_string(pressure * 1e-3) + " kPa";
+  c.model = [pressure](const VecX& theta) {
+    robot::VineParameters v = robot::thesis_skin_mvr(80e-3, 40);
+    v.pressure = pressure;
+    v.wall.modulus = theta[0];
+    v.skin_remanence = theta[1];
+    robot::RodModel m = robot::vine_rod(v);
+    m.base_frame.col(0) = Vec3::UnitZ();
+    m.base_frame.col(1) = Vec3::UnitX();
+    m.base_frame.col(2) = Vec3::UnitZ().cross(Vec3::UnitX());
+    m.gravity = Vec3(0.0, 0.0, -9.81);
+    return m;
+  };
+  c.magnet.add(magnetics::CylinderMagnet(0.0508, 0.1016, Vec3(0.0, 0.0, 1.48)),
+               magnetics::Pose::from_axis(Vec3(0.3, 0.0, 0.065), Vec3::UnitZ()), "EPM");
+  c.approach = Vec3::UnitX();
+  c.start_distance = 0.3;
+  c.step = 4e-3;
+  c.closest = 0.132;
+  c.critical_angle = 20.0 * kDegToRad;
+  return c;
+}
+
+TEST(Calibration, SkinVineCreaseOnsetsPinTheRemanenceNotTheFilmModulus) {
+  // The thesis assumes the LDPE film's modulus (0.2 GPa); fig 4.6's crease onsets against distance at 1, 6 and 12 kPa
+  // would determine it, but the thesis's text gives only its model's errors against them, not the distances. What the
+  // calibration recovers from such data: onsets (20° reached) and the angles 8 mm closer at 1, 3 and 6 kPa (at 12 kPa
+  // the model's vine does not reach 20° before 132 mm, where the magnet would touch it), made by the model at 0.2 GPa
+  // and 0.101 T, fitted from 0.1 GPa and 0.08 T. The data pin the remanence (σ ≈ 12 % at σ = 5 mm and 3°) but hardly
+  // the modulus (σ ≈ 140 %: before the wall wrinkles the body is stiff whatever E is, and the onset is set by the
+  // wrinkling moment πR³P/2, which has no E), so exact data land on the truth to 1e-4 in Br and only to 1e-3 in E,
+  // where χ² is flat to the fit's tolerance (χ² < 1e-6 asserted).
+  const VecX truth{{0.2e9, 0.101}};
+  CalibrationProblem p;
+  p.parameters = {{.name = "wall.youngs_modulus", .start = 0.1e9, .lower = 0.02e9, .upper = 1e9},
+                  {.name = "skin.remanence", .start = 0.08, .lower = 0.02, .upper = 0.3}};
+  for (const double kpa : {1.0, 3.0, 6.0}) {
+    p.cases.push_back(skin_vine_case(kpa * 1e3));
+    p.measurements.push_back({.case_index = p.cases.size() - 1, .observable = Observable::critical_distance,
+                              .sigma = 5e-3});
+  }
+  Predictions made = predict(p, truth, false);
+  for (std::size_t k = 0; k < 3; ++k) {
+    p.measurements[k].value = made.values[static_cast<Eigen::Index>(k)];
+    p.measurements.push_back({.case_index = k, .observable = Observable::chord_angle,
+                              .distance = p.measurements[k].value - 8e-3, .sigma = 3.0 * kDegToRad});
+  }
+  made = predict(p, truth, false);
+  for (std::size_t k = 3; k < 6; ++k) p.measurements[k].value = made.values[static_cast<Eigen::Index>(k)];
+  for (std::size_t k = 0; k < 6; ++k) {
+    ASSERT_TRUE(made.reached[k]);
+    std::printf("  made: case %zu %s %.6g\n", p.measurements[k].case_index, observable_name(p.measurements[k].observable),
+                p.measurements[k].value);
+  }
+  const CalibrationResult r = calibrate(p);
+  std::printf("  fit E %.6g Pa ± %.3g, Br %.6g T ± %.3g in %d iterations, %d equilibria, %.2f s; %s\n", r.theta[0],
+              r.sigma[0], r.theta[1], r.sigma[1], r.iterations, r.equilibria, r.runtime_s, r.message.c_str());
+  EXPECT_TRUE(r.converged) << r.message;
+  EXPECT_LT(r.chi2, 1e-6);
+  EXPECT_NEAR(r.theta[0], truth[0], 1e-3 * truth[0]);
+  EXPECT_NEAR(r.theta[1], truth[1], 1e-4 * truth[1]);
+  EXPECT_GT(r.sigma[0], 0.5 * truth[0]);  // what the onsets cannot tell
+  EXPECT_LT(r.sigma[1], 0.2 * truth[1]);
+}
+
 TEST(Calibration, RefusesBadProblems) {
   CalibrationProblem good;
   good.parameters = fluid_parameters();

@@ -212,10 +212,15 @@ void predict_case(const CalibrationProblem& problem, std::size_t index, const Ve
     record_critical(*state, d);  // already past the threshold at the start
     critical_pending = false;
   }
+  bool unreached = false;
   while (next < at_distance.size() || critical_pending) {
+    if (critical_pending && d <= c.closest + tolerance) {  // the critical search ends at `closest`
+      critical_pending = false;
+      unreached = true;
+      continue;
+    }
     const double target = next < at_distance.size() ? problem.measurements[at_distance[next]].distance : c.closest;
     const double goal = critical_pending ? std::max(target, c.closest) : target;
-    if (d <= goal + tolerance) break;  // (the critical search reached `closest`)
     const double d_next = std::max(d - c.step, goal);
     std::optional<robot::RodState> after = approach.solve(d_next, &*state, out.equilibria);
     if (!after) throw NumericalError(distance_label(c, d_next) + ": the equilibrium failed on the approach");
@@ -246,7 +251,7 @@ void predict_case(const CalibrationProblem& problem, std::size_t index, const Ve
     }
   }
   for (const std::size_t i : critical) {
-    if (!critical_pending) continue;
+    if (!unreached) continue;
     out.values[static_cast<Eigen::Index>(i)] = c.closest;  // never reached: a zero row
     out.reached[i] = false;
   }
