@@ -195,6 +195,47 @@ TEST(Experiment, TheNavigatorSteersAPushedMagneticRodIntoEitherDaughterOfTheY) {
             std::string::npos);
 }
 
+TEST(Experiment, AUniformFieldScheduleActsAsTheSameFieldFromAMagnetsEntry) {
+  // control.field (a coil system's field schedule) against the same uniform field given as magnets: [{kind: uniform}]
+  // (the magnetics module's own source): the pushed magnetic rod of y_bifurcation_magnetic_rod.yaml in 8 mT along +y
+  // for 3 s, tethered, ends in the same place to 1e-12 m. Then the schedule turning the field from +y to −y over
+  // 0.5 s at t = 1.5 s bends the inserted tip the other way: it ends on the −y side.
+  const std::filesystem::path scene =
+      std::filesystem::path(MAGVINE_SOURCE_DIR) / "assets/scenes/y_bifurcation_magnetic_rod.yaml";
+  std::ifstream in(scene);
+  std::string text(std::istreambuf_iterator<char>(in), {});
+  text = replaced(text, "  navigator: {target: \"0-0\", magnet: 0, distance: 110}", "  tether: [[0, 5], [3, 50]]");
+  text = replaced(text, "duration: 8", "duration: 3");
+  const std::string magnet_line =
+      "  - {kind: cylinder, diameter: 101.6, length: 101.6, polarisation: 1.48, position: [90, 250, 0], axis: [0, -1, "
+      "0]}";
+  const std::string as_magnet = replaced(text, magnet_line, "  - {kind: uniform, field: [0, 0.008, 0]}");
+  const std::string as_schedule = replaced(replaced(text, "magnets:\n" + magnet_line + "\n", ""), "control:\n",
+                                           "control:\n  field: [[0, [0, 0.008, 0]]]\n");
+  const ExperimentResult a = run_experiment(parse_experiment_scene(as_magnet, "a.yaml", MAGVINE_SOURCE_DIR));
+  const ExperimentResult b = run_experiment(parse_experiment_scene(as_schedule, "b.yaml", MAGVINE_SOURCE_DIR));
+  ASSERT_TRUE(a.converged && b.converged) << a.failure << b.failure;
+  double worst = 0.0;
+  for (std::size_t i = 0; i < a.final_state.x.size(); ++i) {
+    worst = std::max(worst, (a.final_state.x[i] - b.final_state.x[i]).norm());
+  }
+  std::printf("  uniform 8 mT: tip y %.2f mm; schedule against magnets entry %.3g m\n", 1e3 * a.final_state.tip().y(),
+              worst);
+  EXPECT_EQ(a.final_state.x.size(), b.final_state.x.size());
+  EXPECT_LT(worst, 1e-12);
+  EXPECT_GT(a.final_state.tip().y(), 1e-3);
+  const std::string turned = replaced(as_schedule, "field: [[0, [0, 0.008, 0]]]",
+                                      "field: [[0, [0, 0.008, 0]], [1.5, [0, 0.008, 0]], [2, [0, -0.008, 0]]]");
+  const ExperimentResult c = run_experiment(parse_experiment_scene(turned, "c.yaml", MAGVINE_SOURCE_DIR));
+  ASSERT_TRUE(c.converged) << c.failure;
+  std::printf("  turned to -y at 1.5-2 s: tip y %.2f mm\n", 1e3 * c.final_state.tip().y());
+  EXPECT_LT(c.final_state.tip().y(), -1e-3);
+  // A keyframe that is not [time, [bx, by, bz]] is refused, naming the key.
+  EXPECT_NE(
+      error_of(replaced(as_schedule, "field: [[0, [0, 0.008, 0]]]", "field: [[0, 0.008]]")).find("control.field[0]"),
+      std::string::npos);
+}
+
 TEST(Experiment, TrialsPerturbEachRunAndGiveTheSameOutcomesOnOneThreadOrTwo) {
   // magvine trials: the Y navigator scene towards both daughters, 2 repeats each, on 1 and on 2 threads: the same
   // outcomes in the same order (each trial's perturbation is drawn from its own seed); every trial reaches its

@@ -15,15 +15,22 @@ namespace magvine::scene {
 
 std::string_view event_name(EventKind kind) {
   switch (kind) {
-    case EventKind::kRecover: return "recover";
-    case EventKind::kWorkspace: return "workspace";
-    default: return robot::growth_event_name(static_cast<robot::GrowthEventKind>(kind));
+    case EventKind::kRecover:
+      return "recover";
+    case EventKind::kWorkspace:
+      return "workspace";
+    default:
+      return robot::growth_event_name(static_cast<robot::GrowthEventKind>(kind));
   }
 }
 
-EventKind event_kind(robot::GrowthEventKind kind) { return static_cast<EventKind>(kind); }
+EventKind event_kind(robot::GrowthEventKind kind) {
+  return static_cast<EventKind>(kind);
+}
 
-RunEvent run_event(const robot::GrowthEvent& e) { return {e.time, e.length, event_kind(e.kind), e.detail}; }
+RunEvent run_event(const robot::GrowthEvent& e) {
+  return {e.time, e.length, event_kind(e.kind), e.detail};
+}
 
 namespace {
 
@@ -43,6 +50,26 @@ std::vector<magnetics::Pose> poses_at(const ExperimentScene& scene, const Naviga
   return p;
 }
 
+/// The field the body reads at time t: the magnets' at their poses plus control.field's uniform field (no curvature:
+/// a uniform field has none).
+robot::RodField field_at(const ExperimentScene& scene, const std::vector<magnetics::Pose>& poses, double t) {
+  robot::RodField magnets;
+  if (scene.magnets) magnets = magnetics::field_function(*scene.magnets, poses);
+  if (!scene.uniform_field) return magnets;
+  const Vec3 b = scene.uniform_field->at(t);
+  if (!magnets) {
+    return robot::RodField([b](const Vec3&) { return magnetics::FieldSample{.b = b, .g = Mat3::Zero()}; },
+                           [](const Vec3&, const Vec3&) { return Mat3::Zero(); });
+  }
+  return robot::RodField(
+      [magnets, b](const Vec3& x) {
+        magnetics::FieldSample f = magnets(x);
+        f.b += b;
+        return f;
+      },
+      magnets.curvature());
+}
+
 }  // namespace
 
 ExperimentResult run_experiment(const ExperimentScene& scene, const std::function<void(double)>& progress) {
@@ -58,12 +85,11 @@ ExperimentResult run_experiment(const ExperimentScene& scene, const std::functio
       out.magnet_samples.push_back({t, static_cast<int>(i), poses[i].position, poses[i].rotation.col(2)});
     }
   };
-  robot::RodField field;
   if (scene.magnets) {
     poses = poses_at(scene, navigator ? &*navigator : nullptr, 0.0);
-    field = magnetics::field_function(*scene.magnets, poses);
     record_magnets(0.0);
   }
+  robot::RodField field = field_at(scene, poses, 0.0);
   robot::VineParameters vine = scene.vine;
   vine.pressure = scene.pressure.at(0.0);
   // A starting pressure above burst (a perturbed trial): start at half of it; the first step then bursts the vine
@@ -116,10 +142,11 @@ ExperimentResult run_experiment(const ExperimentScene& scene, const std::functio
       }
       if (changed) {
         poses = std::move(next);
-        field = magnetics::field_function(*scene.magnets, poses);
+        field = field_at(scene, poses, t);
         record_magnets(t);
       }
     }
+    if (scene.uniform_field) field = field_at(scene, poses, t);
     robot::GrowthControl control;
     control.pressure = scene.pressure.at(t);
     if (scene.tether) control.tether_length = scene.tether->at(t);

@@ -2,12 +2,11 @@
 // number against its plausible range (ranges.hpp) and every derived quantity (the vine, the growth options, the
 // placements of base, target and magnets) before anything runs.
 
+#include <Eigen/Geometry>
 #include <algorithm>
 #include <cmath>
 #include <initializer_list>
 #include <sstream>
-
-#include <Eigen/Geometry>
 
 #include "experiment_internal.hpp"
 #include "magnet_entries.hpp"
@@ -50,8 +49,8 @@ Schedule schedule_of(const YamlMap& parent, const std::string& key, const Unit& 
     if (!k.IsSequence() || k.size() != 2) parent.fail_at(k, at, "must be [time, value]");
     const double t = checked_quantity(checked_number(k[0], parent.file(), at + "[0]"), kSeconds, range::kTime,
                                       parent.file(), k[0], at + "[0]");
-    const double v = checked_quantity(checked_number(k[1], parent.file(), at + "[1]"), unit, value_range,
-                                      parent.file(), k[1], at + "[1]");
+    const double v = checked_quantity(checked_number(k[1], parent.file(), at + "[1]"), unit, value_range, parent.file(),
+                                      k[1], at + "[1]");
     if (!s.times.empty() && !(t > s.times.back())) parent.fail_at(k, at, "times must increase");
     s.times.push_back(t);
     s.values.push_back(v);
@@ -189,8 +188,9 @@ std::optional<robot::PushedRod> parse_robot(const YamlMap& robot, const FileUnit
 void parse_growth(const YamlMap& g, const FileUnits& units, bool rod, ExperimentScene& scene) {
   for (const char* gone : {"contact", "max_incidence"}) {  // the planes contact model's (removed 2026-12-02)
     if (g.has(gone)) {
-      g.fail(gone, "the planes contact model and its keys are gone: the barrier contact is the only one (drop this "
-                   "key)");
+      g.fail(gone,
+             "the planes contact model and its keys are gone: the barrier contact is the only one (drop this "
+             "key)");
     }
   }
   g.allow_only({"mode", "yield_pressure", "length_yield", "turning_yield", "extensibility", "friction", "edge_length",
@@ -206,13 +206,13 @@ void parse_growth(const YamlMap& g, const FileUnits& units, bool rod, Experiment
   }
   if (g.has("yield_pressure")) o.law.yield_pressure = g.quantity("yield_pressure", units.stress, range::kPressure);
   if (g.has("length_yield")) {
-    o.law.length_yield = g.quantity("length_yield", Unit{units.stress.si / units.len.si,
-                                                         units.stress.name + "/" + units.len.name},
-                                    range::kLengthYield);
+    o.law.length_yield =
+        g.quantity("length_yield", Unit{units.stress.si / units.len.si, units.stress.name + "/" + units.len.name},
+                   range::kLengthYield);
   }
   if (g.has("turning_yield")) {
-    o.law.turning_yield = g.quantity("turning_yield", Unit{units.stress.si, units.stress.name + "/rad"},
-                                     range::kTurningYield);
+    o.law.turning_yield =
+        g.quantity("turning_yield", Unit{units.stress.si, units.stress.name + "/rad"}, range::kTurningYield);
   }
   if (g.has("extensibility")) {
     o.law.extensibility = g.quantity("extensibility", Unit{1e-6, "µm/(s·Pa)"}, range::kExtensibility);
@@ -243,10 +243,11 @@ void parse_growth(const YamlMap& g, const FileUnits& units, bool rod, Experiment
     o.retraction_pressure = g.quantity("retraction_pressure", units.stress, range::kPressure);
   }
   if (rod) {
-    refuse_keys(g,
-                {"catheter", "magnetorheology", "retraction_pressure", "yield_pressure", "length_yield",
-                 "turning_yield", "extensibility"},
-                std::string(kRodHasNoPressure) + " or growth law: it is inserted at robot.insertion_speed up to the tether");
+    refuse_keys(
+        g,
+        {"catheter", "magnetorheology", "retraction_pressure", "yield_pressure", "length_yield", "turning_yield",
+         "extensibility"},
+        std::string(kRodHasNoPressure) + " or growth law: it is inserted at robot.insertion_speed up to the tether");
     if (o.mode != robot::InsertionMode::kPushed && g.has("mode")) g.fail("mode", "a rod is pushed (mode: pushed)");
   }
 }
@@ -265,8 +266,8 @@ void parse_magnets(const YamlMap& top, const FileUnits& units, ExperimentScene& 
 
 /// One outputs.video entry (docs/scenes.md: videos).
 VideoOutput video_of(const YamlMap& v, const FileUnits& units) {
-  v.allow_only({"camera", "size", "fov", "lens", "fps", "speed", "frames", "depth", "depth_range", "noise", "from",
-                "up"});
+  v.allow_only(
+      {"camera", "size", "fov", "lens", "fps", "speed", "frames", "depth", "depth_range", "noise", "from", "up"});
   VideoOutput out;
   const std::string camera = v.text("camera");
   if (camera == "overview") {
@@ -322,8 +323,8 @@ void parse_outputs(const YamlMap& o, const FileUnits& units, ExperimentScene& sc
   const YAML::Node list = o.node("video");
   if (list.IsSequence()) {
     for (std::size_t i = 0; i < list.size(); ++i) {
-      scene.videos.push_back(video_of(YamlMap(list[i], o.file(), o.key_path("video") + "[" + std::to_string(i) + "]"),
-                                      units));
+      scene.videos.push_back(
+          video_of(YamlMap(list[i], o.file(), o.key_path("video") + "[" + std::to_string(i) + "]"), units));
     }
   } else {
     scene.videos.push_back(video_of(o.map("video"), units));
@@ -374,9 +375,9 @@ void parse_magnet_keyframes(const YamlMap& control, const FileUnits& units, Expe
       key.position = f.vec3_quantity("position", units.len, range::kCoordinate);
       key.axis = f.direction("axis");
       const anatomy::TriangleMesh& mesh = scene.anatomy->mesh();
-      const std::string why =
-          keys.empty() ? detail::overlap_problem(mesh, *scene.magnets, index, key.position, key.axis)
-                       : detail::path_overlap_problem(mesh, *scene.magnets, index, keys.back(), key);
+      const std::string why = keys.empty()
+                                  ? detail::overlap_problem(mesh, *scene.magnets, index, key.position, key.axis)
+                                  : detail::path_overlap_problem(mesh, *scene.magnets, index, keys.back(), key);
       if (!why.empty()) f.fail("position", why);
       keys.push_back(key);
     }
@@ -438,7 +439,8 @@ void parse_commands(const YamlMap& control, const FileUnits& units, ExperimentSc
       const double step = c.quantity("grow", units.len, Range{-range::kBodyLength.max, range::kBodyLength.max});
       const double to = tether.values.back() + step;
       if (to < 0.0) c.fail("grow", "would pull the tether back beyond the base");
-      if (to > range::kBodyLength.max) c.fail("grow", "would release more than " + describe(range::kBodyLength, units.len));
+      if (to > range::kBodyLength.max)
+        c.fail("grow", "would release more than " + describe(range::kBodyLength, units.len));
       ramp(tether, to, "grow");
       grows = true;
       continue;
@@ -461,7 +463,8 @@ void parse_commands(const YamlMap& control, const FileUnits& units, ExperimentSc
     }
     next.time = t + over;
     if (c.has("move")) {
-      next.position += c.vec3_quantity("move", units.len, Range{-2.0 * range::kCoordinate.max, 2.0 * range::kCoordinate.max});
+      next.position +=
+          c.vec3_quantity("move", units.len, Range{-2.0 * range::kCoordinate.max, 2.0 * range::kCoordinate.max});
       if (!range::kCoordinate.contains(next.position.cwiseAbs().maxCoeff())) {
         c.fail("move", "would take the magnet outside " + describe(range::kCoordinate, units.len));
       }
@@ -482,9 +485,38 @@ void parse_commands(const YamlMap& control, const FileUnits& units, ExperimentSc
   }
 }
 
-/// control: the pressure and tether schedules, the magnets' keyframes and the gamepad script (the navigator below).
+/// control.field: [[time, [bx, by, bz]], ...] in s and T.
+FieldSchedule field_schedule_of(const YamlMap& control) {
+  const YAML::Node list = control.node("field");
+  const std::string path = control.key_path("field");
+  if (!list.IsSequence() || list.size() == 0) control.fail("field", "must be a list of [time, [bx, by, bz]] keyframes");
+  FieldSchedule s;
+  for (std::size_t i = 0; i < list.size(); ++i) {
+    const YAML::Node k = list[i];
+    const std::string at = path + "[" + std::to_string(i) + "]";
+    if (!k.IsSequence() || k.size() != 2 || !k[1].IsSequence() || k[1].size() != 3) {
+      control.fail_at(k, at, "must be [time, [bx, by, bz]] (s, T)");
+    }
+    const double t = checked_quantity(checked_number(k[0], control.file(), at + "[0]"), kSeconds, range::kTime,
+                                      control.file(), k[0], at + "[0]");
+    Vec3 b;
+    for (int c = 0; c < 3; ++c) {
+      const YAML::Node v = k[1][static_cast<std::size_t>(c)];
+      b[c] = checked_quantity(checked_number(v, control.file(), at + "[1]"), kTesla, range::kField, control.file(), v,
+                              at + "[1]");
+    }
+    if (!s.times.empty() && !(t > s.times.back())) control.fail_at(k, at, "times must increase");
+    s.times.push_back(t);
+    s.values.push_back(b);
+  }
+  return s;
+}
+
+/// control: the pressure and tether schedules, the uniform field, the magnets' keyframes and the gamepad script (the
+/// navigator below).
 void parse_control(const YamlMap& control, const FileUnits& units, ExperimentScene& scene) {
-  control.allow_only({"pressure", "tether", "magnets", "navigator", "commands"});
+  control.allow_only({"pressure", "tether", "field", "magnets", "navigator", "commands"});
+  if (control.has("field")) scene.uniform_field = field_schedule_of(control);
   if (control.has("pressure")) {
     if (scene.growth.rod) refuse_keys(control, {"pressure"}, kRodHasNoPressure);
     scene.pressure = schedule_of(control, "pressure", units.stress, range::kPressure);
@@ -520,12 +552,13 @@ Navigator::Recovery parse_recovery(const YamlMap& r, const FileUnits& units, con
 /// control.navigator: its target on the airway graph, its magnet and its settings.
 void parse_navigator(const YamlMap& n, const FileUnits& units, ExperimentScene& scene) {
   n.allow_only({"target", "magnet", "distance", "min_distance", "max_distance", "lead", "interval", "deflate_pressure",
-                "deflate_time", "junction_distance", "lateral", "mode", "boost_pressure", "boost_after",
-                "boost_length", "recover"});
+                "deflate_time", "junction_distance", "lateral", "mode", "boost_pressure", "boost_after", "boost_length",
+                "recover"});
   const std::optional<anatomy::AirwayGraph>& graph = scene.anatomy->graph;
   if (!graph) {
-    n.fail("target", "the navigator plans on an airway graph: a generated phantom's, or anatomy.graph (extract | "
-                     "FILE.json) for a mesh");
+    n.fail("target",
+           "the navigator plans on an airway graph: a generated phantom's, or anatomy.graph (extract | "
+           "FILE.json) for a mesh");
   }
   if (!scene.magnets) n.fail("magnet", "the navigator moves a magnet, but the scene has no magnets: list");
   Navigator nav;
@@ -565,7 +598,8 @@ void parse_navigator(const YamlMap& n, const FileUnits& units, ExperimentScene& 
       n.fail("mode", "steers a magnetic skin (robot.skin) with a remanence; a fill or a rod follows the magnet's pull");
     }
   }
-  if (n.has("deflate_pressure")) nav.deflate_pressure = n.quantity("deflate_pressure", units.stress, range::kPositivePressure);
+  if (n.has("deflate_pressure"))
+    nav.deflate_pressure = n.quantity("deflate_pressure", units.stress, range::kPositivePressure);
   if (n.has("deflate_time")) nav.deflate_time = n.quantity("deflate_time", kSeconds, range::kDuration);
   if (n.has("junction_distance")) nav.junction_distance = n.quantity("junction_distance", units.len, range::kDistance);
   if (scene.growth.rod) refuse_keys(n, {"boost_pressure", "deflate_pressure"}, kRodHasNoPressure);
@@ -624,8 +658,8 @@ void check_scene(const YamlMap& top, const FileUnits& units, const ExperimentSce
   if (!scene.anatomy->closed) return;
   const anatomy::CollisionWorld& world = scene.anatomy->world;
   if (!world.contains(scene.base_position)) {
-    top.map("robot").map("base").fail("position", where(scene.base_position, units.len) +
-                                                      " is outside the lumen of the " + scene.anatomy->label);
+    top.map("robot").map("base").fail(
+        "position", where(scene.base_position, units.len) + " is outside the lumen of the " + scene.anatomy->label);
   }
   if (scene.target && !world.contains(*scene.target)) {
     const std::string why = where(*scene.target, units.len) + " is outside the lumen of the " + scene.anatomy->label;
@@ -641,6 +675,11 @@ double Schedule::at(double time) const {
   return lerp(values[s.before], values[s.after], s.u);
 }
 
+Vec3 FieldSchedule::at(double time) const {
+  const KeyframeSpan s = keyframe_span(times.size(), time, [&](std::size_t k) { return times[k]; });
+  return (1.0 - s.u) * values[s.before] + s.u * values[s.after];
+}
+
 bool is_experiment_scene(const std::filesystem::path& file) {
   const YAML::Node root = parse_yaml(read_text_file(file.string(), "scene file"), file.string());
   return root && root.IsMap() && static_cast<bool>(root["anatomy"]);
@@ -651,8 +690,8 @@ ExperimentScene parse_experiment_scene(const std::string& text, const std::strin
   const YAML::Node root = parse_yaml(text, file_label);
   if (!root || root.IsNull()) throw InputError(file_label, 0, "", "empty scene file");
   const YamlMap top(root, file_label, "");
-  top.allow_only({"units", "seed", "anatomy", "robot", "growth", "magnets", "control", "simulation", "target",
-                  "trials", "outputs"});
+  top.allow_only({"units", "seed", "anatomy", "robot", "growth", "magnets", "control", "simulation", "target", "trials",
+                  "outputs"});
   const FileUnits units = file_units(top);
 
   ExperimentScene scene;

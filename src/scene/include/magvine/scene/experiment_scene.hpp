@@ -31,19 +31,27 @@ struct Schedule {
   double at(double time) const;
 };
 
+/// A uniform-field schedule (control.field: a coil system, as the thesis's follow-the-leader designs assume): linear
+/// between keyframes, held beyond the first and last.
+struct FieldSchedule {
+  std::vector<double> times;  ///< [s], increasing
+  std::vector<Vec3> values;   ///< [T]
+  Vec3 at(double time) const;
+};
+
 /// One magnet's pose at a time (magnetics/magnet_motion.hpp).
 using MagnetKeyframe = magnetics::MagnetKeyframe;
 
 /// The automatic navigator of control.navigator: its settings (navigator.hpp runs it).
 struct Navigator {
-  std::string target;             ///< branch name
-  int target_branch = -1;         ///< its id in the phantom's graph
-  int magnet = 0;                 ///< index in magnets:
-  double distance = 0.11;         ///< [m]
-  double min_distance = 0.10;     ///< [m]
-  double max_distance = 0.30;     ///< [m]
-  double lead = 0.015;            ///< [m]
-  double interval = 0.1;          ///< [s]
+  std::string target;          ///< branch name
+  int target_branch = -1;      ///< its id in the phantom's graph
+  int magnet = 0;              ///< index in magnets:
+  double distance = 0.11;      ///< [m]
+  double min_distance = 0.10;  ///< [m]
+  double max_distance = 0.30;  ///< [m]
+  double lead = 0.015;         ///< [m]
+  double interval = 0.1;       ///< [s]
   /// Pressure regulation for skin vines (thesis 4.7.3): when the tip comes within junction_distance of a junction on
   /// the path (each once), the pressure is held at most deflate_pressure [Pa] for deflate_time [s] while the magnet
   /// bends the body towards the next branch. 0: off.
@@ -121,8 +129,8 @@ struct VideoOutput {
 struct SceneAnatomy {
   std::string label;                          ///< "phantom y_bifurcation" or the mesh path (for messages)
   std::optional<anatomy::AirwayGraph> graph;  ///< a generated phantom's, or anatomy.graph's
-  bool closed = false;  ///< the mesh is closed (generated, or watertight): inside/outside is defined
-  anatomy::CollisionWorld world;              ///< contacts, rays, inside/outside
+  bool closed = false;            ///< the mesh is closed (generated, or watertight): inside/outside is defined
+  anatomy::CollisionWorld world;  ///< contacts, rays, inside/outside
 
   /// The airway wall [m] (the world's copy).
   const anatomy::TriangleMesh& mesh() const { return world.mesh(); }
@@ -151,23 +159,24 @@ class AnatomyCache {
 };
 
 struct ExperimentScene {
-  std::string file;                 ///< the scene file (for messages)
+  std::string file;                             ///< the scene file (for messages)
   std::shared_ptr<const SceneAnatomy> anatomy;  ///< never null in a loaded scene
-  robot::VineParameters vine;       ///< the vine (a pushed rod: its inserted length and radius; growth.rod the rod)
+  robot::VineParameters vine;  ///< the vine (a pushed rod: its inserted length and radius; growth.rod the rod)
   Vec3 base_position = Vec3::Zero();
   Mat3 base_frame = Mat3::Identity();
   robot::GrowthOptions growth;
   std::optional<magnetics::FieldModel> magnets;
   std::vector<std::vector<MagnetKeyframe>> magnet_keyframes;  ///< per source of `magnets`; empty: its rest pose
-  Schedule pressure;                ///< [Pa]
-  std::optional<Schedule> tether;   ///< [m]
+  Schedule pressure;                                          ///< [Pa]
+  std::optional<Schedule> tether;                             ///< [m]
+  std::optional<FieldSchedule> uniform_field;                 ///< control.field, added to the magnets' field
   std::optional<Navigator> navigator;
-  double duration = 0.0;            ///< [s]
-  double dt = 0.02;                 ///< [s]
-  std::optional<Vec3> target;       ///< [m]
-  double target_tolerance = 0.0;    ///< [m]
-  bool stop_at_target = true;       ///< end the run when the target is reached (simulation.stop_at_target)
-  TrialPerturbation perturbation;   ///< for `magvine trials`
+  double duration = 0.0;                 ///< [s]
+  double dt = 0.02;                      ///< [s]
+  std::optional<Vec3> target;            ///< [m]
+  double target_tolerance = 0.0;         ///< [m]
+  bool stop_at_target = true;            ///< end the run when the target is reached (simulation.stop_at_target)
+  TrialPerturbation perturbation;        ///< for `magvine trials`
   Vec3 navigator_offset = Vec3::Zero();  ///< a trial's placement error added to the navigator's poses [m]
   std::uint64_t seed = 0;
   double shape_interval = 0.0;      ///< outputs.shape_interval [s]: the body every so often in shapes.csv; 0: off
