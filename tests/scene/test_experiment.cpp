@@ -21,6 +21,7 @@
 #include "magvine/core/error.hpp"
 #include "magvine/magnetics/cylinder.hpp"
 #include "magvine/magnetics/field_model.hpp"
+#include "magvine/scene/calibrate_scene.hpp"
 #include "magvine/scene/design_scene.hpp"
 #include "magvine/scene/experiment.hpp"
 #include "magvine/scene/free_space.hpp"
@@ -342,6 +343,8 @@ TEST(Experiment, EveryBundledSceneLoads) {
     }
     if (is_design_scene(entry.path())) {
       EXPECT_NO_THROW((void)load_design_scene(entry.path()));  // a free-space rod scene plus design:
+    } else if (is_calibrate_scene(entry.path())) {
+      EXPECT_NO_THROW((void)load_calibrate_scene(entry.path()));  // a free-space vine scene plus calibrate:
     } else if (is_experiment_scene(entry.path())) {
       EXPECT_NO_THROW((void)load_experiment_scene(entry.path()));
       ++experiments;

@@ -4,9 +4,13 @@
 #include <nlohmann/json.hpp>
 #include <sstream>
 
+#include "anatomy_entry.hpp"
 #include "free_space_internal.hpp"
+#include "magvine/anatomy/airway_graph.hpp"
+#include "magvine/scene/navigator.hpp"
 #include "magvine/core/atomic_file.hpp"
 #include "magvine/core/error.hpp"
+#include "magvine/core/text.hpp"
 #include "magvine/core/units.hpp"
 #include "magvine/magnetics/field_function.hpp"
 #include "ranges.hpp"
@@ -36,6 +40,70 @@ std::vector<Vec3> target_points(const YamlMap& target, const Unit& length, const
     out.push_back(v);
   }
   return out;
+}
+
+/// The insertion path along an airway graph (design.insertion.path: {anatomy, branch, points, speed}): the planned
+/// centreline to the branch's end from the point nearest the rod's base, sampled at `points` equally spaced points over
+/// the rod's length. The base must sit on it: on the centreline, along its direction (20°).
+std::vector<Vec3> airway_path(const YamlMap& path, const FileUnits& units, const robot::RodModel& model,
+                              const std::filesystem::path& directory, DesignScene::AirwayPath& out) {
+  path.allow_only({"anatomy", "branch", "points", "speed"});
+  const std::shared_ptr<const SceneAnatomy> anatomy =
+      detail::parse_anatomy_entry(path.map("anatomy"), units, directory);
+  if (!anatomy->graph) {
+    path.fail("anatomy", "has no airway graph to follow: a generated phantom's, or graph: (extract | FILE.json)");
+  }
+  const anatomy::AirwayGraph& graph = *anatomy->graph;
+  out.branch = path.text("branch");
+  const std::optional<int> branch = anatomy::find_branch(graph, out.branch);
+  if (!branch) path.fail("branch", "'" + out.branch + "' is not a branch of the anatomy's airway graph");
+  const int count = path.has("points") ? static_cast<int>(path.whole("points", 2, 10000)) : 17;
+  if (path.has("speed")) {
+    out.insertion_speed = path.quantity("speed", Unit{units.len.si, units.len.name + "/s"}, range::kPositiveSpeed);
+  }
+  const std::vector<Vec3> line = planned_path(graph, *branch);
+  std::vector<double> arc(line.size(), 0.0);
+  for (std::size_t i = 1; i < line.size(); ++i) arc[i] = arc[i - 1] + (line[i] - line[i - 1]).norm();
+  const auto point_at = [&](double s) {
+    std::size_t i = 1;
+    while (i + 1 < line.size() && arc[i] < s) ++i;
+    const double u = std::clamp((s - arc[i - 1]) / std::max(arc[i] - arc[i - 1], 1e-15), 0.0, 1.0);
+    return Vec3(line[i - 1] + u * (line[i] - line[i - 1]));
+  };
+  const double start = arc_length_of_nearest(line, model.base_position);
+  const Vec3 on = point_at(start);
+  const Vec3 tangent = (point_at(std::min(arc.back(), start + 1e-3)) - on).normalized();
+  const auto mm = [&](const Vec3& v) {
+    return printf_string("[%.4g, %.4g, %.4g]", v.x() / units.len.si, v.y() / units.len.si, v.z() / units.len.si);
+  };
+  // On the centreline to 1 % of the target spacing: the first target is the base, the next ones on the centreline.
+  if ((model.base_position - on).norm() > 0.01 * model.length / (count - 1.0) ||
+      tangent.dot(model.base_frame.col(0)) < std::cos(20.0 * kDegToRad)) {
+    path.fail("branch", "the rod's base must sit on the path to " + out.branch + " (on its centreline, along it within "
+                        "20°): e.g. robot.base.position " + mm(on) + ", direction " +
+                        printf_string("[%.4g, %.4g, %.4g]", tangent.x(), tangent.y(), tangent.z()));
+  }
+  if (start + model.length > arc.back() * (1.0 + 1e-9)) {
+    path.fail("branch", printf_string("the path from the base to the end of %s is %.4g %s, shorter than the rod "
+                                      "(%.4g %s)",
+                                      out.branch.c_str(), (arc.back() - start) / units.len.si, units.len.name.c_str(),
+                                      model.length / units.len.si, units.len.name.c_str()));
+  }
+  std::vector<Vec3> targets;
+  for (int k = 0; k < count; ++k) targets.push_back(point_at(start + model.length * k / (count - 1.0)));
+  targets.front() = model.base_position;  // the first target is the clamped base itself
+  out.end_radius = anatomy::nearest_centreline_point(graph, targets.back()).radius;
+  // experiment.yaml is written elsewhere: its mesh and graph files by absolute paths.
+  YAML::Node entry = YAML::Clone(path.node("anatomy"));
+  for (const char* key : {"mesh", "graph"}) {
+    if (!entry[key] || !entry[key].IsScalar() || entry[key].as<std::string>() == "extract") continue;
+    const std::filesystem::path file = entry[key].as<std::string>();
+    if (file.is_relative()) entry[key] = std::filesystem::absolute(directory / file).lexically_normal().string();
+  }
+  YAML::Emitter emitter;
+  emitter << YAML::Flow << entry;
+  out.anatomy_yaml = emitter.c_str();
+  return targets;
 }
 
 }  // namespace
@@ -80,7 +148,14 @@ DesignScene parse_design_scene(const std::string& text, const std::string& file_
     ins.allow_only({"steps", "path"});
     if (d.has("target")) d.fail("target", "give either target or insertion.path (the insertion's target), not both");
     p.insertion_steps = static_cast<int>(ins.whole("steps", 1, 1000));
-    p.spec.target = target_points(ins, units.len, "path");
+    if (ins.node("path").IsMap()) {  // along an airway graph
+      DesignScene::AirwayPath airway;
+      p.spec.target = airway_path(ins.map("path"), units, p.model, std::filesystem::path(file_label).parent_path(),
+                                  airway);
+      out.airway = airway;
+    } else {
+      p.spec.target = target_points(ins, units.len, "path");
+    }
     if (!d.has("field")) ins.fail("steps", "a follow-the-leader insertion needs design.field.free (a field per step)");
   } else {
     p.spec.target = target_points(d.map("target"), units.len, "points");
@@ -185,9 +260,18 @@ design::DesignResult run_design(const DesignScene& scene, const std::function<vo
   return design::multi_start_design(scene.problem, scene.method, options);
 }
 
-std::string designed_scene_yaml(const DesignScene& scene, const design::Design& design) {
-  YAML::Node root = YAML::Clone(parse_yaml(scene.text, scene.file));
-  root.remove("design");
+namespace {
+
+/// [x, y, z] / unit, in flow style.
+YAML::Node flow_vector(const Vec3& v, double unit) {
+  YAML::Node out(YAML::NodeType::Sequence);
+  for (int i = 0; i < 3; ++i) out.push_back(v[i] / unit);
+  out.SetStyle(YAML::EmitterStyle::Flow);
+  return out;
+}
+
+/// robot.magnetisation of a design: its sections, in file units.
+YAML::Node sections_node(const DesignScene& scene, const design::Design& design) {
   const int sections = scene.problem.spec.sections;
   const std::vector<std::pair<double, double>> spans = design::DesignObjective(scene.problem).section_spans();
   YAML::Node list(YAML::NodeType::Sequence);
@@ -196,36 +280,80 @@ std::string designed_scene_yaml(const DesignScene& scene, const design::Design& 
     entry["from"] = spans[static_cast<std::size_t>(s)].first / scene.length_unit;  // file units
     entry["to"] = spans[static_cast<std::size_t>(s)].second / scene.length_unit;
     entry["remanence"] = design.remanences[static_cast<std::size_t>(s)];
-    YAML::Node dir(YAML::NodeType::Sequence);
-    for (int i = 0; i < 3; ++i) dir.push_back(design.directions[static_cast<std::size_t>(s)][i]);
-    dir.SetStyle(YAML::EmitterStyle::Flow);
-    entry["direction"] = dir;
+    entry["direction"] = flow_vector(design.directions[static_cast<std::size_t>(s)], 1.0);
     entry.SetStyle(YAML::EmitterStyle::Flow);
     list.push_back(entry);
   }
-  root["robot"]["magnetisation"] = list;
+  return list;
+}
+
+}  // namespace
+
+std::string designed_scene_yaml(const DesignScene& scene, const design::Design& design) {
+  YAML::Node root = YAML::Clone(parse_yaml(scene.text, scene.file));
+  root.remove("design");
+  root["robot"]["magnetisation"] = sections_node(scene, design);
   if (!design.fields.empty()) {
     YAML::Node magnets(YAML::NodeType::Sequence);
     YAML::Node uniform(YAML::NodeType::Map);
     uniform["kind"] = "uniform";
-    YAML::Node b(YAML::NodeType::Sequence);
-    for (int i = 0; i < 3; ++i) b.push_back(design.fields.back()[i]);
-    b.SetStyle(YAML::EmitterStyle::Flow);
-    uniform["field"] = b;
+    uniform["field"] = flow_vector(design.fields.back(), 1.0);
     uniform.SetStyle(YAML::EmitterStyle::Flow);
     magnets.push_back(uniform);
     root["magnets"] = magnets;
   }
   if (design.magnet_position && scene.problem.magnet) {
-    YAML::Node at(YAML::NodeType::Sequence);
-    for (int i = 0; i < 3; ++i) at.push_back((*design.magnet_position)[i] / scene.length_unit);
-    at.SetStyle(YAML::EmitterStyle::Flow);
-    root["magnets"][scene.problem.magnet->index]["position"] = at;
+    root["magnets"][scene.problem.magnet->index]["position"] = flow_vector(*design.magnet_position, scene.length_unit);
   }
   YAML::Emitter emitter;
   emitter << root;
   return "# The rod designed by `magvine design " + scene.file + "` (run it with `magvine run`).\n" +
          std::string(emitter.c_str()) + "\n";
+}
+
+std::string designed_experiment_yaml(const DesignScene& scene, const design::Design& design) {
+  if (!scene.airway) throw InputError(scene.file, 0, "design.insertion.path", "no airway path to run the design along");
+  const DesignScene::AirwayPath& airway = *scene.airway;
+  const design::DesignProblem& p = scene.problem;
+  const double unit = scene.length_unit;
+  const double step = p.model.length / p.insertion_steps;
+  const YAML::Node file = parse_yaml(scene.text, scene.file);
+  YAML::Node root(YAML::NodeType::Map);
+  root["units"] = YAML::Clone(file["units"]);
+  root["seed"] = scene.seed;
+  root["anatomy"] = YAML::Load(airway.anatomy_yaml);
+  YAML::Node robot = YAML::Clone(file["robot"]);
+  robot.remove("nodes");  // the experiment's edge length (growth.edge_length: the radius)
+  robot.remove("node_spacing");
+  robot["magnetisation"] = sections_node(scene, design);
+  robot["inserted"] = step / unit;
+  robot["insertion_speed"] = airway.insertion_speed / unit;
+  root["robot"] = robot;
+  // Step c's field from the time its length is in (step 1 at t = 0), linear between: the experiment's push follows
+  // the design's steps.
+  YAML::Node field(YAML::NodeType::Sequence);
+  for (int c = 0; c < p.insertion_steps; ++c) {
+    YAML::Node key(YAML::NodeType::Sequence);
+    key.push_back(c * step / airway.insertion_speed);
+    key.push_back(flow_vector(design.fields[static_cast<std::size_t>(c)], 1.0));
+    key.SetStyle(YAML::EmitterStyle::Flow);
+    field.push_back(key);
+  }
+  root["control"]["field"] = field;
+  const double inserted_by = (p.model.length - step) / airway.insertion_speed;
+  root["simulation"]["duration"] = inserted_by + 1.0;  // then a second to settle
+  root["simulation"]["dt"] = 0.02;
+  if (file["simulation"] && file["simulation"]["gravity"]) {
+    root["simulation"]["gravity"] = YAML::Clone(file["simulation"]["gravity"]);
+  }
+  root["target"]["position"] = flow_vector(p.spec.target.back(), unit);
+  root["target"]["tolerance"] = airway.end_radius / unit;
+  root["target"].SetStyle(YAML::EmitterStyle::Flow);
+  root["simulation"].SetStyle(YAML::EmitterStyle::Flow);
+  YAML::Emitter emitter;
+  emitter << root;
+  return "# The catheter designed by `magvine design " + scene.file + "` pushed along " + airway.branch +
+         "'s path with the design's fields (run it with `magvine run`).\n" + std::string(emitter.c_str()) + "\n";
 }
 
 void write_design_outputs(const DesignScene& scene, const design::DesignResult& result,
@@ -323,6 +451,7 @@ void write_design_outputs(const DesignScene& scene, const design::DesignResult& 
   write_file_atomically(dir / "target.csv", target.str());
   if (p.insertion_steps > 0) write_file_atomically(dir / "insertion.csv", insertion.str());
   write_file_atomically(dir / "scene.yaml", designed_scene_yaml(scene, result.design));
+  if (scene.airway) write_file_atomically(dir / "experiment.yaml", designed_experiment_yaml(scene, result.design));
   write_file_atomically(dir / "design.json", j.dump(2) + "\n");
 }
 

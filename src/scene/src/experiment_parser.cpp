@@ -8,6 +8,7 @@
 #include <initializer_list>
 #include <sstream>
 
+#include "anatomy_entry.hpp"
 #include "experiment_internal.hpp"
 #include "magnet_entries.hpp"
 #include "magvine/anatomy/centerline.hpp"
@@ -669,6 +670,11 @@ void check_scene(const YamlMap& top, const FileUnits& units, const ExperimentSce
 }
 
 }  // namespace
+
+std::shared_ptr<const SceneAnatomy> detail::parse_anatomy_entry(const YamlMap& entry, const FileUnits& units,
+                                                                const std::filesystem::path& directory) {
+  return parse_anatomy(entry, units, directory, nullptr);
+}
 
 double Schedule::at(double time) const {
   const KeyframeSpan s = keyframe_span(times.size(), time, [&](std::size_t k) { return times[k]; });

@@ -5,6 +5,7 @@
 
 #include <cstdint>
 #include <filesystem>
+#include <optional>
 #include <string>
 
 #include "magvine/design/design.hpp"
@@ -30,6 +31,16 @@ struct DesignScene {
   std::string text;               ///< the file's text: scene.yaml is written from it
   double length_unit = 1e-3;      ///< one file length unit [m]
   bool circular_section = false;  ///< robot.section.shape is circle (the MPM check needs it)
+  /// A follow-the-leader insertion along an airway graph (design.insertion.path: {anatomy, branch}): the anatomy
+  /// entry as written (for experiment.yaml), the branch, the lumen radius at the path's end, and the insertion speed
+  /// of the experiment [m/s].
+  struct AirwayPath {
+    std::string anatomy_yaml;
+    std::string branch;
+    double end_radius = 0.0;
+    double insertion_speed = 0.01;
+  };
+  std::optional<AirwayPath> airway;
 };
 
 /// Whether `file` is a design file (YAML with a top-level `design:`); false for anything unreadable.
@@ -47,8 +58,15 @@ design::DesignResult run_design(const DesignScene& scene, const std::function<vo
 /// field.
 std::string designed_scene_yaml(const DesignScene& scene, const design::Design& design);
 
+/// The designed catheter pushed through the anatomy of an insertion along an airway graph (issue 29, patient-specific
+/// designs): a `robot.kind: rod` experiment with the design's sections, inserted from the base at the path's speed
+/// from its first step's length, the design's field of step c as control.field from the time step c's length is
+/// inserted (linear between), and the path's end as the target (within its lumen radius).
+std::string designed_experiment_yaml(const DesignScene& scene, const design::Design& design);
+
 /// Writes DIR/design.json, DIR/scene.yaml, DIR/shape.csv (the design's equilibrium) and DIR/target.csv (each target
-/// point, the body's point at its arc length and their distance), each atomically (the folder is created).
+/// point, the body's point at its arc length and their distance), each atomically (the folder is created); with an
+/// insertion along an airway graph also DIR/experiment.yaml (designed_experiment_yaml).
 void write_design_outputs(const DesignScene& scene, const design::DesignResult& result,
                           const std::filesystem::path& dir);
 
