@@ -323,6 +323,67 @@ TEST(Design, TheMagnetIsPlacedWhereItBendsTheRodOntoTheTarget) {
               r.design.magnet_position->z() * 1e3, r.evaluations);
 }
 
+TEST(Design, MagnetOrientationGradientMatchesFiniteDifferencesAndTheAxisIsRecovered) {
+  // The EPM's pose as a design variable: the thesis EPM (exact cylinder) with its moment along its axis, 150 mm below
+  // the rod's middle pointing up, its centre in a 100 mm box and its axis free. The objective's gradient over the axis
+  // angles (∂g/∂(θ_a, φ_a) from central differences of the analytic gradient, design.hpp) against central differences
+  // of J (1e-6 rad), to 1e-5 of the largest; and the adjoint against the forward sensitivities. Then a target made by
+  // the forward model with the magnet turned 25° about x and moved (one section): the design recovers the axis.
+  DesignProblem p = catheter_problem();
+  p.spec.sections = 1;
+  magnetics::FieldModel magnets;
+  magnets.add(magnetics::CylinderMagnet(0.0508, 0.1016, Vec3(0.0, 0.0, 1.48)),
+              magnetics::Pose::from_axis(Vec3(0.020, -0.150, 0.0), Vec3::UnitY()), "epm");
+  p.field = magnetics::field_function(magnets, magnets.rest_poses);
+  p.magnet = DesignProblem::MagnetPosition{magnets, 0, Vec3(-0.030, -0.200, -0.050), Vec3(0.070, -0.100, 0.050), true};
+  const Vec3 truth_position(0.040, -0.140, 0.010);
+  const Vec3 truth_axis = Eigen::AngleAxisd(25.0 * kDegToRad, Vec3::UnitX()) * Vec3::UnitY();
+  {
+    DesignObjective o(p);
+    Design d = random_design(p, 4);
+    d.directions = {Vec3(0.6, 0.8, 0.0)};
+    d.magnet_position = truth_position;
+    d.magnet_axis = truth_axis;
+    const robot::RodModel m = o.model_of(d);
+    robot::RodState s = robot::straight_rod(m);
+    ASSERT_TRUE(robot::solve_rod_statics(m, o.field_of(d), s, p.solver).converged);
+    p.spec.target = o.points_on(s);
+  }
+  DesignObjective o(p);
+  ASSERT_EQ(o.parameters(), 7);
+  EXPECT_TRUE(o.is_bounded(2) && o.is_bounded(4) && !o.is_bounded(5) && !o.is_bounded(6));
+  Design d = random_design(p, 3);
+  d.directions = {Vec3(0.5, 0.7, 0.2).normalized()};
+  d.magnet_position = Vec3(0.030, -0.150, 0.0);
+  d.magnet_axis = Vec3(0.2, 0.95, 0.1).normalized();
+  const VecX x = o.parameters_of(d);
+  VecX g;
+  VecX r;
+  MatX jac;
+  ASSERT_TRUE(std::isfinite(o.evaluate(x, &g)));
+  ASSERT_TRUE(o.residuals(x, r, &jac));
+  EXPECT_LT((g - 2.0 * jac.transpose() * r).norm(), 1e-9 * g.norm());
+  const double scale = g.tail<2>().cwiseAbs().maxCoeff();
+  for (int i = 5; i < 7; ++i) {
+    const double fd = difference_of_j(o, x, i);
+    std::printf("  axis angle %d: adjoint %.9g, differences %.9g\n", i - 5, g[i], fd);
+    EXPECT_NEAR(g[i], fd, 1e-5 * scale) << "axis angle " << i - 5;
+  }
+  // Shape alone does not fix the pose (a first run with the centre free found RMS 0.0015 mm with the magnet 59 mm and
+  // 47° from the truth: the rod reads only the field along itself): with the centre where it was, the axis is
+  // recovered.
+  p.magnet->min = truth_position;
+  p.magnet->max = truth_position;
+  DesignOptions options;
+  options.starts = 2;
+  const DesignResult result = multi_start_design(p, DesignMethod::least_squares, options);
+  const double axis_error = std::acos(std::clamp(result.design.magnet_axis->dot(truth_axis), -1.0, 1.0)) / kDegToRad;
+  std::printf("  RMS %.4f mm, axis %.2f° from the truth, centre %.3f mm from it, %d equilibria\n", result.rms * 1e3,
+              axis_error, (*result.design.magnet_position - truth_position).norm() * 1e3, result.evaluations);
+  EXPECT_LT(result.rms, 0.05e-3);
+  EXPECT_LT(axis_error, 1.0);
+}
+
 /// Thesis A.1.5.2's catheter: 56 mm × Ø3 mm, five sections, pushed out along x in eight steps with a free field of
 /// at most 10 mT per step; the path as 17 points every 3.5 mm.
 DesignProblem insertion_problem(const std::function<Vec3(double)>& path) {

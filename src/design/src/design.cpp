@@ -14,6 +14,7 @@
 #include "magvine/core/stopwatch.hpp"
 #include "magvine/core/text.hpp"
 #include "magvine/core/units.hpp"
+#include "magvine/magnetics/magnet_motion.hpp"
 #include "magvine/magnetics/magnetisation.hpp"
 
 namespace magvine::design {
@@ -124,7 +125,8 @@ DesignObjective::DesignObjective(const DesignProblem& problem) : m_problem(probl
   const DesignSpec& spec = problem.spec;
   const int steps = problem.insertion_steps;
   m_fields = spec.field_max ? std::max(1, steps) : 0;
-  m_parameters = spec.sections * per_section(spec) + 3 * m_fields + (problem.magnet ? 3 : 0);
+  m_parameters =
+      spec.sections * per_section(spec) + 3 * m_fields + (problem.magnet ? (problem.magnet->orientation ? 5 : 3) : 0);
   const robot::RodModel& full = problem.model;
   const int n = full.edges;
   const std::size_t k_count = spec.target.size();
@@ -176,6 +178,7 @@ VecX DesignObjective::lower() const {
     out[at++] = -kTwoPi;
   }
   if (m_problem.magnet) out.segment<3>(at) = m_problem.magnet->min;
+  if (m_problem.magnet && m_problem.magnet->orientation) out.tail<2>() = Eigen::Vector2d(0.0, -kTwoPi);
   return out;
 }
 
@@ -194,6 +197,7 @@ VecX DesignObjective::upper() const {
     out[at++] = kTwoPi;
   }
   if (m_problem.magnet) out.segment<3>(at) = m_problem.magnet->max;
+  if (m_problem.magnet && m_problem.magnet->orientation) out.tail<2>() = Eigen::Vector2d(kPi, kTwoPi);
   return out;
 }
 
@@ -222,7 +226,13 @@ VecX DesignObjective::parameters_of(const Design& design) const {
   }
   if (m_problem.magnet) {
     const magnetics::FieldModel& magnets = m_problem.magnet->magnets;
-    p.segment<3>(at) = design.magnet_position.value_or(magnets.rest_poses[m_problem.magnet->index].position);
+    const magnetics::Pose& rest = magnets.rest_poses[m_problem.magnet->index];
+    p.segment<3>(at) = design.magnet_position.value_or(rest.position);
+    if (m_problem.magnet->orientation) {
+      const auto [theta, phi] = detail::angles_of(design.magnet_axis.value_or(rest.rotation.col(2)));
+      p[at + 3] = theta;
+      p[at + 4] = phi;
+    }
   }
   return p.cwiseMax(lower()).cwiseMin(upper());
 }
@@ -241,7 +251,14 @@ Design DesignObjective::design_of(const VecX& p) const {
     at += 3;
   }
   if (m_problem.magnet) d.magnet_position = p.segment<3>(at);
+  if (m_problem.magnet && m_problem.magnet->orientation) d.magnet_axis = detail::spherical(p[at + 3], p[at + 4]);
   return d;
+}
+
+magnetics::Pose DesignObjective::magnet_pose(const Design& design) const {
+  const magnetics::Pose& rest = m_problem.magnet->magnets.rest_poses[m_problem.magnet->index];
+  return magnetics::pose_at(rest, design.magnet_position.value_or(rest.position),
+                            design.magnet_axis.value_or(rest.rotation.col(2)));
 }
 
 robot::RodModel DesignObjective::model_of(const Design& design, std::size_t configuration) const {
@@ -260,7 +277,7 @@ robot::RodField DesignObjective::field_of(const Design& design, std::size_t conf
   const int f = m_configurations[configuration].field;
   if (f < 0 && m_problem.magnet && design.magnet_position) {
     std::vector<magnetics::Pose> poses = m_problem.magnet->magnets.rest_poses;
-    poses[m_problem.magnet->index].position = *design.magnet_position;
+    poses[m_problem.magnet->index] = magnet_pose(design);
     return magnetics::field_function(m_problem.magnet->magnets, std::move(poses));
   }
   if (f < 0) return m_problem.field;
@@ -311,8 +328,8 @@ bool DesignObjective::is_bounded(int i) const {
   const DesignSpec& spec = m_problem.spec;
   const int stride = per_section(spec);
   if (i < spec.sections * stride) return spec.remanence_bounds && i % stride == 2;
-  if (m_problem.magnet && i >= magnet_offset()) return true;  // a coordinate of the magnet's box
-  return (i - spec.sections * stride) % 3 == 0;               // |B| of a field (then θ_B, φ_B)
+  if (m_problem.magnet && i >= magnet_offset()) return i < magnet_offset() + 3;  // its box's coordinates, not its axis
+  return (i - spec.sections * stride) % 3 == 0;                                  // |B| of a field (then θ_B, φ_B)
 }
 
 std::vector<robot::RodState> DesignObjective::states() const {
@@ -382,10 +399,24 @@ MatX DesignObjective::gradient_sensitivity(const Design& design, const VecX& p, 
     const magnetics::FieldModel& all = m_problem.magnet->magnets;
     magnetics::FieldModel one;
     one.add(all.sources[m_problem.magnet->index], all.rest_poses[m_problem.magnet->index]);
-    magnetics::Pose pose = all.rest_poses[m_problem.magnet->index];
-    pose.position = *design.magnet_position;
+    const magnetics::Pose pose = magnet_pose(design);
     out.middleCols<3>(magnet_offset()) =
         robot::rod_field_translation_sensitivity(model, magnetics::field_function(one, {pose}), conf.state);
+    if (m_problem.magnet->orientation) {
+      // A turn of the whole field: central differences of the analytic gradient over the axis angles (1e-6 rad: the
+      // truncation, ~1e-12 relative, and the round-off, ~ε|g|/h, both below the equilibria's precision).
+      const int at = magnet_offset() + 3;
+      constexpr double kTurn = 1e-6;
+      for (int k = 0; k < 2; ++k) {
+        VecX plus = p;
+        VecX minus = p;
+        plus[at + k] += kTurn;
+        minus[at + k] -= kTurn;
+        out.col(at + k) = (robot::rod_gradient(model, field_of(design_of(plus), configuration), conf.state) -
+                           robot::rod_gradient(model, field_of(design_of(minus), configuration), conf.state)) /
+                          (2.0 * kTurn);
+      }
+    }
   }
   if (conf.field >= 0) {
     const int at = field_offset(conf.field);
@@ -491,6 +522,8 @@ Design random_design(const DesignProblem& problem, std::uint64_t seed) {
   if (problem.magnet) {  // where the scene puts it, within its box
     const Vec3 at = problem.magnet->magnets.rest_poses[problem.magnet->index].position;
     d.magnet_position = at.cwiseMax(problem.magnet->min).cwiseMin(problem.magnet->max);
+    if (problem.magnet->orientation)
+      d.magnet_axis = problem.magnet->magnets.rest_poses[problem.magnet->index].rotation.col(2);
   }
   return d;
 }

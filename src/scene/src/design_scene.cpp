@@ -7,12 +7,12 @@
 #include "anatomy_entry.hpp"
 #include "free_space_internal.hpp"
 #include "magvine/anatomy/airway_graph.hpp"
-#include "magvine/scene/navigator.hpp"
 #include "magvine/core/atomic_file.hpp"
 #include "magvine/core/error.hpp"
 #include "magvine/core/text.hpp"
 #include "magvine/core/units.hpp"
 #include "magvine/magnetics/field_function.hpp"
+#include "magvine/scene/navigator.hpp"
 #include "ranges.hpp"
 #include "robot_entries.hpp"
 #include "yaml_reader.hpp"
@@ -79,9 +79,11 @@ std::vector<Vec3> airway_path(const YamlMap& path, const FileUnits& units, const
   // On the centreline to 1 % of the target spacing: the first target is the base, the next ones on the centreline.
   if ((model.base_position - on).norm() > 0.01 * model.length / (count - 1.0) ||
       tangent.dot(model.base_frame.col(0)) < std::cos(20.0 * kDegToRad)) {
-    path.fail("branch", "the rod's base must sit on the path to " + out.branch + " (on its centreline, along it within "
-                        "20°): e.g. robot.base.position " + mm(on) + ", direction " +
-                        printf_string("[%.4g, %.4g, %.4g]", tangent.x(), tangent.y(), tangent.z()));
+    path.fail("branch", "the rod's base must sit on the path to " + out.branch +
+                            " (on its centreline, along it within "
+                            "20°): e.g. robot.base.position " +
+                            mm(on) + ", direction " +
+                            printf_string("[%.4g, %.4g, %.4g]", tangent.x(), tangent.y(), tangent.z()));
   }
   if (start + model.length > arc.back() * (1.0 + 1e-9)) {
     path.fail("branch", printf_string("the path from the base to the end of %s is %.4g %s, shorter than the rod "
@@ -150,8 +152,8 @@ DesignScene parse_design_scene(const std::string& text, const std::string& file_
     p.insertion_steps = static_cast<int>(ins.whole("steps", 1, 1000));
     if (ins.node("path").IsMap()) {  // along an airway graph
       DesignScene::AirwayPath airway;
-      p.spec.target = airway_path(ins.map("path"), units, p.model, std::filesystem::path(file_label).parent_path(),
-                                  airway);
+      p.spec.target =
+          airway_path(ins.map("path"), units, p.model, std::filesystem::path(file_label).parent_path(), airway);
       out.airway = airway;
     } else {
       p.spec.target = target_points(ins, units.len, "path");
@@ -197,12 +199,21 @@ DesignScene parse_design_scene(const std::string& text, const std::string& file_
     }
     if (d.has("magnet")) {  // where the EPM goes joins the unknowns
       const YamlMap mg = d.map("magnet");
-      mg.allow_only({"index", "min", "max"});
+      mg.allow_only({"index", "min", "max", "orientation"});
       design::DesignProblem::MagnetPosition position;
       position.magnets = magnets;
       position.index = static_cast<std::size_t>(mg.has("index") ? mg.whole("index", 0, 65535) : 0);
       position.min = mg.vec3_quantity("min", units.len, range::kCoordinate);
       position.max = mg.vec3_quantity("max", units.len, range::kCoordinate);
+      position.orientation = mg.has("orientation") && mg.flag("orientation");
+      if (position.orientation && position.index < magnets.size()) {
+        const YAML::Node entry = top.node("magnets")[position.index];
+        if (!entry["axis"]) {
+          mg.fail("orientation",
+                  "the designed magnet's axis is its `axis:` key: give the magnet as polarisation + axis "
+                  "(not a dipole's moment)");
+        }
+      }
       p.magnet = position;
     }
   } else if (d.has("magnet")) {
@@ -304,6 +315,8 @@ std::string designed_scene_yaml(const DesignScene& scene, const design::Design& 
   }
   if (design.magnet_position && scene.problem.magnet) {
     root["magnets"][scene.problem.magnet->index]["position"] = flow_vector(*design.magnet_position, scene.length_unit);
+    if (design.magnet_axis)
+      root["magnets"][scene.problem.magnet->index]["axis"] = flow_vector(*design.magnet_axis, 1.0);
   }
   YAML::Emitter emitter;
   emitter << root;
@@ -407,6 +420,7 @@ void write_design_outputs(const DesignScene& scene, const design::DesignResult& 
     j["field_T"] = vec(result.design.fields.front());
   }
   if (result.design.magnet_position) j["magnet_position_m"] = vec(*result.design.magnet_position);
+  if (result.design.magnet_axis) j["magnet_axis"] = vec(*result.design.magnet_axis);
   nlohmann::json history = nlohmann::json::array();
   for (const design::DesignResult::Step& s : result.history) {
     history.push_back({{"iteration", s.iteration},

@@ -13,8 +13,12 @@
 /// Parameters p (bounded): per section its direction in the body frame d = (sin θ cos φ, sin θ sin φ, cos θ),
 /// θ ∈ [0, π], φ ∈ [−2π, 2π] (x = d1 along the rod, y = d2 the base normal), then its remanence Br ∈ [min, max] when
 /// the magnitudes are free; then, with a free field, B = |B| (sin θ_B cos φ_B, sin θ_B sin φ_B, cos θ_B) (world),
-/// |B| ∈ [0, max]. The moment per length of an edge in section s is Br_s d_s A/μ0 (the hard-magnetic law), A the
-/// rod's cross-section; an edge belongs to the section that holds its midpoint.
+/// |B| ∈ [0, max]; then, with a designed magnet, its centre (3 coordinates in a box) and, with its orientation, its
+/// axis a = (sin θ_a cos φ_a, sin θ_a sin φ_a, cos θ_a) (world). The moment per length of an edge in section s is
+/// Br_s d_s A/μ0 (the hard-magnetic law), A the rod's cross-section; an edge belongs to the section that holds its
+/// midpoint. ∂g/∂(θ_a, φ_a), a turn of the magnet's whole field (its value and gradient at every edge), is the central
+/// difference (1e-6 rad) of the analytic gradient rod_gradient at the fixed configuration, as calibration.hpp's
+/// material parameters are; every other ∂g/∂p is exact.
 
 #include <cstdint>
 #include <functional>
@@ -55,14 +59,16 @@ struct DesignProblem {
   DesignSpec spec;
   robot::RodSolveOptions solver;
   int insertion_steps = 0;  ///< 0: the static design; n: follow-the-leader in n steps
-  /// A magnet whose position joins the unknowns (a design of where the EPM goes): the scene's magnets with their rest
-  /// poses (`field` is then theirs, unused), the designed one's index and the box its centre may move in [m]. Not with
-  /// a free field.
+  /// A magnet whose pose joins the unknowns (a design of where the EPM goes): the scene's magnets with their rest
+  /// poses (`field` is then theirs, unused), the designed one's index and the box its centre may move in [m]; with
+  /// `orientation`, its axis too (the direction of its moment, world; the pose turned from the rest pose by the
+  /// shortest rotation, magnetics::pose_at). Not with a free field.
   struct MagnetPosition {
     magnetics::FieldModel magnets;
     std::size_t index = 0;
     Vec3 min = Vec3::Zero();
     Vec3 max = Vec3::Zero();
+    bool orientation = false;
   };
   std::optional<MagnetPosition> magnet;
 };
@@ -88,6 +94,7 @@ struct Design {
   std::vector<double> remanences;
   std::vector<Vec3> fields;
   std::optional<Vec3> magnet_position;  ///< the designed magnet's centre [m]
+  std::optional<Vec3> magnet_axis;      ///< its axis (unit, world), when the orientation is designed
 };
 
 /// The objective and its exact gradient at parameters p (the layout above; free fields one after another). Holds the
@@ -165,8 +172,10 @@ class DesignObjective {
   MatX gradient_sensitivity(const Design& design, const VecX& p, std::size_t configuration) const;
   /// Where free field f's three parameters start in p.
   int field_offset(int field) const;
-  /// Where the magnet's position starts in p (after the fields).
+  /// Where the magnet's position starts in p (after the fields); its axis angles follow it.
   int magnet_offset() const { return field_offset(m_fields); }
+  /// The magnet's pose of a design (its position and, when designed, its axis).
+  magnetics::Pose magnet_pose(const Design& design) const;
 
   const DesignProblem& m_problem;
   int m_parameters = 0;
