@@ -63,7 +63,7 @@ foreach(case "unknown.yaml|calibrate.parameters.fill.iron: is not a parameter ca
              "outside.yaml|lies outside [min, max]" "twomagnets.yaml|exactly one magnet"
              "bad_value.yaml|bad_value.csv:9: value: 'nan' is not a finite number"
              "bad_use.yaml|bad_use.csv:10: use: must be fit or holdout"
-             "far.yaml|far.csv:12: distance: must be in (0, 300] mm"
+             "far.yaml|magnets[0].position: the approach starts at d0 = 300 mm, closer than the measurement at 400 mm"
              "burst.yaml|Ø7 mm at 80 kPa" "rod.yaml|robot")
   string(REPLACE "|" ";" parts "${case}")
   list(GET parts 0 file)

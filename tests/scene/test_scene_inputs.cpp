@@ -21,6 +21,7 @@
 
 #include "magvine/config.hpp"
 #include "magvine/core/error.hpp"
+#include "magvine/scene/calibrate_scene.hpp"
 #include "magvine/scene/design_scene.hpp"
 #include "magvine/scene/experiment.hpp"
 #include "magvine/scene/free_space.hpp"
@@ -105,9 +106,17 @@ Check check_for(const std::filesystem::path& file, AnatomyCache& cache) {
     };
   }
 #endif
+  if (is_calibrate_scene(file)) {
+    return [dir](const std::string& t, const std::string& label) {
+      const CalibrateScene s = parse_calibrate_scene(t, label, dir);
+      design::CalibrationOptions one;
+      one.max_iterations = 1;  // a short fit: no crash, no exception
+      (void)design::calibrate(s.problem, one);
+    };
+  }
   if (is_design_scene(file)) {
-    return [](const std::string& t, const std::string& label) {
-      DesignScene s = parse_design_scene(t, label);
+    return [&cache](const std::string& t, const std::string& label) {
+      DesignScene s = parse_design_scene(t, label, &cache);
       s.max_iterations = 2;  // a short design: no crash, no exception
       (void)run_design(s);
     };

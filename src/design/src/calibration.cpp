@@ -221,8 +221,13 @@ void predict_case(const CalibrationProblem& problem, std::size_t index, const Ve
     }
     const double target = next < at_distance.size() ? problem.measurements[at_distance[next]].distance : c.closest;
     const double goal = critical_pending ? std::max(target, c.closest) : target;
-    const double d_next = std::max(d - c.step, goal);
+    // A step Newton cannot follow (the body moves far, as at a snap) is taken in halves, down to 1/64 of it.
+    double d_next = std::max(d - c.step, goal);
     std::optional<robot::RodState> after = approach.solve(d_next, &*state, out.equilibria);
+    for (int halving = 0; !after && halving < 6; ++halving) {
+      d_next = 0.5 * (d + d_next);
+      after = approach.solve(d_next, &*state, out.equilibria);
+    }
     if (!after) throw NumericalError(distance_label(c, d_next) + ": the equilibrium failed on the approach");
     if (critical_pending && chord_angle(approach.model(), *after).value >= c.critical_angle) {
       // Bisection between d (below a_c) and d_next (at or above it), following the branch from d, to 1e-12 m: the

@@ -567,6 +567,73 @@ DesignResult optimise_design(const DesignProblem& problem, const Design& start, 
   return out;
 }
 
+namespace {
+
+/// The problem in the field scaled by s: a fixed field's value, gradient and curvature, or a free field's bound and
+/// start.
+DesignProblem scaled_field(const DesignProblem& problem, double s) {
+  DesignProblem out = problem;
+  if (problem.spec.field_max) {
+    out.spec.field_max = s * *problem.spec.field_max;
+    out.start_field = s * problem.start_field;
+    return out;
+  }
+  const robot::RodField field = problem.field;
+  magnetics::FieldFunction::Curvature curvature;
+  if (field.curvature()) {
+    curvature = [field, s](const Vec3& x, const Vec3& w) { return Mat3(s * field.curvature()(x, w)); };
+  }
+  out.field = robot::RodField(
+      [field, s](const Vec3& x) {
+        magnetics::FieldSample f = field(x);
+        return magnetics::FieldSample{s * f.b, s * f.g};
+      },
+      curvature);
+  return out;
+}
+
+/// One start by `method`, with the field continuation of options.field_stages: the stages' counts and histories joined
+/// (the history's RMS is each stage's, in its own field), the last stage's design.
+DesignResult continued_design(const DesignProblem& problem, DesignMethod method, const Design& first,
+                              const DesignOptions& options) {
+  const auto run = [&](const DesignProblem& p, const Design& from) {
+    return method == DesignMethod::lbfgsb ? optimise_design(p, from, options) : least_squares_design(p, from, options);
+  };
+  const int stages = std::max(1, options.field_stages);
+  if (stages == 1) return run(problem, first);
+  if (problem.magnet)
+    throw InputError("design: the field continuation scales a fixed or free field, not a designed magnet's");
+  DesignResult out;
+  Design from = first;
+  std::vector<DesignResult::Step> history;
+  int iterations = 0;
+  int evaluations = 0;
+  double runtime = 0.0;
+  for (int k = 1; k <= stages; ++k) {
+    const DesignProblem stage = k == stages ? problem : scaled_field(problem, static_cast<double>(k) / stages);
+    DesignResult r = run(stage, from);
+    for (DesignResult::Step step : r.history) {
+      step.iteration += iterations;
+      step.evaluation += evaluations;
+      step.time_s += runtime;
+      history.push_back(step);
+    }
+    iterations += std::max(0, r.iterations);
+    evaluations += r.evaluations;
+    runtime += r.runtime_s;
+    from = r.design;
+    out = std::move(r);
+  }
+  out.iterations = iterations;
+  out.evaluations = evaluations;
+  out.runtime_s = runtime;
+  out.history = std::move(history);
+  out.message += " (field continuation, " + std::to_string(stages) + " stages)";
+  return out;
+}
+
+}  // namespace
+
 DesignResult multi_start_design(const DesignProblem& problem, DesignMethod method, const DesignOptions& options) {
   if (method == DesignMethod::bayesian) return bayesian_design(problem, options);
   DesignResult best;
@@ -583,9 +650,7 @@ DesignResult multi_start_design(const DesignProblem& problem, DesignMethod metho
         options.progress(evaluations + e, std::min(rms, best.rms));
       };
     }
-    const Design first = random_design(problem, one.seed);
-    DesignResult r = method == DesignMethod::lbfgsb ? optimise_design(problem, first, one)
-                                                    : least_squares_design(problem, first, one);
+    DesignResult r = continued_design(problem, method, random_design(problem, one.seed), one);
     const int iteration_offset = history.empty() ? 0 : history.back().iteration;
     for (DesignResult::Step s : r.history) {
       s.iteration += iteration_offset;

@@ -12,8 +12,8 @@
 namespace magvine::scene::detail {
 
 /// Parses `anatomy:` exactly as an experiment scene does (a generated phantom or a mesh, its airway graph); relative
-/// paths from `directory`.
+/// paths from `directory`; `cache` (optional) shares anatomies between loads.
 std::shared_ptr<const SceneAnatomy> parse_anatomy_entry(const YamlMap& entry, const FileUnits& units,
-                                                        const std::filesystem::path& directory);
+                                                        const std::filesystem::path& directory, AnatomyCache* cache);
 
 }  // namespace magvine::scene::detail

@@ -7,6 +7,7 @@
 #include <nlohmann/json.hpp>
 #include <sstream>
 
+#include "experiment_internal.hpp"
 #include "free_space_internal.hpp"
 #include "magvine/core/atomic_file.hpp"
 #include "magvine/core/error.hpp"
@@ -24,6 +25,7 @@ enum class UnitKind { length, stress, density, tesla, plain };
 struct ParameterKey {
   std::string_view key;
   UnitKind unit;
+  Range range;                                     ///< what the scene accepts for it, SI: the bounds must lie within
   double robot::VineParameters::*field = nullptr;  ///< a top-level member, or
   robot::WallLayer robot::VineParameters::*layer = nullptr;
   double robot::WallLayer::*layer_field = nullptr;  ///< a member of a layer
@@ -33,19 +35,20 @@ struct ParameterKey {
 const std::vector<ParameterKey>& parameter_keys() {
   using V = robot::VineParameters;
   using W = robot::WallLayer;
+  const Range fraction{0.0, 0.74, true, true};  // as robot_entries' fill.volume_fraction
   static const std::vector<ParameterKey> keys = {
-      {"pressure", UnitKind::stress, &V::pressure},
-      {"wall.thickness", UnitKind::length, nullptr, &V::wall, &W::thickness},
-      {"wall.youngs_modulus", UnitKind::stress, nullptr, &V::wall, &W::modulus},
-      {"wall.shear_modulus", UnitKind::stress, nullptr, &V::wall, &W::modulus, 3.0},
-      {"wall.density", UnitKind::density, nullptr, &V::wall, &W::density},
-      {"skin.thickness", UnitKind::length, nullptr, &V::skin, &W::thickness},
-      {"skin.youngs_modulus", UnitKind::stress, nullptr, &V::skin, &W::modulus},
-      {"skin.shear_modulus", UnitKind::stress, nullptr, &V::skin, &W::modulus, 3.0},
-      {"skin.density", UnitKind::density, nullptr, &V::skin, &W::density},
-      {"skin.remanence", UnitKind::tesla, &V::skin_remanence},
-      {"fill.volume_fraction", UnitKind::plain, &V::volume_fraction},
-      {"fill.density", UnitKind::density, &V::fill_density},
+      {"pressure", UnitKind::stress, range::kPressure, &V::pressure},
+      {"wall.thickness", UnitKind::length, range::kLayerThickness, nullptr, &V::wall, &W::thickness},
+      {"wall.youngs_modulus", UnitKind::stress, range::kModulus, nullptr, &V::wall, &W::modulus},
+      {"wall.shear_modulus", UnitKind::stress, range::kModulus, nullptr, &V::wall, &W::modulus, 3.0},
+      {"wall.density", UnitKind::density, range::kDensity, nullptr, &V::wall, &W::density},
+      {"skin.thickness", UnitKind::length, range::kLayerThickness, nullptr, &V::skin, &W::thickness},
+      {"skin.youngs_modulus", UnitKind::stress, range::kModulus, nullptr, &V::skin, &W::modulus},
+      {"skin.shear_modulus", UnitKind::stress, range::kModulus, nullptr, &V::skin, &W::modulus, 3.0},
+      {"skin.density", UnitKind::density, range::kDensity, nullptr, &V::skin, &W::density},
+      {"skin.remanence", UnitKind::tesla, range::kRemanence, &V::skin_remanence},
+      {"fill.volume_fraction", UnitKind::plain, fraction, &V::volume_fraction},
+      {"fill.density", UnitKind::density, range::kDensity, &V::fill_density},
   };
   return keys;
 }
@@ -191,9 +194,14 @@ bool is_calibrate_scene(const std::filesystem::path& file) {
 }
 
 CalibrateScene load_calibrate_scene(const std::filesystem::path& file) {
+  return parse_calibrate_scene(read_text_file(file.string(), "calibration file"), file.string(), file.parent_path());
+}
+
+CalibrateScene parse_calibrate_scene(const std::string& text, const std::string& file_label,
+                                     const std::filesystem::path& directory) {
   CalibrateScene out;
-  out.file = file.string();
-  out.text = read_text_file(out.file, "calibration file");
+  out.file = file_label;
+  out.text = text;
   const YAML::Node root = parse_yaml(out.text, out.file);
   out.scene = detail::parse_free_space_root(root, out.file, "calibrate", nullptr);
   const YamlMap top(root, out.file, "");
@@ -235,11 +243,10 @@ CalibrateScene load_calibrate_scene(const std::filesystem::path& file) {
                                                          : kPlain;
     const YamlMap bounds = params.map(key);
     bounds.allow_only({"min", "max"});
-    const Range any{-1e300, 1e300};
     design::CalibrationParameter q;
     q.name = key;
-    q.lower = bounds.quantity("min", unit, any);
-    q.upper = bounds.quantity("max", unit, any);
+    q.lower = bounds.quantity("min", unit, found->range);
+    q.upper = bounds.quantity("max", unit, found->range);
     const double file_value = dot == std::string::npos ? robot_map.number(key)
                                                        : robot_map.map(key.substr(0, dot)).number(key.substr(dot + 1));
     q.start = file_value * unit.si;
@@ -270,17 +277,23 @@ CalibrateScene load_calibrate_scene(const std::filesystem::path& file) {
     if (a.has("closest")) closest = a.quantity("closest", units.len, range::kDistance);
     if (a.has("critical_angle")) critical = a.quantity("critical_angle", kPlain, Range{0.0, 180.0, true, true});
   }
+  // The magnet's entry: where the approach starts.
+  const YamlMap magnet(top.node("magnets")[0], out.file, "magnets[0]");
   if (!(u.norm() > 1e-9 * std::max(1.0, to_magnet.norm()))) {
-    c.fail("approach", "the magnet sits on the base's axis: give approach.direction");
+    magnet.fail("position",
+                "the magnet sits on the base's axis, so the approach has no direction: give "
+                "calibrate.approach.direction");
   }
   u.normalize();
   const double start = to_magnet.dot(u);
-  if (!(start > 0.0)) c.fail("approach", "the magnet must start on the far side along approach.direction (d0 > 0)");
+  if (!(start > 0.0)) {
+    magnet.fail("position", "the approach must start on the far side along calibrate.approach.direction (d0 > 0)");
+  }
   if (std::isnan(closest)) closest = 0.5 * start;
 
   // Measurements, grouped into cases by (diameter, pressure).
   const std::string mfile = c.text("measurements");
-  const std::filesystem::path mpath = std::filesystem::path(out.file).parent_path() / mfile;
+  const std::filesystem::path mpath = directory / mfile;
   out.measurements_file = mpath.string();
   const std::vector<Row> rows = read_measurements(mpath, out.file);
   const robot::VineParameters base = *out.scene.vine;
@@ -321,14 +334,38 @@ CalibrateScene load_calibrate_scene(const std::filesystem::path& file) {
     m.value = is_angle(r.observable) ? r.value * kDegToRad : r.value * units.len.si;
     m.sigma = is_angle(r.observable) ? r.sigma * kDegToRad : r.sigma * units.len.si;
     m.holdout = r.holdout;
-    if (r.observable != design::Observable::critical_distance &&
-        !(m.distance > 0.0 && m.distance <= start * (1 + 1e-12))) {
-      throw InputError(
-          out.measurements_file, r.line, "distance",
-          printf_string("must be in (0, %g] %s (the magnet starts at d0 = %g; the measurements of %s)",
-                        start / units.len.si, units.len.name.c_str(), start / units.len.si, out.file.c_str()));
+    if (r.observable != design::Observable::critical_distance && !(m.distance > 0.0)) {
+      throw InputError(out.measurements_file, r.line, "distance",
+                       "must be positive (the measurements of " + out.file + ")");
+    }
+    if (r.observable != design::Observable::critical_distance && !(m.distance <= start * (1 + 1e-12))) {
+      magnet.fail("position", printf_string("the approach starts at d0 = %g %s, closer than the measurement at %g %s "
+                                            "(%s:%d)",
+                                            start / units.len.si, units.len.name.c_str(), r.distance,
+                                            units.len.name.c_str(), out.measurements_file.c_str(), r.line));
     }
     out.problem.measurements.push_back(m);
+  }
+  // At its closest the magnet must stay out of the body's reach: the field inside a magnet is no load on a body, and
+  // the body would meet it.
+  double nearest = start;
+  for (const design::Measurement& m : out.problem.measurements) {
+    nearest = std::min(nearest, m.observable == design::Observable::critical_distance ? closest : m.distance);
+  }
+  const Vec3 centre = rest.position + (nearest - start) * u;
+  double gap = (centre - model.base_position).norm();
+  if (const std::optional<detail::MagnetBody> body = detail::magnet_body(*out.scene.magnets, 0)) {
+    const Vec3 local = rest.rotation.transpose() * (model.base_position - centre);
+    const double radial = std::max(0.0, local.head<2>().norm() - body->radius);
+    const double axial = std::max(0.0, std::abs(local.z()) - body->half_length);
+    gap = std::hypot(radial, axial);
+  }
+  if (!(gap > model.length)) {
+    magnet.fail("position", printf_string("at the approach's closest, d = %g %s, the magnet comes within %g %s of the "
+                                          "base, inside the %g %s body's reach: start it farther, turn it, or raise "
+                                          "calibrate.approach.closest and the measurements' distances",
+                                          nearest / units.len.si, units.len.name.c_str(), gap / units.len.si,
+                                          units.len.name.c_str(), model.length / units.len.si, units.len.name.c_str()));
   }
   // Each case's body must be one the vine law accepts (the diameter and pressure of the rows included).
   for (std::size_t i = 0; i < out.problem.cases.size(); ++i) {

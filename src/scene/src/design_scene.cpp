@@ -46,10 +46,11 @@ std::vector<Vec3> target_points(const YamlMap& target, const Unit& length, const
 /// centreline to the branch's end from the point nearest the rod's base, sampled at `points` equally spaced points over
 /// the rod's length. The base must sit on it: on the centreline, along its direction (20°).
 std::vector<Vec3> airway_path(const YamlMap& path, const FileUnits& units, const robot::RodModel& model,
-                              const std::filesystem::path& directory, DesignScene::AirwayPath& out) {
+                              const std::filesystem::path& directory, AnatomyCache* cache,
+                              DesignScene::AirwayPath& out) {
   path.allow_only({"anatomy", "branch", "points", "speed"});
   const std::shared_ptr<const SceneAnatomy> anatomy =
-      detail::parse_anatomy_entry(path.map("anatomy"), units, directory);
+      detail::parse_anatomy_entry(path.map("anatomy"), units, directory, cache);
   if (!anatomy->graph) {
     path.fail("anatomy", "has no airway graph to follow: a generated phantom's, or graph: (extract | FILE.json)");
   }
@@ -110,7 +111,7 @@ std::vector<Vec3> airway_path(const YamlMap& path, const FileUnits& units, const
 
 }  // namespace
 
-DesignScene parse_design_scene(const std::string& text, const std::string& file_label) {
+DesignScene parse_design_scene(const std::string& text, const std::string& file_label, AnatomyCache* cache) {
   const YAML::Node root = parse_yaml(text, file_label);
   DesignScene out;
   double area = 0.0;
@@ -153,7 +154,7 @@ DesignScene parse_design_scene(const std::string& text, const std::string& file_
     if (ins.node("path").IsMap()) {  // along an airway graph
       DesignScene::AirwayPath airway;
       p.spec.target =
-          airway_path(ins.map("path"), units, p.model, std::filesystem::path(file_label).parent_path(), airway);
+          airway_path(ins.map("path"), units, p.model, std::filesystem::path(file_label).parent_path(), cache, airway);
       out.airway = airway;
     } else {
       p.spec.target = target_points(ins, units.len, "path");

@@ -672,8 +672,9 @@ void check_scene(const YamlMap& top, const FileUnits& units, const ExperimentSce
 }  // namespace
 
 std::shared_ptr<const SceneAnatomy> detail::parse_anatomy_entry(const YamlMap& entry, const FileUnits& units,
-                                                                const std::filesystem::path& directory) {
-  return parse_anatomy(entry, units, directory, nullptr);
+                                                                const std::filesystem::path& directory,
+                                                                AnatomyCache* cache) {
+  return parse_anatomy(entry, units, directory, cache);
 }
 
 double Schedule::at(double time) const {

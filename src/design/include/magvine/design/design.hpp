@@ -194,6 +194,11 @@ struct DesignOptions {
   std::uint64_t seed = 1;    ///< the random first design (directions uniform on the sphere, field start)
   /// Called after every evaluation: evaluations so far, the best RMS so far [m].
   std::function<void(int, double)> progress;
+  /// A continuation in the field for snapping designs (multi_start_design): each start is designed first in the field
+  /// scaled by 1/stages (a fixed field's value and gradient, or a free field's bound), then 2/stages, …, 1, each stage
+  /// from the last one's design, so that a design whose shape lies past a snap is approached from the weak-field side,
+  /// where the equilibrium is unique. 1: none. Not with a designed magnet.
+  int field_stages = 1;
 };
 
 struct DesignResult {

@@ -33,6 +33,9 @@ bool is_calibrate_scene(const std::filesystem::path& file);
 
 /// Reads and checks a calibration file and its measurements; InputError (exit 2) naming the file, line and key.
 CalibrateScene load_calibrate_scene(const std::filesystem::path& file);
+/// The same from text; the measurements file is found relative to `directory`.
+CalibrateScene parse_calibrate_scene(const std::string& text, const std::string& file_label,
+                                     const std::filesystem::path& directory);
 
 /// The scene with the fitted values in place of the parameters' (file units, 17 significant digits), without
 /// `calibrate:`: `magvine run` takes it.

@@ -9,6 +9,7 @@
 #include <string>
 
 #include "magvine/design/design.hpp"
+#include "magvine/scene/experiment_scene.hpp"
 #include "magvine/scene/free_space.hpp"
 
 namespace magvine::scene {
@@ -48,7 +49,8 @@ bool is_design_scene(const std::filesystem::path& file);
 
 /// Reads and checks a design file; InputError (exit 2) naming the file, line and key otherwise.
 DesignScene load_design_scene(const std::filesystem::path& file);
-DesignScene parse_design_scene(const std::string& text, const std::string& file_label);
+/// `cache` (optional) shares the anatomies of insertion paths along airway graphs between loads.
+DesignScene parse_design_scene(const std::string& text, const std::string& file_label, AnatomyCache* cache = nullptr);
 
 /// Runs the scene's method from its seeded random starts (design::multi_start_design).
 design::DesignResult run_design(const DesignScene& scene, const std::function<void(int, double)>& progress = {});

@@ -32,7 +32,7 @@ struct RunEvent {
   double time = 0.0;    ///< [s]
   double length = 0.0;  ///< everted (or inserted) length then [m]
   EventKind kind = EventKind::kStall;
-  std::string detail;   ///< human-readable cause with numbers (kPa, mm, N)
+  std::string detail;  ///< human-readable cause with numbers (kPa, mm, N)
 };
 
 /// A growth event as a run event.

@@ -17,17 +17,17 @@ namespace magvine::scene {
 
 /// One sample of the run, every step.
 struct ExperimentSample {
-  double time = 0.0;           ///< [s]
-  Vec3 tip = Vec3::Zero();     ///< [m]
-  double length = 0.0;         ///< everted length [m]
-  double pressure = 0.0;       ///< [Pa]
-  double max_normal = 0.0;     ///< largest wall normal force on a node [N]
-  double mean_normal = 0.0;    ///< over the nodes in contact [N]
-  double total_normal = 0.0;   ///< [N]
-  double total_shear = 0.0;    ///< [N]
-  double max_pressure = 0.0;   ///< largest contact pressure on the tissue (robot::WallForces::pressure) [Pa]
-  int branch = -1;             ///< nearest branch of the phantom's graph to the tip (−1: no graph)
-  double centreline = 0.0;     ///< the tip's distance from that branch's centreline [m] (0: no graph)
+  double time = 0.0;          ///< [s]
+  Vec3 tip = Vec3::Zero();    ///< [m]
+  double length = 0.0;        ///< everted length [m]
+  double pressure = 0.0;      ///< [Pa]
+  double max_normal = 0.0;    ///< largest wall normal force on a node [N]
+  double mean_normal = 0.0;   ///< over the nodes in contact [N]
+  double total_normal = 0.0;  ///< [N]
+  double total_shear = 0.0;   ///< [N]
+  double max_pressure = 0.0;  ///< largest contact pressure on the tissue (robot::WallForces::pressure) [Pa]
+  int branch = -1;            ///< nearest branch of the phantom's graph to the tip (−1: no graph)
+  double centreline = 0.0;    ///< the tip's distance from that branch's centreline [m] (0: no graph)
   /// The global balance of the converged body: |Σ(wall + friction + magnetic + gravity + clamp)| over the largest
   /// of those loads (robot::WallForces::imbalance, largest_load); 0 for a body without loads.
   double imbalance = 0.0;
@@ -42,10 +42,10 @@ struct MagnetSample {
 
 /// The body's nodes at a time (outputs.shape_interval).
 struct ShapeSample {
-  double time = 0.0;         ///< [s]
-  std::vector<Vec3> nodes;   ///< clamp first, tip last [m]
-  std::vector<double> normal;  ///< wall normal force on the tissue per node [N] (0 off the wall)
-  std::vector<double> shear;   ///< wall shear force on the tissue per node [N]
+  double time = 0.0;                ///< [s]
+  std::vector<Vec3> nodes;          ///< clamp first, tip last [m]
+  std::vector<double> normal;       ///< wall normal force on the tissue per node [N] (0 off the wall)
+  std::vector<double> shear;        ///< wall shear force on the tissue per node [N]
   std::vector<Vec3> normal_vector;  ///< the normal force on the tissue as a vector, per node [N]
   std::vector<Vec3> shear_vector;   ///< the friction force on the tissue as a vector, per node [N]
   std::vector<double> pressure;     ///< the contact pressure on the tissue per node [Pa] (0 off the wall)
@@ -53,35 +53,33 @@ struct ShapeSample {
 
 /// What a video frame needs of the run at one time (recorded when the scene has outputs.video).
 struct FrameSample {
-  double time = 0.0;               ///< [s]
-  std::vector<Vec3> nodes;         ///< the body, clamp first [m]
-  Mat3 tip_frame = Mat3::Identity();  ///< the tip's directors (column 0: tangent)
+  double time = 0.0;                   ///< [s]
+  std::vector<Vec3> nodes;             ///< the body, clamp first [m]
+  Mat3 tip_frame = Mat3::Identity();   ///< the tip's directors (column 0: tangent)
   std::vector<Vec3> magnet_positions;  ///< [m]
   std::vector<Vec3> magnet_axes;
 };
 
 struct ExperimentResult {
   std::vector<ExperimentSample> samples;
-  std::vector<ShapeSample> shapes;  ///< every outputs.shape_interval (opt-in)
-  std::vector<FrameSample> frames;  ///< every video frame's time (outputs.video)
+  std::vector<ShapeSample> shapes;           ///< every outputs.shape_interval (opt-in)
+  std::vector<FrameSample> frames;           ///< every video frame's time (outputs.video)
   std::vector<MagnetSample> magnet_samples;  ///< at every step where a keyframed magnet moved, and at t = 0
-  std::vector<RunEvent> events;     ///< the growth's and the navigator's, in time order
+  std::vector<RunEvent> events;              ///< the growth's and the navigator's, in time order
   robot::RodState final_state;
   robot::WallForces final_forces;  ///< on the tissue, per node, at the end
-  bool converged = true;       ///< the last step reached equilibrium
-  int failed_steps = 0;        ///< steps that did not converge, even in halves: the run ends at the first (0 or 1)
-  std::string failure;         ///< that step's cause
-  bool success = false;        ///< the tip came within the target's tolerance (false without a target)
-  double time_to_target = -1;  ///< [s], −1 when not reached
-  int recoveries = 0;          ///< times the navigator backed the vine out of a wrong turn (Navigator::Recovery)
+  bool converged = true;           ///< the last step reached equilibrium
+  int failed_steps = 0;            ///< steps that did not converge, even in halves: the run ends at the first (0 or 1)
+  std::string failure;             ///< that step's cause
+  bool success = false;            ///< the tip came within the target's tolerance (false without a target)
+  double time_to_target = -1;      ///< [s], −1 when not reached
+  int recoveries = 0;              ///< times the navigator backed the vine out of a wrong turn (Navigator::Recovery)
   double runtime_s = 0.0;
 };
 
 /// Runs the experiment from t = 0 to duration in steps of dt. `progress` (optional) is called with the fraction
 /// done after each step.
-ExperimentResult run_experiment(const ExperimentScene& scene,
-                                const std::function<void(double)>& progress = nullptr);
-
+ExperimentResult run_experiment(const ExperimentScene& scene, const std::function<void(double)>& progress = nullptr);
 
 /// Writes, atomically, into `dir` (created): metrics.json, tip_trajectory.csv, magnet_trajectory.csv (when the
 /// scene has magnets), events.json, shape.csv (the final body), shapes.csv (t_s,node,x_m,y_m,z_m; with

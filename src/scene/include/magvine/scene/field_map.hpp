@@ -9,10 +9,10 @@
 namespace magvine::scene {
 
 struct FieldMapSpec {
-  std::string plane = "xz";      ///< two distinct axes of x, y, z: first is u (horizontal), second v
-  Vec3 center = Vec3::Zero();    ///< centre of the square, world [m]
-  double half_width = 0.3;       ///< half the side of the square [m]
-  int resolution = 201;          ///< samples per side (≥ 2)
+  std::string plane = "xz";    ///< two distinct axes of x, y, z: first is u (horizontal), second v
+  Vec3 center = Vec3::Zero();  ///< centre of the square, world [m]
+  double half_width = 0.3;     ///< half the side of the square [m]
+  int resolution = 201;        ///< samples per side (≥ 2)
 };
 
 /// Samples the model (at its rest poses) and writes

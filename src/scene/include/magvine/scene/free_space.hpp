@@ -14,9 +14,9 @@
 namespace magvine::scene {
 
 struct FreeSpaceScene {
-  robot::RodModel model;                        ///< SI, base pose and gravity set
-  std::optional<robot::VineParameters> vine;    ///< the vine's parameters (kind vine; none: a rod)
-  std::optional<magnetics::FieldModel> magnets; ///< none: no field evaluated at all
+  robot::RodModel model;                         ///< SI, base pose and gravity set
+  std::optional<robot::VineParameters> vine;     ///< the vine's parameters (kind vine; none: a rod)
+  std::optional<magnetics::FieldModel> magnets;  ///< none: no field evaluated at all
   robot::RodSolveOptions solver;
 
   /// "vine" or "rod", as in the file and metrics.json.

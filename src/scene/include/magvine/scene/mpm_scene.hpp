@@ -40,16 +40,16 @@ struct MpmVideo {
 struct MpmScene {
   std::string file;
   int dimension = 3;
-  mpm::MpmModel<2> model2;  ///< used when dimension == 2
-  mpm::MpmModel<3> model3;  ///< used when dimension == 3
-  std::vector<Vec3> positions;  ///< initial particle positions [m] (z = 0 in 2D)
+  mpm::MpmModel<2> model2;              ///< used when dimension == 2
+  mpm::MpmModel<3> model3;              ///< used when dimension == 3
+  std::vector<Vec3> positions;          ///< initial particle positions [m] (z = 0 in 2D)
   std::vector<std::string> body_names;  ///< per body; model.section holds the body index
-  double time_step = 0.0;       ///< [s]
-  double stable_step = 0.0;     ///< the automatic step's bound courant·δx/c_P [s]
-  double duration = 0.0;        ///< [s]
-  double settle_window = 0.0;   ///< > 0: stop once every probe moved less than settle_tolerance over this [s]
-  double settle_tolerance = 0.0;  ///< [m]
-  double snapshot_interval = 0.0;  ///< [s] between PLY snapshots; 0: the first and last only
+  double time_step = 0.0;               ///< [s]
+  double stable_step = 0.0;             ///< the automatic step's bound courant·δx/c_P [s]
+  double duration = 0.0;                ///< [s]
+  double settle_window = 0.0;           ///< > 0: stop once every probe moved less than settle_tolerance over this [s]
+  double settle_tolerance = 0.0;        ///< [m]
+  double snapshot_interval = 0.0;       ///< [s] between PLY snapshots; 0: the first and last only
   MpmFieldSchedule field;
   std::optional<magnetics::FieldModel> magnets;  ///< static permanent magnets (exact cylinder or dipole)
   std::vector<MpmProbe> probes;
@@ -75,7 +75,7 @@ struct MpmResult {
   std::string failure;  ///< the step's cause when !ok
   bool settled = false;
   long steps = 0;
-  double time = 0.0;       ///< simulated [s]
+  double time = 0.0;  ///< simulated [s]
   double runtime_s = 0.0;
   std::vector<MpmSample> samples;
   /// Particle positions at the snapshot times [m] (first: t = 0, last: the end).

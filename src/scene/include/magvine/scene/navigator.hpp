@@ -57,28 +57,28 @@ class NavigatorController {
 
   const ExperimentScene& m_scene;
   const Navigator& m_nav;
-  std::vector<int> m_plan;           ///< branches from the root to the target
-  std::vector<Vec3> m_path;          ///< their centrelines joined
-  std::optional<Vec3> m_skin;        ///< a magnetic skin's moment direction, body frame (skin modes)
-  MagnetKeyframe m_pose;             ///< the magnet's current pose
-  Vec3 m_line = Vec3::UnitX();       ///< the line from the tip it was placed on
-  double m_next_placement = 0.0;     ///< [s]
+  std::vector<int> m_plan;        ///< branches from the root to the target
+  std::vector<Vec3> m_path;       ///< their centrelines joined
+  std::optional<Vec3> m_skin;     ///< a magnetic skin's moment direction, body frame (skin modes)
+  MagnetKeyframe m_pose;          ///< the magnet's current pose
+  Vec3 m_line = Vec3::UnitX();    ///< the line from the tip it was placed on
+  double m_next_placement = 0.0;  ///< [s]
   bool m_workspace_warned = false;
   // Held tip (boost and recovery): the everted length and when it last changed.
   double m_grown_at = 0.0;
   double m_grown_length = -1.0;
-  double m_boost_until = -1.0;       ///< boosting until the everted length reaches this [m] (< 0: not boosting)
-  std::vector<int> m_deflated_at;    ///< branches whose end junction the vine was deflated for
-  double m_deflate_until = -1.0;     ///< [s]
+  double m_boost_until = -1.0;     ///< boosting until the everted length reaches this [m] (< 0: not boosting)
+  std::vector<int> m_deflated_at;  ///< branches whose end junction the vine was deflated for
+  double m_deflate_until = -1.0;   ///< [s]
   // Recovery (Navigator::Recovery).
-  double m_shortest = 0.0;           ///< the vine's starting length: no retraction goes below it [m]
-  double m_on_path = 0.0;            ///< the everted length at the last sample on the path [m]
+  double m_shortest = 0.0;  ///< the vine's starting length: no retraction goes below it [m]
+  double m_on_path = 0.0;   ///< the everted length at the last sample on the path [m]
   bool m_retracting = false;
-  double m_from = 0.0;               ///< the retraction: from this length [m]
-  double m_to = 0.0;                 ///< to this length [m]
-  double m_since = 0.0;              ///< since this time [s]
-  double m_last = 0.0;               ///< the everted length at the last step of the retraction [m]
-  double m_last_tether = 0.0;        ///< and the tether it set then [m]
+  double m_from = 0.0;         ///< the retraction: from this length [m]
+  double m_to = 0.0;           ///< to this length [m]
+  double m_since = 0.0;        ///< since this time [s]
+  double m_last = 0.0;         ///< the everted length at the last step of the retraction [m]
+  double m_last_tether = 0.0;  ///< and the tether it set then [m]
   int m_recovery_used = 0;
 };
 

@@ -40,8 +40,8 @@ struct TrialOutcome {
 /// threads; outcomes in (target, repeat) order whatever the threads. `progress` gets (done, total). With `runs_dir`,
 /// each trial's own outputs (write_experiment_outputs, without videos) go to runs_dir/<target>_r<repeat>: its events,
 /// trajectories and metrics, to see why a trial failed.
-std::vector<TrialOutcome> run_trials(const ExperimentScene& scene, const std::vector<std::string>& targets,
-                                     int repeats, int jobs, const std::function<void(int, int)>& progress = nullptr,
+std::vector<TrialOutcome> run_trials(const ExperimentScene& scene, const std::vector<std::string>& targets, int repeats,
+                                     int jobs, const std::function<void(int, int)>& progress = nullptr,
                                      const std::filesystem::path& runs_dir = {});
 
 /// trials.csv (every trial, with the reason of each failure) and summary.csv + summary.md in the form of thesis

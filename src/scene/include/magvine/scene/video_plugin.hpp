@@ -34,7 +34,7 @@ struct ParticleVideoRequest {
   int width = 640;
   int height = 480;
   double fps = 30.0;
-  double radius = 0.0;                          ///< the particles' disc radius [m]
+  double radius = 0.0;                                     ///< the particles' disc radius [m]
   const std::vector<std::vector<Vec3>>* frames = nullptr;  ///< positions per frame [m]
   const std::vector<std::uint16_t>* body = nullptr;        ///< body of each particle (colour)
 };
@@ -56,8 +56,8 @@ struct MeshImageRequest {
 
 /// An encoded image and what the host reports of it.
 struct EncodedImages {
-  std::string png;        ///< the image, PNG bytes
-  std::string depth_png;  ///< the depth map, 16-bit PNG bytes (when asked for)
+  std::string png;            ///< the image, PNG bytes
+  std::string depth_png;      ///< the depth map, 16-bit PNG bytes (when asked for)
   double hit_fraction = 1.0;  ///< of the endoscope's rays that hit the wall
 };
 
@@ -72,8 +72,8 @@ struct VideoPlugin {
   std::string (*experiment_videos)(const ExperimentScene& scene, const ExperimentResult& result,
                                    const VideoInputs& inputs, const std::filesystem::path& dir) = nullptr;
   /// Writes `stem`.mp4 (or .avi); returns the file.
-  std::filesystem::path (*particle_video)(const ParticleVideoRequest& request, const std::filesystem::path& stem) =
-      nullptr;
+  std::filesystem::path (*particle_video)(const ParticleVideoRequest& request,
+                                          const std::filesystem::path& stem) = nullptr;
   /// Checks a mesh image's camera (field of view for the lens, viewing direction, up) before the mesh is read:
   /// InputError naming what is wrong.
   void (*check_mesh_image)(const MeshImageRequest& request) = nullptr;
