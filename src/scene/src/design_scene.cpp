@@ -126,7 +126,8 @@ DesignScene parse_design_scene(const std::string& text, const std::string& file_
   out.circular_section = top.map("robot").map("section").text("shape") == "circle";  // (checked by parse_rod)
   if (!top.has("design")) top.fail("design", "missing required key (the design file's design: section)");
   const YamlMap d = top.map("design");
-  d.allow_only({"sections", "remanence", "target", "field", "iterations", "method", "starts", "insertion", "magnet"});
+  d.allow_only({"sections", "remanence", "target", "field", "iterations", "method", "starts", "insertion", "magnet",
+                "continuation"});
   design::DesignProblem& p = out.problem;
   p.model = out.scene.model;
   p.area = area;
@@ -172,6 +173,7 @@ DesignScene parse_design_scene(const std::string& text, const std::string& file_
   }
   if (d.has("iterations")) out.max_iterations = static_cast<int>(d.whole("iterations", 1, kMaxIterations));
   if (d.has("starts")) out.starts = static_cast<int>(d.whole("starts", 1, 1000));
+  if (d.has("continuation")) out.field_stages = static_cast<int>(d.whole("continuation", 1, 100));
   if (d.has("method")) {
     const std::string method = d.text("method");
     if (method == "least-squares") {
@@ -219,6 +221,10 @@ DesignScene parse_design_scene(const std::string& text, const std::string& file_
     }
   } else if (d.has("magnet")) {
     d.fail("magnet", "the scene has no magnets to place");
+  }
+  if (out.field_stages > 1 && p.magnet) d.fail("continuation", "scales a fixed or free field, not a designed magnet's");
+  if (out.field_stages > 1 && out.method == DesignMethod::bayesian) {
+    d.fail("continuation", "is for the gradient methods (least-squares, lbfgsb)");
   }
   // The design's own checks, at the line of the key they name (a target point's: the list's, which holds them all).
   if (const std::optional<design::DesignProblemIssue> issue = design::design_problem_issue(p)) {
@@ -268,6 +274,7 @@ design::DesignResult run_design(const DesignScene& scene, const std::function<vo
   options.max_iterations = scene.max_iterations;
   options.starts = scene.starts;
   options.seed = scene.seed;
+  options.field_stages = scene.field_stages;
   options.progress = progress;
   return design::multi_start_design(scene.problem, scene.method, options);
 }

@@ -27,6 +27,7 @@ struct DesignScene {
   DesignMethod method = DesignMethod::least_squares;
   int max_iterations = 100;       ///< design.iterations (the Bayesian baseline: evaluations after its initial ones)
   int starts = 1;                 ///< design.starts: random starts (seeds seed, seed + 1, …), the best kept
+  int field_stages = 1;           ///< design.continuation: stages of the field continuation (1: none)
   std::uint64_t seed = 1;         ///< the scene's seed: the random first design
   std::string file;               ///< as given (messages)
   std::string text;               ///< the file's text: scene.yaml is written from it
