@@ -10,6 +10,7 @@
 #include <optional>
 #include <unsupported/Eigen/LevenbergMarquardt>
 
+#include "design_internal.hpp"
 #include "magvine/core/error.hpp"
 #include "magvine/core/stopwatch.hpp"
 #include "magvine/magnetics/field_function.hpp"
@@ -273,7 +274,7 @@ struct Residuals : Eigen::DenseFunctor<double> {
     VecX theta(u.size());
     for (Eigen::Index i = 0; i < u.size(); ++i) {
       const CalibrationParameter& q = problem.parameters[static_cast<std::size_t>(i)];
-      theta[i] = q.lower + (q.upper - q.lower) * 0.5 * (1.0 + std::sin(u[i]));
+      theta[i] = detail::from_unbounded(u[i], q.lower, q.upper);
     }
     return theta;
   }
@@ -281,8 +282,7 @@ struct Residuals : Eigen::DenseFunctor<double> {
     VecX u(theta.size());
     for (Eigen::Index i = 0; i < theta.size(); ++i) {
       const CalibrationParameter& q = problem.parameters[static_cast<std::size_t>(i)];
-      // Within 90 % of the range: on a bound dθ/du = 0 and the fit could not move it.
-      u[i] = std::asin(std::clamp(2.0 * (theta[i] - q.lower) / (q.upper - q.lower) - 1.0, -0.9, 0.9));
+      u[i] = detail::to_unbounded(theta[i], q.lower, q.upper);
     }
     return u;
   }
@@ -322,7 +322,7 @@ struct Residuals : Eigen::DenseFunctor<double> {
       }
       for (Eigen::Index i = 0; i < u.size(); ++i) {
         const CalibrationParameter& q = problem.parameters[static_cast<std::size_t>(i)];
-        jacobian.col(i) *= (q.upper - q.lower) * 0.5 * std::cos(u[i]);
+        jacobian.col(i) *= detail::from_unbounded_slope(u[i], q.lower, q.upper);
       }
       const double chi = weighted(y).norm();
       history.push_back(chi);
@@ -438,21 +438,14 @@ CalibrationResult calibrate(const CalibrationProblem& problem, const Calibration
   out.theta = f.to_theta(u);
   out.iterations = f.iterations;
   out.history = f.history;
-  switch (status) {
-    case Status::RelativeReductionTooSmall:
-    case Status::RelativeErrorTooSmall:
-    case Status::RelativeErrorAndReductionTooSmall:
-    case Status::CosinusTooSmall:
-      out.converged = true;
-      out.message = "converged (χ²'s relative reduction, the step or the gradient below tolerance)";
-      break;
-    case Status::UserAsked:
-      out.message = f.failed ? "stopped: an equilibrium of the approach failed at an accepted fit"
-                             : "stopped at the iteration limit";
-      break;
-    default:
-      out.message = "stopped: no further progress (MINPACK status " + std::to_string(static_cast<int>(status)) + ")";
-      break;
+  if (detail::minpack_converged(status)) {
+    out.converged = true;
+    out.message = "converged (χ²'s relative reduction, the step or the gradient below tolerance)";
+  } else if (status == Status::UserAsked) {
+    out.message = f.failed ? "stopped: an equilibrium of the approach failed at an accepted fit"
+                           : "stopped at the iteration limit";
+  } else {
+    out.message = "stopped: no further progress (MINPACK status " + std::to_string(static_cast<int>(status)) + ")";
   }
   out.predictions = predict(problem, out.theta, true);
   out.evaluations = f.evaluations + 1;

@@ -1,8 +1,12 @@
 #pragma once
-// Shared by the design optimisers (design.cpp, bayesian.cpp). Private to the design module.
+// Shared by the design optimisers (design.cpp, bayesian.cpp, least_squares.cpp) and calibration.cpp. Private to the
+// design module.
 
+#include <algorithm>
+#include <cmath>
 #include <functional>
 #include <limits>
+#include <unsupported/Eigen/LevenbergMarquardt>
 #include <utility>
 #include <vector>
 
@@ -17,6 +21,26 @@ Vec3 spherical_d_theta(double theta, double phi);
 Vec3 spherical_d_phi(double theta, double phi);
 /// (θ, φ) of a direction (θ = π/2, φ = 0 for zero).
 std::pair<double, double> angles_of(const Vec3& d);
+
+/// Levenberg–Marquardt (least_squares.cpp, calibration.cpp) in unbounded u for a parameter bounded to [lo, hi]:
+/// x = lo + (hi − lo)(1 + sin u)/2, dx/du = (hi − lo) cos(u)/2; the inverse starts within 90 % of the range (on a
+/// bound dx/du = 0 and the fit could never move it).
+inline double from_unbounded(double u, double lo, double hi) {
+  return lo + (hi - lo) * 0.5 * (1.0 + std::sin(u));
+}
+inline double from_unbounded_slope(double u, double lo, double hi) {
+  return (hi - lo) * 0.5 * std::cos(u);
+}
+inline double to_unbounded(double x, double lo, double hi) {
+  const double span = hi - lo;
+  return span > 0.0 ? std::asin(std::clamp(2.0 * (x - lo) / span - 1.0, -0.9, 0.9)) : 0.0;
+}
+/// Whether MINPACK's status (Eigen's LevenbergMarquardt) is one of its convergence tests.
+inline bool minpack_converged(Eigen::LevenbergMarquardtSpace::Status status) {
+  using Eigen::LevenbergMarquardtSpace::Status;
+  return status == Status::RelativeReductionTooSmall || status == Status::RelativeErrorTooSmall ||
+         status == Status::RelativeErrorAndReductionTooSmall || status == Status::CosinusTooSmall;
+}
 
 /// Keeps the best design evaluated so far, the history of evaluations and the progress calls.
 class BestTracker {

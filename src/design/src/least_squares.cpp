@@ -19,17 +19,14 @@ struct Residuals : Eigen::DenseFunctor<double> {
   VecX to_p(const VecX& u) const {
     VecX p = u;
     for (Eigen::Index i = 0; i < u.size(); ++i) {
-      if (objective.is_bounded(static_cast<int>(i))) p[i] = lo[i] + (hi[i] - lo[i]) * 0.5 * (1.0 + std::sin(u[i]));
+      if (objective.is_bounded(static_cast<int>(i))) p[i] = detail::from_unbounded(u[i], lo[i], hi[i]);
     }
     return p;
   }
   VecX to_u(const VecX& p) const {
     VecX u = p;
     for (Eigen::Index i = 0; i < p.size(); ++i) {
-      if (!objective.is_bounded(static_cast<int>(i))) continue;
-      // A start on a bound would sit where dp/du = 0, and LM could never move it: start within 90 % of the range.
-      const double span = hi[i] - lo[i];
-      u[i] = span > 0.0 ? std::asin(std::clamp(2.0 * (p[i] - lo[i]) / span - 1.0, -0.9, 0.9)) : 0.0;
+      if (objective.is_bounded(static_cast<int>(i))) u[i] = detail::to_unbounded(p[i], lo[i], hi[i]);
     }
     return u;
   }
@@ -61,7 +58,7 @@ struct Residuals : Eigen::DenseFunctor<double> {
       return -1;
     }
     for (Eigen::Index i = 0; i < u.size(); ++i) {
-      if (objective.is_bounded(static_cast<int>(i))) j.col(i) *= (hi[i] - lo[i]) * 0.5 * std::cos(u[i]);
+      if (objective.is_bounded(static_cast<int>(i))) j.col(i) *= detail::from_unbounded_slope(u[i], lo[i], hi[i]);
     }
     jacobian.topRows(j.rows()) = j;
     return 0;
@@ -97,25 +94,17 @@ DesignResult least_squares_design(const DesignProblem& problem, const Design& st
   DesignResult out;
   out.iterations = best.iterations();
   using Eigen::LevenbergMarquardtSpace::Status;
-  switch (status) {
-    case Status::RelativeReductionTooSmall:
-    case Status::RelativeErrorTooSmall:
-    case Status::RelativeErrorAndReductionTooSmall:
-    case Status::CosinusTooSmall:
-      out.converged = true;
-      out.message = "converged (J's relative reduction, the step or the gradient below tolerance)";
-      break;
-    case Status::UserAsked:
-      out.message = f.jacobian_failed ? "stopped: no sensitivity at an accepted design (its equilibrium failed)"
-                                      : "stopped at the iteration limit";
-      break;
-    case Status::TooManyFunctionEvaluation:
-      out.message = "stopped at the evaluation limit (10 per allowed iteration)";
-      break;
-    default:
-      out.message = "stopped: no further progress at the equilibria's precision (MINPACK status " +
-                    std::to_string(static_cast<int>(status)) + ")";
-      break;
+  if (detail::minpack_converged(status)) {
+    out.converged = true;
+    out.message = "converged (J's relative reduction, the step or the gradient below tolerance)";
+  } else if (status == Status::UserAsked) {
+    out.message = f.jacobian_failed ? "stopped: no sensitivity at an accepted design (its equilibrium failed)"
+                                    : "stopped at the iteration limit";
+  } else if (status == Status::TooManyFunctionEvaluation) {
+    out.message = "stopped at the evaluation limit (10 per allowed iteration)";
+  } else {
+    out.message = "stopped: no further progress at the equilibria's precision (MINPACK status " +
+                  std::to_string(static_cast<int>(status)) + ")";
   }
   best.finish(out);
   return out;

@@ -185,12 +185,7 @@ std::vector<Row> read_measurements(const std::filesystem::path& file, const std:
 }  // namespace
 
 bool is_calibrate_scene(const std::filesystem::path& file) {
-  try {
-    const YAML::Node root = YAML::LoadFile(file.string());
-    return root.IsMap() && root["calibrate"];
-  } catch (const YAML::Exception&) {
-    return false;
-  }
+  return has_top_level_key(file, "calibrate");
 }
 
 CalibrateScene load_calibrate_scene(const std::filesystem::path& file) {

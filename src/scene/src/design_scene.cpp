@@ -245,12 +245,7 @@ DesignScene parse_design_scene(const std::string& text, const std::string& file_
 }
 
 bool is_design_scene(const std::filesystem::path& file) {
-  try {
-    const YAML::Node root = YAML::LoadFile(file.string());
-    return root.IsMap() && root["design"];
-  } catch (const YAML::Exception&) {
-    return false;
-  }
+  return has_top_level_key(file, "design");
 }
 
 DesignScene load_design_scene(const std::filesystem::path& file) {

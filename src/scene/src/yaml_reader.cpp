@@ -9,6 +9,15 @@
 
 namespace magvine::scene {
 
+bool has_top_level_key(const std::filesystem::path& file, const char* key) {
+  try {
+    const YAML::Node root = YAML::LoadFile(file.string());
+    return root.IsMap() && root[key];
+  } catch (const YAML::Exception&) {
+    return false;
+  }
+}
+
 int line_of(const YAML::Node& node) {
   const YAML::Mark mark = node.Mark();
   return mark.line >= 0 ? mark.line + 1 : 0;
@@ -53,7 +62,9 @@ void YamlMap::allow_only(const std::vector<std::string_view>& allowed) const {
   }
 }
 
-bool YamlMap::has(const std::string& key) const { return static_cast<bool>(m_node[key]); }
+bool YamlMap::has(const std::string& key) const {
+  return static_cast<bool>(m_node[key]);
+}
 
 YAML::Node YamlMap::node(const std::string& key) const {
   const YAML::Node n = m_node[key];
@@ -73,7 +84,9 @@ double checked_number(const YAML::Node& n, const std::string& file, const std::s
   return v;
 }
 
-double YamlMap::number(const std::string& key) const { return checked_number(node(key), m_file, key_path(key)); }
+double YamlMap::number(const std::string& key) const {
+  return checked_number(node(key), m_file, key_path(key));
+}
 
 std::string YamlMap::text(const std::string& key) const {
   const YAML::Node n = node(key);
@@ -96,8 +109,8 @@ Vec3 YamlMap::nonzero_vec3(const std::string& key) const {
 }
 
 std::string describe(const Range& r, const Unit& u) {
-  std::string out = printf_string("%c%.6g, %.6g%c", r.open_min ? '(' : '[', r.min / u.si, r.max / u.si,
-                                  r.open_max ? ')' : ']');
+  std::string out =
+      printf_string("%c%.6g, %.6g%c", r.open_min ? '(' : '[', r.min / u.si, r.max / u.si, r.open_max ? ')' : ']');
   if (!u.name.empty()) out.append(" ").append(u.name);
   return out;
 }
@@ -131,7 +144,9 @@ Vec3 YamlMap::vec3_quantity(const std::string& key, const Unit& u, const Range& 
   return out;
 }
 
-Vec3 YamlMap::direction(const std::string& key) const { return unit_vector(nonzero_vec3(key)); }
+Vec3 YamlMap::direction(const std::string& key) const {
+  return unit_vector(nonzero_vec3(key));
+}
 
 long checked_whole(const YAML::Node& n, long min, long max, const std::string& file, const std::string& path) {
   const double v = checked_number(n, file, path);
@@ -163,7 +178,9 @@ bool YamlMap::flag(const std::string& key) const {
   return t == "true";
 }
 
-YamlMap YamlMap::map(const std::string& key) const { return YamlMap(node(key), m_file, key_path(key)); }
+YamlMap YamlMap::map(const std::string& key) const {
+  return YamlMap(node(key), m_file, key_path(key));
+}
 
 void YamlMap::fail(const std::string& key, const std::string& what) const {
   const YAML::Node n = m_node[key];

@@ -5,6 +5,7 @@
 #include <yaml-cpp/yaml.h>
 
 #include <array>
+#include <filesystem>
 #include <initializer_list>
 #include <string>
 #include <string_view>
@@ -27,9 +28,7 @@ struct Range {
   double max = 0.0;
   bool open_min = false;  ///< min itself is excluded: (min, max]
   bool open_max = false;  ///< max itself is excluded: [min, max)
-  bool contains(double v) const {
-    return (open_min ? v > min : v >= min) && (open_max ? v < max : v <= max);
-  }
+  bool contains(double v) const { return (open_min ? v > min : v >= min) && (open_max ? v < max : v <= max); }
 };
 
 /// "(0, 10000] mm": `r` in file units `u`.
@@ -99,6 +98,8 @@ std::string read_text_file(const std::string& file, const std::string& what);
 
 /// Parses YAML text; syntax errors become InputError with the file and line.
 YAML::Node parse_yaml(const std::string& text, const std::string& file);
+/// Whether `file` is YAML with a top-level map key `key` (a design file's `design:`); false for anything unreadable.
+bool has_top_level_key(const std::filesystem::path& file, const char* key);
 /// Line (1-based) of a node, 0 when unknown.
 int line_of(const YAML::Node& node);
 
