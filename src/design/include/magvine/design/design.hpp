@@ -17,7 +17,7 @@
 /// axis a = (sin θ_a cos φ_a, sin θ_a sin φ_a, cos θ_a) (world). The moment per length of an edge in section s is
 /// Br_s d_s A/μ0 (the hard-magnetic law), A the rod's cross-section; an edge belongs to the section that holds its
 /// midpoint. ∂g/∂(θ_a, φ_a), a turn of the magnet's whole field (its value and gradient at every edge), is the central
-/// difference (1e-6 rad) of the analytic gradient rod_gradient at the fixed configuration, as calibration.hpp's
+/// difference (1e-4 rad) of the analytic gradient rod_gradient at the fixed configuration, as calibration.hpp's
 /// material parameters are; every other ∂g/∂p is exact.
 
 #include <cstdint>
