@@ -63,17 +63,12 @@ std::vector<Vec3> airway_path(const YamlMap& path, const FileUnits& units, const
     out.insertion_speed = path.quantity("speed", Unit{units.len.si, units.len.name + "/s"}, range::kPositiveSpeed);
   }
   const std::vector<Vec3> line = planned_path(graph, *branch);
-  std::vector<double> arc(line.size(), 0.0);
-  for (std::size_t i = 1; i < line.size(); ++i) arc[i] = arc[i - 1] + (line[i] - line[i - 1]).norm();
-  const auto point_at = [&](double s) {
-    std::size_t i = 1;
-    while (i + 1 < line.size() && arc[i] < s) ++i;
-    const double u = std::clamp((s - arc[i - 1]) / std::max(arc[i] - arc[i - 1], 1e-15), 0.0, 1.0);
-    return Vec3(line[i - 1] + u * (line[i] - line[i - 1]));
-  };
+  double total = 0.0;
+  for (std::size_t i = 1; i < line.size(); ++i) total += (line[i] - line[i - 1]).norm();
+  const auto point_at = [&](double s) { return point_at_arc_length(line, s); };
   const double start = arc_length_of_nearest(line, model.base_position);
   const Vec3 on = point_at(start);
-  const Vec3 tangent = (point_at(std::min(arc.back(), start + 1e-3)) - on).normalized();
+  const Vec3 tangent = (point_at(std::min(total, start + 1e-3)) - on).normalized();
   const auto mm = [&](const Vec3& v) {
     return printf_string("[%.4g, %.4g, %.4g]", v.x() / units.len.si, v.y() / units.len.si, v.z() / units.len.si);
   };
@@ -86,10 +81,10 @@ std::vector<Vec3> airway_path(const YamlMap& path, const FileUnits& units, const
                             mm(on) + ", direction " +
                             printf_string("[%.4g, %.4g, %.4g]", tangent.x(), tangent.y(), tangent.z()));
   }
-  if (start + model.length > arc.back() * (1.0 + 1e-9)) {
+  if (start + model.length > total * (1.0 + 1e-9)) {
     path.fail("branch", printf_string("the path from the base to the end of %s is %.4g %s, shorter than the rod "
                                       "(%.4g %s)",
-                                      out.branch.c_str(), (arc.back() - start) / units.len.si, units.len.name.c_str(),
+                                      out.branch.c_str(), (total - start) / units.len.si, units.len.name.c_str(),
                                       model.length / units.len.si, units.len.name.c_str()));
   }
   std::vector<Vec3> targets;

@@ -6,9 +6,9 @@
 
 #include "experiment_internal.hpp"
 #include "magvine/anatomy/airway_graph.hpp"
-#include "magvine/magnetics/dipole.hpp"
 #include "magvine/core/text.hpp"
 #include "magvine/core/units.hpp"
+#include "magvine/magnetics/dipole.hpp"
 
 namespace magvine::scene {
 
@@ -34,24 +34,25 @@ std::vector<Vec3> planned_path(const anatomy::AirwayGraph& graph, int branch) {
   std::vector<Vec3> path;
   for (const int b : anatomy::path_from_root(graph, branch)) {
     const anatomy::AirwayBranch& br = graph.branches[static_cast<std::size_t>(b)];
-    for (std::size_t k = path.empty() ? 0 : 1; k < br.nodes.size(); ++k) path.push_back(graph.nodes[br.nodes[k]].position);
+    for (std::size_t k = path.empty() ? 0 : 1; k < br.nodes.size(); ++k)
+      path.push_back(graph.nodes[br.nodes[k]].position);
   }
   return path;
 }
 
-MagnetKeyframe navigate(const Navigator& nav, const std::vector<Vec3>& path, const Vec3& tip, const Mat3& tip_frame,
-                        const std::optional<Vec3>& skin, double time, const Vec3& offset, Vec3& line) {
-  const double at = arc_length_of_nearest(path, tip);
-  Vec3 aim = path.back();
-  double left = at + nav.lead;
+Vec3 point_at_arc_length(const std::vector<Vec3>& path, double s) {
+  double left = std::max(0.0, s);
   for (std::size_t k = 0; k + 1 < path.size(); ++k) {
     const double l = (path[k + 1] - path[k]).norm();
-    if (l >= left) {
-      aim = path[k] + (left / l) * (path[k + 1] - path[k]);
-      break;
-    }
+    if (l >= left) return path[k] + (l > 0.0 ? left / l : 0.0) * (path[k + 1] - path[k]);
     left -= l;
   }
+  return path.back();
+}
+
+MagnetKeyframe navigate(const Navigator& nav, const std::vector<Vec3>& path, const Vec3& tip, const Mat3& tip_frame,
+                        const std::optional<Vec3>& skin, double time, const Vec3& offset, Vec3& line) {
+  const Vec3 aim = point_at_arc_length(path, arc_length_of_nearest(path, tip) + nav.lead);
   Vec3 u = aim - tip;
   if (nav.lateral > 0.0) {
     // Only the pull across the tip bends it (growth carries it forward): take away that share of the component
@@ -91,8 +92,7 @@ MagnetKeyframe navigate(const Navigator& nav, const std::vector<Vec3>& path, con
   return k;
 }
 
-NavigatorController::NavigatorController(const ExperimentScene& scene)
-    : m_scene(scene), m_nav(*scene.navigator) {
+NavigatorController::NavigatorController(const ExperimentScene& scene) : m_scene(scene), m_nav(*scene.navigator) {
   const anatomy::AirwayGraph& graph = *scene.anatomy->graph;
   m_plan = anatomy::path_from_root(graph, m_nav.target_branch);
   m_path = planned_path(graph, m_nav.target_branch);
@@ -192,8 +192,8 @@ void NavigatorController::recover(double t, double length, int branch, robot::Gr
     if (length <= m_to + 1e-9 || settled) {
       m_retracting = false;
       m_on_path = length;
-      events.push_back({t, length, EventKind::kRecover,
-                        printf_string("back at %.1f mm: the pressure is given back", 1e3 * length)});
+      events.push_back(
+          {t, length, EventKind::kRecover, printf_string("back at %.1f mm: the pressure is given back", 1e3 * length)});
     } else {
       control.pressure = std::min(control.pressure, retraction_pressure);
       control.tether_length = std::min(control.tether_length, tether);

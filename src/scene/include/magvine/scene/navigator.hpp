@@ -26,6 +26,8 @@ std::vector<Vec3> planned_path(const anatomy::AirwayGraph& graph, int branch);
 
 /// Arc length [m] along a polyline of its nearest point to x.
 double arc_length_of_nearest(const std::vector<Vec3>& path, const Vec3& x);
+/// The point of a polyline at arc length s from its start [m] (its ends beyond [0, length]).
+Vec3 point_at_arc_length(const std::vector<Vec3>& path, double s);
 
 /// The navigator of one run. Each step: `place` (before the magnets' poses are updated), then `regulate` (after the
 /// schedules set the control, before the growth advances).
