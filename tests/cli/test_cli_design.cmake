@@ -4,18 +4,22 @@
 # Run by CTest with -DMAGVINE=... -DWORK=... -DSRC=... -DPYTHON=...
 include(${CMAKE_CURRENT_LIST_DIR}/cli_common.cmake)
 
+# `magvine design FILE --out WORK/NAME`, then `magvine run` of the scene.yaml it wrote into WORK/NAME_run.
+function(design_and_rerun name file)
+  execute_process(COMMAND ${MAGVINE} design ${file} --out ${WORK}/${name} RESULT_VARIABLE rc ERROR_VARIABLE err)
+  expect_rc(${rc} 0 "design ${name}: ${err}")
+  execute_process(COMMAND ${MAGVINE} run ${WORK}/${name}/scene.yaml --out ${WORK}/${name}_run RESULT_VARIABLE rc
+                  ERROR_VARIABLE err)
+  expect_rc(${rc} 0 "run of the ${name} design's scene.yaml: ${err}")
+endfunction()
+
 file(READ ${SRC}/assets/scenes/design_catheter.yaml design)
 string(REPLACE "# field: {free: {max: 0.010}}" "field: {free: {max: 0.010}}" free "${design}")
 file(WRITE ${WORK}/fixed.yaml "${design}")
 file(WRITE ${WORK}/free.yaml "${free}")
 
 foreach(case fixed free)
-  execute_process(COMMAND ${MAGVINE} design ${WORK}/${case}.yaml --out ${WORK}/${case}
-                  RESULT_VARIABLE rc OUTPUT_VARIABLE out ERROR_VARIABLE err)
-  expect_rc(${rc} 0 "design ${case}: ${err}")
-  execute_process(COMMAND ${MAGVINE} run ${WORK}/${case}/scene.yaml --out ${WORK}/${case}_run
-                  RESULT_VARIABLE rc ERROR_VARIABLE err)
-  expect_rc(${rc} 0 "run of the designed ${case} scene: ${err}")
+  design_and_rerun(${case} ${WORK}/${case}.yaml)
   execute_process(COMMAND ${PYTHON} -c "
 import csv, json, math
 d = json.load(open('${WORK}/${case}/design.json'))
@@ -49,10 +53,7 @@ string(REPLACE "  - {kind: uniform, field: [0, 0.02, 0]}"
                epm "${design}")
 string(REPLACE "  remanence: 0.125 " "  magnet: {index: 0, min: [-30, -200, -50], max: [70, -100, 50]}\n  starts: 2\n  remanence: 0.125 " epm "${epm}")
 file(WRITE ${WORK}/epm.yaml "${epm}")
-execute_process(COMMAND ${MAGVINE} design ${WORK}/epm.yaml --out ${WORK}/epm RESULT_VARIABLE rc ERROR_VARIABLE err)
-expect_rc(${rc} 0 "EPM design: ${err}")
-execute_process(COMMAND ${MAGVINE} run ${WORK}/epm/scene.yaml --out ${WORK}/epm_run RESULT_VARIABLE rc ERROR_VARIABLE err)
-expect_rc(${rc} 0 "run of the EPM design: ${err}")
+design_and_rerun(epm ${WORK}/epm.yaml)
 execute_process(COMMAND ${PYTHON} -c "
 import csv, json, math
 d = json.load(open('${WORK}/epm/design.json'))
@@ -70,11 +71,7 @@ expect_rc(${rc} 0 "EPM design outputs: ${err}")
 string(REPLACE "max: [70, -100, 50]}" "max: [70, -100, 50], orientation: true}" epm_axis "${epm}")
 string(REPLACE "starts: 2" "starts: 8" epm_axis "${epm_axis}")
 file(WRITE ${WORK}/epm_axis.yaml "${epm_axis}")
-execute_process(COMMAND ${MAGVINE} design ${WORK}/epm_axis.yaml --out ${WORK}/epm_axis RESULT_VARIABLE rc ERROR_VARIABLE err)
-expect_rc(${rc} 0 "EPM pose design: ${err}")
-execute_process(COMMAND ${MAGVINE} run ${WORK}/epm_axis/scene.yaml --out ${WORK}/epm_axis_run RESULT_VARIABLE rc
-                ERROR_VARIABLE err)
-expect_rc(${rc} 0 "run of the EPM pose design: ${err}")
+design_and_rerun(epm_axis ${WORK}/epm_axis.yaml)
 execute_process(COMMAND ${PYTHON} -c "
 import csv, json, math
 d = json.load(open('${WORK}/epm_axis/design.json'))
@@ -89,12 +86,7 @@ expect_rc(${rc} 0 "EPM pose design outputs: ${err}")
 
 # Follow-the-leader (thesis A.1.5.2): the bundled insertion design, eight steps with a field of at most 10 mT each;
 # RMS over all steps within the issue's 1 mm (measured 0.25 mm); the fully inserted scene reproduces the last step.
-execute_process(COMMAND ${MAGVINE} design ${SRC}/assets/scenes/design_insertion.yaml --out ${WORK}/insertion
-                RESULT_VARIABLE rc ERROR_VARIABLE err)
-expect_rc(${rc} 0 "insertion design: ${err}")
-execute_process(COMMAND ${MAGVINE} run ${WORK}/insertion/scene.yaml --out ${WORK}/insertion_run
-                RESULT_VARIABLE rc ERROR_VARIABLE err)
-expect_rc(${rc} 0 "run of the inserted scene: ${err}")
+design_and_rerun(insertion ${SRC}/assets/scenes/design_insertion.yaml)
 execute_process(COMMAND ${PYTHON} -c "
 import csv, json, math
 d = json.load(open('${WORK}/insertion/design.json'))

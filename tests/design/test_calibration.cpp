@@ -22,6 +22,16 @@ namespace {
 /// The thesis's fluid-vine deflection setup (5.6.1): a 50 mm vine of diameter `diameter` standing against gravity,
 /// the Ø101.6 mm N52 EPM at its tip's height with its axis at the vine, approaching along x from 300 mm. θ =
 /// (iron volume fraction, film modulus [Pa]); below 3.2 MPa the film's stretch bursts the Ø4 mm vine at 35 kPa.
+/// A vine standing up: its base along +z, the base normal along x (towards the magnet), gravity along −z.
+robot::RodModel upright(const robot::VineParameters& v) {
+  robot::RodModel m = robot::vine_rod(v);
+  m.base_frame.col(0) = Vec3::UnitZ();
+  m.base_frame.col(1) = Vec3::UnitX();
+  m.base_frame.col(2) = Vec3::UnitZ().cross(Vec3::UnitX());
+  m.gravity = Vec3(0.0, 0.0, -9.81);
+  return m;
+}
+
 CalibrationCase fluid_vine_case(double diameter, double pressure) {
   CalibrationCase c;
   c.label = "Ø" + std::to_string(diameter * 1e3) + " mm";
@@ -31,12 +41,7 @@ CalibrationCase fluid_vine_case(double diameter, double pressure) {
     v.pressure = pressure;
     v.volume_fraction = theta[0];
     v.wall.modulus = theta[1];
-    robot::RodModel m = robot::vine_rod(v);
-    m.base_frame.col(0) = Vec3::UnitZ();
-    m.base_frame.col(1) = Vec3::UnitX();
-    m.base_frame.col(2) = Vec3::UnitZ().cross(Vec3::UnitX());
-    m.gravity = Vec3(0.0, 0.0, -9.81);
-    return m;
+    return upright(v);
   };
   c.magnet.add(magnetics::CylinderMagnet(0.0508, 0.1016, Vec3(0.0, 0.0, 1.48)),
                magnetics::Pose::from_axis(Vec3(0.3, 0.0, 0.05), -Vec3::UnitX()), "EPM");
@@ -167,12 +172,7 @@ CalibrationCase skin_vine_case(double pressure) {
     v.pressure = pressure;
     v.wall.modulus = theta[0];
     v.skin_remanence = theta[1];
-    robot::RodModel m = robot::vine_rod(v);
-    m.base_frame.col(0) = Vec3::UnitZ();
-    m.base_frame.col(1) = Vec3::UnitX();
-    m.base_frame.col(2) = Vec3::UnitZ().cross(Vec3::UnitX());
-    m.gravity = Vec3(0.0, 0.0, -9.81);
-    return m;
+    return upright(v);
   };
   c.magnet.add(magnetics::CylinderMagnet(0.0508, 0.1016, Vec3(0.0, 0.0, 1.48)),
                magnetics::Pose::from_axis(Vec3(0.3, 0.0, 0.065), Vec3::UnitZ()), "EPM");
@@ -199,21 +199,23 @@ TEST(Calibration, SkinVineCreaseOnsetsPinTheRemanenceNotTheFilmModulus) {
                   {.name = "skin.remanence", .start = 0.08, .lower = 0.02, .upper = 0.3}};
   for (const double kpa : {1.0, 3.0, 6.0}) {
     p.cases.push_back(skin_vine_case(kpa * 1e3));
-    p.measurements.push_back({.case_index = p.cases.size() - 1, .observable = Observable::critical_distance,
-                              .sigma = 5e-3});
+    p.measurements.push_back(
+        {.case_index = p.cases.size() - 1, .observable = Observable::critical_distance, .sigma = 5e-3});
   }
   Predictions made = predict(p, truth, false);
   for (std::size_t k = 0; k < 3; ++k) {
     p.measurements[k].value = made.values[static_cast<Eigen::Index>(k)];
-    p.measurements.push_back({.case_index = k, .observable = Observable::chord_angle,
-                              .distance = p.measurements[k].value - 8e-3, .sigma = 3.0 * kDegToRad});
+    p.measurements.push_back({.case_index = k,
+                              .observable = Observable::chord_angle,
+                              .distance = p.measurements[k].value - 8e-3,
+                              .sigma = 3.0 * kDegToRad});
   }
   made = predict(p, truth, false);
   for (std::size_t k = 3; k < 6; ++k) p.measurements[k].value = made.values[static_cast<Eigen::Index>(k)];
   for (std::size_t k = 0; k < 6; ++k) {
     ASSERT_TRUE(made.reached[k]);
-    std::printf("  made: case %zu %s %.6g\n", p.measurements[k].case_index, observable_name(p.measurements[k].observable),
-                p.measurements[k].value);
+    std::printf("  made: case %zu %s %.6g\n", p.measurements[k].case_index,
+                observable_name(p.measurements[k].observable), p.measurements[k].value);
   }
   const CalibrationResult r = calibrate(p);
   std::printf("  fit E %.6g Pa ± %.3g, Br %.6g T ± %.3g in %d iterations, %d equilibria, %.2f s; %s\n", r.theta[0],

@@ -168,36 +168,39 @@ void predict_case(const CalibrationProblem& problem, std::size_t index, const Ve
   std::ranges::sort(at_distance, [&](std::size_t a, std::size_t b) {
     return problem.measurements[a].distance > problem.measurements[b].distance;
   });
+  // dx*/dθ of the equilibrium the measurements at one distance share: solved once for all of them.
+  std::optional<double> sensitivity_at;
+  MatX dx;
   const auto record = [&](std::size_t i, const robot::RodState& s, double d) {
     const Quantity q = observe(problem.measurements[i].observable, approach.model(), s);
     out.values[static_cast<Eigen::Index>(i)] = q.value;
-    if (jacobian) {
-      const MatX dx = state_sensitivity(approach, s, d, problem.parameters, false, distance_label(c, d));
-      out.jacobian.row(static_cast<Eigen::Index>(i)) = q.covector.transpose() * dx;
+    if (!jacobian) return;
+    if (sensitivity_at != d) {
+      dx = state_sensitivity(approach, s, d, problem.parameters, false, distance_label(c, d));
+      sensitivity_at = d;
     }
+    out.jacobian.row(static_cast<Eigen::Index>(i)) = q.covector.transpose() * dx;
   };
   const auto record_critical = [&](const robot::RodState& s, double d) {
-    for (const std::size_t i : critical) {
-      out.values[static_cast<Eigen::Index>(i)] = d;
-      if (!jacobian) continue;
-      // a(x*(d, θ)) = a_c: dd*/dθ = −(∂a/∂θ)/(∂a/∂d).
-      const Quantity q = chord_angle(approach.model(), s);
-      const MatX dg = approach.gradient_sensitivity(s, d, problem.parameters, true);
-      const std::optional<MatX> solved = robot::rod_hessian_solve(approach.model(), approach.field_at(d), s, dg);
-      VecX da;
-      if (solved) {
-        da = -solved->transpose() * q.covector;  // (∂a/∂θ, ∂a/∂d)
-      } else {
-        // At the fold itself (a snap: the search ends within 1e-12 m of it and H may have lost its last pivot), the
-        // limit of the ratio: H⁻¹ ≈ φφᵀ/λ, so dd*/dθ = −φᵀ∂g/∂θ / φᵀ∂g/∂d (φ the eigenvector of H's smallest
-        // eigenvalue).
-        const Eigen::SelfAdjointEigenSolver<MatX> eigen(robot::rod_hessian(approach.model(), approach.field_at(d), s));
-        da = dg.transpose() * eigen.eigenvectors().col(0);
-      }
-      if (!(std::abs(da[p]) > 0.0))
-        throw NumericalError(c.label + ": the chord angle does not change with the distance");
-      out.jacobian.row(static_cast<Eigen::Index>(i)) = -da.head(p).transpose() / da[p];
+    for (const std::size_t i : critical) out.values[static_cast<Eigen::Index>(i)] = d;
+    if (!jacobian) return;
+    // a(x*(d, θ)) = a_c: dd*/dθ = −(∂a/∂θ)/(∂a/∂d), one row for every critical-distance measurement of the case.
+    const Quantity q = chord_angle(approach.model(), s);
+    const MatX dg = approach.gradient_sensitivity(s, d, problem.parameters, true);
+    const std::optional<MatX> solved = robot::rod_hessian_solve(approach.model(), approach.field_at(d), s, dg);
+    VecX da;
+    if (solved) {
+      da = -solved->transpose() * q.covector;  // (∂a/∂θ, ∂a/∂d)
+    } else {
+      // At the fold itself (a snap: the search ends within 1e-12 m of it and H may have lost its last pivot), the
+      // limit of the ratio: H⁻¹ ≈ φφᵀ/λ, so dd*/dθ = −φᵀ∂g/∂θ / φᵀ∂g/∂d (φ the eigenvector of H's smallest
+      // eigenvalue).
+      const Eigen::SelfAdjointEigenSolver<MatX> eigen(robot::rod_hessian(approach.model(), approach.field_at(d), s));
+      da = dg.transpose() * eigen.eigenvectors().col(0);
     }
+    if (!(std::abs(da[p]) > 0.0)) throw NumericalError(c.label + ": the chord angle does not change with the distance");
+    for (const std::size_t i : critical)
+      out.jacobian.row(static_cast<Eigen::Index>(i)) = -da.head(p).transpose() / da[p];
   };
 
   double d = c.start_distance;
