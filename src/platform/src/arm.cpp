@@ -2,6 +2,7 @@
 
 #include <algorithm>
 #include <cmath>
+#include <limits>
 #include <random>
 
 #include <Eigen/Cholesky>
@@ -161,11 +162,12 @@ TaskError task_error(const ArmModel& arm, const Iso3& base, const Iso3& tool, co
 }  // namespace
 
 IkResult solve_ik(const ArmModel& arm, const Iso3& base, const Iso3& tool, const Iso3& target, const JointVector& start,
-                  const IkOptions& options, const JointVector* posture) {
+                  const IkOptions& options) {
   std::mt19937_64 rng(options.seed);
   std::uniform_real_distribution<double> unit(0.0, 1.0);
   // Rows weighted so that a radian of orientation counts as kLength metres of position.
   constexpr double kLength = 0.3;
+  constexpr double kMaxStep = 0.2;  // [rad]
   IkResult best;
   best.position_error = best.angle_error = std::numeric_limits<double>::infinity();
   for (int s = 0; s <= options.restarts; ++s) {
@@ -185,21 +187,33 @@ IkResult solve_ik(const ArmModel& arm, const Iso3& base, const Iso3& tool, const
       jw.bottomRows<3>() *= kLength;
       Eigen::Matrix<double, 6, 1> ew = t.e;
       ew.tail<3>() *= kLength;
-      const Eigen::Matrix<double, 6, 6> jjt = jw * jw.transpose();
-      // Levenberg–Marquardt: accept a step that lowers the error, else damp harder.
+      // Levenberg–Marquardt: accept a step that lowers the error, else damp harder. A joint at a limit that the step
+      // would push further is held (its column removed), so the others do the work instead of stalling there.
       bool accepted = false;
       for (int tries = 0; tries < 8 && !accepted; ++tries) {
-        const Eigen::Matrix<double, 6, 6> a = jjt + lambda * Eigen::Matrix<double, 6, 6>::Identity();
-        const Eigen::LDLT<Eigen::Matrix<double, 6, 6>> ldlt(a);
-        JointVector dq = jw.transpose() * ldlt.solve(ew);
-        if (posture != nullptr && options.posture_gain > 0.0) {
-          // The null-space projector of the damped pseudo-inverse: (I − Jᵀ(JJᵀ + λI)⁻¹J).
-          const JointVector pull = options.posture_gain * (*posture - q);
-          dq += pull - jw.transpose() * ldlt.solve(jw * pull);
+        JointVector dq = JointVector::Zero();
+        std::array<bool, kArmJoints> held{};
+        for (int pass = 0; pass < kArmJoints; ++pass) {
+          Jacobian jh = jw;
+          for (int i = 0; i < kArmJoints; ++i) {
+            if (held[static_cast<std::size_t>(i)]) jh.col(i).setZero();
+          }
+          const Eigen::Matrix<double, 6, 6> a = jh * jh.transpose() + lambda * Eigen::Matrix<double, 6, 6>::Identity();
+          dq = jh.transpose() * a.ldlt().solve(ew);
+          bool more = false;
+          for (int i = 0; i < kArmJoints; ++i) {
+            const bool at_min = q[i] <= arm.q_min[i] + 1e-12 && dq[i] < 0.0;
+            const bool at_max = q[i] >= arm.q_max[i] - 1e-12 && dq[i] > 0.0;
+            if (!held[static_cast<std::size_t>(i)] && (at_min || at_max)) more = held[static_cast<std::size_t>(i)] = true;
+          }
+          if (!more) break;
         }
+        // A trust region of 0.2 rad per joint keeps the solution on the branch of the start (the nearest posture).
+        const double largest = dq.cwiseAbs().maxCoeff();
+        if (largest > kMaxStep) dq *= kMaxStep / largest;
         const JointVector trial = (q + dq).cwiseMax(arm.q_min).cwiseMin(arm.q_max);
         const TaskError tt = task_error(arm, base, tool, target, options.task, trial);
-        if (cost(tt) < cost(t) || (posture != nullptr && options.posture_gain > 0.0 && cost(tt) <= cost(t) * 1.0001)) {
+        if (cost(tt) < cost(t)) {
           q = trial;
           t = tt;
           lambda = std::max(1e-9, lambda * 0.3);
@@ -225,17 +239,30 @@ IkResult solve_ik(const ArmModel& arm, const Iso3& base, const Iso3& tool, const
 }
 
 bool track_joints(const ArmModel& arm, const JointVector& goal, double dt, JointVector& q, JointVector& qd) {
+  // Synchronised: the remaining motion e is one path; its fraction s ∈ [0, 1] moves under the tightest of the joints'
+  // limits scaled by their share, ṡ ≤ V = min v_i/|e_i| and s̈ ≤ A = min a_i/|e_i|, so every joint keeps its limits
+  // and, from rest, the joints arrive together along the straight line in joint space (the path the placement was
+  // checked along). Each joint then follows the braking law towards its goal under its scaled limits.
+  const JointVector e = goal - q;
+  double v_scale = std::numeric_limits<double>::infinity(), a_scale = v_scale;
+  for (int i = 0; i < kArmJoints; ++i) {
+    if (std::abs(e[i]) < 1e-12) continue;
+    v_scale = std::min(v_scale, arm.qd_max[i] / std::abs(e[i]));
+    a_scale = std::min(a_scale, arm.qdd_max[i] / std::abs(e[i]));
+  }
   bool settled = true;
   for (int i = 0; i < kArmJoints; ++i) {
-    const double e = goal[i] - q[i];
-    const double a = arm.qdd_max[i];
-    // The braking law on the remaining distance after this step's own motion (discrete: aim to stop on the goal).
-    double want = std::copysign(std::min(arm.qd_max[i], std::sqrt(2.0 * a * std::abs(e))), e);
-    if (std::abs(e) < a * dt * dt) want = e / dt;  // the last step lands on the goal
-    const double v = std::clamp(want, qd[i] - a * dt, qd[i] + a * dt);
-    q[i] += v * dt;
+    const double a_max = arm.qdd_max[i];
+    const double v_lim = std::isfinite(v_scale) ? std::min(arm.qd_max[i], v_scale * std::abs(e[i])) : 0.0;
+    const double a_lim = std::isfinite(a_scale) ? std::min(a_max, a_scale * std::abs(e[i])) : 0.0;
+    // The braking law on the remaining distance (discrete: aim to stop on the goal; the last step lands on it).
+    double want = std::copysign(std::min(v_lim, std::sqrt(2.0 * a_lim * std::abs(e[i]))), e[i]);
+    if (std::abs(e[i]) <= std::max(a_lim, 1e-12) * dt * dt) want = e[i] / dt;
+    // A joint still moving from an earlier goal brakes within its own limit.
+    const double v = std::clamp(want, qd[i] - a_max * dt, qd[i] + a_max * dt);
+    q[i] = std::clamp(q[i] + v * dt, arm.q_min[i], arm.q_max[i]);
     qd[i] = v;
-    if (std::abs(goal[i] - q[i]) > 1e-9 || std::abs(v) > a * dt) settled = false;
+    if (std::abs(goal[i] - q[i]) > 1e-9 || std::abs(v) > a_max * dt) settled = false;
   }
   return settled;
 }

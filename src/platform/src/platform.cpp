@@ -2,7 +2,6 @@
 
 #include <btBulletDynamicsCommon.h>
 
-#include <BulletCollision/CollisionShapes/btConvexHullShape.h>
 #include <BulletCollision/NarrowPhaseCollision/btGjkEpaPenetrationDepthSolver.h>
 #include <BulletCollision/NarrowPhaseCollision/btGjkPairDetector.h>
 #include <BulletCollision/NarrowPhaseCollision/btPointCollector.h>
@@ -12,8 +11,10 @@
 #include <BulletDynamics/Featherstone/btMultiBodyDynamicsWorld.h>
 #include <BulletDynamics/Featherstone/btMultiBodyLinkCollider.h>
 
+#include <algorithm>
 #include <cmath>
 #include <limits>
+#include <random>
 
 #include <Eigen/LU>
 
@@ -51,21 +52,52 @@ Iso3 capsule_placement(const Vec3& a, const Vec3& b) {
 }
 
 /// The small margin Bullet's GJK keeps round the core of a shape; the shapes are built so their outer surface is
-/// the true one (cylinders and boxes subtract it; the hull's points are pulled in by it).
+/// the true one (cylinders and boxes subtract it; the torso's core is shrunk by it).
 constexpr double kMargin = 5e-4;
 
-/// Signed distance between two convex shapes (negative: penetration depth, by EPA).
-double signed_distance(const btConvexShape& a, const btTransform& ta, const btConvexShape& b, const btTransform& tb) {
+/// Signed distance between two convex shapes (negative: penetration depth, by EPA). Without `depth` the penetration
+/// is not measured (GJK alone, far cheaper): any overlap returns −1.
+double signed_distance(const btConvexShape& a, const btTransform& ta, const btConvexShape& b, const btTransform& tb,
+                       bool depth = true) {
   btVoronoiSimplexSolver simplex;
   btGjkEpaPenetrationDepthSolver epa;
-  btGjkPairDetector gjk(&a, &b, &simplex, &epa);
+  btGjkPairDetector gjk(&a, &b, &simplex, depth ? &epa : nullptr);
   btGjkPairDetector::ClosestPointInput in;
   in.m_transformA = ta;
   in.m_transformB = tb;
   btPointCollector out;
   gjk.getClosestPoints(in, out, nullptr);
-  return out.m_hasResult ? out.m_distance : std::numeric_limits<double>::infinity();
+  if (!out.m_hasResult) return depth ? std::numeric_limits<double>::infinity() : -1.0;
+  return out.m_distance;
 }
+
+/// The torso as Bullet sees it: an elliptic cylinder (semi-axes a, b in x and y, half length h along z) with its
+/// support mapping in closed form (the point of the ellipse farthest along d is (a² d_x, b² d_y)/√(a² d_x² + b² d_y²)),
+/// so GJK costs the same as for a box. The core is shrunk by the margin GJK adds back.
+class EllipticCylinderShape : public btConvexInternalShape {
+ public:
+  EllipticCylinderShape(double a, double b, double h) : m_a(a - kMargin), m_b(b - kMargin), m_h(h - kMargin) {
+    m_shapeType = CUSTOM_CONVEX_SHAPE_TYPE;
+    setMargin(kMargin);
+  }
+  btVector3 localGetSupportingVertexWithoutMargin(const btVector3& d) const override {
+    const double ex = m_a * m_a * d.x(), ey = m_b * m_b * d.y();
+    const double n = std::sqrt(ex * d.x() + ey * d.y());
+    const double z = d.z() >= 0.0 ? m_h : -m_h;
+    if (n < 1e-300) return {m_a, 0.0, z};
+    return {ex / n, ey / n, z};
+  }
+  void batchedUnitVectorGetSupportingVertexWithoutMargin(const btVector3* vectors, btVector3* out,
+                                                          int count) const override {
+    for (int i = 0; i < count; ++i) out[i] = localGetSupportingVertexWithoutMargin(vectors[i]);
+  }
+  void calculateLocalInertia(btScalar, btVector3& inertia) const override { inertia.setZero(); }  // static
+  const char* getName() const override { return "EllipticCylinder"; }
+  void getAabb(const btTransform& t, btVector3& lo, btVector3& hi) const override { getAabbSlow(t, lo, hi); }
+
+ private:
+  double m_a, m_b, m_h;
+};
 
 }  // namespace
 
@@ -120,7 +152,7 @@ struct PlatformWorld::Impl {
   std::unique_ptr<btMultiBodyDynamicsWorld> world;
 
   // Static colliders.
-  std::unique_ptr<btConvexHullShape> torso_shape;
+  std::unique_ptr<btConvexInternalShape> torso_shape;
   std::unique_ptr<btBoxShape> table_shape;
   btCollisionObject torso_object, table_object;
 
@@ -141,18 +173,7 @@ struct PlatformWorld::Impl {
     world->setGravity(bt(model.gravity));
     if (model.body) {
       const TorsoModel& t = *model.body;
-      torso_shape = std::make_unique<btConvexHullShape>();
-      constexpr int kRound = 96;
-      for (int i = 0; i < kRound; ++i) {
-        const double phi = 2.0 * kPi * i / kRound;
-        for (const double z : {-0.5 * t.length + kMargin, 0.5 * t.length - kMargin}) {
-          torso_shape->addPoint(btVector3((0.5 * t.breadth - kMargin) * std::cos(phi),
-                                          (0.5 * t.depth - kMargin) * std::sin(phi), z),
-                                false);
-        }
-      }
-      torso_shape->recalcLocalAabb();
-      torso_shape->setMargin(kMargin);
+      torso_shape = std::make_unique<EllipticCylinderShape>(0.5 * t.breadth, 0.5 * t.depth, 0.5 * t.length);
       torso_object.setCollisionShape(torso_shape.get());
       torso_object.setWorldTransform(bt(t.frame));
       world->addCollisionObject(&torso_object);
@@ -319,10 +340,16 @@ ArmCheck PlatformWorld::check(int arm) const {
   return c;
 }
 
-double PlatformWorld::skin_distance(int arm, const Iso3& magnet_pose) const {
+double PlatformWorld::skin_distance(int arm, const Iso3& magnet_pose, bool depth) const {
   if (!m->model.body) return std::numeric_limits<double>::infinity();
   return signed_distance(*m->arms[static_cast<std::size_t>(arm)].magnet, bt(magnet_pose), *m->torso_shape,
-                         m->torso_object.getWorldTransform());
+                         m->torso_object.getWorldTransform(), depth);
+}
+
+double PlatformWorld::table_distance(int arm, const Iso3& magnet_pose) const {
+  if (!m->model.table) return std::numeric_limits<double>::infinity();
+  return signed_distance(*m->arms[static_cast<std::size_t>(arm)].magnet, bt(magnet_pose), *m->table_shape,
+                         m->table_object.getWorldTransform(), false);
 }
 
 std::array<Iso3, kArmJoints> PlatformWorld::bullet_link_frames(int arm) const {
@@ -374,6 +401,241 @@ JointVector PlatformWorld::holding_torques(int arm, const Vec3& force, const Vec
   body.clearForcesAndTorques();
   body.clearVelocities();
   return -inverse_mass.partialPivLu().solve(a0);
+}
+
+}  // namespace magvine::platform
+
+namespace magvine::platform {
+
+namespace {
+
+Iso3 pose_of(const Vec3& position, const Vec3& axis) {
+  Iso3 t = Iso3::Identity();
+  t.linear() = Eigen::Quaterniond::FromTwoVectors(Vec3::UnitZ(), axis.normalized()).toRotationMatrix();
+  t.translation() = position;
+  return t;
+}
+
+}  // namespace
+
+PlatformRun::PlatformRun(const PlatformModel& model) : m_model(model), m_world(model), m_arms(model.arms.size()) {
+  for (std::size_t a = 0; a < m_arms.size(); ++a) {
+    m_arms[a].q = m_arms[a].goal = model.arms[a].home;
+    m_arms[a].asked = platform::magnet_pose(model.arm, model.arms[a], model.arms[a].home).translation();
+  }
+}
+
+int PlatformRun::arm_of_magnet(int magnet) const {
+  for (std::size_t a = 0; a < m_model.arms.size(); ++a) {
+    if (m_model.arms[a].magnet == magnet) return static_cast<int>(a);
+  }
+  return -1;
+}
+
+Iso3 PlatformRun::magnet_pose(int arm) const {
+  const auto a = static_cast<std::size_t>(arm);
+  return platform::magnet_pose(m_model.arm, m_model.arms[a], m_arms[a].q);
+}
+
+Placement PlatformRun::evaluate(int arm, const Vec3& position, const Vec3& axis, bool near_only) {
+  constexpr double kNearJoints = 20.0 * kPi / 180.0;
+  const auto a = static_cast<std::size_t>(arm);
+  const ArmMount& mount = m_model.arms[a];
+  const Iso3 target = pose_of(position, axis);
+  IkOptions options;
+  options.task = IkTask::kPositionAxis;
+  options.restarts = 0;
+  // Starts: where the arm is (the nearest solution: smooth motion, and no drift of the posture from one request to
+  // the next), then (unless near_only) its home and random joint
+  // vectors (seeded by the request, so a run is deterministic).
+  std::vector<JointVector> starts{m_arms[a].q};
+  if (!near_only) {
+    starts.push_back(mount.home);
+    std::mt19937_64 rng(static_cast<std::uint64_t>(std::abs(position.sum()) * 1e6) + a);
+    std::uniform_real_distribution<double> unit(0.0, 1.0);
+    constexpr int kRandomStarts = 6;
+    for (int s = 0; s < kRandomStarts; ++s) {
+      JointVector q;
+      for (int i = 0; i < kArmJoints; ++i) {
+        q[i] = m_model.arm.q_min[i] + unit(rng) * (m_model.arm.q_max[i] - m_model.arm.q_min[i]);
+      }
+      starts.push_back(q);
+    }
+  }
+  Placement best;
+  best.position = position;
+  best.axis = axis.normalized();
+  best.why = "out of the arm's reach";
+  // Whether the arm at q collides or brings its magnet within the clearance; why, if so.
+  const auto problem = [&](const JointVector& q) -> std::string {
+    m_world.set_joints(arm, q);
+    const ArmCheck c = m_world.check(arm);
+    if (c.collision) return "the arm would collide (" + c.nearest_what + ")";
+    if (c.skin_clearance < m_model.clearance - 1e-9) return "the magnet would come within the clearance of the skin";
+    return {};
+  };
+  for (const JointVector& start : starts) {
+    const IkResult r = solve_ik(m_model.arm, mount.base, mount.tool.flange_to_magnet, target, start, options);
+    if (!r.converged) continue;
+    // Near: a small move of the joints (≤ 20° each from where it is), not a new posture reached by a long way round.
+    if (near_only && (r.q - m_arms[a].q).cwiseAbs().maxCoeff() > kNearJoints) {
+      best.why = "only a new posture of the arm reaches it";
+      continue;
+    }
+    best.q = r.q;
+    best.why = problem(r.q);
+    // The way there (the tracker's straight line in joint space from where the arm is), every 0.05 rad.
+    const JointVector from = m_arms[a].q;
+    const int n = m_arms[a].placed ? static_cast<int>(std::ceil((r.q - from).cwiseAbs().maxCoeff() / 0.05)) : 0;
+    for (int k = 1; k < n && best.why.empty(); ++k) {
+      const std::string on_way = problem(from + (r.q - from) * (static_cast<double>(k) / n));
+      if (!on_way.empty()) best.why = "on the way there: " + on_way;
+    }
+    if (best.why.empty()) {
+      best.feasible = true;
+      break;
+    }
+  }
+  m_world.set_joints(arm, m_arms[a].q);
+  return best;
+}
+
+double PlatformRun::clear_distance(int arm, const Vec3& from, const Vec3& line, const Vec3& axis, double min_distance,
+                                   double max_distance) const {
+  const auto gap = [&](double d) {
+    return m_world.skin_distance(arm, pose_of(from + d * line, axis), false) - m_model.clearance;
+  };
+  // A placement through the table is none.
+  const auto under_table = [&](double d) { return m_world.table_distance(arm, pose_of(from + d * line, axis)) < 0.0; };
+  if (gap(min_distance) >= 0.0) return under_table(min_distance) ? std::numeric_limits<double>::infinity() : min_distance;
+  // Convex torso: along a line the gap rises once it starts to, so march out, then bisect to 0.1 mm.
+  double lo = min_distance, hi = min_distance;
+  do {
+    lo = hi;
+    hi += 0.01;
+    if (hi > max_distance) return std::numeric_limits<double>::infinity();
+  } while (gap(hi) < 0.0);
+  while (hi - lo > 1e-4) {
+    const double mid = 0.5 * (lo + hi);
+    (gap(mid) >= 0.0 ? hi : lo) = mid;
+  }
+  return under_table(hi) ? std::numeric_limits<double>::infinity() : hi;
+}
+
+Placement PlatformRun::nearest_feasible(int arm, const Vec3& position, const Vec3& axis) {
+  // Candidates in order of how far they move the magnet: out from the torso's axis to the clearance and beyond, and
+  // round the request in 14 directions (the axes and the diagonals) at 1–16 cm.
+  std::vector<std::pair<double, Vec3>> candidates;
+  if (m_model.body) {
+    const Iso3& f = m_model.body->frame;
+    Vec3 out = position - f.translation();
+    out -= out.dot(f.linear().col(2)) * f.linear().col(2);
+    if (out.norm() > 1e-9) {
+      out.normalize();
+      const double d = clear_distance(arm, position, out, axis, 0.0, 0.5);
+      if (std::isfinite(d)) {
+        for (const double extra : {0.0, 0.005, 0.01, 0.02, 0.04}) candidates.emplace_back(d + extra, out);
+      }
+    }
+  }
+  std::vector<Vec3> directions;
+  for (int i = 0; i < 3; ++i) {
+    directions.push_back(Vec3::Unit(i));
+    directions.push_back(-Vec3::Unit(i));
+  }
+  for (const double x : {-1.0, 1.0}) {
+    for (const double y : {-1.0, 1.0}) {
+      for (const double z : {-1.0, 1.0}) directions.push_back(Vec3(x, y, z).normalized());
+    }
+  }
+  for (const double r : {0.01, 0.02, 0.04, 0.08, 0.16}) {
+    for (const Vec3& d : directions) candidates.emplace_back(r, d);
+  }
+  std::stable_sort(candidates.begin(), candidates.end(),
+                   [](const auto& x, const auto& y) { return x.first < y.first; });
+  for (const auto& [r, d] : candidates) {
+    Placement p = evaluate(arm, position + r * d, axis);
+    if (p.feasible) return p;
+  }
+  Placement none;
+  none.why = "no feasible pose within 16 cm";
+  return none;
+}
+
+void PlatformRun::set_goal(int arm, const JointVector& q) {
+  ArmState& s = m_arms[static_cast<std::size_t>(arm)];
+  s.goal = q;
+  s.asked = platform::magnet_pose(m_model.arm, m_model.arms[static_cast<std::size_t>(arm)], q).translation();
+}
+
+double PlatformRun::travel_time(int arm, const JointVector& q) const {
+  return (q - m_arms[static_cast<std::size_t>(arm)].q).cwiseAbs().cwiseQuotient(m_model.arm.qd_max).maxCoeff();
+}
+
+void PlatformRun::jump_to_goal(int arm) {
+  ArmState& s = m_arms[static_cast<std::size_t>(arm)];
+  s.placed = true;
+  s.q = s.goal;
+  s.qd.setZero();
+  m_world.set_joints(arm, s.q);
+}
+
+Placement PlatformRun::request(int arm, const Vec3& position, const Vec3& axis, bool start) {
+  const auto a = static_cast<std::size_t>(arm);
+  m_arms[a].asked = position;
+  Placement p = evaluate(arm, position, axis);
+  if (!p.feasible) {
+    const std::string why = p.why;
+    p = nearest_feasible(arm, position, axis);
+    p.why = p.feasible ? why + "; moved " + std::to_string(static_cast<int>(std::lround((p.position - position).norm() * 1e3))) + " mm"
+                       : why + "; " + p.why + ", the arm holds its goal";
+    ++m_figures.workspace_events;
+  }
+  if (p.feasible) {
+    m_arms[a].goal = p.q;
+    m_arms[a].asked = p.position;
+    if (start) {
+      m_arms[a].placed = true;
+      m_arms[a].q = p.q;
+      m_arms[a].qd.setZero();
+      m_world.set_joints(arm, p.q);
+    }
+  }
+  return p;
+}
+
+void PlatformRun::advance(double time, double dt, const std::vector<std::pair<Vec3, Vec3>>& wrench) {
+  bool violation = false;
+  for (std::size_t a = 0; a < m_arms.size(); ++a) {
+    ArmState& s = m_arms[a];
+    const JointVector q0 = s.q, qd0 = s.qd;
+    if (dt > 0.0) track_joints(m_model.arm, s.goal, dt, s.q, s.qd);
+    m_figures.path_length += (s.q - q0).cwiseAbs().sum();
+    const ArmModel& arm = m_model.arm;
+    for (int i = 0; i < kArmJoints; ++i) {
+      const bool outside = s.q[i] < arm.q_min[i] - 1e-9 || s.q[i] > arm.q_max[i] + 1e-9;
+      const bool fast = std::abs(s.qd[i]) > arm.qd_max[i] * (1.0 + 1e-9);
+      const bool jerk = dt > 0.0 && std::abs(s.qd[i] - qd0[i]) > arm.qdd_max[i] * dt * (1.0 + 1e-9);
+      violation = violation || outside || fast || jerk;
+    }
+    m_world.set_joints(static_cast<int>(a), s.q);
+  }
+  if (violation) ++m_figures.limit_violations;
+  bool collided = false;
+  for (std::size_t a = 0; a < m_arms.size(); ++a) {
+    const int arm = static_cast<int>(a);
+    const ArmCheck c = m_world.check(arm);
+    collided = collided || c.collision;
+    m_figures.min_skin_clearance = std::min(m_figures.min_skin_clearance, c.skin_clearance);
+    const auto& w = a < wrench.size() ? wrench[a] : std::pair<Vec3, Vec3>{Vec3::Zero(), Vec3::Zero()};
+    const JointVector tau = m_world.holding_torques(arm, w.first, w.second);
+    m_figures.max_torque_fraction =
+        std::max(m_figures.max_torque_fraction, tau.cwiseAbs().cwiseQuotient(m_model.arm.tau_max).maxCoeff());
+    const Vec3 reached = magnet_pose(arm).translation();
+    m_figures.max_tracking_error = std::max(m_figures.max_tracking_error, (reached - m_arms[a].asked).norm());
+    m_samples.push_back({time, arm, m_arms[a].q, tau, reached});
+  }
+  if (collided) ++m_figures.collisions;
 }
 
 }  // namespace magvine::platform

@@ -9,6 +9,7 @@
 #include "magvine/core/stopwatch.hpp"
 #include "magvine/core/text.hpp"
 #include "magvine/magnetics/field_function.hpp"
+#include "magvine/magnetics/interaction.hpp"
 #include "magvine/scene/navigator.hpp"
 
 namespace magvine::scene {
@@ -19,6 +20,8 @@ std::string_view event_name(EventKind kind) {
       return "recover";
     case EventKind::kWorkspace:
       return "workspace";
+    case EventKind::kTorque:
+      return "torque";
     default:
       return robot::growth_event_name(static_cast<robot::GrowthEventKind>(kind));
   }
@@ -85,8 +88,71 @@ ExperimentResult run_experiment(const ExperimentScene& scene, const std::functio
       out.magnet_samples.push_back({t, static_cast<int>(i), poses[i].position, poses[i].rotation.col(2)});
     }
   };
+  // The platform (platform:): the arms take the magnets' poses as requests and the field comes from where they
+  // reach. A request an arm cannot serve is replaced by the nearest feasible pose (a workspace event).
+  std::optional<platform::PlatformRun> arms;
+  std::vector<MagnetKeyframe> asked;  // the last pose asked of each arm-held magnet
+  bool torque_logged = false;
+  const auto ask_arms = [&](double t, const std::vector<magnetics::Pose>& wanted, bool start) {
+    for (std::size_t a = 0; a < scene.platform->arms.size(); ++a) {
+      const int i = scene.platform->arms[a].magnet;
+      if (navigator && i == navigator->magnet()) continue;  // the navigator asks its arm itself
+      const magnetics::Pose& w = wanted[static_cast<std::size_t>(i)];
+      const Vec3 axis = w.rotation.col(2);
+      MagnetKeyframe& last = asked[a];
+      if (!start && last.position.isApprox(w.position, 1e-12) && last.axis.isApprox(axis, 1e-12)) continue;
+      last = {t, w.position, axis};
+      const platform::Placement p = arms->request(static_cast<int>(a), w.position, axis, start);
+      if (!p.why.empty()) {
+        navigator_events.push_back({t, 0.0, EventKind::kWorkspace, printf_string("arm %zu (magnets[%d]): ", a, i) + p.why});
+      }
+    }
+  };
+  // The magnets' poses the arms have reached, and the wrench between two held magnets (for the holding torques).
+  const auto reached = [&](std::vector<magnetics::Pose>& p) {
+    for (std::size_t a = 0; a < scene.platform->arms.size(); ++a) {
+      const auto i = static_cast<std::size_t>(scene.platform->arms[a].magnet);
+      const platform::Iso3 m = arms->magnet_pose(static_cast<int>(a));
+      p[i] = magnetics::pose_at(scene.magnets->rest_poses[i], m.translation(), m.linear().col(2));
+    }
+  };
+  const auto advance_arms = [&](double t, double dt, std::vector<magnetics::Pose>& p) {
+    std::vector<std::pair<Vec3, Vec3>> wrench(scene.platform->arms.size(), {Vec3::Zero(), Vec3::Zero()});
+    if (scene.platform->arms.size() == 2) {
+      const auto i = static_cast<std::size_t>(scene.platform->arms[0].magnet);
+      const auto j = static_cast<std::size_t>(scene.platform->arms[1].magnet);
+      const auto& a = std::get<magnetics::CylinderMagnet>(scene.magnets->sources[i]);
+      const auto& b = std::get<magnetics::CylinderMagnet>(scene.magnets->sources[j]);
+      const magnetics::Wrench on_b = magnetics::magnet_magnet_wrench(a, p[i], b, p[j]);
+      // Action and reaction: F_a = −F_b; about a's centre τ_a = −τ_b − (c_a − c_b) × F_a.
+      const Vec3 f_a = -on_b.force;
+      wrench[0] = {f_a, -on_b.torque - (p[i].position - p[j].position).cross(f_a)};
+      wrench[1] = {on_b.force, on_b.torque};
+    }
+    arms->advance(t, dt, wrench);
+    if (!torque_logged && arms->figures().max_torque_fraction > 1.0) {
+      torque_logged = true;
+      navigator_events.push_back(
+          {t, 0.0, EventKind::kTorque,
+           printf_string("an arm needs %.0f %% of a joint's torque limit to hold its magnet",
+                         100.0 * arms->figures().max_torque_fraction)});
+    }
+    reached(p);
+  };
   if (scene.magnets) {
     poses = poses_at(scene, navigator ? &*navigator : nullptr, 0.0);
+    if (scene.platform) {
+      arms.emplace(*scene.platform);
+      asked.resize(scene.platform->arms.size());
+      if (navigator) {
+        navigator->use_platform(&*arms, 0.0, scene.base_position + scene.vine.length * scene.base_frame.col(0),
+                                scene.base_frame, scene.vine.length, navigator_events);
+        const int a = arms->arm_of_magnet(navigator->magnet());
+        if (a >= 0) arms->jump_to_goal(a);
+      }
+      ask_arms(0.0, poses, true);
+      advance_arms(0.0, 0.0, poses);
+    }
     record_magnets(0.0);
   }
   robot::RodField field = field_at(scene, poses, 0.0);
@@ -125,7 +191,7 @@ ExperimentResult run_experiment(const ExperimentScene& scene, const std::functio
   };
   record_frame(0.0);
   const auto steps = static_cast<long>(std::ceil(scene.duration / scene.dt - 1e-9));
-  const bool moving = magnets_move(scene);
+  const bool moving = magnets_move(scene) || scene.platform != nullptr;  // arms report every step
 
   for (long k = 1; k <= steps; ++k) {
     const double t = std::min(scene.duration, static_cast<double>(k) * scene.dt);
@@ -135,6 +201,10 @@ ExperimentResult run_experiment(const ExperimentScene& scene, const std::functio
     }
     if (scene.magnets && moving) {
       std::vector<magnetics::Pose> next = poses_at(scene, navigator ? &*navigator : nullptr, t);
+      if (arms) {
+        ask_arms(t, next, false);
+        advance_arms(t, dt, next);
+      }
       bool changed = false;
       for (std::size_t i = 0; i < next.size(); ++i) {
         changed = changed || !next[i].position.isApprox(poses[i].position, 1e-12) ||
@@ -199,6 +269,10 @@ ExperimentResult run_experiment(const ExperimentScene& scene, const std::functio
     }
   }
   if (navigator) out.recoveries = navigator->recoveries();
+  if (arms) {
+    out.platform = arms->figures();
+    out.arm_samples = arms->samples();
+  }
   for (const robot::GrowthEvent& e : growth_events) out.events.push_back(run_event(e));
   out.events.insert(out.events.end(), navigator_events.begin(), navigator_events.end());
   std::stable_sort(out.events.begin(), out.events.end(),

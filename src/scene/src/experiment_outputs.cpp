@@ -135,6 +135,20 @@ void write_experiment_outputs(const ExperimentScene& scene, const ExperimentResu
     p = m.position;
   }
   j["magnet_travel_m"] = travel;
+  if (result.platform) {
+    // The arms (docs/platform.md): the least magnet–skin gap, steps with a collision or a limit exceeded, the
+    // largest holding torque as a fraction of its joint's limit, the joints' travel and the arms' lag.
+    const platform::PlatformFigures& arms = *result.platform;
+    j["manipulators"] = scene.platform->arms.size();
+    j["min_magnet_skin_clearance_m"] =
+        std::isfinite(arms.min_skin_clearance) ? nlohmann::json(arms.min_skin_clearance) : nlohmann::json();
+    j["arm_collisions"] = arms.collisions;
+    j["joint_limit_violations"] = arms.limit_violations;
+    j["max_joint_torque_fraction"] = arms.max_torque_fraction;
+    j["arm_path_length_rad"] = arms.path_length;
+    j["max_arm_tracking_error_m"] = arms.max_tracking_error;
+    j["workspace_events"] = arms.workspace_events;
+  }
   const double simulated = result.samples.empty() ? 0.0 : result.samples.back().time;
   j["simulated_s"] = simulated;
   j["runtime_s"] = result.runtime_s;
@@ -207,6 +221,21 @@ void write_experiment_outputs(const ExperimentScene& scene, const ExperimentResu
            << ',' << m.axis.x() << ',' << m.axis.y() << ',' << m.axis.z() << '\n';
     }
     write_file_atomically(dir / "magnet_trajectory.csv", mags.str());
+  }
+  if (result.platform) {
+    std::ostringstream rows;
+    rows.precision(10);
+    rows << "t_s,arm";
+    for (int i = 1; i <= platform::kArmJoints; ++i) rows << ",q" << i << "_deg";
+    for (int i = 1; i <= platform::kArmJoints; ++i) rows << ",tau" << i << "_Nm";
+    rows << ",magnet_x_m,magnet_y_m,magnet_z_m\n";
+    for (const platform::ArmSample& a : result.arm_samples) {
+      rows << a.time << ',' << a.arm;
+      for (int i = 0; i < platform::kArmJoints; ++i) rows << ',' << a.q[i] / kDegToRad;
+      for (int i = 0; i < platform::kArmJoints; ++i) rows << ',' << a.tau[i];
+      rows << ',' << a.magnet.x() << ',' << a.magnet.y() << ',' << a.magnet.z() << '\n';
+    }
+    write_file_atomically(dir / "arms.csv", rows.str());
   }
   if (!scene.videos.empty() && video_plugin_built()) {
     VideoInputs in;

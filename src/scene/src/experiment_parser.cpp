@@ -20,6 +20,7 @@
 #include "magvine/core/text.hpp"
 #include "magvine/core/units.hpp"
 #include "magvine/scene/experiment_scene.hpp"
+#include "platform_entry.hpp"
 #include "ranges.hpp"
 #include "robot_entries.hpp"
 #include "yaml_reader.hpp"
@@ -698,7 +699,7 @@ ExperimentScene parse_experiment_scene(const std::string& text, const std::strin
   if (!root || root.IsNull()) throw InputError(file_label, 0, "", "empty scene file");
   const YamlMap top(root, file_label, "");
   top.allow_only({"units", "seed", "anatomy", "robot", "growth", "magnets", "control", "simulation", "target", "trials",
-                  "outputs"});
+                  "outputs", "platform"});
   const FileUnits units = file_units(top);
 
   ExperimentScene scene;
@@ -721,6 +722,7 @@ ExperimentScene parse_experiment_scene(const std::string& text, const std::strin
   if (top.has("target")) parse_target(top.map("target"), units, scene);
   if (top.has("trials")) parse_trials(top.map("trials"), units, scene);
   if (scene.navigator && !scene.target) detail::aim_at(scene, scene.navigator->target_branch);
+  if (top.has("platform")) scene.platform = parse_platform(top.map("platform"), units, scene);
   check_scene(top, units, scene);
   return scene;
 }

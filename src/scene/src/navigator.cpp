@@ -1,6 +1,8 @@
 #include "magvine/scene/navigator.hpp"
 
 #include <algorithm>
+#include <cstdio>
+#include <cstdlib>
 #include <cmath>
 #include <limits>
 
@@ -50,24 +52,13 @@ Vec3 point_at_arc_length(const std::vector<Vec3>& path, double s) {
   return path.back();
 }
 
-MagnetKeyframe navigate(const Navigator& nav, const std::vector<Vec3>& path, const Vec3& tip, const Mat3& tip_frame,
-                        const std::optional<Vec3>& skin, double time, const Vec3& offset, Vec3& line) {
-  const Vec3 aim = point_at_arc_length(path, arc_length_of_nearest(path, tip) + nav.lead);
-  Vec3 u = aim - tip;
-  if (nav.lateral > 0.0) {
-    // Only the pull across the tip bends it (growth carries it forward): take away that share of the component
-    // along the tip's tangent, unless the aim lies nearly straight ahead.
-    const Vec3 t = tip_frame.col(0);
-    if ((u - u.dot(t) * t).norm() > 0.1 * u.norm()) u -= nav.lateral * u.dot(t) * t;
-  }
-  if (u.norm() < 1e-9) u = path.back() - tip;
-  if (u.norm() < 1e-9) u = Vec3::UnitX();
-  u.normalize();
+MagnetKeyframe pose_on_line(const Navigator& nav, const Vec3& tip, const Mat3& tip_frame,
+                            const std::optional<Vec3>& skin, const Vec3& aim, const Vec3& u, double distance,
+                            double time, const Vec3& offset) {
   MagnetKeyframe k;
   k.time = time;
-  k.position = tip + std::clamp(nav.distance, nav.min_distance, nav.max_distance) * u + offset;
+  k.position = tip + distance * u + offset;
   k.axis = u;
-  line = u;
   if (skin) {
     // Gradient mode for a magnetic skin (thesis 4.7.1): the field at the tip along the skin's moment m, so the skin
     // is pulled towards the magnet without a torque. A dipole's field at r̂ (magnet to tip) is ∝ (3r̂r̂ᵀ − I)m_e,
@@ -92,6 +83,28 @@ MagnetKeyframe navigate(const Navigator& nav, const std::vector<Vec3>& path, con
   return k;
 }
 
+Vec3 aim_point(const Navigator& nav, const std::vector<Vec3>& path, const Vec3& tip) {
+  return point_at_arc_length(path, arc_length_of_nearest(path, tip) + nav.lead);
+}
+
+MagnetKeyframe navigate(const Navigator& nav, const std::vector<Vec3>& path, const Vec3& tip, const Mat3& tip_frame,
+                        const std::optional<Vec3>& skin, double time, const Vec3& offset, Vec3& line) {
+  const Vec3 aim = aim_point(nav, path, tip);
+  Vec3 u = aim - tip;
+  if (nav.lateral > 0.0) {
+    // Only the pull across the tip bends it (growth carries it forward): take away that share of the component
+    // along the tip's tangent, unless the aim lies nearly straight ahead.
+    const Vec3 t = tip_frame.col(0);
+    if ((u - u.dot(t) * t).norm() > 0.1 * u.norm()) u -= nav.lateral * u.dot(t) * t;
+  }
+  if (u.norm() < 1e-9) u = path.back() - tip;
+  if (u.norm() < 1e-9) u = Vec3::UnitX();
+  u.normalize();
+  line = u;
+  return pose_on_line(nav, tip, tip_frame, skin, aim, u, std::clamp(nav.distance, nav.min_distance, nav.max_distance),
+                      time, offset);
+}
+
 NavigatorController::NavigatorController(const ExperimentScene& scene) : m_scene(scene), m_nav(*scene.navigator) {
   const anatomy::AirwayGraph& graph = *scene.anatomy->graph;
   m_plan = anatomy::path_from_root(graph, m_nav.target_branch);
@@ -107,6 +120,90 @@ NavigatorController::NavigatorController(const ExperimentScene& scene) : m_scene
   m_next_placement = m_nav.interval;
   m_shortest = scene.vine.length;
   m_on_path = scene.vine.length;
+}
+
+void NavigatorController::use_platform(platform::PlatformRun* run, double t, const Vec3& tip, const Mat3& tip_frame,
+                                       double length, std::vector<RunEvent>& events) {
+  m_platform = run;
+  m_arm = run->arm_of_magnet(m_nav.magnet);
+  if (m_arm < 0) {
+    m_platform = nullptr;
+    return;
+  }
+  m_pose = navigate(m_nav, m_path, tip, tip_frame, m_skin, t, m_scene.navigator_offset, m_line);
+  place_with_arm(t, tip, tip_frame, length, events);
+}
+
+void NavigatorController::place_with_arm(double t, const Vec3& tip, const Mat3& tip_frame, double length,
+                                         std::vector<RunEvent>& events) {
+  // The ideal line from the tip (m_line) is where the magnet pulls best, but with the patient round the airway its
+  // distance puts it inside the body. Lines turned off it by θ (0–90°, six azimuths each) are each followed out
+  // from the tip to the least distance d (≥ the navigator's) at which the magnet clears the skin. What steers is the
+  // pull across the tip towards the aim's side s (the part of aim − tip normal to the tip's tangent): a line scores
+  // max(0, line·s) · (distance/d)⁴ (the pull points at the magnet and falls with the fourth power of the distance
+  // for a saturated fill), or cos θ · (distance/d)⁴ where the aim lies straight ahead.
+  const Vec3 aim = aim_point(m_nav, m_path, tip);
+  const Vec3 from = tip + m_scene.navigator_offset;
+  const Vec3 u = m_line;
+  const Vec3 tangent = tip_frame.col(0);
+  Vec3 side = (aim - tip) - (aim - tip).dot(tangent) * tangent;
+  const bool turning = side.norm() > 0.1 * (aim - tip).norm();
+  if (turning) side.normalize();
+  const Vec3 e1 = u.unitOrthogonal(), e2 = u.cross(e1);
+  struct Candidate {
+    double score;
+    MagnetKeyframe pose;
+  };
+  std::vector<Candidate> candidates;
+  constexpr int kAzimuths = 6;
+  for (const double theta_deg : {0.0, 15.0, 30.0, 45.0, 60.0, 75.0, 90.0}) {
+    const double theta = theta_deg * kDegToRad;
+    for (int k = 0; k < (theta_deg == 0.0 ? 1 : kAzimuths); ++k) {
+      const double phi = 2.0 * kPi * k / kAzimuths;
+      const Vec3 line = std::cos(theta) * u + std::sin(theta) * (std::cos(phi) * e1 + std::sin(phi) * e2);
+      const double aligned = turning ? line.dot(side) : std::cos(theta);
+      if (aligned <= 0.0) continue;
+      MagnetKeyframe pose = pose_on_line(m_nav, tip, tip_frame, m_skin, aim, line, m_nav.distance, t,
+                                         m_scene.navigator_offset);
+      const double d = m_platform->clear_distance(m_arm, from, line, pose.axis, m_nav.distance, m_nav.max_distance);
+      if (!std::isfinite(d)) continue;
+      pose.position = from + d * line;
+      candidates.push_back({aligned * std::pow(m_nav.distance / d, 4), pose});
+    }
+  }
+  std::stable_sort(candidates.begin(), candidates.end(),
+                   [](const Candidate& a, const Candidate& b) { return a.score > b.score; });
+  // The best few lines are tried with the joints near where the arm is (a small move), the best three also with a
+  // new posture; the winner is the best score times exp(−T / 1 s), T the arm's travel time there at its joints'
+  // speeds, so that a slightly better line does not cost a long swing of the arm while the vine grows, but a much
+  // better one (the other side of the patient) is worth it.
+  constexpr std::size_t kNearTries = 8, kFarTries = 3;
+  constexpr double kTravelScale = 1.0;  // [s]
+  double best_score = 0.0;
+  std::optional<std::pair<platform::Placement, MagnetKeyframe>> best;
+  for (std::size_t i = 0; i < std::min(kNearTries, candidates.size()); ++i) {
+    const Candidate& c = candidates[i];
+    for (const bool near : {true, false}) {
+      if (!near && i >= kFarTries) break;
+      platform::Placement p = m_platform->evaluate(m_arm, c.pose.position, c.pose.axis, near);
+      if (!p.feasible) continue;
+      const double score = c.score * std::exp(-m_platform->travel_time(m_arm, p.q) / kTravelScale);
+      if (score > best_score) {
+        best_score = score;
+        best.emplace(std::move(p), c.pose);
+      }
+      break;  // a near solution needs no new posture
+    }
+  }
+  if (best) {
+    m_platform->set_goal(m_arm, best->first.q);
+    m_pose = best->second;
+    return;
+  }
+  // Nothing feasible: the arm keeps its goal (the last feasible placement).
+  events.push_back({t, length, EventKind::kWorkspace,
+                    "no placement of the navigator's magnet within 90 degrees of its line and max_distance is "
+                    "reachable by the arm clear of the patient; it holds its last one"});
 }
 
 bool NavigatorController::keep_clear(const Vec3& tip) {
@@ -130,7 +227,9 @@ void NavigatorController::place(double t, const Vec3& tip, const Mat3& tip_frame
                                 std::vector<RunEvent>& events) {
   if (t < m_next_placement - 1e-12) return;
   m_pose = navigate(m_nav, m_path, tip, tip_frame, m_skin, t, m_scene.navigator_offset, m_line);
-  if (!keep_clear(tip) && !m_workspace_warned) {
+  if (m_platform != nullptr) {
+    place_with_arm(t, tip, tip_frame, length, events);
+  } else if (!keep_clear(tip) && !m_workspace_warned) {
     m_workspace_warned = true;
     events.push_back({t, length, EventKind::kWorkspace,
                       "the navigator's magnet overlaps the anatomy even at max_distance; placed there anyway"});

@@ -81,9 +81,6 @@ struct IkOptions {
   int iterations = 100;              ///< per start
   int restarts = 40;                 ///< random starts after the given one
   std::uint64_t seed = 1;            ///< of the random starts (deterministic)
-  /// Null-space pull towards `posture` per iteration (0: none): the redundancy keeps the elbow near a posture clear
-  /// of the patient and table.
-  double posture_gain = 0.0;
 };
 
 struct IkResult {
@@ -95,14 +92,17 @@ struct IkResult {
 };
 
 /// Joint angles within the limits that put the tool frame (flange · `tool`) at `target`: damped least squares
-/// (Levenberg–Marquardt on the task error, each step clamped into the joint limits) from `start`, then from random
-/// joint vectors; the first start that converges wins. `posture`: the null-space target (options.posture_gain).
+/// (Levenberg–Marquardt on the task error; a joint at a limit the step would push further is held; steps of at most
+/// 0.2 rad a joint, so the solution stays on the start's branch: the redundancy keeps the posture nearest the start)
+/// from `start`, then from random joint vectors; the first start that converges wins.
 IkResult solve_ik(const ArmModel& arm, const Iso3& base, const Iso3& tool, const Iso3& target,
-                  const JointVector& start, const IkOptions& options = {}, const JointVector* posture = nullptr);
+                  const JointVector& start, const IkOptions& options = {});
 
-/// One control step of the joint tracker: each joint moves towards `goal` as fast as its velocity and acceleration
-/// limits allow and brakes in time to stop there (v_wanted = sign(e)·min(v_max, √(2 a_max |e|)), velocity changed by
-/// at most a_max·dt). `q`, `qd` updated in place; returns whether every joint is at its goal and at rest.
+/// One control step of the joint tracker: the joints move towards `goal` together (each joint's limits scaled by its
+/// share of the remaining motion, so that from rest they follow the straight line in joint space) as fast as the
+/// velocity and acceleration limits allow, braking in time to stop there (v_wanted = sign(e)·min(v, √(2 a |e|)),
+/// velocity changed by at most a_max·dt, positions kept within the limits). `q`, `qd` updated in place; returns
+/// whether every joint is at its goal and at rest.
 bool track_joints(const ArmModel& arm, const JointVector& goal, double dt, JointVector& q, JointVector& qd);
 
 }  // namespace magvine::platform

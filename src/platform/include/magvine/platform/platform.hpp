@@ -10,6 +10,7 @@
 /// contact questions (GJK/EPA signed distances between the convex colliders: links, magnets, torso, table) and the
 /// holding torques (the articulated-body algorithm of btMultiBody, inverted at rest).
 
+#include <limits>
 #include <memory>
 #include <optional>
 #include <string>
@@ -90,8 +91,11 @@ class PlatformWorld {
   void set_joints(int arm, const JointVector& q);
   /// The checks at the arms' current joints.
   ArmCheck check(int arm) const;
-  /// The signed distance from a magnet of arm `arm`'s size at `magnet_pose` (z: its axis) to the torso (∞ without one).
-  double skin_distance(int arm, const Iso3& magnet_pose) const;
+  /// The signed distance from a magnet of arm `arm`'s size at `magnet_pose` (z: its axis) to the torso (∞ without one);
+  /// without `depth`, an overlap is −1 (not measured: cheaper).
+  double skin_distance(int arm, const Iso3& magnet_pose, bool depth = true) const;
+  /// The same to the table (∞ without one; an overlap −1).
+  double table_distance(int arm, const Iso3& magnet_pose) const;
   /// The collider transforms Bullet holds for arm `arm`'s links (world ← link frame; for tests of the frames).
   std::array<Iso3, kArmJoints> bullet_link_frames(int arm) const;
   /// The joint torques that hold arm `arm` still at its current joints against gravity, its magnet's weight and a
@@ -106,5 +110,90 @@ class PlatformWorld {
 
 /// The magnet's frame (z: its axis) of arm `mount` at joints q.
 Iso3 magnet_pose(const ArmModel& arm, const ArmMount& mount, const JointVector& q);
+
+/// Whether an arm can hold its magnet at a pose, and how.
+struct Placement {
+  bool feasible = false;
+  JointVector q = JointVector::Zero();  ///< the joints that do it (the best found when not feasible)
+  Vec3 position = Vec3::Zero();         ///< the magnet's centre placed [m]
+  Vec3 axis = Vec3::UnitZ();            ///< its axis
+  std::string why;                      ///< what makes it infeasible: unreachable, a collision, too near the skin
+};
+
+/// What a run measured of the arms (metrics.json: manipulators and the keys below, docs/platform.md).
+struct PlatformFigures {
+  double min_skin_clearance = std::numeric_limits<double>::infinity();  ///< magnet to skin, every step [m]
+  int collisions = 0;               ///< steps at which a link or magnet touched the torso, table or other arm
+  int limit_violations = 0;         ///< steps with a joint beyond its position, velocity or acceleration limit
+  double max_torque_fraction = 0.0; ///< largest |τ_i| / τ_max,i over the steps (holding torques)
+  double path_length = 0.0;         ///< Σ over arms and joints of the joint travel [rad]
+  double max_tracking_error = 0.0;  ///< largest distance between the magnet's (feasible) pose asked for and the one
+                                    ///< reached, every step: the arm's lag [m]
+  int workspace_events = 0;         ///< requests replaced by the nearest feasible pose
+};
+
+/// One arm's joints at a time (arms.csv).
+struct ArmSample {
+  double time = 0.0;
+  int arm = 0;
+  JointVector q = JointVector::Zero();
+  JointVector tau = JointVector::Zero();  ///< holding torques [N·m]
+  Vec3 magnet = Vec3::Zero();             ///< the magnet's centre [m]
+};
+
+/// The platform during a run: the Bullet world, each arm's joints, velocities and goal, and the figures. Each step:
+/// request() the magnets' poses when they change (IK, the checks, the nearest feasible pose), advance() the arms,
+/// then read magnet_pose() for the field.
+class PlatformRun {
+ public:
+  explicit PlatformRun(const PlatformModel& model);
+
+  /// Whether arm `arm` can hold its magnet at (position, axis): inverse kinematics (position and axis; the turn about
+  /// the axis is free) from the arm's joints (with `near_only`, only a solution within 20° a joint of them), then (unless
+  /// `near_only`) from its home and random starts; a solution is
+  /// feasible when the arm there, and on its way there from where it is (the tracker's straight joint-space line,
+  /// every 0.05 rad), touches nothing and keeps its magnet the clearance from the skin. Does not move the arm.
+  Placement evaluate(int arm, const Vec3& position, const Vec3& axis, bool near_only = false);
+  /// The least distance along `line` from `from` at which arm `arm`'s magnet (axis `axis`) clears the skin by the
+  /// model's clearance, at least `min_distance` [m]; ∞ when not within `max_distance`.
+  double clear_distance(int arm, const Vec3& from, const Vec3& line, const Vec3& axis, double min_distance,
+                        double max_distance) const;
+  /// Asks arm `arm` for its magnet at (position, axis): the goal becomes the request when feasible, otherwise the
+  /// nearest feasible pose (moved away from the torso, then searched around) — returned with `why` set (a workspace
+  /// event for the caller). `start`: the arm is there now (the run's first pose), no motion.
+  Placement request(int arm, const Vec3& position, const Vec3& axis, bool start = false);
+  /// Sets the goal directly (a placement evaluate() found feasible).
+  void set_goal(int arm, const JointVector& q);
+  /// The time the arm needs from where it is to joints q at its joints' top speeds (the slowest joint's) [s].
+  double travel_time(int arm, const JointVector& q) const;
+  /// Puts the arm at its goal at once (the run's first pose: the arm is there before the run starts).
+  void jump_to_goal(int arm);
+  /// Moves every arm one step of dt towards its goal (joint tracker), updates the world and the figures; `wrench`
+  /// per arm: the force [N] and torque about its centre [N·m] on its magnet (another magnet's), for the torques.
+  void advance(double time, double dt, const std::vector<std::pair<Vec3, Vec3>>& wrench);
+  /// The magnet's pose the arm has reached.
+  Iso3 magnet_pose(int arm) const;
+  const JointVector& joints(int arm) const { return m_arms[static_cast<std::size_t>(arm)].q; }
+  int arm_of_magnet(int magnet) const;
+  const PlatformFigures& figures() const { return m_figures; }
+  const std::vector<ArmSample>& samples() const { return m_samples; }
+  const PlatformModel& model() const { return m_model; }
+
+ private:
+  struct ArmState {
+    JointVector q = JointVector::Zero();
+    JointVector qd = JointVector::Zero();
+    JointVector goal = JointVector::Zero();
+    Vec3 asked = Vec3::Zero();  ///< the magnet's centre last asked for
+    bool placed = false;        ///< the run has put it at its first pose (before: no way there to check)
+  };
+  Placement nearest_feasible(int arm, const Vec3& position, const Vec3& axis);
+
+  const PlatformModel& m_model;
+  PlatformWorld m_world;
+  std::vector<ArmState> m_arms;
+  PlatformFigures m_figures;
+  std::vector<ArmSample> m_samples;
+};
 
 }  // namespace magvine::platform

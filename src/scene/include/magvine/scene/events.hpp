@@ -19,10 +19,12 @@ enum class EventKind {
   kRetract = static_cast<int>(robot::GrowthEventKind::kRetract),
   kSolver = static_cast<int>(robot::GrowthEventKind::kSolver),
   kRecover,    ///< the navigator backs the vine out of a wrong turn or a hold, or gives the pressure back
-  kWorkspace,  ///< the navigator's magnet overlaps the anatomy even at its farthest placement
+  kWorkspace,  ///< a magnet's pose was replaced: it overlaps the anatomy even at the navigator's farthest
+               ///< placement, or an arm cannot hold it there (out of reach, a collision, too near the skin)
+  kTorque,     ///< an arm needs more than a joint's torque limit to hold its magnet
 };
 
-/// "stall", "resume", …, "recover", "workspace".
+/// "stall", "resume", …, "recover", "workspace", "torque".
 std::string_view event_name(EventKind kind);
 /// The run's kind of a growth event.
 EventKind event_kind(robot::GrowthEventKind kind);

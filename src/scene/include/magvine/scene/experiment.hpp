@@ -6,6 +6,7 @@
 
 #include <filesystem>
 #include <functional>
+#include <optional>
 #include <string>
 #include <vector>
 
@@ -74,6 +75,9 @@ struct ExperimentResult {
   bool success = false;            ///< the tip came within the target's tolerance (false without a target)
   double time_to_target = -1;      ///< [s], −1 when not reached
   int recoveries = 0;              ///< times the navigator backed the vine out of a wrong turn (Navigator::Recovery)
+  /// With a platform: what the run measured of the arms, and their joints every step (arms.csv).
+  std::optional<platform::PlatformFigures> platform;
+  std::vector<platform::ArmSample> arm_samples;
   double runtime_s = 0.0;
 };
 

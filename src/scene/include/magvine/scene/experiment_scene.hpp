@@ -19,6 +19,7 @@
 #include "magvine/anatomy/triangle_mesh.hpp"
 #include "magvine/magnetics/field_model.hpp"
 #include "magvine/magnetics/magnet_motion.hpp"
+#include "magvine/platform/platform.hpp"
 #include "magvine/robot/growth.hpp"
 #include "magvine/robot/vine.hpp"
 
@@ -181,6 +182,8 @@ struct ExperimentScene {
   std::uint64_t seed = 0;
   double shape_interval = 0.0;      ///< outputs.shape_interval [s]: the body every so often in shapes.csv; 0: off
   std::vector<VideoOutput> videos;  ///< outputs.video
+  /// The patient, table and arms (platform:, docs/platform.md); null: the magnets float free where they are put.
+  std::shared_ptr<const platform::PlatformModel> platform;
 };
 
 /// Whether a scene file is an experiment (has `anatomy:`) rather than a free-space scene. InputError for an

@@ -7,6 +7,7 @@
 #include <vector>
 
 #include "magvine/core/eigen_types.hpp"
+#include "magvine/platform/platform.hpp"
 #include "magvine/robot/growth.hpp"
 #include "magvine/scene/events.hpp"
 #include "magvine/scene/experiment_scene.hpp"
@@ -47,6 +48,12 @@ class NavigatorController {
   void regulate(double t, double length, int branch, bool reached, const Vec3& tip, robot::GrowthControl& control,
                 std::vector<RunEvent>& events);
 
+  /// Places its magnet through an arm of the platform from now on (when an arm holds it): each placement then
+  /// chooses among the lines round its ideal one the best that the arm reaches clear of the patient (a feasible
+  /// placement, docs/platform.md) and sets the arm's goal. Places it now, from the tip at time t.
+  void use_platform(platform::PlatformRun* run, double t, const Vec3& tip, const Mat3& tip_frame, double length,
+                    std::vector<RunEvent>& events);
+
   /// The magnet it steers (index in magnets:) and its current pose.
   int magnet() const { return m_nav.magnet; }
   const MagnetKeyframe& pose() const { return m_pose; }
@@ -55,6 +62,7 @@ class NavigatorController {
 
  private:
   bool keep_clear(const Vec3& tip);
+  void place_with_arm(double t, const Vec3& tip, const Mat3& tip_frame, double length, std::vector<RunEvent>& events);
   void recover(double t, double length, int branch, robot::GrowthControl& control, std::vector<RunEvent>& events);
 
   const ExperimentScene& m_scene;
@@ -62,7 +70,9 @@ class NavigatorController {
   std::vector<int> m_plan;        ///< branches from the root to the target
   std::vector<Vec3> m_path;       ///< their centrelines joined
   std::optional<Vec3> m_skin;     ///< a magnetic skin's moment direction, body frame (skin modes)
-  MagnetKeyframe m_pose;          ///< the magnet's current pose
+  MagnetKeyframe m_pose;          ///< the magnet's current pose (asked of the arm, with a platform)
+  platform::PlatformRun* m_platform = nullptr;  ///< the arms, when one holds its magnet
+  int m_arm = -1;                               ///< that arm
   Vec3 m_line = Vec3::UnitX();    ///< the line from the tip it was placed on
   double m_next_placement = 0.0;  ///< [s]
   bool m_workspace_warned = false;
