@@ -13,9 +13,13 @@ namespace magvine::magnetics {
 namespace {
 
 // The thesis's EPM: N52, Ø101.6 × 101.6 mm, J = 1.48 T (PHYSICS.md §1).
-CylinderMagnet epm() { return CylinderMagnet(0.0508, 0.1016, Vec3(0, 0, 1.48)); }
+CylinderMagnet epm() {
+  return CylinderMagnet(0.0508, 0.1016, Vec3(0, 0, 1.48));
+}
 
-double relative(const Vec3& a, const Vec3& b) { return (a - b).norm() / b.norm(); }
+double relative(const Vec3& a, const Vec3& b) {
+  return (a - b).norm() / b.norm();
+}
 
 TEST(MagnetInteraction, TendsToTheDipoleLawFarApart) {
   // The cylinder's field departs from its dipole's by O((R/d)²) (L = D: no octupole cancellation), so the wrench

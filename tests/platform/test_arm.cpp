@@ -99,11 +99,11 @@ TEST(IiwaStatics, GravityTorquesAtAStretchedPose) {
   tool.com = Vec3(0, 0, 0.1508);
   const double g = 9.81;
   // Centres of mass along +x from A2 (the link's own offset along the arm, from the model's COM table):
-  const double x2 = 0.059;                   // link 2: origin at A2, y 0.059
-  const double x3 = 0.2045 + 0.13;           // link 3: origin 0.2045 past A2, z 0.13
-  const double x4 = 0.420 + 0.067;           // link 4: origin at A4, y 0.067
-  const double x5 = 0.420 + 0.1845 + 0.076;  // link 5: origin 0.1845 past A4, z 0.076
-  const double x6 = 0.420 + 0.400 + 0.0006;  // link 6: origin at A6, y 0.0006
+  const double x2 = 0.059;                         // link 2: origin at A2, y 0.059
+  const double x3 = 0.2045 + 0.13;                 // link 3: origin 0.2045 past A2, z 0.13
+  const double x4 = 0.420 + 0.067;                 // link 4: origin at A4, y 0.067
+  const double x5 = 0.420 + 0.1845 + 0.076;        // link 5: origin 0.1845 past A4, z 0.076
+  const double x6 = 0.420 + 0.400 + 0.0006;        // link 6: origin at A6, y 0.0006
   const double x7 = 0.420 + 0.400 + 0.081 + 0.02;  // link 7: origin 0.081 past A6, z 0.02
   const double xt = 0.420 + 0.400 + 0.126 + 0.1508;
   const double expected = g * (6.35 * x2 + 3.5 * x3 + 3.5 * x4 + 3.5 * x5 + 1.8 * x6 + 1.2 * x7 + 6.18 * xt);
@@ -112,8 +112,8 @@ TEST(IiwaStatics, GravityTorquesAtAStretchedPose) {
   // Gravity turns the arm on about +y (x towards −z, the way A2's positive turn goes): the holding torque is −Σ.
   EXPECT_NEAR(tau[1], -expected, 1e-9 * expected);
   // A4's axis stays −y at this pose: it holds the forearm, +Σ m g (x − 0.42) over the links beyond the elbow.
-  const double expected4 = g * (3.5 * (x4 - 0.42) + 3.5 * (x5 - 0.42) + 1.8 * (x6 - 0.42) + 1.2 * (x7 - 0.42) +
-                                6.18 * (xt - 0.42));
+  const double expected4 =
+      g * (3.5 * (x4 - 0.42) + 3.5 * (x5 - 0.42) + 1.8 * (x6 - 0.42) + 1.2 * (x7 - 0.42) + 6.18 * (xt - 0.42));
   EXPECT_NEAR(tau[3], expected4, 1e-9 * expected4);
 }
 

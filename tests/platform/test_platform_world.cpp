@@ -40,7 +40,8 @@ TEST(PlatformWorld, BulletFramesAndTorquesMatchTheArmModel) {
     for (int i = 0; i < kArmJoints; ++i) {
       EXPECT_LT((mine[i].matrix() - bullet[i].matrix()).norm(), 1e-12) << "link " << i + 1;
     }
-    // Holding torques by Bullet's articulated-body algorithm and by the Jacobian transpose, with a wrench on the magnet.
+    // Holding torques by Bullet's articulated-body algorithm and by the Jacobian transpose, with a wrench on the
+    // magnet.
     const Vec3 f(3.0, -20.0, 7.0), t(0.5, 0.2, -1.0);
     const Vec3 centre = magnet_pose(model.arm, model.arms[0], q).translation();
     const JointVector expected = holding_torques(model.arm, model.arms[0].tool, base, q, model.gravity, f, t, centre);

@@ -96,9 +96,8 @@ Wrench magnet_magnet_wrench(const CylinderMagnet& source, const Pose& source_pos
   return w;
 }
 
-Wrench magnet_magnet_wrench_volume(const CylinderMagnet& source, const Pose& source_pose,
-                                   const CylinderMagnet& target, const Pose& target_pose,
-                                   const InteractionResolution& res) {
+Wrench magnet_magnet_wrench_volume(const CylinderMagnet& source, const Pose& source_pose, const CylinderMagnet& target,
+                                   const Pose& target_pose, const InteractionResolution& res) {
   const PosedSource b{source, source_pose};
   const Vec3 m = target_pose.rotation * target.polarisation() / kMu0;
   Wrench w;

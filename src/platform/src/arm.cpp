@@ -1,11 +1,10 @@
 #include "magvine/platform/arm.hpp"
 
+#include <Eigen/Cholesky>
 #include <algorithm>
 #include <cmath>
 #include <limits>
 #include <random>
-
-#include <Eigen/Cholesky>
 
 #include "magvine/core/units.hpp"
 
@@ -48,23 +47,57 @@ ArmModel iiwa14_r820() {
   // kg, KUKA's catalogue weight). Capsules: bounds of the housings (our estimate, docs/platform.md).
   ArmModel a;
   a.name = "KUKA LBR iiwa 14 R820";
-  a.base = {Iso3::Identity(), 5.0, Vec3(-0.1, 0, 0.07), Vec3(0.05, 0.06, 0.03), Vec3::Zero(), Vec3(0, 0, 0.1575),
-            0.11};
+  a.base = {Iso3::Identity(), 5.0, Vec3(-0.1, 0, 0.07), Vec3(0.05, 0.06, 0.03), Vec3::Zero(), Vec3(0, 0, 0.1575), 0.11};
   const double pi = kPi;
-  a.links[0] = {urdf_origin(0, 0, 0.1575, 0, 0, 0), 5.76, Vec3(0, -0.03, 0.12), Vec3(0.033, 0.0333, 0.0123),
-                Vec3::Zero(), Vec3(0, 0, 0.2025), 0.08};
-  a.links[1] = {urdf_origin(0, 0, 0.2025, pi / 2, 0, pi), 6.35, Vec3(0.0003, 0.059, 0.042),
-                Vec3(0.0305, 0.0304, 0.011), Vec3::Zero(), Vec3(0, 0.2045, 0), 0.08};
-  a.links[2] = {urdf_origin(0, 0.2045, 0, pi / 2, 0, pi), 3.5, Vec3(0, 0.03, 0.13), Vec3(0.025, 0.0238, 0.0076),
-                Vec3::Zero(), Vec3(0, 0, 0.2155), 0.075};
-  a.links[3] = {urdf_origin(0, 0, 0.2155, pi / 2, 0, 0), 3.5, Vec3(0, 0.067, 0.034), Vec3(0.017, 0.0164, 0.006),
-                Vec3::Zero(), Vec3(0, 0.1845, 0), 0.075};
-  a.links[4] = {urdf_origin(0, 0.1845, 0, -pi / 2, pi, 0), 3.5, Vec3(0.0001, 0.021, 0.076),
-                Vec3(0.01, 0.0087, 0.00449), Vec3::Zero(), Vec3(0, 0, 0.2155), 0.07};
-  a.links[5] = {urdf_origin(0, 0, 0.2155, pi / 2, 0, 0), 1.8, Vec3(0, 0.0006, 0.0004), Vec3(0.0049, 0.0047, 0.0036),
-                Vec3::Zero(), Vec3(0, 0.081, 0), 0.07};
-  a.links[6] = {urdf_origin(0, 0.081, 0, -pi / 2, pi, 0), 1.2, Vec3(0, 0, 0.02), Vec3(0.001, 0.001, 0.001),
-                Vec3::Zero(), Vec3(0, 0, 0.045), 0.055};
+  a.links[0] = {urdf_origin(0, 0, 0.1575, 0, 0, 0),
+                5.76,
+                Vec3(0, -0.03, 0.12),
+                Vec3(0.033, 0.0333, 0.0123),
+                Vec3::Zero(),
+                Vec3(0, 0, 0.2025),
+                0.08};
+  a.links[1] = {urdf_origin(0, 0, 0.2025, pi / 2, 0, pi),
+                6.35,
+                Vec3(0.0003, 0.059, 0.042),
+                Vec3(0.0305, 0.0304, 0.011),
+                Vec3::Zero(),
+                Vec3(0, 0.2045, 0),
+                0.08};
+  a.links[2] = {urdf_origin(0, 0.2045, 0, pi / 2, 0, pi),
+                3.5,
+                Vec3(0, 0.03, 0.13),
+                Vec3(0.025, 0.0238, 0.0076),
+                Vec3::Zero(),
+                Vec3(0, 0, 0.2155),
+                0.075};
+  a.links[3] = {urdf_origin(0, 0, 0.2155, pi / 2, 0, 0),
+                3.5,
+                Vec3(0, 0.067, 0.034),
+                Vec3(0.017, 0.0164, 0.006),
+                Vec3::Zero(),
+                Vec3(0, 0.1845, 0),
+                0.075};
+  a.links[4] = {urdf_origin(0, 0.1845, 0, -pi / 2, pi, 0),
+                3.5,
+                Vec3(0.0001, 0.021, 0.076),
+                Vec3(0.01, 0.0087, 0.00449),
+                Vec3::Zero(),
+                Vec3(0, 0, 0.2155),
+                0.07};
+  a.links[5] = {urdf_origin(0, 0, 0.2155, pi / 2, 0, 0),
+                1.8,
+                Vec3(0, 0.0006, 0.0004),
+                Vec3(0.0049, 0.0047, 0.0036),
+                Vec3::Zero(),
+                Vec3(0, 0.081, 0),
+                0.07};
+  a.links[6] = {urdf_origin(0, 0.081, 0, -pi / 2, pi, 0),
+                1.2,
+                Vec3(0, 0, 0.02),
+                Vec3(0.001, 0.001, 0.001),
+                Vec3::Zero(),
+                Vec3(0, 0, 0.045),
+                0.055};
   a.flange = urdf_origin(0, 0, 0.045, 0, 0, 0);
   // KUKA's data sheet (via Drake's iiwa_description README, "page 30" of the LBR iiwa brochure): axis ranges, speeds
   // and maximum torques. KUKA publishes no acceleration limits: Drake's estimates from measurements (a Chalmers MSc
@@ -204,7 +237,8 @@ IkResult solve_ik(const ArmModel& arm, const Iso3& base, const Iso3& tool, const
           for (int i = 0; i < kArmJoints; ++i) {
             const bool at_min = q[i] <= arm.q_min[i] + 1e-12 && dq[i] < 0.0;
             const bool at_max = q[i] >= arm.q_max[i] - 1e-12 && dq[i] > 0.0;
-            if (!held[static_cast<std::size_t>(i)] && (at_min || at_max)) more = held[static_cast<std::size_t>(i)] = true;
+            if (!held[static_cast<std::size_t>(i)] && (at_min || at_max))
+              more = held[static_cast<std::size_t>(i)] = true;
           }
           if (!more) break;
         }
@@ -225,8 +259,8 @@ IkResult solve_ik(const ArmModel& arm, const Iso3& base, const Iso3& tool, const
       if (!accepted) break;  // a local minimum (often a joint limit): the next start
     }
     const bool ok = t.position <= options.position_tolerance && t.angle <= options.angle_tolerance;
-    if (ok || cost(t) < best.position_error * best.position_error + kLength * kLength * best.angle_error *
-                                                                           best.angle_error) {
+    if (ok ||
+        cost(t) < best.position_error * best.position_error + kLength * kLength * best.angle_error * best.angle_error) {
       best.q = q;
       best.position_error = t.position;
       best.angle_error = t.angle;

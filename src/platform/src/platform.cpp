@@ -1,7 +1,5 @@
 #include "magvine/platform/platform.hpp"
 
-#include <btBulletDynamicsCommon.h>
-
 #include <BulletCollision/NarrowPhaseCollision/btGjkEpaPenetrationDepthSolver.h>
 #include <BulletCollision/NarrowPhaseCollision/btGjkPairDetector.h>
 #include <BulletCollision/NarrowPhaseCollision/btPointCollector.h>
@@ -10,13 +8,14 @@
 #include <BulletDynamics/Featherstone/btMultiBodyConstraintSolver.h>
 #include <BulletDynamics/Featherstone/btMultiBodyDynamicsWorld.h>
 #include <BulletDynamics/Featherstone/btMultiBodyLinkCollider.h>
+#include <btBulletDynamicsCommon.h>
 
+#include <Eigen/LU>
 #include <algorithm>
 #include <cmath>
 #include <limits>
+#include <optional>
 #include <random>
-
-#include <Eigen/LU>
 
 #include "magvine/core/units.hpp"
 
@@ -26,8 +25,12 @@ namespace {
 
 static_assert(sizeof(btScalar) == sizeof(double), "magvine links Bullet in double precision only");
 
-btVector3 bt(const Vec3& v) { return {v.x(), v.y(), v.z()}; }
-Vec3 eig(const btVector3& v) { return {v.x(), v.y(), v.z()}; }
+btVector3 bt(const Vec3& v) {
+  return {v.x(), v.y(), v.z()};
+}
+Vec3 eig(const btVector3& v) {
+  return {v.x(), v.y(), v.z()};
+}
 
 btTransform bt(const Iso3& t) {
   const Eigen::Quaterniond q(t.linear());
@@ -88,7 +91,7 @@ class EllipticCylinderShape : public btConvexInternalShape {
     return {ex / n, ey / n, z};
   }
   void batchedUnitVectorGetSupportingVertexWithoutMargin(const btVector3* vectors, btVector3* out,
-                                                          int count) const override {
+                                                         int count) const override {
     for (int i = 0; i < count; ++i) out[i] = localGetSupportingVertexWithoutMargin(vectors[i]);
   }
   void calculateLocalInertia(btScalar, btVector3& inertia) const override { inertia.setZero(); }  // static
@@ -218,8 +221,8 @@ struct PlatformWorld::Impl {
       }
       a.com[static_cast<std::size_t>(i)] = com;
       const Eigen::Quaterniond r(l.origin.linear().transpose());  // parent → this at q = 0
-      a.body->setupRevolute(i, mass, bt(l.inertia), i - 1, btQuaternion(r.x(), r.y(), r.z(), r.w()),
-                            btVector3(0, 0, 1), bt(Vec3(l.origin.translation() - parent_com)), bt(com), true);
+      a.body->setupRevolute(i, mass, bt(l.inertia), i - 1, btQuaternion(r.x(), r.y(), r.z(), r.w()), btVector3(0, 0, 1),
+                            bt(Vec3(l.origin.translation() - parent_com)), bt(com), true);
       parent_com = com;
     }
     a.body->finalizeMultiDof();
@@ -294,12 +297,14 @@ struct PlatformWorld::Impl {
 PlatformWorld::PlatformWorld(const PlatformModel& model) : m(std::make_unique<Impl>(model)) {}
 PlatformWorld::~PlatformWorld() = default;
 
-void PlatformWorld::set_joints(int arm, const JointVector& q) { m->set(m->arms[static_cast<std::size_t>(arm)], q); }
+void PlatformWorld::set_joints(int arm, const JointVector& q) {
+  m->set(m->arms[static_cast<std::size_t>(arm)], q);
+}
 
 namespace {
 const char* piece_name(int index) {
-  static const char* kNames[] = {"base", "link 1", "link 2", "link 3", "link 4", "link 5", "link 6", "link 7",
-                                 "magnet"};
+  static const char* kNames[] = {"base",   "link 1", "link 2", "link 3", "link 4",
+                                 "link 5", "link 6", "link 7", "magnet"};
   return kNames[index];
 }
 }  // namespace
@@ -437,24 +442,54 @@ Iso3 PlatformRun::magnet_pose(int arm) const {
   return platform::magnet_pose(m_model.arm, m_model.arms[a], m_arms[a].q);
 }
 
-Placement PlatformRun::evaluate(int arm, const Vec3& position, const Vec3& axis, bool near_only) {
+std::string PlatformRun::pose_problem(int arm, const JointVector& q) {
+  m_world.set_joints(arm, q);
+  const ArmCheck c = m_world.check(arm);
+  if (c.collision) return "the arm would collide (" + c.nearest_what + ")";
+  if (c.skin_clearance < m_model.clearance - 1e-9) return "the magnet would come within the clearance of the skin";
+  return {};
+}
+
+std::string PlatformRun::way_problem(int arm, const std::vector<JointVector>& legs) {
+  constexpr int kMaxWaySteps = 5000;
+  const ArmState& s = m_arms[static_cast<std::size_t>(arm)];
+  JointVector q = s.q, qd = s.qd;
+  for (const JointVector& goal : legs) {
+    for (int step = 0; step < kMaxWaySteps; ++step) {
+      const bool there = track_joints(m_model.arm, goal, m_dt, q, qd);
+      std::string why = pose_problem(arm, q);
+      if (!why.empty()) return "on the way there: " + why;
+      if (there) break;
+    }
+  }
+  return {};
+}
+
+Placement PlatformRun::evaluate(int arm, const Vec3& position, const Vec3& axis, bool near_only, bool either_way) {
+  if (either_way) {
+    // A field whose use does not care for the axis's sign (a soft-magnetic fill's pull follows |B|): the magnet
+    // turned round first (an axial mount then holds it from outside), then as asked.
+    Placement p = evaluate(arm, position, -axis, near_only, false);
+    if (p.feasible) return p;
+    Placement q = evaluate(arm, position, axis, near_only, false);
+    return q.feasible ? q : p;
+  }
   constexpr double kNearJoints = 20.0 * kPi / 180.0;
   const auto a = static_cast<std::size_t>(arm);
   const ArmMount& mount = m_model.arms[a];
-  const Iso3 target = pose_of(position, axis);
   IkOptions options;
   options.task = IkTask::kPositionAxis;
   options.restarts = 0;
   // Starts: where the arm is (the nearest solution: smooth motion, and no drift of the posture from one request to
-  // the next), then (unless near_only) its home and random joint
-  // vectors (seeded by the request, so a run is deterministic).
+  // the next), then (unless near_only) its home and random joint vectors (seeded by the request, so a run is
+  // deterministic).
   std::vector<JointVector> starts{m_arms[a].q};
   if (!near_only) {
     starts.push_back(mount.home);
     std::mt19937_64 rng(static_cast<std::uint64_t>(std::abs(position.sum()) * 1e6) + a);
     std::uniform_real_distribution<double> unit(0.0, 1.0);
     constexpr int kRandomStarts = 6;
-    for (int s = 0; s < kRandomStarts; ++s) {
+    for (int k = 0; k < kRandomStarts; ++k) {
       JointVector q;
       for (int i = 0; i < kArmJoints; ++i) {
         q[i] = m_model.arm.q_min[i] + unit(rng) * (m_model.arm.q_max[i] - m_model.arm.q_min[i]);
@@ -462,34 +497,53 @@ Placement PlatformRun::evaluate(int arm, const Vec3& position, const Vec3& axis,
       starts.push_back(q);
     }
   }
+  // The IK for a magnet pose from a start: converged joints or none.
+  const auto solve = [&](const Vec3& p, const Vec3& ax, const JointVector& start) -> std::optional<JointVector> {
+    const IkResult r = solve_ik(m_model.arm, mount.base, mount.tool.flange_to_magnet, pose_of(p, ax), start, options);
+    return r.converged ? std::optional<JointVector>(r.q) : std::nullopt;
+  };
+  // Out from the torso's axis at p (or up, without a torso): where a magnet backs out to move round the patient.
+  const auto outward = [&](const Vec3& p) -> Vec3 {
+    if (!m_model.body) return -m_model.gravity.normalized();
+    const Iso3& f = m_model.body->frame;
+    Vec3 out = p - f.translation();
+    out -= out.dot(f.linear().col(2)) * f.linear().col(2);
+    return out.norm() > 1e-9 ? Vec3(out.normalized()) : Vec3(f.linear().col(1));
+  };
   Placement best;
   best.position = position;
   best.axis = axis.normalized();
   best.why = "out of the arm's reach";
-  // Whether the arm at q collides or brings its magnet within the clearance; why, if so.
-  const auto problem = [&](const JointVector& q) -> std::string {
-    m_world.set_joints(arm, q);
-    const ArmCheck c = m_world.check(arm);
-    if (c.collision) return "the arm would collide (" + c.nearest_what + ")";
-    if (c.skin_clearance < m_model.clearance - 1e-9) return "the magnet would come within the clearance of the skin";
-    return {};
-  };
   for (const JointVector& start : starts) {
-    const IkResult r = solve_ik(m_model.arm, mount.base, mount.tool.flange_to_magnet, target, start, options);
-    if (!r.converged) continue;
+    const std::optional<JointVector> q = solve(position, axis, start);
+    if (!q) continue;
     // Near: a small move of the joints (≤ 20° each from where it is), not a new posture reached by a long way round.
-    if (near_only && (r.q - m_arms[a].q).cwiseAbs().maxCoeff() > kNearJoints) {
+    if (near_only && (*q - m_arms[a].q).cwiseAbs().maxCoeff() > kNearJoints) {
       best.why = "only a new posture of the arm reaches it";
       continue;
     }
-    best.q = r.q;
-    best.why = problem(r.q);
-    // The way there (the tracker's straight line in joint space from where the arm is), every 0.05 rad.
-    const JointVector from = m_arms[a].q;
-    const int n = m_arms[a].placed ? static_cast<int>(std::ceil((r.q - from).cwiseAbs().maxCoeff() / 0.05)) : 0;
-    for (int k = 1; k < n && best.why.empty(); ++k) {
-      const std::string on_way = problem(from + (r.q - from) * (static_cast<double>(k) / n));
-      if (!on_way.empty()) best.why = "on the way there: " + on_way;
+    best.q = *q;
+    best.via.clear();
+    best.why = pose_problem(arm, *q);
+    if (best.why.empty() && m_arms[a].placed) {
+      // The way there: the tracker's own motion from where the arm is (joints and speeds), step by step as advance()
+      // will move it, every step checked as advance() checks it. Blocked, it tries backing the magnet out from the
+      // torso by 8 or 16 cm, moving round there and coming in again.
+      best.why = way_problem(arm, {*q});
+      if (!best.why.empty() && !near_only) {
+        const Vec3 here = magnet_pose(arm).translation();
+        const Vec3 here_axis = magnet_pose(arm).linear().col(2);
+        for (const double back : {0.08, 0.16}) {
+          const std::optional<JointVector> v1 = solve(here + back * outward(here), here_axis, m_arms[a].q);
+          const std::optional<JointVector> v2 = solve(position + back * outward(position), axis, *q);
+          if (!v1 || !v2) continue;
+          if (way_problem(arm, {*v1, *v2, *q}).empty()) {
+            best.via = {*v1, *v2};
+            best.why.clear();
+            break;
+          }
+        }
+      }
     }
     if (best.why.empty()) {
       best.feasible = true;
@@ -501,13 +555,14 @@ Placement PlatformRun::evaluate(int arm, const Vec3& position, const Vec3& axis,
 }
 
 double PlatformRun::clear_distance(int arm, const Vec3& from, const Vec3& line, const Vec3& axis, double min_distance,
-                                   double max_distance) const {
+                                   double max_distance, double margin) const {
   const auto gap = [&](double d) {
-    return m_world.skin_distance(arm, pose_of(from + d * line, axis), false) - m_model.clearance;
-  };
+    return m_world.skin_distance(arm, pose_of(from + d * line, axis), false) - m_model.clearance - margin;
+  };  // (the magnet's clearance does not depend on its axis's sign)
   // A placement through the table is none.
   const auto under_table = [&](double d) { return m_world.table_distance(arm, pose_of(from + d * line, axis)) < 0.0; };
-  if (gap(min_distance) >= 0.0) return under_table(min_distance) ? std::numeric_limits<double>::infinity() : min_distance;
+  if (gap(min_distance) >= 0.0)
+    return under_table(min_distance) ? std::numeric_limits<double>::infinity() : min_distance;
   // Convex torso: along a line the gap rises once it starts to, so march out, then bisect to 0.1 mm.
   double lo = min_distance, hi = min_distance;
   do {
@@ -520,6 +575,39 @@ double PlatformRun::clear_distance(int arm, const Vec3& from, const Vec3& line, 
     (gap(mid) >= 0.0 ? hi : lo) = mid;
   }
   return under_table(hi) ? std::numeric_limits<double>::infinity() : hi;
+}
+
+std::optional<Vec3> PlatformRun::shell_point(int arm, double angle, double level, const Vec3* axis) const {
+  if (!m_model.body) return std::nullopt;
+  const Iso3& f = m_model.body->frame;
+  const Vec3 from = f.translation() + shell_level(arm, level) * f.linear().col(2);
+  const Vec3 out = shell_direction(angle);
+  // 3 mm beyond the clearance, so that the way between two shell points (the chord, and the arm's joint motion
+  // between them) keeps the clearance.
+  constexpr double kShellMargin = 3e-3;
+  const double d = clear_distance(arm, from, out, axis != nullptr ? *axis : out, 0.0, 2.0, kShellMargin);
+  if (!std::isfinite(d)) return std::nullopt;
+  return Vec3(from + d * out);
+}
+
+double PlatformRun::shell_level(int arm, double level) const {
+  if (!m_model.body) return level;
+  // Over the torso only (the neck and head above it, the legs below are not modelled): its length less the magnet's.
+  const double reach = 0.5 * m_model.body->length - 0.5 * m_model.arms[static_cast<std::size_t>(arm)].magnet_length;
+  return std::clamp(level, -reach, reach);
+}
+
+Vec3 PlatformRun::shell_direction(double angle) const {
+  if (!m_model.body) return Vec3::Zero();
+  const Iso3& f = m_model.body->frame;
+  return std::cos(angle) * f.linear().col(0) + std::sin(angle) * f.linear().col(1);
+}
+
+std::pair<double, double> PlatformRun::shell_coordinates(const Vec3& x) const {
+  if (!m_model.body) return {0.0, 0.0};
+  const Iso3& f = m_model.body->frame;
+  const Vec3 r = f.linear().transpose() * (x - f.translation());
+  return {std::atan2(r.y(), r.x()), r.z()};
 }
 
 Placement PlatformRun::nearest_feasible(int arm, const Vec3& position, const Vec3& axis) {
@@ -562,19 +650,37 @@ Placement PlatformRun::nearest_feasible(int arm, const Vec3& position, const Vec
   return none;
 }
 
-void PlatformRun::set_goal(int arm, const JointVector& q) {
+void PlatformRun::set_goal(int arm, const Placement& placement) {
   ArmState& s = m_arms[static_cast<std::size_t>(arm)];
-  s.goal = q;
-  s.asked = platform::magnet_pose(m_model.arm, m_model.arms[static_cast<std::size_t>(arm)], q).translation();
+  s.next = placement.via;
+  s.next.push_back(placement.q);
+  s.goal = s.next.front();
+  s.next.erase(s.next.begin());
+  s.asked = platform::magnet_pose(m_model.arm, m_model.arms[static_cast<std::size_t>(arm)], placement.q).translation();
 }
 
-double PlatformRun::travel_time(int arm, const JointVector& q) const {
-  return (q - m_arms[static_cast<std::size_t>(arm)].q).cwiseAbs().cwiseQuotient(m_model.arm.qd_max).maxCoeff();
+namespace {
+double leg_time(const ArmModel& arm, const JointVector& from, const JointVector& to) {
+  return (to - from).cwiseAbs().cwiseQuotient(arm.qd_max).maxCoeff();
+}
+}  // namespace
+
+double PlatformRun::remaining_time(int arm) const {
+  const ArmState& s = m_arms[static_cast<std::size_t>(arm)];
+  double t = leg_time(m_model.arm, s.q, s.goal);
+  JointVector from = s.goal;
+  for (const JointVector& v : s.next) {
+    t += leg_time(m_model.arm, from, v);
+    from = v;
+  }
+  return t;
 }
 
 void PlatformRun::jump_to_goal(int arm) {
   ArmState& s = m_arms[static_cast<std::size_t>(arm)];
   s.placed = true;
+  if (!s.next.empty()) s.goal = s.next.back();
+  s.next.clear();
   s.q = s.goal;
   s.qd.setZero();
   m_world.set_joints(arm, s.q);
@@ -587,16 +693,18 @@ Placement PlatformRun::request(int arm, const Vec3& position, const Vec3& axis, 
   if (!p.feasible) {
     const std::string why = p.why;
     p = nearest_feasible(arm, position, axis);
-    p.why = p.feasible ? why + "; moved " + std::to_string(static_cast<int>(std::lround((p.position - position).norm() * 1e3))) + " mm"
+    p.why = p.feasible ? why + "; moved " +
+                             std::to_string(static_cast<int>(std::lround((p.position - position).norm() * 1e3))) + " mm"
                        : why + "; " + p.why + ", the arm holds its goal";
     ++m_figures.workspace_events;
   }
   if (p.feasible) {
-    m_arms[a].goal = p.q;
+    set_goal(arm, p);
     m_arms[a].asked = p.position;
     if (start) {
       m_arms[a].placed = true;
-      m_arms[a].q = p.q;
+      m_arms[a].q = m_arms[a].goal = p.q;
+      m_arms[a].next.clear();
       m_arms[a].qd.setZero();
       m_world.set_joints(arm, p.q);
     }
@@ -605,11 +713,15 @@ Placement PlatformRun::request(int arm, const Vec3& position, const Vec3& axis, 
 }
 
 void PlatformRun::advance(double time, double dt, const std::vector<std::pair<Vec3, Vec3>>& wrench) {
+  if (dt > 0.0) m_dt = dt;
   bool violation = false;
   for (std::size_t a = 0; a < m_arms.size(); ++a) {
     ArmState& s = m_arms[a];
     const JointVector q0 = s.q, qd0 = s.qd;
-    if (dt > 0.0) track_joints(m_model.arm, s.goal, dt, s.q, s.qd);
+    if (dt > 0.0 && track_joints(m_model.arm, s.goal, dt, s.q, s.qd) && !s.next.empty()) {
+      s.goal = s.next.front();  // at a via point: on to the next
+      s.next.erase(s.next.begin());
+    }
     m_figures.path_length += (s.q - q0).cwiseAbs().sum();
     const ArmModel& arm = m_model.arm;
     for (int i = 0; i < kArmJoints; ++i) {

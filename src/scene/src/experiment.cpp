@@ -104,7 +104,8 @@ ExperimentResult run_experiment(const ExperimentScene& scene, const std::functio
       last = {t, w.position, axis};
       const platform::Placement p = arms->request(static_cast<int>(a), w.position, axis, start);
       if (!p.why.empty()) {
-        navigator_events.push_back({t, 0.0, EventKind::kWorkspace, printf_string("arm %zu (magnets[%d]): ", a, i) + p.why});
+        navigator_events.push_back(
+            {t, 0.0, EventKind::kWorkspace, printf_string("arm %zu (magnets[%d]): ", a, i) + p.why});
       }
     }
   };
@@ -132,10 +133,9 @@ ExperimentResult run_experiment(const ExperimentScene& scene, const std::functio
     arms->advance(t, dt, wrench);
     if (!torque_logged && arms->figures().max_torque_fraction > 1.0) {
       torque_logged = true;
-      navigator_events.push_back(
-          {t, 0.0, EventKind::kTorque,
-           printf_string("an arm needs %.0f %% of a joint's torque limit to hold its magnet",
-                         100.0 * arms->figures().max_torque_fraction)});
+      navigator_events.push_back({t, 0.0, EventKind::kTorque,
+                                  printf_string("an arm needs %.0f %% of a joint's torque limit to hold its magnet",
+                                                100.0 * arms->figures().max_torque_fraction)});
     }
     reached(p);
   };

@@ -1,7 +1,6 @@
-#include <nlohmann/json.hpp>
-
 #include <algorithm>
 #include <cmath>
+#include <nlohmann/json.hpp>
 #include <optional>
 #include <sstream>
 
@@ -10,9 +9,9 @@
 #include "magvine/anatomy/airway_graph.hpp"
 #include "magvine/config.hpp"
 #include "magvine/core/atomic_file.hpp"
+#include "magvine/core/usage.hpp"
 #include "magvine/scene/experiment.hpp"
 #include "magvine/scene/navigator.hpp"
-#include "magvine/core/usage.hpp"
 #include "magvine/scene/video_plugin.hpp"
 
 namespace magvine::scene {
@@ -34,7 +33,8 @@ RunFigures figures_of(const ExperimentScene& scene, const ExperimentResult& resu
     f.mean_normal += s.total_normal / static_cast<double>(result.samples.size());
     if (scene.anatomy->graph && s.branch >= 0 && s.branch != last_branch) {
       f.branches.push_back(scene.anatomy->graph->branches[static_cast<std::size_t>(s.branch)].name);
-      f.generation = std::max(f.generation, scene.anatomy->graph->branches[static_cast<std::size_t>(s.branch)].generation);
+      f.generation =
+          std::max(f.generation, scene.anatomy->graph->branches[static_cast<std::size_t>(s.branch)].generation);
       last_branch = s.branch;
     }
   }
@@ -68,10 +68,10 @@ std::string failure_reason(const ExperimentResult& result, const RunFigures& fig
       last = &e;
     }
   }
-  const std::string branch =
-      figures.branches.empty() ? std::string() : ", last in branch " + figures.branches.back();
+  const std::string branch = figures.branches.empty() ? std::string() : ", last in branch " + figures.branches.back();
   if (last != nullptr) {
-    why << event_name(last->kind) << " at " << last->time << " s, " << 1e3 * last->length << " mm everted: " << last->detail;
+    why << event_name(last->kind) << " at " << last->time << " s, " << 1e3 * last->length
+        << " mm everted: " << last->detail;
   } else {
     why << "the time ran out";
   }
@@ -168,9 +168,8 @@ void write_experiment_outputs(const ExperimentScene& scene, const ExperimentResu
   tips.precision(10);
   tips << "t_s,x_m,y_m,z_m,length_m,pressure_Pa,max_normal_N,mean_normal_N,total_normal_N,total_shear_N,branch\n";
   for (const ExperimentSample& s : result.samples) {
-    tips << s.time << ',' << s.tip.x() << ',' << s.tip.y() << ',' << s.tip.z() << ',' << s.length << ','
-         << s.pressure << ',' << s.max_normal << ',' << s.mean_normal << ',' << s.total_normal << ',' << s.total_shear
-         << ','
+    tips << s.time << ',' << s.tip.x() << ',' << s.tip.y() << ',' << s.tip.z() << ',' << s.length << ',' << s.pressure
+         << ',' << s.max_normal << ',' << s.mean_normal << ',' << s.total_normal << ',' << s.total_shear << ','
          << (s.branch >= 0 ? scene.anatomy->graph->branches[static_cast<std::size_t>(s.branch)].name : std::string())
          << '\n';
   }

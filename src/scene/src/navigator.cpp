@@ -1,16 +1,16 @@
 #include "magvine/scene/navigator.hpp"
 
 #include <algorithm>
-#include <cstdio>
-#include <cstdlib>
 #include <cmath>
 #include <limits>
+#include <span>
 
 #include "experiment_internal.hpp"
 #include "magvine/anatomy/airway_graph.hpp"
 #include "magvine/core/text.hpp"
 #include "magvine/core/units.hpp"
 #include "magvine/magnetics/dipole.hpp"
+#include "magvine/magnetics/field_model.hpp"
 
 namespace magvine::scene {
 
@@ -108,6 +108,8 @@ MagnetKeyframe navigate(const Navigator& nav, const std::vector<Vec3>& path, con
 NavigatorController::NavigatorController(const ExperimentScene& scene) : m_scene(scene), m_nav(*scene.navigator) {
   const anatomy::AirwayGraph& graph = *scene.anatomy->graph;
   m_plan = anatomy::path_from_root(graph, m_nav.target_branch);
+  const auto own = static_cast<std::size_t>(m_nav.magnet);
+  m_own.add(scene.magnets->sources[own], scene.magnets->rest_poses[own]);
   m_path = planned_path(graph, m_nav.target_branch);
   // A magnetic skin's moment direction in the body frame (the skin modes); none for a fill.
   if (robot::has_magnetic_skin(scene.vine)) {
@@ -132,78 +134,132 @@ void NavigatorController::use_platform(platform::PlatformRun* run, double t, con
   }
   m_pose = navigate(m_nav, m_path, tip, tip_frame, m_skin, t, m_scene.navigator_offset, m_line);
   place_with_arm(t, tip, tip_frame, length, events);
+  m_pose = m_placement;
+}
+
+double NavigatorController::pull(const MagnetKeyframe& pose, const Vec3& tip, const Vec3& towards) const {
+  // The fill's force points up the gradient of |B| (a saturated fill: F = M_s V ∇|B|, PHYSICS.md §2), so its part
+  // along `towards` is what bends the tip there: ∇|B| = Gᵀ B / |B| from the magnet's exact field.
+  const auto i = static_cast<std::size_t>(m_nav.magnet);
+  const magnetics::Pose p = magnetics::pose_at(m_scene.magnets->rest_poses[i], pose.position, pose.axis);
+  const magnetics::FieldSample f = magnetics::field_gradient(m_own, std::span(&p, 1), tip);
+  const double b = f.b.norm();
+  return b > 0.0 ? (f.g.transpose() * f.b).dot(towards) / b : 0.0;
 }
 
 void NavigatorController::place_with_arm(double t, const Vec3& tip, const Mat3& tip_frame, double length,
                                          std::vector<RunEvent>& events) {
-  // The ideal line from the tip (m_line) is where the magnet pulls best, but with the patient round the airway its
-  // distance puts it inside the body. Lines turned off it by θ (0–90°, six azimuths each) are each followed out
-  // from the tip to the least distance d (≥ the navigator's) at which the magnet clears the skin. What steers is the
-  // pull across the tip towards the aim's side s (the part of aim − tip normal to the tip's tangent): a line scores
-  // max(0, line·s) · (distance/d)⁴ (the pull points at the magnet and falls with the fourth power of the distance
-  // for a saturated fill), or cos θ · (distance/d)⁴ where the aim lies straight ahead.
+  // While the arm is still on its way to the last placement, it goes on.
+  if (m_placed && m_platform->remaining_time(m_arm) > m_nav.interval) return;
+  // With the patient round the airway the magnet can only be outside the body: on the shell round the torso at the
+  // skin clearance (PlatformRun::shell_point). Candidates: every 15° round the torso, at the tip's level and up to
+  // 6 cm above and 9 cm below it (3 cm apart). A candidate scores by what steers: for a fill, the pull ∇|B| at the
+  // tip along the aim's side s (the part of aim − tip across the tip's tangent; along the aim where it lies straight
+  // ahead), from the magnet's exact field; for a magnetic skin, whose pull and torque both matter,
+  // max(0, line·s) · (distance/d)⁴ (the dipole's fall-off of the force at distance d along the line to it).
   const Vec3 aim = aim_point(m_nav, m_path, tip);
-  const Vec3 from = tip + m_scene.navigator_offset;
-  const Vec3 u = m_line;
   const Vec3 tangent = tip_frame.col(0);
   Vec3 side = (aim - tip) - (aim - tip).dot(tangent) * tangent;
   const bool turning = side.norm() > 0.1 * (aim - tip).norm();
-  if (turning) side.normalize();
-  const Vec3 e1 = u.unitOrthogonal(), e2 = u.cross(e1);
+  side = turning ? Vec3(side.normalized()) : Vec3((aim - tip).normalized());
+  const Vec3 from = tip + m_scene.navigator_offset;
+  // The pose at shell point (angle, level): a fill's magnet faces the skin (its axis along the shell's outward
+  // direction: its pole towards the body); a skin's takes the axis its mode sets on the line from the tip (which
+  // points nearly the same way), and the shell's distance for that axis.
+  const auto pose_at_shell = [&](double angle, double level) -> std::optional<MagnetKeyframe> {
+    const Vec3 out = m_platform->shell_direction(angle);
+    MagnetKeyframe k;
+    k.time = t;
+    k.axis = out;
+    if (m_skin) {
+      const std::optional<Vec3> guess = m_platform->shell_point(m_arm, angle, level);
+      if (!guess) return std::nullopt;
+      k = pose_on_line(m_nav, tip, tip_frame, m_skin, aim, (*guess - from).normalized(), 0.0, t,
+                       m_scene.navigator_offset);
+    }
+    const std::optional<Vec3> p = m_platform->shell_point(m_arm, angle, level, &k.axis);
+    if (!p) return std::nullopt;
+    k.position = *p;
+    return k;
+  };
+  const auto score = [&](const MagnetKeyframe& pose) {
+    if (!m_skin) return std::max(0.0, pull(pose, tip, side));
+    const Vec3 line = pose.position - from;
+    return std::max(0.0, line.normalized().dot(side)) * std::pow(m_nav.distance / line.norm(), 4);
+  };
   struct Candidate {
     double score;
+    double angle, level;
     MagnetKeyframe pose;
   };
   std::vector<Candidate> candidates;
-  constexpr int kAzimuths = 6;
-  for (const double theta_deg : {0.0, 15.0, 30.0, 45.0, 60.0, 75.0, 90.0}) {
-    const double theta = theta_deg * kDegToRad;
-    for (int k = 0; k < (theta_deg == 0.0 ? 1 : kAzimuths); ++k) {
-      const double phi = 2.0 * kPi * k / kAzimuths;
-      const Vec3 line = std::cos(theta) * u + std::sin(theta) * (std::cos(phi) * e1 + std::sin(phi) * e2);
-      const double aligned = turning ? line.dot(side) : std::cos(theta);
-      if (aligned <= 0.0) continue;
-      MagnetKeyframe pose = pose_on_line(m_nav, tip, tip_frame, m_skin, aim, line, m_nav.distance, t,
-                                         m_scene.navigator_offset);
-      const double d = m_platform->clear_distance(m_arm, from, line, pose.axis, m_nav.distance, m_nav.max_distance);
-      if (!std::isfinite(d)) continue;
-      pose.position = from + d * line;
-      candidates.push_back({aligned * std::pow(m_nav.distance / d, 4), pose});
+  const double tip_level = m_platform->shell_coordinates(tip).second;
+  constexpr int kAngles = 24;
+  std::vector<double> levels;
+  for (const double dz : {-0.09, -0.06, -0.03, 0.0, 0.03, 0.06}) {
+    const double level = m_platform->shell_level(m_arm, tip_level + dz);  // kept over the torso
+    if (std::find(levels.begin(), levels.end(), level) == levels.end()) levels.push_back(level);
+  }
+  for (const double level : levels) {
+    const double dz = level - tip_level;
+    for (int k = 0; k < kAngles; ++k) {
+      const double angle = 2.0 * kPi * k / kAngles;
+      if (const std::optional<MagnetKeyframe> pose = pose_at_shell(angle, tip_level + dz)) {
+        candidates.push_back({score(*pose), angle, tip_level + dz, *pose});
+      }
     }
   }
   std::stable_sort(candidates.begin(), candidates.end(),
                    [](const Candidate& a, const Candidate& b) { return a.score > b.score; });
-  // The best few lines are tried with the joints near where the arm is (a small move), the best three also with a
-  // new posture; the winner is the best score times exp(−T / 1 s), T the arm's travel time there at its joints'
-  // speeds, so that a slightly better line does not cost a long swing of the arm while the vine grows, but a much
-  // better one (the other side of the patient) is worth it.
-  constexpr std::size_t kNearTries = 8, kFarTries = 3;
-  constexpr double kTravelScale = 1.0;  // [s]
-  double best_score = 0.0;
-  std::optional<std::pair<platform::Placement, MagnetKeyframe>> best;
-  for (std::size_t i = 0; i < std::min(kNearTries, candidates.size()); ++i) {
-    const Candidate& c = candidates[i];
-    for (const bool near : {true, false}) {
-      if (!near && i >= kFarTries) break;
-      platform::Placement p = m_platform->evaluate(m_arm, c.pose.position, c.pose.axis, near);
+  if (!m_placed) {
+    // The first placement: the best the arm can take up from any posture (the run starts with it there).
+    for (std::size_t i = 0; i < std::min<std::size_t>(6, candidates.size()); ++i) {
+      const platform::Placement p =
+          m_platform->evaluate(m_arm, candidates[i].pose.position, candidates[i].pose.axis, false, !m_skin);
       if (!p.feasible) continue;
-      const double score = c.score * std::exp(-m_platform->travel_time(m_arm, p.q) / kTravelScale);
-      if (score > best_score) {
-        best_score = score;
-        best.emplace(std::move(p), c.pose);
-      }
-      break;  // a near solution needs no new posture
+      m_platform->set_goal(m_arm, p);
+      m_placement = candidates[i].pose;
+      m_placement.axis = p.axis;
+      m_shell = {candidates[i].angle, candidates[i].level};
+      m_placed = true;
+      return;
     }
-  }
-  if (best) {
-    m_platform->set_goal(m_arm, best->first.q);
-    m_pose = best->second;
+    if (!m_unplaced_warned) {
+      m_unplaced_warned = true;
+      events.push_back({t, length, EventKind::kWorkspace,
+                        "the arm can hold the navigator's magnet at none of the best placements round the patient; "
+                        "it waits at its home posture"});
+    }
     return;
   }
-  // Nothing feasible: the arm keeps its goal (the last feasible placement).
-  events.push_back({t, length, EventKind::kWorkspace,
-                    "no placement of the navigator's magnet within 90 degrees of its line and max_distance is "
-                    "reachable by the arm clear of the patient; it holds its last one"});
+  // Then the magnet slides over the shell towards the best candidate, at most kStep a placement (so the arm moves
+  // smoothly and every move is a small one from where it is), unless the best is within 5 % of where it is (then
+  // it follows the tip's level only). A step the arm cannot take (a collision on the way, out of reach) is halved,
+  // then the next-best candidate's direction is tried; none: it holds.
+  constexpr double kStep = 0.03;   // [m] per placement
+  constexpr double kRadius = 0.2;  // [m] the shell's radius, for arc lengths
+  const auto [angle0, level0] = m_shell;
+  const std::optional<MagnetKeyframe> here = pose_at_shell(angle0, level0);
+  const double current = here ? score(*here) : 0.0;
+  for (std::size_t i = 0; i < std::min<std::size_t>(3, candidates.size()); ++i) {
+    const Candidate& c = candidates[i];
+    if (c.score <= 1.05 * current) break;
+    const double d_angle = std::remainder(c.angle - angle0, 2.0 * kPi);
+    const double d_level = c.level - level0;
+    const double arc = std::hypot(kRadius * d_angle, d_level);
+    for (double fraction = std::min(1.0, kStep / std::max(arc, 1e-12)); fraction > 0.1; fraction *= 0.5) {
+      const double angle = angle0 + fraction * d_angle, level = level0 + fraction * d_level;
+      const std::optional<MagnetKeyframe> next = pose_at_shell(angle, level);
+      if (!next) continue;
+      const platform::Placement p = m_platform->evaluate(m_arm, next->position, next->axis, true, !m_skin);
+      if (!p.feasible) continue;
+      m_platform->set_goal(m_arm, p);
+      m_placement = *next;
+      m_placement.axis = p.axis;
+      m_shell = {angle, level};
+      return;
+    }
+  }
 }
 
 bool NavigatorController::keep_clear(const Vec3& tip) {
@@ -229,6 +285,7 @@ void NavigatorController::place(double t, const Vec3& tip, const Mat3& tip_frame
   m_pose = navigate(m_nav, m_path, tip, tip_frame, m_skin, t, m_scene.navigator_offset, m_line);
   if (m_platform != nullptr) {
     place_with_arm(t, tip, tip_frame, length, events);
+    m_pose = m_placement;
   } else if (!keep_clear(tip) && !m_workspace_warned) {
     m_workspace_warned = true;
     events.push_back({t, length, EventKind::kWorkspace,

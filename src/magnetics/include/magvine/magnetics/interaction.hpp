@@ -30,8 +30,7 @@ Wrench magnet_magnet_wrench(const CylinderMagnet& source, const Pose& source_pos
                             const Pose& target_pose, const InteractionResolution& resolution = {});
 
 /// The same by the volume form (the independent check of magnet_magnet_wrench).
-Wrench magnet_magnet_wrench_volume(const CylinderMagnet& source, const Pose& source_pose,
-                                   const CylinderMagnet& target, const Pose& target_pose,
-                                   const InteractionResolution& resolution = {});
+Wrench magnet_magnet_wrench_volume(const CylinderMagnet& source, const Pose& source_pose, const CylinderMagnet& target,
+                                   const Pose& target_pose, const InteractionResolution& resolution = {});
 
 }  // namespace magvine::magnetics

@@ -4,11 +4,10 @@
 /// velocity- and acceleration-limited joint tracker. Pure Eigen; the Bullet world around the arms is
 /// platform_world.hpp. Model and data: docs/platform.md.
 
+#include <Eigen/Geometry>
 #include <array>
 #include <cstdint>
 #include <string>
-
-#include <Eigen/Geometry>
 
 #include "magvine/core/eigen_types.hpp"
 
@@ -35,20 +34,20 @@ struct ArmLink {
 /// The EPM on the flange: where its centre and magnetisation axis sit in the flange frame, and its mass.
 struct ArmTool {
   Iso3 flange_to_magnet = Iso3::Identity();  ///< the magnet's frame (z: its axis) in the flange frame
-  double mass = 0.0;                          ///< magnet and holder [kg]
-  Vec3 com = Vec3::Zero();                    ///< in the flange frame [m]
+  double mass = 0.0;                         ///< magnet and holder [kg]
+  Vec3 com = Vec3::Zero();                   ///< in the flange frame [m]
 };
 
 /// An arm: the base link's capsule, seven links, the flange, the limits (the data sheet's).
 struct ArmModel {
   std::string name;
-  ArmLink base;                            ///< link 0 (fixed): mass and capsule only
-  std::array<ArmLink, kArmJoints> links;   ///< links 1..7
-  Iso3 flange = Iso3::Identity();          ///< link 7 frame → flange
-  JointVector q_min, q_max;                ///< [rad]
-  JointVector qd_max;                      ///< [rad/s]
-  JointVector qdd_max;                     ///< [rad/s²]
-  JointVector tau_max;                     ///< [N·m]
+  ArmLink base;                           ///< link 0 (fixed): mass and capsule only
+  std::array<ArmLink, kArmJoints> links;  ///< links 1..7
+  Iso3 flange = Iso3::Identity();         ///< link 7 frame → flange
+  JointVector q_min, q_max;               ///< [rad]
+  JointVector qd_max;                     ///< [rad/s]
+  JointVector qdd_max;                    ///< [rad/s²]
+  JointVector tau_max;                    ///< [N·m]
 };
 
 /// The KUKA LBR iiwa 14 R820 (docs/platform.md cites the sources of every number).
@@ -95,8 +94,8 @@ struct IkResult {
 /// (Levenberg–Marquardt on the task error; a joint at a limit the step would push further is held; steps of at most
 /// 0.2 rad a joint, so the solution stays on the start's branch: the redundancy keeps the posture nearest the start)
 /// from `start`, then from random joint vectors; the first start that converges wins.
-IkResult solve_ik(const ArmModel& arm, const Iso3& base, const Iso3& tool, const Iso3& target,
-                  const JointVector& start, const IkOptions& options = {});
+IkResult solve_ik(const ArmModel& arm, const Iso3& base, const Iso3& tool, const Iso3& target, const JointVector& start,
+                  const IkOptions& options = {});
 
 /// One control step of the joint tracker: the joints move towards `goal` together (each joint's limits scaled by its
 /// share of the remaining motion, so that from rest they follow the straight line in joint space) as fast as the

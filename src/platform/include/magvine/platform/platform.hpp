@@ -14,6 +14,7 @@
 #include <memory>
 #include <optional>
 #include <string>
+#include <utility>
 #include <vector>
 
 #include "magvine/core/eigen_types.hpp"
@@ -40,11 +41,11 @@ struct TableModel {
 
 /// One arm of the platform and the magnet it holds.
 struct ArmMount {
-  Iso3 base = Iso3::Identity();  ///< world ← the arm's base (z up through A1)
-  int magnet = 0;                ///< index in the scene's magnets
-  ArmTool tool;                  ///< where the magnet sits on the flange (z: its axis)
-  double magnet_radius = 0.0508; ///< [m]
-  double magnet_length = 0.1016; ///< [m]
+  Iso3 base = Iso3::Identity();            ///< world ← the arm's base (z up through A1)
+  int magnet = 0;                          ///< index in the scene's magnets
+  ArmTool tool;                            ///< where the magnet sits on the flange (z: its axis)
+  double magnet_radius = 0.0508;           ///< [m]
+  double magnet_length = 0.1016;           ///< [m]
   JointVector home = JointVector::Zero();  ///< the posture the redundancy leans towards [rad]
 };
 
@@ -115,21 +116,24 @@ Iso3 magnet_pose(const ArmModel& arm, const ArmMount& mount, const JointVector& 
 struct Placement {
   bool feasible = false;
   JointVector q = JointVector::Zero();  ///< the joints that do it (the best found when not feasible)
-  Vec3 position = Vec3::Zero();         ///< the magnet's centre placed [m]
-  Vec3 axis = Vec3::UnitZ();            ///< its axis
-  std::string why;                      ///< what makes it infeasible: unreachable, a collision, too near the skin
+  /// Joints to pass through first, in order: where the straight way would come too near the patient, the arm backs
+  /// its magnet out from the torso, moves round, and comes in again.
+  std::vector<JointVector> via;
+  Vec3 position = Vec3::Zero();  ///< the magnet's centre placed [m]
+  Vec3 axis = Vec3::UnitZ();     ///< its axis
+  std::string why;               ///< what makes it infeasible: unreachable, a collision, too near the skin
 };
 
 /// What a run measured of the arms (metrics.json: manipulators and the keys below, docs/platform.md).
 struct PlatformFigures {
   double min_skin_clearance = std::numeric_limits<double>::infinity();  ///< magnet to skin, every step [m]
-  int collisions = 0;               ///< steps at which a link or magnet touched the torso, table or other arm
-  int limit_violations = 0;         ///< steps with a joint beyond its position, velocity or acceleration limit
-  double max_torque_fraction = 0.0; ///< largest |τ_i| / τ_max,i over the steps (holding torques)
-  double path_length = 0.0;         ///< Σ over arms and joints of the joint travel [rad]
-  double max_tracking_error = 0.0;  ///< largest distance between the magnet's (feasible) pose asked for and the one
-                                    ///< reached, every step: the arm's lag [m]
-  int workspace_events = 0;         ///< requests replaced by the nearest feasible pose
+  int collisions = 0;                ///< steps at which a link or magnet touched the torso, table or other arm
+  int limit_violations = 0;          ///< steps with a joint beyond its position, velocity or acceleration limit
+  double max_torque_fraction = 0.0;  ///< largest |τ_i| / τ_max,i over the steps (holding torques)
+  double path_length = 0.0;          ///< Σ over arms and joints of the joint travel [rad]
+  double max_tracking_error = 0.0;   ///< largest distance between the magnet's (feasible) pose asked for and the one
+                                     ///< reached, every step: the arm's lag [m]
+  int workspace_events = 0;          ///< requests replaced by the nearest feasible pose
 };
 
 /// One arm's joints at a time (arms.csv).
@@ -149,23 +153,38 @@ class PlatformRun {
   explicit PlatformRun(const PlatformModel& model);
 
   /// Whether arm `arm` can hold its magnet at (position, axis): inverse kinematics (position and axis; the turn about
-  /// the axis is free) from the arm's joints (with `near_only`, only a solution within 20° a joint of them), then (unless
-  /// `near_only`) from its home and random starts; a solution is
-  /// feasible when the arm there, and on its way there from where it is (the tracker's straight joint-space line,
-  /// every 0.05 rad), touches nothing and keeps its magnet the clearance from the skin. Does not move the arm.
-  Placement evaluate(int arm, const Vec3& position, const Vec3& axis, bool near_only = false);
+  /// the axis is free) from the arm's joints (with `near_only`, only a solution within 20° a joint of them), then
+  /// (unless `near_only`) from its home and random starts; a solution is feasible when the arm there, and on its way
+  /// there from where it is (the joint tracker's motion from the arm's joints and speeds at the run's step, checked
+  /// every 0.05 rad), touches nothing and keeps its magnet the clearance from the skin. `either_way`: the axis's sign
+  /// does not matter (a soft-magnetic fill): −axis is tried first, then axis. Does not move the arm.
+  Placement evaluate(int arm, const Vec3& position, const Vec3& axis, bool near_only = false, bool either_way = false);
   /// The least distance along `line` from `from` at which arm `arm`'s magnet (axis `axis`) clears the skin by the
-  /// model's clearance, at least `min_distance` [m]; ∞ when not within `max_distance`.
+  /// model's clearance plus `margin`, at least `min_distance` [m]; ∞ when not within `max_distance` or where the
+  /// magnet would meet the table.
   double clear_distance(int arm, const Vec3& from, const Vec3& line, const Vec3& axis, double min_distance,
-                        double max_distance) const;
+                        double max_distance, double margin = 0.0) const;
+  /// The magnet's centre on the shell round the torso where it clears the skin by the clearance: out from the
+  /// torso's axis at `level` (along the torso's z from its centre [m]) in the direction at `angle` in the torso's
+  /// x–y plane (0: x, π/2: y, anterior), at the least distance that clears (with 3 mm to spare, so that the way
+  /// between nearby shell points keeps the clearance) with the magnet's axis along `axis`
+  /// (default: that direction), `level` kept over the torso (its length less the magnet's: neck, head and legs are not
+  /// modelled). None without a torso, or where the magnet would meet the table.
+  std::optional<Vec3> shell_point(int arm, double angle, double level, const Vec3* axis = nullptr) const;
+  /// `level` kept over the torso as shell_point keeps it.
+  double shell_level(int arm, double level) const;
+  /// The outward direction at `angle` (the torso's x–y plane; zero without a torso).
+  Vec3 shell_direction(double angle) const;
+  /// A point's (angle, level) in those terms.
+  std::pair<double, double> shell_coordinates(const Vec3& x) const;
   /// Asks arm `arm` for its magnet at (position, axis): the goal becomes the request when feasible, otherwise the
   /// nearest feasible pose (moved away from the torso, then searched around) — returned with `why` set (a workspace
   /// event for the caller). `start`: the arm is there now (the run's first pose), no motion.
   Placement request(int arm, const Vec3& position, const Vec3& axis, bool start = false);
-  /// Sets the goal directly (a placement evaluate() found feasible).
-  void set_goal(int arm, const JointVector& q);
-  /// The time the arm needs from where it is to joints q at its joints' top speeds (the slowest joint's) [s].
-  double travel_time(int arm, const JointVector& q) const;
+  /// Sends the arm to a placement evaluate() found feasible (through its via joints).
+  void set_goal(int arm, const Placement& placement);
+  /// The time it needs to finish the way it is on, at its joints' top speeds (the slowest joint's on each leg) [s].
+  double remaining_time(int arm) const;
   /// Puts the arm at its goal at once (the run's first pose: the arm is there before the run starts).
   void jump_to_goal(int arm);
   /// Moves every arm one step of dt towards its goal (joint tracker), updates the world and the figures; `wrench`
@@ -183,17 +202,23 @@ class PlatformRun {
   struct ArmState {
     JointVector q = JointVector::Zero();
     JointVector qd = JointVector::Zero();
-    JointVector goal = JointVector::Zero();
-    Vec3 asked = Vec3::Zero();  ///< the magnet's centre last asked for
-    bool placed = false;        ///< the run has put it at its first pose (before: no way there to check)
+    JointVector goal = JointVector::Zero();  ///< the joints it moves to now
+    std::vector<JointVector> next;           ///< and then (a placement's via joints, then its own)
+    Vec3 asked = Vec3::Zero();               ///< the magnet's centre last asked for
+    bool placed = false;                     ///< the run has put it at its first pose (before: no way there to check)
   };
   Placement nearest_feasible(int arm, const Vec3& position, const Vec3& axis);
+  /// Why the tracker's way from where the arm is through `legs` (joints in order) is not clear, or empty.
+  std::string way_problem(int arm, const std::vector<JointVector>& legs);
+  /// Why the arm at q would collide or bring its magnet within the clearance, or empty. Leaves the world at q.
+  std::string pose_problem(int arm, const JointVector& q);
 
   const PlatformModel& m_model;
   PlatformWorld m_world;
   std::vector<ArmState> m_arms;
   PlatformFigures m_figures;
   std::vector<ArmSample> m_samples;
+  double m_dt = 0.02;  ///< the run's step (the last advance()'s), for predicting the tracker's way [s]
 };
 
 }  // namespace magvine::platform

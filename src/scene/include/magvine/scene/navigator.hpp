@@ -63,16 +63,23 @@ class NavigatorController {
  private:
   bool keep_clear(const Vec3& tip);
   void place_with_arm(double t, const Vec3& tip, const Mat3& tip_frame, double length, std::vector<RunEvent>& events);
+  /// The pull of its magnet at `pose` on a saturated fill at the tip, along `towards`: ∇|B|·towards [T/m].
+  double pull(const MagnetKeyframe& pose, const Vec3& tip, const Vec3& towards) const;
   void recover(double t, double length, int branch, robot::GrowthControl& control, std::vector<RunEvent>& events);
 
   const ExperimentScene& m_scene;
   const Navigator& m_nav;
-  std::vector<int> m_plan;        ///< branches from the root to the target
-  std::vector<Vec3> m_path;       ///< their centrelines joined
-  std::optional<Vec3> m_skin;     ///< a magnetic skin's moment direction, body frame (skin modes)
-  MagnetKeyframe m_pose;          ///< the magnet's current pose (asked of the arm, with a platform)
+  std::vector<int> m_plan;                      ///< branches from the root to the target
+  std::vector<Vec3> m_path;                     ///< their centrelines joined
+  std::optional<Vec3> m_skin;                   ///< a magnetic skin's moment direction, body frame (skin modes)
+  MagnetKeyframe m_pose;                        ///< the magnet's current pose (asked of the arm, with a platform)
   platform::PlatformRun* m_platform = nullptr;  ///< the arms, when one holds its magnet
   int m_arm = -1;                               ///< that arm
+  bool m_placed = false;                        ///< the arm has had a placement
+  MagnetKeyframe m_placement;                   ///< the arm's last placement (its goal)
+  std::pair<double, double> m_shell{0.0, 0.0};  ///< its place on the shell round the torso (angle [rad], level [m])
+  bool m_unplaced_warned = false;
+  magnetics::FieldModel m_own;    ///< its magnet alone (the pull of a placement)
   Vec3 m_line = Vec3::UnitX();    ///< the line from the tip it was placed on
   double m_next_placement = 0.0;  ///< [s]
   bool m_workspace_warned = false;
