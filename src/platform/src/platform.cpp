@@ -12,6 +12,8 @@
 
 #include <Eigen/LU>
 #include <algorithm>
+#include <cstdio>
+#include <cstdlib>
 #include <cmath>
 #include <limits>
 #include <optional>
@@ -437,6 +439,20 @@ int PlatformRun::arm_of_magnet(int magnet) const {
   return -1;
 }
 
+JointVector PlatformRun::holding_torques_at(int arm, const JointVector& q, const Vec3& force, const Vec3& torque) {
+  m_world.set_joints(arm, q);
+  const JointVector tau = m_world.holding_torques(arm, force, torque);
+  m_world.set_joints(arm, m_arms[static_cast<std::size_t>(arm)].q);
+  return tau;
+}
+
+Vec3 PlatformRun::arm_side(int arm) const {
+  if (!m_model.body) return Vec3::Zero();
+  const Vec3 x = m_model.body->frame.linear().col(0);
+  const Vec3 d = m_model.arms[static_cast<std::size_t>(arm)].base.translation() - m_model.body->frame.translation();
+  return d.dot(x) >= 0.0 ? x : Vec3(-x);
+}
+
 Iso3 PlatformRun::magnet_pose(int arm) const {
   const auto a = static_cast<std::size_t>(arm);
   return platform::magnet_pose(m_model.arm, m_model.arms[a], m_arms[a].q);
@@ -447,6 +463,7 @@ std::string PlatformRun::pose_problem(int arm, const JointVector& q) {
   const ArmCheck c = m_world.check(arm);
   if (c.collision) return "the arm would collide (" + c.nearest_what + ")";
   if (c.skin_clearance < m_model.clearance - 1e-9) return "the magnet would come within the clearance of the skin";
+  if (m_pose_check) return m_pose_check(arm, q);
   return {};
 }
 
@@ -577,7 +594,8 @@ double PlatformRun::clear_distance(int arm, const Vec3& from, const Vec3& line, 
   return under_table(hi) ? std::numeric_limits<double>::infinity() : hi;
 }
 
-std::optional<Vec3> PlatformRun::shell_point(int arm, double angle, double level, const Vec3* axis) const {
+std::optional<Vec3> PlatformRun::shell_point(int arm, double angle, double level, const Vec3* axis,
+                                             double standoff) const {
   if (!m_model.body) return std::nullopt;
   const Iso3& f = m_model.body->frame;
   const Vec3 from = f.translation() + shell_level(arm, level) * f.linear().col(2);
@@ -587,7 +605,7 @@ std::optional<Vec3> PlatformRun::shell_point(int arm, double angle, double level
   constexpr double kShellMargin = 3e-3;
   const double d = clear_distance(arm, from, out, axis != nullptr ? *axis : out, 0.0, 2.0, kShellMargin);
   if (!std::isfinite(d)) return std::nullopt;
-  return Vec3(from + d * out);
+  return Vec3(from + (d + standoff) * out);
 }
 
 double PlatformRun::shell_level(int arm, double level) const {
@@ -712,7 +730,8 @@ Placement PlatformRun::request(int arm, const Vec3& position, const Vec3& axis, 
   return p;
 }
 
-void PlatformRun::advance(double time, double dt, const std::vector<std::pair<Vec3, Vec3>>& wrench) {
+void PlatformRun::advance(double time, double dt,
+                          const std::function<std::vector<std::pair<Vec3, Vec3>>()>& wrenches) {
   if (dt > 0.0) m_dt = dt;
   bool violation = false;
   for (std::size_t a = 0; a < m_arms.size(); ++a) {
@@ -733,16 +752,19 @@ void PlatformRun::advance(double time, double dt, const std::vector<std::pair<Ve
     m_world.set_joints(static_cast<int>(a), s.q);
   }
   if (violation) ++m_figures.limit_violations;
+  const std::vector<std::pair<Vec3, Vec3>> wrench = wrenches ? wrenches() : std::vector<std::pair<Vec3, Vec3>>{};
   bool collided = false;
   for (std::size_t a = 0; a < m_arms.size(); ++a) {
     const int arm = static_cast<int>(a);
     const ArmCheck c = m_world.check(arm);
     collided = collided || c.collision;
+    if (c.collision && std::getenv("MV_DEBUG")) std::fprintf(stderr, "t %.2f arm %zu collides: %s %.4f\n", time, a, c.nearest_what.c_str(), c.nearest);
     m_figures.min_skin_clearance = std::min(m_figures.min_skin_clearance, c.skin_clearance);
     const auto& w = a < wrench.size() ? wrench[a] : std::pair<Vec3, Vec3>{Vec3::Zero(), Vec3::Zero()};
     const JointVector tau = m_world.holding_torques(arm, w.first, w.second);
     m_figures.max_torque_fraction =
         std::max(m_figures.max_torque_fraction, tau.cwiseAbs().cwiseQuotient(m_model.arm.tau_max).maxCoeff());
+    if (std::getenv("MV_DEBUG") && tau.cwiseAbs().cwiseQuotient(m_model.arm.tau_max).maxCoeff() > 1.0) std::fprintf(stderr, "t %.2f arm %zu torque frac %.2f force %.1f N at %s\n", time, a, tau.cwiseAbs().cwiseQuotient(m_model.arm.tau_max).maxCoeff(), w.first.norm(), "");
     const Vec3 reached = magnet_pose(arm).translation();
     m_figures.max_tracking_error = std::max(m_figures.max_tracking_error, (reached - m_arms[a].asked).norm());
     m_samples.push_back({time, arm, m_arms[a].q, tau, reached});

@@ -96,7 +96,7 @@ ExperimentResult run_experiment(const ExperimentScene& scene, const std::functio
   const auto ask_arms = [&](double t, const std::vector<magnetics::Pose>& wanted, bool start) {
     for (std::size_t a = 0; a < scene.platform->arms.size(); ++a) {
       const int i = scene.platform->arms[a].magnet;
-      if (navigator && i == navigator->magnet()) continue;  // the navigator asks its arm itself
+      if (navigator && navigator->steers(i)) continue;  // the navigator asks its arms itself
       const magnetics::Pose& w = wanted[static_cast<std::size_t>(i)];
       const Vec3 axis = w.rotation.col(2);
       MagnetKeyframe& last = asked[a];
@@ -117,19 +117,31 @@ ExperimentResult run_experiment(const ExperimentScene& scene, const std::functio
       p[i] = magnetics::pose_at(scene.magnets->rest_poses[i], m.translation(), m.linear().col(2));
     }
   };
+  // dEPM: the wrenches the two held magnets put on each other, with arm 0's magnet at ta and arm 1's at tb: on
+  // magnet 1 by the exact field of magnet 0 over it (magnetics/interaction.hpp); on magnet 0 the reaction, −F and,
+  // about its own centre, −τ − (c_0 − c_1) × F... with F, τ those on magnet 1 (τ about its centre).
+  const auto pair_wrench = [&](const platform::Iso3& ta, const platform::Iso3& tb) {
+    const auto i = static_cast<std::size_t>(scene.platform->arms[0].magnet);
+    const auto j = static_cast<std::size_t>(scene.platform->arms[1].magnet);
+    const magnetics::Pose pa = magnetics::pose_at(scene.magnets->rest_poses[i], ta.translation(), ta.linear().col(2));
+    const magnetics::Pose pb = magnetics::pose_at(scene.magnets->rest_poses[j], tb.translation(), tb.linear().col(2));
+    const magnetics::Wrench on_b =
+        magnetics::magnet_magnet_wrench(std::get<magnetics::CylinderMagnet>(scene.magnets->sources[i]), pa,
+                                        std::get<magnetics::CylinderMagnet>(scene.magnets->sources[j]), pb);
+    const Vec3 f_a = -on_b.force;
+    return std::array<std::pair<Vec3, Vec3>, 2>{
+        std::pair{f_a, Vec3(-on_b.torque - (pa.position - pb.position).cross(f_a))},
+        std::pair{on_b.force, on_b.torque}};
+  };
   const auto advance_arms = [&](double t, double dt, std::vector<magnetics::Pose>& p) {
-    std::vector<std::pair<Vec3, Vec3>> wrench(scene.platform->arms.size(), {Vec3::Zero(), Vec3::Zero()});
-    if (scene.platform->arms.size() == 2) {
-      const auto i = static_cast<std::size_t>(scene.platform->arms[0].magnet);
-      const auto j = static_cast<std::size_t>(scene.platform->arms[1].magnet);
-      const auto& a = std::get<magnetics::CylinderMagnet>(scene.magnets->sources[i]);
-      const auto& b = std::get<magnetics::CylinderMagnet>(scene.magnets->sources[j]);
-      const magnetics::Wrench on_b = magnetics::magnet_magnet_wrench(a, p[i], b, p[j]);
-      // Action and reaction: F_a = −F_b; about a's centre τ_a = −τ_b − (c_a − c_b) × F_a.
-      const Vec3 f_a = -on_b.force;
-      wrench[0] = {f_a, -on_b.torque - (p[i].position - p[j].position).cross(f_a)};
-      wrench[1] = {on_b.force, on_b.torque};
-    }
+    const auto wrench = [&]() {
+      std::vector<std::pair<Vec3, Vec3>> w(scene.platform->arms.size(), {Vec3::Zero(), Vec3::Zero()});
+      if (w.size() == 2) {
+        const auto both = pair_wrench(arms->magnet_pose(0), arms->magnet_pose(1));
+        w = {both[0], both[1]};
+      }
+      return w;
+    };
     arms->advance(t, dt, wrench);
     if (!torque_logged && arms->figures().max_torque_fraction > 1.0) {
       torque_logged = true;
@@ -143,12 +155,34 @@ ExperimentResult run_experiment(const ExperimentScene& scene, const std::functio
     poses = poses_at(scene, navigator ? &*navigator : nullptr, 0.0);
     if (scene.platform) {
       arms.emplace(*scene.platform);
+      if (scene.platform->arms.size() == 2) {
+        // dEPM: the two magnets pull on each other (hundreds of newtons within 20 cm); no pose may ask either arm for
+        // more than its joints' torque limits to hold that (and its weight).
+        arms->set_pose_check([&](int arm, const platform::JointVector& q) -> std::string {
+          const int other = 1 - arm;
+          const platform::Iso3 here = platform::magnet_pose(scene.platform->arm,
+                                                            scene.platform->arms[static_cast<std::size_t>(arm)], q);
+          const auto w = arm == 0 ? pair_wrench(here, arms->magnet_pose(1)) : pair_wrench(arms->magnet_pose(0), here);
+          const platform::JointVector& limit = scene.platform->arm.tau_max;
+          const auto beyond = [&](const platform::JointVector& tau) {
+            return (tau.cwiseAbs().array() > limit.array()).any();
+          };
+          const auto& mine = w[static_cast<std::size_t>(arm)];
+          const auto& theirs = w[static_cast<std::size_t>(other)];
+          if (beyond(arms->holding_torques_at(arm, q, mine.first, mine.second))) {
+            return "the other arm's magnet would pull it beyond a joint's torque limit";
+          }
+          if (beyond(arms->holding_torques_at(other, arms->joints(other), theirs.first, theirs.second))) {
+            return "its magnet would pull the other arm beyond a joint's torque limit";
+          }
+          return {};
+        });
+      }
       asked.resize(scene.platform->arms.size());
       if (navigator) {
         navigator->use_platform(&*arms, 0.0, scene.base_position + scene.vine.length * scene.base_frame.col(0),
                                 scene.base_frame, scene.vine.length, navigator_events);
-        const int a = arms->arm_of_magnet(navigator->magnet());
-        if (a >= 0) arms->jump_to_goal(a);
+
       }
       ask_arms(0.0, poses, true);
       advance_arms(0.0, 0.0, poses);

@@ -1,6 +1,8 @@
 #include "magvine/scene/navigator.hpp"
 
 #include <algorithm>
+#include <cstdio>
+#include <cstdlib>
 #include <cmath>
 #include <limits>
 #include <span>
@@ -108,8 +110,6 @@ MagnetKeyframe navigate(const Navigator& nav, const std::vector<Vec3>& path, con
 NavigatorController::NavigatorController(const ExperimentScene& scene) : m_scene(scene), m_nav(*scene.navigator) {
   const anatomy::AirwayGraph& graph = *scene.anatomy->graph;
   m_plan = anatomy::path_from_root(graph, m_nav.target_branch);
-  const auto own = static_cast<std::size_t>(m_nav.magnet);
-  m_own.add(scene.magnets->sources[own], scene.magnets->rest_poses[own]);
   m_path = planned_path(graph, m_nav.target_branch);
   // A magnetic skin's moment direction in the body frame (the skin modes); none for a fill.
   if (robot::has_magnetic_skin(scene.vine)) {
@@ -126,37 +126,69 @@ NavigatorController::NavigatorController(const ExperimentScene& scene) : m_scene
 
 void NavigatorController::use_platform(platform::PlatformRun* run, double t, const Vec3& tip, const Mat3& tip_frame,
                                        double length, std::vector<RunEvent>& events) {
-  m_platform = run;
-  m_arm = run->arm_of_magnet(m_nav.magnet);
-  if (m_arm < 0) {
-    m_platform = nullptr;
-    return;
+  // The arms it steers: the one holding its magnet first, then (dEPM) another arm whose magnet the scene does not
+  // keyframe. With two, each keeps to its own side of the patient (the magnets would attract each other across).
+  m_held.clear();
+  const auto add = [&](int arm) {
+    HeldMagnet h;
+    h.arm = arm;
+    h.magnet = run->model().arms[static_cast<std::size_t>(arm)].magnet;
+    const auto i = static_cast<std::size_t>(h.magnet);
+    h.own.add(m_scene.magnets->sources[i], m_scene.magnets->rest_poses[i]);
+    m_held.push_back(std::move(h));
+  };
+  const int first = run->arm_of_magnet(m_nav.magnet);
+  if (first < 0) return;
+  add(first);
+  for (std::size_t a = 0; a < run->model().arms.size(); ++a) {
+    const int magnet = run->model().arms[a].magnet;
+    if (static_cast<int>(a) != first && m_scene.magnet_keyframes[static_cast<std::size_t>(magnet)].empty()) {
+      add(static_cast<int>(a));
+    }
   }
+  if (m_held.size() > 1) {
+    for (HeldMagnet& h : m_held) h.side = run->arm_side(h.arm);
+  }
+  m_platform = run;
   m_pose = navigate(m_nav, m_path, tip, tip_frame, m_skin, t, m_scene.navigator_offset, m_line);
-  place_with_arm(t, tip, tip_frame, length, events);
-  m_pose = m_placement;
+  for (HeldMagnet& h : m_held) {
+    place_with_arm(h, t, tip, tip_frame, length, events);
+    run->jump_to_goal(h.arm);  // there before the run starts, and before the next arm chooses
+  }
+  m_pose = m_held.front().placement;
 }
 
-double NavigatorController::pull(const MagnetKeyframe& pose, const Vec3& tip, const Vec3& towards) const {
+bool NavigatorController::steers(int magnet) const {
+  if (magnet == m_nav.magnet) return true;
+  return std::any_of(m_held.begin(), m_held.end(), [&](const HeldMagnet& h) { return h.magnet == magnet; });
+}
+
+double NavigatorController::pull(const HeldMagnet& h, const MagnetKeyframe& pose, const Vec3& tip,
+                                 const Vec3& towards) const {
   // The fill's force points up the gradient of |B| (a saturated fill: F = M_s V ∇|B|, PHYSICS.md §2), so its part
   // along `towards` is what bends the tip there: ∇|B| = Gᵀ B / |B| from the magnet's exact field.
-  const auto i = static_cast<std::size_t>(m_nav.magnet);
-  const magnetics::Pose p = magnetics::pose_at(m_scene.magnets->rest_poses[i], pose.position, pose.axis);
-  const magnetics::FieldSample f = magnetics::field_gradient(m_own, std::span(&p, 1), tip);
+  const magnetics::Pose p = magnetics::pose_at(h.own.rest_poses.front(), pose.position, pose.axis);
+  const magnetics::FieldSample f = magnetics::field_gradient(h.own, std::span(&p, 1), tip);
   const double b = f.b.norm();
   return b > 0.0 ? (f.g.transpose() * f.b).dot(towards) / b : 0.0;
 }
 
-void NavigatorController::place_with_arm(double t, const Vec3& tip, const Mat3& tip_frame, double length,
+void NavigatorController::place_with_arm(HeldMagnet& h, double t, const Vec3& tip, const Mat3& tip_frame, double length,
                                          std::vector<RunEvent>& events) {
-  // While the arm is still on its way to the last placement, it goes on.
-  if (m_placed && m_platform->remaining_time(m_arm) > m_nav.interval) return;
+  // While the arm is still on its way to the last placement, it goes on; with two arms, one moves at a time (each
+  // checks its way against the other's magnet where it is).
+  for (const HeldMagnet& other : m_held) {
+    if (h.placed && m_platform->remaining_time(other.arm) > m_nav.interval) return;
+  }
   // With the patient round the airway the magnet can only be outside the body: on the shell round the torso at the
-  // skin clearance (PlatformRun::shell_point). Candidates: every 15° round the torso, at the tip's level and up to
-  // 6 cm above and 9 cm below it (3 cm apart). A candidate scores by what steers: for a fill, the pull ∇|B| at the
-  // tip along the aim's side s (the part of aim − tip across the tip's tangent; along the aim where it lies straight
-  // ahead), from the magnet's exact field; for a magnetic skin, whose pull and torque both matter,
-  // max(0, line·s) · (distance/d)⁴ (the dipole's fall-off of the force at distance d along the line to it).
+  // skin clearance (PlatformRun::shell_point), or stood off 10 cm further out. Candidates: every 15° round the
+  // torso, at the tip's level and up to 6 cm above and 9 cm below it (3 cm apart), on the shell and stood off. A
+  // candidate scores by what steers: for a fill, the pull ∇|B| at the tip along the aim's side s (the part of
+  // aim − tip across the tip's tangent; along the aim where it lies straight ahead), from the magnet's exact field:
+  // negative where it pulls away, so that for a side no placement pulls towards (the back of a supine patient,
+  // where the table is) the magnet stands off where it pulls away least and gravity takes the tip; for a magnetic
+  // skin, whose pull and torque both matter, max(0, line·s) · (distance/d)⁴ (the dipole's fall-off of the force at
+  // distance d along the line to it), on the shell only.
   const Vec3 aim = aim_point(m_nav, m_path, tip);
   const Vec3 tangent = tip_frame.col(0);
   Vec3 side = (aim - tip) - (aim - tip).dot(tangent) * tangent;
@@ -166,30 +198,30 @@ void NavigatorController::place_with_arm(double t, const Vec3& tip, const Mat3& 
   // The pose at shell point (angle, level): a fill's magnet faces the skin (its axis along the shell's outward
   // direction: its pole towards the body); a skin's takes the axis its mode sets on the line from the tip (which
   // points nearly the same way), and the shell's distance for that axis.
-  const auto pose_at_shell = [&](double angle, double level) -> std::optional<MagnetKeyframe> {
+  const auto pose_at_shell = [&](double angle, double level, double standoff) -> std::optional<MagnetKeyframe> {
     const Vec3 out = m_platform->shell_direction(angle);
     MagnetKeyframe k;
     k.time = t;
     k.axis = out;
     if (m_skin) {
-      const std::optional<Vec3> guess = m_platform->shell_point(m_arm, angle, level);
+      const std::optional<Vec3> guess = m_platform->shell_point(h.arm, angle, level, nullptr, standoff);
       if (!guess) return std::nullopt;
       k = pose_on_line(m_nav, tip, tip_frame, m_skin, aim, (*guess - from).normalized(), 0.0, t,
                        m_scene.navigator_offset);
     }
-    const std::optional<Vec3> p = m_platform->shell_point(m_arm, angle, level, &k.axis);
+    const std::optional<Vec3> p = m_platform->shell_point(h.arm, angle, level, &k.axis, standoff);
     if (!p) return std::nullopt;
     k.position = *p;
     return k;
   };
   const auto score = [&](const MagnetKeyframe& pose) {
-    if (!m_skin) return std::max(0.0, pull(pose, tip, side));
+    if (!m_skin) return pull(h, pose, tip, side);
     const Vec3 line = pose.position - from;
     return std::max(0.0, line.normalized().dot(side)) * std::pow(m_nav.distance / line.norm(), 4);
   };
   struct Candidate {
     double score;
-    double angle, level;
+    std::array<double, 3> shell;  ///< angle, level, standoff
     MagnetKeyframe pose;
   };
   std::vector<Candidate> candidates;
@@ -197,35 +229,46 @@ void NavigatorController::place_with_arm(double t, const Vec3& tip, const Mat3& 
   constexpr int kAngles = 24;
   std::vector<double> levels;
   for (const double dz : {-0.09, -0.06, -0.03, 0.0, 0.03, 0.06}) {
-    const double level = m_platform->shell_level(m_arm, tip_level + dz);  // kept over the torso
+    const double level = m_platform->shell_level(h.arm, tip_level + dz);  // kept over the torso
     if (std::find(levels.begin(), levels.end(), level) == levels.end()) levels.push_back(level);
   }
-  for (const double level : levels) {
-    const double dz = level - tip_level;
-    for (int k = 0; k < kAngles; ++k) {
-      const double angle = 2.0 * kPi * k / kAngles;
-      if (const std::optional<MagnetKeyframe> pose = pose_at_shell(angle, tip_level + dz)) {
-        candidates.push_back({score(*pose), angle, tip_level + dz, *pose});
+  constexpr double kStandoff = 0.1;  // [m]
+  for (const double standoff : {0.0, m_skin ? -1.0 : kStandoff}) {
+    if (standoff < 0.0) continue;
+    for (const double level : levels) {
+      for (int k = 0; k < kAngles; ++k) {
+        const double angle = 2.0 * kPi * k / kAngles;
+        // Two arms: each within 60° of its own side, so that the magnets (which attract each other) stay apart.
+        if (h.side.squaredNorm() > 0.0 && m_platform->shell_direction(angle).dot(h.side) < 0.5) continue;
+        if (const std::optional<MagnetKeyframe> pose = pose_at_shell(angle, level, standoff)) {
+          candidates.push_back({score(*pose), {angle, level, standoff}, *pose});
+        }
       }
     }
   }
   std::stable_sort(candidates.begin(), candidates.end(),
                    [](const Candidate& a, const Candidate& b) { return a.score > b.score; });
-  if (!m_placed) {
-    // The first placement: the best the arm can take up from any posture (the run starts with it there).
+  // The best placement the arm can take up from any posture (a new posture, the way there checked and backed out
+  // round the patient if need be): the first one (the run starts with the arm there), and the way out when no
+  // slide is possible.
+  const auto jump = [&]() {
     for (std::size_t i = 0; i < std::min<std::size_t>(6, candidates.size()); ++i) {
       const platform::Placement p =
-          m_platform->evaluate(m_arm, candidates[i].pose.position, candidates[i].pose.axis, false, !m_skin);
+          m_platform->evaluate(h.arm, candidates[i].pose.position, candidates[i].pose.axis, false, !m_skin);
       if (!p.feasible) continue;
-      m_platform->set_goal(m_arm, p);
-      m_placement = candidates[i].pose;
-      m_placement.axis = p.axis;
-      m_shell = {candidates[i].angle, candidates[i].level};
-      m_placed = true;
-      return;
+      m_platform->set_goal(h.arm, p);
+      h.placement = candidates[i].pose;
+      h.placement.axis = p.axis;
+      h.shell = candidates[i].shell;
+      h.placed = true;
+      return true;
     }
-    if (!m_unplaced_warned) {
-      m_unplaced_warned = true;
+    return false;
+  };
+  if (!h.placed) {
+    if (jump()) return;
+    if (!h.warned) {
+      h.warned = true;
       events.push_back({t, length, EventKind::kWorkspace,
                         "the arm can hold the navigator's magnet at none of the best placements round the patient; "
                         "it waits at its home posture"});
@@ -238,28 +281,33 @@ void NavigatorController::place_with_arm(double t, const Vec3& tip, const Mat3& 
   // then the next-best candidate's direction is tried; none: it holds.
   constexpr double kStep = 0.03;   // [m] per placement
   constexpr double kRadius = 0.2;  // [m] the shell's radius, for arc lengths
-  const auto [angle0, level0] = m_shell;
-  const std::optional<MagnetKeyframe> here = pose_at_shell(angle0, level0);
-  const double current = here ? score(*here) : 0.0;
+  const auto [angle0, level0, standoff0] = h.shell;
+  const std::optional<MagnetKeyframe> here = pose_at_shell(angle0, level0, standoff0);
+  const double current = here ? score(*here) : -std::numeric_limits<double>::infinity();
   for (std::size_t i = 0; i < std::min<std::size_t>(3, candidates.size()); ++i) {
     const Candidate& c = candidates[i];
-    if (c.score <= 1.05 * current) break;
-    const double d_angle = std::remainder(c.angle - angle0, 2.0 * kPi);
-    const double d_level = c.level - level0;
-    const double arc = std::hypot(kRadius * d_angle, d_level);
+    if (c.score <= current + 0.05 * std::abs(current)) break;
+    const double d_angle = std::remainder(c.shell[0] - angle0, 2.0 * kPi);
+    const double d_level = c.shell[1] - level0;
+    const double d_standoff = c.shell[2] - standoff0;
+    const double arc = std::sqrt(std::pow(kRadius * d_angle, 2) + d_level * d_level + d_standoff * d_standoff);
     for (double fraction = std::min(1.0, kStep / std::max(arc, 1e-12)); fraction > 0.1; fraction *= 0.5) {
-      const double angle = angle0 + fraction * d_angle, level = level0 + fraction * d_level;
-      const std::optional<MagnetKeyframe> next = pose_at_shell(angle, level);
+      const std::array<double, 3> at{angle0 + fraction * d_angle, level0 + fraction * d_level,
+                                     standoff0 + fraction * d_standoff};
+      const std::optional<MagnetKeyframe> next = pose_at_shell(at[0], at[1], at[2]);
       if (!next) continue;
-      const platform::Placement p = m_platform->evaluate(m_arm, next->position, next->axis, true, !m_skin);
+      const platform::Placement p = m_platform->evaluate(h.arm, next->position, next->axis, true, !m_skin);
       if (!p.feasible) continue;
-      m_platform->set_goal(m_arm, p);
-      m_placement = *next;
-      m_placement.axis = p.axis;
-      m_shell = {angle, level};
+      m_platform->set_goal(h.arm, p);
+      h.placement = *next;
+      h.placement.axis = p.axis;
+      h.shell = at;
       return;
     }
   }
+  // No slide towards a better placement: when the best is much better (twice the pull) than where it is, a new
+  // posture is worth the arm's longer way.
+  if (!candidates.empty() && candidates.front().score > current + std::abs(current)) jump();
 }
 
 bool NavigatorController::keep_clear(const Vec3& tip) {
@@ -284,8 +332,8 @@ void NavigatorController::place(double t, const Vec3& tip, const Mat3& tip_frame
   if (t < m_next_placement - 1e-12) return;
   m_pose = navigate(m_nav, m_path, tip, tip_frame, m_skin, t, m_scene.navigator_offset, m_line);
   if (m_platform != nullptr) {
-    place_with_arm(t, tip, tip_frame, length, events);
-    m_pose = m_placement;
+    for (HeldMagnet& h : m_held) place_with_arm(h, t, tip, tip_frame, length, events);
+    m_pose = m_held.front().placement;
   } else if (!keep_clear(tip) && !m_workspace_warned) {
     m_workspace_warned = true;
     events.push_back({t, length, EventKind::kWorkspace,

@@ -110,9 +110,8 @@ std::shared_ptr<const platform::PlatformModel> parse_platform(const YamlMap& p, 
     double lateral = 0.55, below_top = 0.0, along = 0.0, holder = 0.05;
     bool radial = true;
     mount.magnet = default_magnet;
-    // Home: elbow up, the hand pointing down over the patient (A2 40°, A4 −80°, A6 60°: 180° about the base's y).
-    mount.home << 0, 40, 0, -80, 0, 60, 0;
-    mount.home *= kDegToRad;
+    // Home: upright (the iiwa's candle posture), clear of the patient, the table and another arm.
+    mount.home.setZero();
     if (!entries.empty()) {
       const YamlMap& a = entries[i];
       a.allow_only({"magnet", "side", "lateral", "below_top", "along", "mount", "holder", "home"});

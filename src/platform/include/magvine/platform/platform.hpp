@@ -10,6 +10,7 @@
 /// contact questions (GJK/EPA signed distances between the convex colliders: links, magnets, torso, table) and the
 /// holding torques (the articulated-body algorithm of btMultiBody, inverted at rest).
 
+#include <functional>
 #include <limits>
 #include <memory>
 #include <optional>
@@ -169,8 +170,9 @@ class PlatformRun {
   /// x–y plane (0: x, π/2: y, anterior), at the least distance that clears (with 3 mm to spare, so that the way
   /// between nearby shell points keeps the clearance) with the magnet's axis along `axis`
   /// (default: that direction), `level` kept over the torso (its length less the magnet's: neck, head and legs are not
-  /// modelled). None without a torso, or where the magnet would meet the table.
-  std::optional<Vec3> shell_point(int arm, double angle, double level, const Vec3* axis = nullptr) const;
+  /// modelled), then `standoff` [m] further out. None without a torso, or where the magnet would meet the table.
+  std::optional<Vec3> shell_point(int arm, double angle, double level, const Vec3* axis = nullptr,
+                                  double standoff = 0.0) const;
   /// `level` kept over the torso as shell_point keeps it.
   double shell_level(int arm, double level) const;
   /// The outward direction at `angle` (the torso's x–y plane; zero without a torso).
@@ -188,12 +190,27 @@ class PlatformRun {
   /// Puts the arm at its goal at once (the run's first pose: the arm is there before the run starts).
   void jump_to_goal(int arm);
   /// Moves every arm one step of dt towards its goal (joint tracker), updates the world and the figures; `wrench`
-  /// per arm: the force [N] and torque about its centre [N·m] on its magnet (another magnet's), for the torques.
-  void advance(double time, double dt, const std::vector<std::pair<Vec3, Vec3>>& wrench);
+  /// (called once the arms have moved) gives per arm the force [N] and torque about its centre [N·m] on its magnet
+  /// (another magnet's), for the holding torques.
+  void advance(double time, double dt, const std::function<std::vector<std::pair<Vec3, Vec3>>()>& wrench);
+  /// A further check of an arm at joints q, with the others where they are (e.g. the dEPM pair's torques): why the
+  /// pose is not allowed, or empty. Applied wherever evaluate() checks a pose or a way.
+  using PoseCheck = std::function<std::string(int arm, const JointVector& q)>;
+  void set_pose_check(PoseCheck check) { m_pose_check = std::move(check); }
+  /// The holding torques of arm `arm` at joints q (not where it is) against gravity and a wrench on its magnet
+  /// (force; torque about its centre), by Bullet's articulated bodies (PlatformWorld::holding_torques).
+  JointVector holding_torques_at(int arm, const JointVector& q, const Vec3& force, const Vec3& torque);
   /// The magnet's pose the arm has reached.
   Iso3 magnet_pose(int arm) const;
   const JointVector& joints(int arm) const { return m_arms[static_cast<std::size_t>(arm)].q; }
+  /// The joints at the end of the way it is on.
+  const JointVector& final_goal(int arm) const {
+    const ArmState& s = m_arms[static_cast<std::size_t>(arm)];
+    return s.next.empty() ? s.goal : s.next.back();
+  }
   int arm_of_magnet(int magnet) const;
+  /// The side of the patient arm `arm` stands on: the torso's ±x (zero without a torso).
+  Vec3 arm_side(int arm) const;
   const PlatformFigures& figures() const { return m_figures; }
   const std::vector<ArmSample>& samples() const { return m_samples; }
   const PlatformModel& model() const { return m_model; }
@@ -218,6 +235,7 @@ class PlatformRun {
   std::vector<ArmState> m_arms;
   PlatformFigures m_figures;
   std::vector<ArmSample> m_samples;
+  PoseCheck m_pose_check;
   double m_dt = 0.02;  ///< the run's step (the last advance()'s), for predicting the tracker's way [s]
 };
 

@@ -3,6 +3,7 @@
 /// state that places its magnet from the tip and the planned path, and regulates the pressure and the tether for a
 /// held tip (boost), at junctions (deflation) and out of wrong turns (recovery).
 
+#include <array>
 #include <optional>
 #include <vector>
 
@@ -54,6 +55,9 @@ class NavigatorController {
   void use_platform(platform::PlatformRun* run, double t, const Vec3& tip, const Mat3& tip_frame, double length,
                     std::vector<RunEvent>& events);
 
+  /// Whether it places magnet `magnet` (its own, or with a platform the other arm's of a dEPM pair).
+  bool steers(int magnet) const;
+
   /// The magnet it steers (index in magnets:) and its current pose.
   int magnet() const { return m_nav.magnet; }
   const MagnetKeyframe& pose() const { return m_pose; }
@@ -62,9 +66,21 @@ class NavigatorController {
 
  private:
   bool keep_clear(const Vec3& tip);
-  void place_with_arm(double t, const Vec3& tip, const Mat3& tip_frame, double length, std::vector<RunEvent>& events);
-  /// The pull of its magnet at `pose` on a saturated fill at the tip, along `towards`: ∇|B|·towards [T/m].
-  double pull(const MagnetKeyframe& pose, const Vec3& tip, const Vec3& towards) const;
+  /// A magnet it places through an arm, and where the arm has it.
+  struct HeldMagnet {
+    int arm = -1;
+    int magnet = -1;
+    bool placed = false;                      ///< the arm has had a placement
+    MagnetKeyframe placement;                 ///< its last placement (the arm's goal)
+    std::array<double, 3> shell{0.0, 0.0, 0.0};  ///< where round the torso: angle [rad], level [m], stand-off [m]
+    Vec3 side = Vec3::Zero();                 ///< with two arms, its side of the patient (placements keep to it)
+    bool warned = false;
+    magnetics::FieldModel own;                ///< its magnet alone (the pull of a placement)
+  };
+  void place_with_arm(HeldMagnet& h, double t, const Vec3& tip, const Mat3& tip_frame, double length,
+                      std::vector<RunEvent>& events);
+  /// The pull of h's magnet at `pose` on a saturated fill at the tip, along `towards`: ∇|B|·towards [T/m].
+  double pull(const HeldMagnet& h, const MagnetKeyframe& pose, const Vec3& tip, const Vec3& towards) const;
   void recover(double t, double length, int branch, robot::GrowthControl& control, std::vector<RunEvent>& events);
 
   const ExperimentScene& m_scene;
@@ -74,12 +90,7 @@ class NavigatorController {
   std::optional<Vec3> m_skin;                   ///< a magnetic skin's moment direction, body frame (skin modes)
   MagnetKeyframe m_pose;                        ///< the magnet's current pose (asked of the arm, with a platform)
   platform::PlatformRun* m_platform = nullptr;  ///< the arms, when one holds its magnet
-  int m_arm = -1;                               ///< that arm
-  bool m_placed = false;                        ///< the arm has had a placement
-  MagnetKeyframe m_placement;                   ///< the arm's last placement (its goal)
-  std::pair<double, double> m_shell{0.0, 0.0};  ///< its place on the shell round the torso (angle [rad], level [m])
-  bool m_unplaced_warned = false;
-  magnetics::FieldModel m_own;    ///< its magnet alone (the pull of a placement)
+  std::vector<HeldMagnet> m_held;               ///< its magnet's arm first, then (dEPM) the other
   Vec3 m_line = Vec3::UnitX();    ///< the line from the tip it was placed on
   double m_next_placement = 0.0;  ///< [s]
   bool m_workspace_warned = false;
