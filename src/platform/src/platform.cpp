@@ -12,8 +12,6 @@
 
 #include <Eigen/LU>
 #include <algorithm>
-#include <cstdio>
-#include <cstdlib>
 #include <cmath>
 #include <limits>
 #include <optional>
@@ -498,10 +496,15 @@ Placement PlatformRun::evaluate(int arm, const Vec3& position, const Vec3& axis,
   options.task = IkTask::kPositionAxis;
   options.restarts = 0;
   // Starts: where the arm is (the nearest solution: smooth motion, and no drift of the posture from one request to
-  // the next), then (unless near_only) its home and random joint vectors (seeded by the request, so a run is
-  // deterministic).
+  // the next); unless near_only, an elbow-up posture first, then its home and random joint vectors (seeded by the
+  // request, so a run is deterministic).
   std::vector<JointVector> starts{m_arms[a].q};
   if (!near_only) {
+    // Elbow up, the hand turned down towards the table (A2 40°, A4 −80°, A6 60°): the posture that reaches over a
+    // patient beside the arm; first, so that a new posture is this branch when it can be.
+    JointVector elbow_up;
+    elbow_up << 0, 40, 0, -80, 0, 60, 0;
+    starts.insert(starts.begin(), elbow_up * kPi / 180.0);
     starts.push_back(mount.home);
     std::mt19937_64 rng(static_cast<std::uint64_t>(std::abs(position.sum()) * 1e6) + a);
     std::uniform_real_distribution<double> unit(0.0, 1.0);
@@ -730,8 +733,7 @@ Placement PlatformRun::request(int arm, const Vec3& position, const Vec3& axis, 
   return p;
 }
 
-void PlatformRun::advance(double time, double dt,
-                          const std::function<std::vector<std::pair<Vec3, Vec3>>()>& wrenches) {
+void PlatformRun::advance(double time, double dt, const std::function<std::vector<std::pair<Vec3, Vec3>>()>& wrenches) {
   if (dt > 0.0) m_dt = dt;
   bool violation = false;
   for (std::size_t a = 0; a < m_arms.size(); ++a) {
@@ -758,13 +760,11 @@ void PlatformRun::advance(double time, double dt,
     const int arm = static_cast<int>(a);
     const ArmCheck c = m_world.check(arm);
     collided = collided || c.collision;
-    if (c.collision && std::getenv("MV_DEBUG")) std::fprintf(stderr, "t %.2f arm %zu collides: %s %.4f\n", time, a, c.nearest_what.c_str(), c.nearest);
     m_figures.min_skin_clearance = std::min(m_figures.min_skin_clearance, c.skin_clearance);
     const auto& w = a < wrench.size() ? wrench[a] : std::pair<Vec3, Vec3>{Vec3::Zero(), Vec3::Zero()};
     const JointVector tau = m_world.holding_torques(arm, w.first, w.second);
     m_figures.max_torque_fraction =
         std::max(m_figures.max_torque_fraction, tau.cwiseAbs().cwiseQuotient(m_model.arm.tau_max).maxCoeff());
-    if (std::getenv("MV_DEBUG") && tau.cwiseAbs().cwiseQuotient(m_model.arm.tau_max).maxCoeff() > 1.0) std::fprintf(stderr, "t %.2f arm %zu torque frac %.2f force %.1f N at %s\n", time, a, tau.cwiseAbs().cwiseQuotient(m_model.arm.tau_max).maxCoeff(), w.first.norm(), "");
     const Vec3 reached = magnet_pose(arm).translation();
     m_figures.max_tracking_error = std::max(m_figures.max_tracking_error, (reached - m_arms[a].asked).norm());
     m_samples.push_back({time, arm, m_arms[a].q, tau, reached});

@@ -160,8 +160,8 @@ ExperimentResult run_experiment(const ExperimentScene& scene, const std::functio
         // more than its joints' torque limits to hold that (and its weight).
         arms->set_pose_check([&](int arm, const platform::JointVector& q) -> std::string {
           const int other = 1 - arm;
-          const platform::Iso3 here = platform::magnet_pose(scene.platform->arm,
-                                                            scene.platform->arms[static_cast<std::size_t>(arm)], q);
+          const platform::Iso3 here =
+              platform::magnet_pose(scene.platform->arm, scene.platform->arms[static_cast<std::size_t>(arm)], q);
           const auto w = arm == 0 ? pair_wrench(here, arms->magnet_pose(1)) : pair_wrench(arms->magnet_pose(0), here);
           const platform::JointVector& limit = scene.platform->arm.tau_max;
           const auto beyond = [&](const platform::JointVector& tau) {
@@ -182,7 +182,6 @@ ExperimentResult run_experiment(const ExperimentScene& scene, const std::functio
       if (navigator) {
         navigator->use_platform(&*arms, 0.0, scene.base_position + scene.vine.length * scene.base_frame.col(0),
                                 scene.base_frame, scene.vine.length, navigator_events);
-
       }
       ask_arms(0.0, poses, true);
       advance_arms(0.0, 0.0, poses);

@@ -1,8 +1,6 @@
 #include "magvine/scene/navigator.hpp"
 
 #include <algorithm>
-#include <cstdio>
-#include <cstdlib>
 #include <cmath>
 #include <limits>
 #include <span>

@@ -151,10 +151,9 @@ std::shared_ptr<const platform::PlatformModel> parse_platform(const YamlMap& p, 
     mount.magnet_radius = cylinder->radius();
     mount.magnet_length = cylinder->length();
     // Radial (default): the magnet's axis across the flange (along its x), its side `holder` from the flange, so that
-    // any axis direction can face the patient with the arm outside (measured: 95 % of the placements round a chest
-    // reachable from one side, against half with the axial mount); axial: the axis along the flange's z, its face
-    // `holder` from the flange, the arm holding it from behind (a fill's navigator then turns it round as it likes:
-    // |B| does not care for the sign).
+    // any axis direction can face the patient from an arm outside (measured round a chest: 95 % of the placements
+    // reachable from one side, half with the axial mount). Axial: the axis along the flange's z, its face `holder`
+    // from the flange, the arm holding it from behind.
     mount.tool.flange_to_magnet = platform::Iso3::Identity();
     if (radial) {
       mount.tool.flange_to_magnet.linear() << 0, 0, 1, 1, 0, 0, 0, 1, 0;  // columns: x_m = y_f, y_m = z_f, z_m = x_f

@@ -70,12 +70,12 @@ class NavigatorController {
   struct HeldMagnet {
     int arm = -1;
     int magnet = -1;
-    bool placed = false;                      ///< the arm has had a placement
-    MagnetKeyframe placement;                 ///< its last placement (the arm's goal)
+    bool placed = false;                         ///< the arm has had a placement
+    MagnetKeyframe placement;                    ///< its last placement (the arm's goal)
     std::array<double, 3> shell{0.0, 0.0, 0.0};  ///< where round the torso: angle [rad], level [m], stand-off [m]
-    Vec3 side = Vec3::Zero();                 ///< with two arms, its side of the patient (placements keep to it)
+    Vec3 side = Vec3::Zero();                    ///< with two arms, its side of the patient (placements keep to it)
     bool warned = false;
-    magnetics::FieldModel own;                ///< its magnet alone (the pull of a placement)
+    magnetics::FieldModel own;  ///< its magnet alone (the pull of a placement)
   };
   void place_with_arm(HeldMagnet& h, double t, const Vec3& tip, const Mat3& tip_frame, double length,
                       std::vector<RunEvent>& events);
@@ -91,8 +91,8 @@ class NavigatorController {
   MagnetKeyframe m_pose;                        ///< the magnet's current pose (asked of the arm, with a platform)
   platform::PlatformRun* m_platform = nullptr;  ///< the arms, when one holds its magnet
   std::vector<HeldMagnet> m_held;               ///< its magnet's arm first, then (dEPM) the other
-  Vec3 m_line = Vec3::UnitX();    ///< the line from the tip it was placed on
-  double m_next_placement = 0.0;  ///< [s]
+  Vec3 m_line = Vec3::UnitX();                  ///< the line from the tip it was placed on
+  double m_next_placement = 0.0;                ///< [s]
   bool m_workspace_warned = false;
   // Held tip (boost and recovery): the everted length and when it last changed.
   double m_grown_at = 0.0;
