@@ -91,6 +91,7 @@ ExperimentResult run_experiment(const ExperimentScene& scene, const std::functio
   // The platform (platform:): the arms take the magnets' poses as requests and the field comes from where they
   // reach. A request an arm cannot serve is replaced by the nearest feasible pose (a workspace event).
   std::optional<platform::PlatformRun> arms;
+  double platform_seconds = 0.0;  // computing spent on the arms and the navigator's placements through them
   std::vector<MagnetKeyframe> asked;  // the last pose asked of each arm-held magnet
   bool torque_logged = false;
   const auto ask_arms = [&](double t, const std::vector<magnetics::Pose>& wanted, bool start) {
@@ -230,13 +231,17 @@ ExperimentResult run_experiment(const ExperimentScene& scene, const std::functio
     const double t = std::min(scene.duration, static_cast<double>(k) * scene.dt);
     const double dt = t - state.time;
     if (navigator) {
+      const Stopwatch placing;
       navigator->place(t, state.body.tip(), state.body.frames.back(), workspace.body.length, navigator_events);
+      if (arms) platform_seconds += placing.seconds();
     }
     if (scene.magnets && moving) {
       std::vector<magnetics::Pose> next = poses_at(scene, navigator ? &*navigator : nullptr, t);
       if (arms) {
+        const Stopwatch arm_clock;
         ask_arms(t, next, false);
         advance_arms(t, dt, next);
+        platform_seconds += arm_clock.seconds();
       }
       bool changed = false;
       for (std::size_t i = 0; i < next.size(); ++i) {
@@ -304,6 +309,7 @@ ExperimentResult run_experiment(const ExperimentScene& scene, const std::functio
   if (navigator) out.recoveries = navigator->recoveries();
   if (arms) {
     out.platform = arms->figures();
+    out.platform->compute_s = platform_seconds;
     out.arm_samples = arms->samples();
   }
   for (const robot::GrowthEvent& e : growth_events) out.events.push_back(run_event(e));

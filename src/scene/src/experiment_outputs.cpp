@@ -148,6 +148,7 @@ void write_experiment_outputs(const ExperimentScene& scene, const ExperimentResu
     j["arm_path_length_rad"] = arms.path_length;
     j["max_arm_tracking_error_m"] = arms.max_tracking_error;
     j["workspace_events"] = arms.workspace_events;
+    j["platform_runtime_s"] = arms.compute_s;
   }
   const double simulated = result.samples.empty() ? 0.0 : result.samples.back().time;
   j["simulated_s"] = simulated;

@@ -207,7 +207,21 @@ void NavigatorController::place_with_arm(HeldMagnet& h, double t, const Vec3& ti
       k = pose_on_line(m_nav, tip, tip_frame, m_skin, aim, (*guess - from).normalized(), 0.0, t,
                        m_scene.navigator_offset);
     }
-    const std::optional<Vec3> p = m_platform->shell_point(h.arm, angle, level, &k.axis, standoff);
+    std::optional<Vec3> p;
+    if (m_skin) {
+      p = m_platform->shell_point(h.arm, angle, level, &k.axis, standoff);
+    } else {
+      // A fill's shell point depends on the place alone (its axis is the outward normal): cached per place, to
+      // 0.1 mm in level and 0.01° in angle (the slides' places are arbitrary, the candidates' on a grid).
+      const auto key = std::make_tuple(std::lround(angle * 1e4), std::lround(level * 1e4), std::lround(standoff * 1e4));
+      const auto it = h.shell_cache.find(key);
+      if (it != h.shell_cache.end()) {
+        p = it->second;
+      } else {
+        p = m_platform->shell_point(h.arm, angle, level, &k.axis, standoff);
+        h.shell_cache.emplace(key, p);
+      }
+    }
     if (!p) return std::nullopt;
     k.position = *p;
     return k;
@@ -223,7 +237,8 @@ void NavigatorController::place_with_arm(HeldMagnet& h, double t, const Vec3& ti
     MagnetKeyframe pose;
   };
   std::vector<Candidate> candidates;
-  const double tip_level = m_platform->shell_coordinates(tip).second;
+  // The tip's level to the nearest centimetre (candidates on a fixed grid: their shell points are computed once).
+  const double tip_level = 0.01 * std::round(100.0 * m_platform->shell_coordinates(tip).second);
   constexpr int kAngles = 24;
   std::vector<double> levels;
   for (const double dz : {-0.09, -0.06, -0.03, 0.0, 0.03, 0.06}) {

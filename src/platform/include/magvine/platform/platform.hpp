@@ -135,6 +135,7 @@ struct PlatformFigures {
   double max_tracking_error = 0.0;   ///< largest distance between the magnet's (feasible) pose asked for and the one
                                      ///< reached, every step: the arm's lag [m]
   int workspace_events = 0;          ///< requests replaced by the nearest feasible pose
+  double compute_s = 0.0;  ///< computing spent on the arms and on placing magnets through them [s]
 };
 
 /// One arm's joints at a time (arms.csv).

@@ -4,6 +4,8 @@
 /// held tip (boost), at junctions (deflation) and out of wrong turns (recovery).
 
 #include <array>
+#include <map>
+#include <tuple>
 #include <optional>
 #include <vector>
 
@@ -76,6 +78,9 @@ class NavigatorController {
     Vec3 side = Vec3::Zero();                    ///< with two arms, its side of the patient (placements keep to it)
     bool warned = false;
     magnetics::FieldModel own;  ///< its magnet alone (the pull of a placement)
+    /// Shell points already found (a fill's: they depend on the place alone), keyed by angle, level and stand-off
+    /// in units of 1e-4 (rad, m).
+    std::map<std::tuple<long, long, long>, std::optional<Vec3>> shell_cache;
   };
   void place_with_arm(HeldMagnet& h, double t, const Vec3& tip, const Mat3& tip_frame, double length,
                       std::vector<RunEvent>& events);
