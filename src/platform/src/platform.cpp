@@ -710,7 +710,9 @@ void PlatformRun::jump_to_goal(int arm) {
 Placement PlatformRun::request(int arm, const Vec3& position, const Vec3& axis, bool start) {
   const auto a = static_cast<std::size_t>(arm);
   m_arms[a].asked = position;
-  Placement p = evaluate(arm, position, axis);
+  // Near where the arm is first (a keyframed magnet moves a little each step), then any posture.
+  Placement p = start ? evaluate(arm, position, axis) : evaluate(arm, position, axis, true);
+  if (!p.feasible && !start) p = evaluate(arm, position, axis);
   if (!p.feasible) {
     const std::string why = p.why;
     p = nearest_feasible(arm, position, axis);
