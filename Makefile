@@ -1,7 +1,8 @@
 # magvine: the two commands of the README quick start, and a few more.
 #   make demo   installs dependencies, builds, lets the navigator steer the magnetic-fluid vine through the
-#               generated bronchial tree with the EPM (assets/scenes/bronchial_tree_navigator.yaml), films its tip
-#               camera and an overview, plots it, writes the EPM's field map
+#               generated bronchial tree with the EPM held by an iiwa arm beside the patient
+#               (assets/scenes/bronchial_tree_platform.yaml), films its tip camera and an overview, plots it, writes
+#               the EPM's field map
 #   make test   installs dependencies, builds (warnings are errors), runs the whole ctest suite
 # Other targets: build, minimal (core-only configuration + its tests), bench, figures, phantoms (the standard
 # generated phantoms' meshes into phantoms/), format, lint (naming), clean.
@@ -37,9 +38,9 @@ phantoms: build
 	phantoms/generate.sh $(BUILD)/src/cli/magvine phantoms
 
 demo: build
-	$(BUILD)/src/cli/magvine run assets/scenes/bronchial_tree_navigator.yaml --out $(DEMO_OUT)/bronchial_tree
+	$(BUILD)/src/cli/magvine run assets/scenes/bronchial_tree_platform.yaml --out $(DEMO_OUT)/bronchial_tree
 	$(PYTHON) tools/plot_experiment.py $(DEMO_OUT)/bronchial_tree --out $(DEMO_OUT)/bronchial_tree.png \
-	    --title "Ø5 mm magnetic-fluid vine, navigator to branch 0-0-1 of the generated bronchial tree (35 kPa)"
+	    --title "Ø5 mm magnetic-fluid vine, navigator and iiwa arm to branch 0-0-1 of the generated bronchial tree (35 kPa)"
 	$(BUILD)/src/cli/magvine field-map --magnets assets/magnets/epm_n52.yaml --plane xz \
 	    --extent 300 --units mm --resolution 241 --out $(DEMO_OUT)
 	$(PYTHON) tools/plot_field_map.py $(DEMO_OUT)/field_map.csv --out $(DEMO_OUT)/field_map.png \
@@ -49,7 +50,7 @@ demo: build
 	@echo "  $(DEMO_OUT)/bronchial_tree/tip.mp4       the tip camera's view (fisheye 120°) as the vine grows"
 	@echo "  $(DEMO_OUT)/bronchial_tree/overview.mp4  the run from outside: airway, vine, EPM, target, planned path"
 	@echo "  $(DEMO_OUT)/bronchial_tree.png           tip path, body, magnet path, wall forces"
-	@echo "  $(DEMO_OUT)/bronchial_tree/              metrics.json, tip/magnet trajectories, events.json, graph.json"
+	@echo "  $(DEMO_OUT)/bronchial_tree/              metrics.json, tip/magnet trajectories, arms.csv, events.json, graph.json"
 	@echo "  $(DEMO_OUT)/field_map.png                |B| and |grad B| of the default EPM in the xz plane"
 
 bench: deps
@@ -80,7 +81,7 @@ figures: build
 	    > $(BUILD)/navigator_frames.yaml
 	$(BUILD)/src/cli/magvine run $(BUILD)/navigator_frames.yaml --out $(BUILD)/navigator_frames
 	$(PYTHON) tools/plot_experiment.py $(BUILD)/navigator_frames --out docs/figures/demo_bronchial_tree.png \
-	    --title "Ø5 mm magnetic-fluid vine, navigator to branch 0-0-1 of the generated bronchial tree (35 kPa)"
+	    --title "Ø5 mm magnetic-fluid vine, navigator and iiwa arm to branch 0-0-1 of the generated bronchial tree (35 kPa)"
 	$(PYTHON) tools/plot_frames.py $(BUILD)/navigator_frames --camera tip --speed 0.5 --frames 0,120,240,360 \
 	    --out docs/figures/tip_camera.png
 	$(PYTHON) tools/plot_frames.py $(BUILD)/navigator_frames --camera overview --speed 0.5 --frames 0,190,380 \

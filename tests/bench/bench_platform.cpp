@@ -37,8 +37,8 @@ void BM_IkFullPose(benchmark::State& state) {
   std::size_t k = 0;
   int converged = 0, solves = 0;
   for (auto _ : state) {
-    const IkResult r = solve_ik(arm, Iso3::Identity(), Iso3::Identity(), poses[k++ % poses.size()],
-                                JointVector::Zero());
+    const IkResult r =
+        solve_ik(arm, Iso3::Identity(), Iso3::Identity(), poses[k++ % poses.size()], JointVector::Zero());
     converged += r.converged;
     ++solves;
     benchmark::DoNotOptimize(r.q);

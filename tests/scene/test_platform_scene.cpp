@@ -96,13 +96,13 @@ TEST(PlatformScene, KeyframesThroughTheArmGiveTheFreeMagnetsResultWithinItsLag) 
   // the arm follows the keyframes within its joint limits and lags behind them; the vine grown in the arm's field
   // must end where the free magnet's does, and its tip must never stray from the free run's by more than the magnet
   // itself lags (a body 0.2 m from the magnet moves less than the magnet does).
-  const std::string free_text = replaced(
-      replaced(text_of(kScenes / "y_bifurcation_fluid_vine.yaml"),
-               "    - {magnet: 0, keyframes: [{time: 0, position: [90, 250, 0], axis: [0, -1, 0]},\n"
-               "                              {time: 1, position: [70, 110, 0], axis: [0, -1, 0]}]}",
-               "    - {magnet: 0, keyframes: [{time: 0, position: [90, 0, 300], axis: [0, 0, -1]},\n"
-               "                              {time: 2, position: [100, 60, 200], axis: [0, 0, -1]}]}"),
-      "duration: 8", "duration: 4");
+  const std::string free_text =
+      replaced(replaced(text_of(kScenes / "y_bifurcation_fluid_vine.yaml"),
+                        "    - {magnet: 0, keyframes: [{time: 0, position: [90, 250, 0], axis: [0, -1, 0]},\n"
+                        "                              {time: 1, position: [70, 110, 0], axis: [0, -1, 0]}]}",
+                        "    - {magnet: 0, keyframes: [{time: 0, position: [90, 0, 300], axis: [0, 0, -1]},\n"
+                        "                              {time: 2, position: [100, 60, 200], axis: [0, 0, -1]}]}"),
+               "duration: 8", "duration: 4");
   const ExperimentScene free = parsed(free_text);
   const ExperimentScene held = parsed(free_text + "platform: {}\n");
   const ExperimentResult a = run_experiment(free);
@@ -148,8 +148,11 @@ TEST(PlatformScene, BadPlatformSectionsAreRefusedWithTheKey) {
                "axis: [0, 1, 0]}",
                "{kind: dipole, moment: [0, 970, 0], position: [0, -250, -100]}");
   EXPECT_NE(error_of(dipole).find("cylinder"), std::string::npos) << error_of(dipole);
-  // The default platform reads.
+  // The default platform reads, and the bundled generation-4 scene with it.
   EXPECT_EQ(error_of(with("platform: {}")), "no error");
+  const ExperimentScene g4 = load_experiment_scene(kScenes / "bronchial_tree_generation4_platform.yaml");
+  ASSERT_TRUE(g4.platform);
+  EXPECT_EQ(g4.platform->arms.size(), 1u);
 }
 
 }  // namespace

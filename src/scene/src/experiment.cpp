@@ -91,7 +91,7 @@ ExperimentResult run_experiment(const ExperimentScene& scene, const std::functio
   // The platform (platform:): the arms take the magnets' poses as requests and the field comes from where they
   // reach. A request an arm cannot serve is replaced by the nearest feasible pose (a workspace event).
   std::optional<platform::PlatformRun> arms;
-  double platform_seconds = 0.0;  // computing spent on the arms and the navigator's placements through them
+  double platform_seconds = 0.0;      // computing spent on the arms and the navigator's placements through them
   std::vector<MagnetKeyframe> asked;  // the last pose asked of each arm-held magnet
   bool torque_logged = false;
   const auto ask_arms = [&](double t, const std::vector<magnetics::Pose>& wanted, bool start) {

@@ -19,7 +19,8 @@ using Vec2 = Eigen::Vector2d;
 
 // Convex hull (Andrew's monotone chain), counter-clockwise.
 std::vector<Vec2> convex_hull(std::vector<Vec2> pts) {
-  std::sort(pts.begin(), pts.end(), [](const Vec2& a, const Vec2& b) { return a.x() < b.x() || (a.x() == b.x() && a.y() < b.y()); });
+  std::sort(pts.begin(), pts.end(),
+            [](const Vec2& a, const Vec2& b) { return a.x() < b.x() || (a.x() == b.x() && a.y() < b.y()); });
   if (pts.size() < 3) return pts;
   auto cross = [](const Vec2& o, const Vec2& a, const Vec2& b) {
     return (a.x() - o.x()) * (b.y() - o.y()) - (a.y() - o.y()) * (b.x() - o.x());
@@ -78,8 +79,15 @@ void write_field_map(const magnetics::FieldModel& model, const FieldMapSpec& spe
   for (std::size_t k = 0; k < points.size(); ++k) {
     row.clear();
     const Vec3& p = points[k];
-    const double values[10] = {p[iu] - spec.center[iu], p[iv] - spec.center[iv], p.x(), p.y(), p.z(),
-                               samples[k].b.x(), samples[k].b.y(), samples[k].b.z(), samples[k].b.norm(),
+    const double values[10] = {p[iu] - spec.center[iu],
+                               p[iv] - spec.center[iv],
+                               p.x(),
+                               p.y(),
+                               p.z(),
+                               samples[k].b.x(),
+                               samples[k].b.y(),
+                               samples[k].b.z(),
+                               samples[k].b.norm(),
                                samples[k].g.norm()};
     append_csv_row(row, values);
     out_csv.stream() << row;
@@ -128,7 +136,8 @@ void write_field_map(const magnetics::FieldModel& model, const FieldMapSpec& spe
         },
         model.sources[s]);
     const Vec2 d2(direction[iu], direction[iv]);
-    src["direction_uv"] = d2.norm() > 0.0 ? nlohmann::json{d2.x() / d2.norm(), d2.y() / d2.norm()} : nlohmann::json{0.0, 0.0};
+    src["direction_uv"] =
+        d2.norm() > 0.0 ? nlohmann::json{d2.x() / d2.norm(), d2.y() / d2.norm()} : nlohmann::json{0.0, 0.0};
     doc["sources"].push_back(src);
   }
   AtomicFile out_json(json);

@@ -2,10 +2,10 @@
 
 #include <cmath>
 
+#include "magnet_entries.hpp"
 #include "magvine/core/error.hpp"
 #include "magvine/core/units.hpp"
 #include "magvine/magnetics/magnetisation.hpp"
-#include "magnet_entries.hpp"
 #include "ranges.hpp"
 #include "robot_entries.hpp"
 #include "yaml_reader.hpp"
@@ -25,15 +25,16 @@ namespace {
 constexpr double kMaxAxisDot = 8.7e-3;  // sin(0.5°)
 
 double polarisation_of(const YamlMap& m) {
-  if (m.has("polarisation") && m.has("remanence")) m.fail("remanence", "give either polarisation or remanence, not both");
+  if (m.has("polarisation") && m.has("remanence"))
+    m.fail("remanence", "give either polarisation or remanence, not both");
   if (!m.has("polarisation") && !m.has("remanence")) m.fail("polarisation", "missing required key (J in tesla)");
   const std::string key = m.has("polarisation") ? "polarisation" : "remanence";
   return m.quantity(key, kTesla, range::kPolarisation);  // no magnet material exceeds ~1.5 T
 }
 
 void add_cylinder(FieldModel& model, const YamlMap& m, const Unit& unit, const std::string& name) {
-  m.allow_only({"kind", "name", "model", "diameter", "length", "polarisation", "remanence", "magnetisation",
-                "position", "axis", "direction"});
+  m.allow_only({"kind", "name", "model", "diameter", "length", "polarisation", "remanence", "magnetisation", "position",
+                "axis", "direction"});
   const double diameter = m.quantity("diameter", unit, range::kMagnetSize);
   const double length = m.quantity("length", unit, range::kMagnetSize);
   const double j = polarisation_of(m);
@@ -41,16 +42,20 @@ void add_cylinder(FieldModel& model, const YamlMap& m, const Unit& unit, const s
   const Vec3 axis = m.direction("axis");
   const std::string magnetisation = m.has("magnetisation") ? m.text("magnetisation") : "axial";
   const std::string field_model = m.has("model") ? m.text("model") : "exact";
-  if (field_model != "exact" && field_model != "dipole") m.fail("model", "must be exact or dipole (got '" + field_model + "')");
+  if (field_model != "exact" && field_model != "dipole")
+    m.fail("model", "must be exact or dipole (got '" + field_model + "')");
 
   Pose pose;
   Vec3 j_local;
   if (magnetisation == "axial") {
-    if (m.has("direction")) m.fail("direction", "only diametric magnets take a direction; an axial magnet is magnetised along its axis");
+    if (m.has("direction"))
+      m.fail("direction", "only diametric magnets take a direction; an axial magnet is magnetised along its axis");
     pose = Pose::from_axis(position, axis);
     j_local = Vec3(0.0, 0.0, j);
   } else if (magnetisation == "diametric") {
-    if (!m.has("direction")) m.fail("direction", "missing required key for a diametric magnet (magnetisation direction, perpendicular to axis)");
+    if (!m.has("direction"))
+      m.fail("direction",
+             "missing required key for a diametric magnet (magnetisation direction, perpendicular to axis)");
     const Vec3 direction = m.direction("direction");
     if (std::abs(direction.dot(axis)) > kMaxAxisDot) m.fail("direction", "must be perpendicular to axis (within 0.5°)");
     pose = Pose::from_axis_direction(position, axis, direction);
@@ -67,7 +72,8 @@ void add_cylinder(FieldModel& model, const YamlMap& m, const Unit& unit, const s
 }
 
 void add_dipole(FieldModel& model, const YamlMap& m, const Unit& unit, const std::string& name) {
-  m.allow_only({"kind", "name", "position", "moment", "polarisation", "remanence", "axis", "volume", "diameter", "length"});
+  m.allow_only(
+      {"kind", "name", "position", "moment", "polarisation", "remanence", "axis", "volume", "diameter", "length"});
   Pose pose;
   pose.position = m.vec3_quantity("position", unit, range::kCoordinate);
   Vec3 moment;

@@ -1,16 +1,14 @@
 #include "magvine/scene/mpm_scene.hpp"
 
-#include <nlohmann/json.hpp>
-
 #include <algorithm>
 #include <cmath>
 #include <cstdio>
 #include <fstream>
+#include <nlohmann/json.hpp>
 #include <sstream>
 
 #include "failed_run.hpp"
 #include "magnet_entries.hpp"
-#include "magvine/scene/video_plugin.hpp"
 #include "magvine/anatomy/mesh_io.hpp"
 #include "magvine/core/atomic_file.hpp"
 #include "magvine/core/error.hpp"
@@ -20,8 +18,9 @@
 #include "magvine/mpm/cantilever.hpp"
 #include "magvine/mpm/sampling.hpp"
 #include "magvine/robot/elastica.hpp"
-#include "robot_entries.hpp"
+#include "magvine/scene/video_plugin.hpp"
 #include "ranges.hpp"
+#include "robot_entries.hpp"
 #include "yaml_reader.hpp"
 
 namespace magvine::scene {
@@ -75,8 +74,8 @@ int axis_of(const YamlMap& m) {
 
 MpmFieldSchedule field_of(const YamlMap& f) {
   f.allow_only({"b", "keyframes", "rotating"});
-  const int kinds = static_cast<int>(f.has("b")) + static_cast<int>(f.has("keyframes")) +
-                    static_cast<int>(f.has("rotating"));
+  const int kinds =
+      static_cast<int>(f.has("b")) + static_cast<int>(f.has("keyframes")) + static_cast<int>(f.has("rotating"));
   if (kinds != 1) f.fail("b", "give exactly one of b (constant), keyframes or rotating");
   MpmFieldSchedule s;
   if (f.has("b")) s.keyframes.push_back({0.0, f.vec3_quantity("b", kTesla, range::kField)});
@@ -107,8 +106,8 @@ MpmFieldSchedule field_of(const YamlMap& f) {
 }
 
 mpm::Obstacle obstacle_of(const YamlMap& o, const Unit& unit) {
-  o.allow_only({"name", "shape", "min", "max", "centre", "radius", "point", "normal", "from", "to", "boundary",
-                "friction"});
+  o.allow_only(
+      {"name", "shape", "min", "max", "centre", "radius", "point", "normal", "from", "to", "boundary", "friction"});
   mpm::Obstacle ob;
   ob.name = o.has("name") ? o.text("name") : o.path();
   const std::string shape = o.text("shape");
@@ -149,8 +148,8 @@ struct BodyParticles {
 
 BodyParticles body_of(const YamlMap& b, const FileUnits& units, const mpm::LatticeOptions& lattice, int dim,
                       const std::filesystem::path& base_dir) {
-  b.allow_only({"name", "shape", "min", "max", "from", "to", "radius", "file", "material", "magnetisation",
-                "sections"});
+  b.allow_only(
+      {"name", "shape", "min", "max", "from", "to", "radius", "file", "material", "magnetisation", "sections"});
   BodyParticles out;
   out.name = b.has("name") ? b.text("name") : b.path();
   out.material = material_of(b.map("material"), units.stress);
@@ -224,13 +223,17 @@ void fill_model(mpm::MpmModel<D>& m, const std::vector<BodyParticles>& bodies, d
 
 template <int D>
 mpm::MpmModel<D>& model_of(MpmScene& s) {
-  if constexpr (D == 2) return s.model2;
-  else return s.model3;
+  if constexpr (D == 2)
+    return s.model2;
+  else
+    return s.model3;
 }
 template <int D>
 const mpm::MpmModel<D>& model_of(const MpmScene& s) {
-  if constexpr (D == 2) return s.model2;
-  else return s.model3;
+  if constexpr (D == 2)
+    return s.model2;
+  else
+    return s.model3;
 }
 
 }  // namespace
@@ -358,8 +361,10 @@ MpmScene parse_mpm_scene(const std::string& text, const std::string& label, cons
     }
     sc.stable_step = model.stable_step(courant);
   };
-  if (sc.dimension == 2) common(sc.model2);
-  else common(sc.model3);
+  if (sc.dimension == 2)
+    common(sc.model2);
+  else
+    common(sc.model3);
   sc.time_step = sc.stable_step;
   if (m.has("time_step")) {
     const double dt = m.quantity("time_step", kSeconds, range::kDuration);
@@ -390,7 +395,8 @@ MpmScene parse_mpm_scene(const std::string& text, const std::string& label, cons
       }
       if (probe.particles.empty()) {
         std::string names;
-        for (std::size_t b = 0; b < sc.body_names.size(); ++b) names += (b > 0 ? ", " : "") + std::string("bodies[") + std::to_string(b) + "]";
+        for (std::size_t b = 0; b < sc.body_names.size(); ++b)
+          names += (b > 0 ? ", " : "") + std::string("bodies[") + std::to_string(b) + "]";
         p.fail("at", "has no particle of " + names + " within its radius (one cell by default)");
       }
       sc.probes.push_back(std::move(probe));
@@ -455,8 +461,8 @@ MpmResult run_dim(const MpmScene& sc, const std::function<void(double)>& progres
     r.samples.push_back(std::move(s));
   };
   auto snapshot = [&] { r.snapshots.push_back({state.time, positions3<D>(state)}); };
-  const double sample_every = sc.settle_window > 0.0 ? sc.settle_window / 10.0 : std::max(sc.duration / 1000.0,
-                                                                                            sc.time_step);
+  const double sample_every =
+      sc.settle_window > 0.0 ? sc.settle_window / 10.0 : std::max(sc.duration / 1000.0, sc.time_step);
   auto frame = [&] { r.frames.push_back(positions3<D>(state)); };
   const double frame_every = sc.video ? sc.video->speed / sc.video->fps : 0.0;
   mpm::RestWatch watch(sc.settle_tolerance);
@@ -540,8 +546,8 @@ void write_mpm_outputs(const MpmScene& sc, const MpmResult& r, const std::filesy
   j["steps"] = r.steps;
   j["simulated_time_s"] = r.time;
   j["runtime_s"] = r.runtime_s;
-  j["particle_steps_per_s"] = r.runtime_s > 0.0 ? static_cast<double>(n) * static_cast<double>(r.steps) / r.runtime_s
-                                                : 0.0;
+  j["particle_steps_per_s"] =
+      r.runtime_s > 0.0 ? static_cast<double>(n) * static_cast<double>(r.steps) / r.runtime_s : 0.0;
   j["ok"] = r.ok;
   j["failed"] = !r.ok;
   j["failure"] = r.failure;

@@ -45,12 +45,12 @@ std::string overlap_problem(const anatomy::TriangleMesh& mesh, const magnetics::
   return why.str();
 }
 
-std::string path_overlap_problem(const anatomy::TriangleMesh& mesh, const magnetics::FieldModel& magnets,
-                                 std::size_t i, const MagnetKeyframe& a, const MagnetKeyframe& b) {
+std::string path_overlap_problem(const anatomy::TriangleMesh& mesh, const magnetics::FieldModel& magnets, std::size_t i,
+                                 const MagnetKeyframe& a, const MagnetKeyframe& b) {
   if (!magnet_body(magnets, i)) return {};
   const double turn = std::acos(std::clamp(a.axis.normalized().dot(b.axis.normalized()), -1.0, 1.0));
-  const int samples =
-      std::max(1, static_cast<int>(std::ceil(std::max((b.position - a.position).norm() / 2e-3, turn / (2.0 * kDegToRad)))));
+  const int samples = std::max(
+      1, static_cast<int>(std::ceil(std::max((b.position - a.position).norm() / 2e-3, turn / (2.0 * kDegToRad)))));
   for (int k = 1; k <= samples; ++k) {
     const double t = a.time + (b.time - a.time) * k / samples;
     const MagnetKeyframe at = magnetics::interpolate({a, b}, t);

@@ -55,7 +55,8 @@ std::vector<Vec3> parse_points_csv(std::string_view text, const std::string& fil
     const auto cols = split(line);
     if (!have_header) {
       if (cols.size() != 3 || lower(cols[0]) != "x" || lower(cols[1]) != "y" || lower(cols[2]) != "z") {
-        throw InputError(file_label, line_no, "header", "expected the header line 'x,y,z' (metres), got '" + std::string(line) + "'");
+        throw InputError(file_label, line_no, "header",
+                         "expected the header line 'x,y,z' (metres), got '" + std::string(line) + "'");
       }
       have_header = true;
       continue;
@@ -70,10 +71,12 @@ std::vector<Vec3> parse_points_csv(std::string_view text, const std::string& fil
       double v = 0.0;
       const auto res = std::from_chars(c.data(), c.data() + c.size(), v);
       if (c.empty() || res.ec != std::errc() || res.ptr != c.data() + c.size()) {
-        throw InputError(file_label, line_no, std::string("column ") + name, "'" + std::string(c) + "' is not a number");
+        throw InputError(file_label, line_no, std::string("column ") + name,
+                         "'" + std::string(c) + "' is not a number");
       }
       if (!std::isfinite(v)) {
-        throw InputError(file_label, line_no, std::string("column ") + name, "must be finite (got " + std::string(c) + ")");
+        throw InputError(file_label, line_no, std::string("column ") + name,
+                         "must be finite (got " + std::string(c) + ")");
       }
       p[i] = v;
     }
@@ -92,7 +95,9 @@ std::vector<Vec3> read_points_csv(const std::filesystem::path& file) {
   return parse_points_csv(ss.str(), file.string());
 }
 
-std::string field_csv_header() { return "x,y,z,Bx,By,Bz,G11,G12,G13,G21,G22,G23,G31,G32,G33"; }
+std::string field_csv_header() {
+  return "x,y,z,Bx,By,Bz,G11,G12,G13,G21,G22,G23,G31,G32,G33";
+}
 
 void write_field_csv(std::ostream& out, std::span<const Vec3> points, std::span<const magnetics::FieldSample> samples) {
   std::string row;
@@ -100,9 +105,9 @@ void write_field_csv(std::ostream& out, std::span<const Vec3> points, std::span<
   for (std::size_t k = 0; k < points.size(); ++k) {
     row.clear();
     const auto& s = samples[k];
-    const double values[15] = {points[k].x(), points[k].y(), points[k].z(), s.b.x(), s.b.y(), s.b.z(),
-                               s.g(0, 0), s.g(0, 1), s.g(0, 2), s.g(1, 0), s.g(1, 1), s.g(1, 2),
-                               s.g(2, 0), s.g(2, 1), s.g(2, 2)};
+    const double values[15] = {points[k].x(), points[k].y(), points[k].z(), s.b.x(),   s.b.y(),
+                               s.b.z(),       s.g(0, 0),     s.g(0, 1),     s.g(0, 2), s.g(1, 0),
+                               s.g(1, 1),     s.g(1, 2),     s.g(2, 0),     s.g(2, 1), s.g(2, 2)};
     append_csv_row(row, values);
     out << row;
   }

@@ -12,7 +12,7 @@
 namespace magvine::scene {
 namespace {
 
-constexpr int kDefaultNodes = 51;   // 50 edges: the rod's acceptance resolution (< 0.2 % of L against the elastica)
+constexpr int kDefaultNodes = 51;  // 50 edges: the rod's acceptance resolution (< 0.2 % of L against the elastica)
 constexpr int kMaxNodes = 100001;
 constexpr double kMaxNormalDot = 8.7e-3;  // sin(0.5°): base normal ⟂ direction within half a degree
 
@@ -146,8 +146,8 @@ FileUnits file_units(const YamlMap& top) {
 robot::RodModel parse_rod(const YamlMap& robot, const FileUnits& units,
                           std::initializer_list<std::string_view> extra_keys, double* contact_radius,
                           double* area_out) {
-  std::vector<std::string_view> keys = {"kind",          "length", "section", "shear_modulus", "youngs_modulus",
-                                        "density",       "magnetisation", "base", "nodes", "node_spacing"};
+  std::vector<std::string_view> keys = {"kind",    "length",        "section", "shear_modulus", "youngs_modulus",
+                                        "density", "magnetisation", "base",    "nodes",         "node_spacing"};
   keys.insert(keys.end(), extra_keys.begin(), extra_keys.end());
   robot.allow_only(keys);
   const double length = robot.quantity("length", units.len, range::kBodyLength);
@@ -204,8 +204,9 @@ robot::VineParameters parse_vine(const YamlMap& robot, const FileUnits& units) {
     if (skin.has("direction")) {
       v.skin_direction = skin.direction("direction");
       if (std::abs(v.skin_direction.x()) > kMaxNormalDot) {
-        skin.fail("direction", "must be perpendicular to the body axis x (axial skin magnetisation cancels on "
-                               "eversion, thesis 4.4.2)");
+        skin.fail("direction",
+                  "must be perpendicular to the body axis x (axial skin magnetisation cancels on "
+                  "eversion, thesis 4.4.2)");
       }
       v.skin_direction.x() = 0.0;
       v.skin_direction.normalize();

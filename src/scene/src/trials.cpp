@@ -22,7 +22,8 @@ ExperimentScene with_target(const ExperimentScene& scene, const std::string& tar
     throw InputError(scene.file, 0, "control.navigator", "trials towards named targets need a navigator");
   }
   const auto branch = anatomy::find_branch(*scene.anatomy->graph, target);
-  if (!branch) throw InputError("--targets", 0, "", "no branch '" + target + "' in the phantom's graph of " + scene.file);
+  if (!branch)
+    throw InputError("--targets", 0, "", "no branch '" + target + "' in the phantom's graph of " + scene.file);
   ExperimentScene out = scene;
   detail::aim_at(out, *branch);
   return out;
@@ -61,8 +62,8 @@ ExperimentScene perturbed(const ExperimentScene& scene, std::uint64_t seed) {
   return out;
 }
 
-std::vector<TrialOutcome> run_trials(const ExperimentScene& scene, const std::vector<std::string>& targets,
-                                     int repeats, int jobs, const std::function<void(int, int)>& progress,
+std::vector<TrialOutcome> run_trials(const ExperimentScene& scene, const std::vector<std::string>& targets, int repeats,
+                                     int jobs, const std::function<void(int, int)>& progress,
                                      const std::filesystem::path& runs_dir) {
   if (repeats < 1) throw InputError("--repeats", 0, "", "must be >= 1");
   if (jobs < 1) throw InputError("--jobs", 0, "", "must be >= 1");
@@ -142,16 +143,14 @@ void write_trial_outputs(const std::vector<TrialOutcome>& outcomes, const std::f
   for (const TrialOutcome& o : outcomes) {
     all << o.target << ',' << o.repeat << ',' << o.seed << ',' << (o.success ? 1 : 0) << ',' << (o.burst ? 1 : 0) << ','
         << (o.success ? std::to_string(o.time_to_target) : std::string()) << ',' << o.everted_length << ','
-        << o.final_error << ',' << o.max_normal << ','
-        << o.retractions << ',' << o.runtime_s << ','
-        << quoted(o.reason) << '\n';
+        << o.final_error << ',' << o.max_normal << ',' << o.retractions << ',' << o.runtime_s << ',' << quoted(o.reason)
+        << '\n';
   }
   std::ostringstream csv;
   std::ostringstream md;
   // A column for the navigator's retractions (Navigator::Recovery) where any trial had one.
-  const bool retracted = std::any_of(outcomes.begin(), outcomes.end(), [](const TrialOutcome& o) {
-    return o.retractions > 0;
-  });
+  const bool retracted =
+      std::any_of(outcomes.begin(), outcomes.end(), [](const TrialOutcome& o) { return o.retractions > 0; });
   csv << "target,path_length_mm,successes,trials,success_rate,mean_time_s,sd_time_s,retractions\n";
   md << "| target | path length [mm] | success | mean time [s] | SD [s] |" << (retracted ? " retractions |" : "")
      << "\n|---|---|---|---|---|" << (retracted ? "---|" : "") << "\n";

@@ -65,14 +65,16 @@ Loaded load() {
     out.plugin = plugin;
     return out;
   }
-  out.problem = "cannot load the video plugin libmagvine_video.so (tried " + tried +
-                "; set MAGVINE_VIDEO_PLUGIN to its path)";
+  out.problem =
+      "cannot load the video plugin libmagvine_video.so (tried " + tried + "; set MAGVINE_VIDEO_PLUGIN to its path)";
   return out;
 }
 
 }  // namespace
 
-bool video_plugin_built() { return config::kWithRender; }
+bool video_plugin_built() {
+  return config::kWithRender;
+}
 
 bool preload_video_plugin(bool wanted, const std::string& what) {
   if (!wanted || !video_plugin_built()) return false;
