@@ -444,6 +444,21 @@ JointVector PlatformRun::holding_torques_at(int arm, const JointVector& q, const
   return tau;
 }
 
+std::vector<PlatformRun::Capsule> PlatformRun::link_capsules() const {
+  std::vector<Capsule> out;
+  const ArmModel& arm = m_model.arm;
+  for (std::size_t a = 0; a < m_arms.size(); ++a) {
+    const Iso3& base = m_model.arms[a].base;
+    out.push_back({base * arm.base.capsule_a, base * arm.base.capsule_b, arm.base.capsule_radius});
+    const std::array<Iso3, kArmJoints> frames = link_frames(arm, base, m_arms[a].q);
+    for (std::size_t i = 0; i < frames.size(); ++i) {
+      const ArmLink& l = arm.links[i];
+      out.push_back({frames[i] * l.capsule_a, frames[i] * l.capsule_b, l.capsule_radius});
+    }
+  }
+  return out;
+}
+
 Vec3 PlatformRun::arm_side(int arm) const {
   if (!m_model.body) return Vec3::Zero();
   const Vec3 x = m_model.body->frame.linear().col(0);

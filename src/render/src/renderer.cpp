@@ -8,11 +8,10 @@
 #include <cstring>
 #include <limits>
 #include <mutex>
+#include <opencv2/core.hpp>
 #include <random>
 #include <string>
 #include <thread>
-
-#include <opencv2/core.hpp>
 
 #include "magvine/core/error.hpp"
 #include "magvine/core/units.hpp"
@@ -127,7 +126,8 @@ RayTable make_ray_table(const Camera& camera, double spot_exponent, double vigne
       const double px = x + 0.5;
       const double py = y + 0.5;
       const Vec3 d = camera_ray(camera, focal, px, py);
-      const std::size_t i = static_cast<std::size_t>(y) * static_cast<std::size_t>(camera.width) + static_cast<std::size_t>(x);
+      const std::size_t i =
+          static_cast<std::size_t>(y) * static_cast<std::size_t>(camera.width) + static_cast<std::size_t>(x);
       for (int k = 0; k < 3; ++k) t.dir[3 * i + static_cast<std::size_t>(k)] = static_cast<float>(d[k]);
       const double dx = px - 0.5 * camera.width;
       const double dy = py - 0.5 * camera.height;
@@ -160,8 +160,8 @@ void check_look(const EndoscopeLook& look) {
 struct AirwayRenderer::Impl {
   RTCDevice device = nullptr;
   RTCScene scene = nullptr;
-  std::vector<float> normals;                 ///< 3 per vertex, unit
-  std::vector<anatomy::Triangle> triangles;   ///< for the normals' interpolation
+  std::vector<float> normals;                ///< 3 per vertex, unit
+  std::vector<anatomy::Triangle> triangles;  ///< for the normals' interpolation
   int threads = 1;
   mutable std::mutex table_mutex;
   mutable std::shared_ptr<const RayTable> table;
@@ -227,8 +227,12 @@ AirwayRenderer::AirwayRenderer(const anatomy::TriangleMesh& mesh, int threads) :
 
 AirwayRenderer::~AirwayRenderer() = default;
 
-std::size_t AirwayRenderer::triangle_count() const { return m_impl->triangles.size(); }
-int AirwayRenderer::threads() const { return m_impl->threads; }
+std::size_t AirwayRenderer::triangle_count() const {
+  return m_impl->triangles.size();
+}
+int AirwayRenderer::threads() const {
+  return m_impl->threads;
+}
 
 EndoscopeFrame AirwayRenderer::render_endoscope(const Camera& camera, const EndoscopeLook& look,
                                                 std::uint64_t frame_index, AutoExposure* exposure) const {
@@ -270,9 +274,8 @@ EndoscopeFrame AirwayRenderer::render_endoscope(const Camera& camera, const Endo
         const int x = tx + k % kTileW;
         const int y = tr * kTileH + k / kTileW;
         valid[k] = (x < w && y < h) ? -1 : 0;
-        const std::size_t i = valid[k] != 0 ? static_cast<std::size_t>(y) * static_cast<std::size_t>(w) +
-                                                  static_cast<std::size_t>(x)
-                                            : 0;
+        const std::size_t i =
+            valid[k] != 0 ? static_cast<std::size_t>(y) * static_cast<std::size_t>(w) + static_cast<std::size_t>(x) : 0;
         pixel[static_cast<std::size_t>(k)] = i;
         const float* d = &table->dir[3 * i];
         rh.ray.org_x[k] = org[0];
@@ -312,7 +315,8 @@ EndoscopeFrame AirwayRenderer::render_endoscope(const Camera& camera, const Endo
           mottle = 1.0f + texture * value_noise(p, kInvCell);
         }
         const float glint = ks * int_pow(cos_i, shininess);
-        for (int c = 0; c < 3; ++c) radiance[3 * i + static_cast<std::size_t>(c)] = irradiance * (diffuse[c] * mottle * cos_i + glint);
+        for (int c = 0; c < 3; ++c)
+          radiance[3 * i + static_cast<std::size_t>(c)] = irradiance * (diffuse[c] * mottle * cos_i + glint);
         reinterpret_cast<float*>(out.depth.data)[i] = t * table->dir[3 * i + 2];  // continuous CV_32F
       }
     }
@@ -396,8 +400,8 @@ class OverviewScene {
   void add_curve(const std::vector<Vec3>& points, double radius, cv::Vec3f colour) {
     if (points.size() < 2) return;
     RTCGeometry g = rtcNewGeometry(m_device, RTC_GEOMETRY_TYPE_ROUND_LINEAR_CURVE);
-    auto* v = static_cast<float*>(rtcSetNewGeometryBuffer(g, RTC_BUFFER_TYPE_VERTEX, 0, RTC_FORMAT_FLOAT4,
-                                                          4 * sizeof(float), points.size()));
+    auto* v = static_cast<float*>(
+        rtcSetNewGeometryBuffer(g, RTC_BUFFER_TYPE_VERTEX, 0, RTC_FORMAT_FLOAT4, 4 * sizeof(float), points.size()));
     auto* idx = static_cast<std::uint32_t*>(rtcSetNewGeometryBuffer(g, RTC_BUFFER_TYPE_INDEX, 0, RTC_FORMAT_UINT,
                                                                     sizeof(std::uint32_t), points.size() - 1));
     for (std::size_t i = 0; i < points.size(); ++i) {
@@ -442,10 +446,10 @@ class OverviewScene {
       ts.push_back({ca + 1, 2 * i + 1, 2 * j + 1});
     }
     RTCGeometry g = rtcNewGeometry(m_device, RTC_GEOMETRY_TYPE_TRIANGLE);
-    auto* v = static_cast<float*>(rtcSetNewGeometryBuffer(g, RTC_BUFFER_TYPE_VERTEX, 0, RTC_FORMAT_FLOAT3,
-                                                          3 * sizeof(float), vs.size()));
-    auto* f = static_cast<std::uint32_t*>(rtcSetNewGeometryBuffer(g, RTC_BUFFER_TYPE_INDEX, 0, RTC_FORMAT_UINT3,
-                                                                  3 * sizeof(std::uint32_t), ts.size()));
+    auto* v = static_cast<float*>(
+        rtcSetNewGeometryBuffer(g, RTC_BUFFER_TYPE_VERTEX, 0, RTC_FORMAT_FLOAT3, 3 * sizeof(float), vs.size()));
+    auto* f = static_cast<std::uint32_t*>(
+        rtcSetNewGeometryBuffer(g, RTC_BUFFER_TYPE_INDEX, 0, RTC_FORMAT_UINT3, 3 * sizeof(std::uint32_t), ts.size()));
     for (std::size_t i = 0; i < vs.size(); ++i) {
       for (int k = 0; k < 3; ++k) v[3 * i + static_cast<std::size_t>(k)] = static_cast<float>(vs[i][k]);
     }
@@ -454,6 +458,28 @@ class OverviewScene {
     }
     attach(g, colour);
   }
+
+  /// A triangle mesh with its own opacity (below 1: composited like the walls).
+  void add_mesh(const OverviewMesh& mesh) {
+    if (mesh.vertices.empty() || mesh.triangles.empty()) return;
+    RTCGeometry g = rtcNewGeometry(m_device, RTC_GEOMETRY_TYPE_TRIANGLE);
+    auto* v = static_cast<float*>(rtcSetNewGeometryBuffer(g, RTC_BUFFER_TYPE_VERTEX, 0, RTC_FORMAT_FLOAT3,
+                                                          3 * sizeof(float), mesh.vertices.size()));
+    auto* f = static_cast<std::uint32_t*>(rtcSetNewGeometryBuffer(g, RTC_BUFFER_TYPE_INDEX, 0, RTC_FORMAT_UINT3,
+                                                                  3 * sizeof(std::uint32_t), mesh.triangles.size()));
+    for (std::size_t i = 0; i < mesh.vertices.size(); ++i) {
+      for (int k = 0; k < 3; ++k) v[3 * i + static_cast<std::size_t>(k)] = static_cast<float>(mesh.vertices[i][k]);
+    }
+    for (std::size_t i = 0; i < mesh.triangles.size(); ++i) {
+      for (std::size_t k = 0; k < 3; ++k) f[3 * i + k] = mesh.triangles[i][k];
+    }
+    const unsigned id = attach(g, {mesh.colour[0], mesh.colour[1], mesh.colour[2]});
+    if (m_opacity.size() <= id) m_opacity.resize(id + 1, 1.0f);
+    m_opacity[id] = static_cast<float>(mesh.opacity);
+  }
+
+  /// Opacity of geometry `id` (1 unless a mesh set it).
+  float opacity(unsigned id) const { return id < m_opacity.size() ? m_opacity[id] : 1.0f; }
 
   void commit() {
     rtcCommitScene(m_scene);
@@ -473,6 +499,7 @@ class OverviewScene {
   RTCDevice m_device;
   RTCScene m_scene;
   std::vector<cv::Vec3f> m_colours;  ///< linear RGB per geometry id
+  std::vector<float> m_opacity;      ///< per geometry id (meshes only)
   unsigned m_anatomy = RTC_INVALID_GEOMETRY_ID;
 };
 
@@ -508,6 +535,8 @@ cv::Mat AirwayRenderer::render_overview(const Camera& camera, const OverviewCont
     scene.add_frustum(foot, neck, 0.12 * radius, 0.12 * radius, {0.25f, 0.25f, 0.25f});
     scene.add_frustum(neck, neck + 0.45 * half * n, 0.3 * radius, 0.0, {0.25f, 0.25f, 0.25f});
   }
+  for (const OverviewMesh& mesh : content.meshes) scene.add_mesh(mesh);
+  for (const OverviewCapsule& c : content.capsules) scene.add_curve({c.a, c.b}, c.radius, {0.55f, 0.55f, 0.6f});
   scene.commit();
 
   cv::Mat image(camera.height, camera.width, CV_8UC3);
@@ -551,9 +580,10 @@ cv::Mat AirwayRenderer::render_overview(const Camera& camera, const OverviewCont
         const float shade = 0.35f + 0.65f * facing;
         const bool wall = rh.hit.instID[0] != RTC_INVALID_GEOMETRY_ID;
         const cv::Vec3f base = wall ? scene.colours()[scene.anatomy()] : scene.colours()[rh.hit.geomID];
-        if (wall && layer < layers) {
+        const float surface = wall ? alpha : scene.opacity(rh.hit.geomID);
+        if (surface < 1.0f && layer < layers) {
           // A grazing wall crosses more tissue: opacity 1 − (1 − α)^(1/cos), capped, outlines the airway.
-          const float a = std::min(0.9f, 1.0f - std::pow(1.0f - alpha, 1.0f / std::max(facing, 0.05f)));
+          const float a = std::min(0.9f, 1.0f - std::pow(1.0f - surface, 1.0f / std::max(facing, 0.05f)));
           colour += transmit * a * shade * base;
           transmit *= 1.0f - a;
           tnear = rh.ray.tfar * (1.0f + 1e-5f) + 1e-6f;

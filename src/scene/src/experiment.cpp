@@ -217,6 +217,7 @@ ExperimentResult run_experiment(const ExperimentScene& scene, const std::functio
       f.magnet_positions.push_back(pose.position);
       f.magnet_axes.push_back(pose.rotation.col(2));
     }
+    if (arms) f.arm_links = arms->link_capsules();
     while (next_frame <= t + 1e-9) {
       f.time = next_frame;
       out.frames.push_back(f);

@@ -1,29 +1,70 @@
 // The video plugin (video_plugin.hpp), libmagvine_video.so: the render module's images and videos for the scene and
 // the command line, loaded on demand. Only magvine_video_plugin() is exported.
 
-#include <nlohmann/json.hpp>
+#include "magvine/scene/video_plugin.hpp"
 
 #include <unistd.h>
 
 #include <algorithm>
 #include <cmath>
 #include <cstdio>
+#include <nlohmann/json.hpp>
+#include <opencv2/core.hpp>
+#include <opencv2/imgcodecs.hpp>
 #include <string>
 #include <system_error>
 #include <thread>
 
 #include "magvine/core/atomic_file.hpp"
 #include "magvine/core/error.hpp"
-#include "magvine/render/renderer.hpp"
 #include "magvine/render/particles.hpp"
+#include "magvine/render/renderer.hpp"
 #include "magvine/render/video.hpp"
 #include "magvine/scene/experiment.hpp"
-#include "magvine/scene/video_plugin.hpp"
-#include <opencv2/core.hpp>
-#include <opencv2/imgcodecs.hpp>
 
 namespace magvine::scene {
 namespace {
+
+/// The platform's torso (an elliptic cylinder, translucent like the walls) and table (a box) as overview meshes.
+std::vector<render::OverviewMesh> meshes_of(const platform::PlatformModel& p) {
+  std::vector<render::OverviewMesh> out;
+  const auto box_or_cylinder = [&](const platform::Iso3& frame, double a, double b, double lo, double hi, int sides,
+                                   std::array<float, 3> colour, double opacity) {
+    render::OverviewMesh m;
+    m.colour = colour;
+    m.opacity = opacity;
+    for (int i = 0; i < sides; ++i) {
+      const double phi = 2.0 * kPi * (i + 0.5) / sides;
+      const double x = sides == 4 ? std::copysign(a, std::cos(phi)) : a * std::cos(phi);
+      const double y = sides == 4 ? std::copysign(b, std::sin(phi)) : b * std::sin(phi);
+      m.vertices.push_back(frame * Vec3(x, y, lo));
+      m.vertices.push_back(frame * Vec3(x, y, hi));
+    }
+    const auto n = static_cast<std::uint32_t>(sides);
+    const auto c0 = static_cast<std::uint32_t>(m.vertices.size());
+    m.vertices.push_back(frame * Vec3(0, 0, lo));
+    m.vertices.push_back(frame * Vec3(0, 0, hi));
+    for (std::uint32_t i = 0; i < n; ++i) {
+      const std::uint32_t j = (i + 1) % n;
+      m.triangles.push_back({2 * i, 2 * j, 2 * i + 1});
+      m.triangles.push_back({2 * j, 2 * j + 1, 2 * i + 1});
+      m.triangles.push_back({c0, 2 * j, 2 * i});
+      m.triangles.push_back({c0 + 1, 2 * i + 1, 2 * j + 1});
+    }
+    out.push_back(std::move(m));
+  };
+  if (p.body) {
+    const platform::TorsoModel& t = *p.body;
+    box_or_cylinder(t.frame, 0.5 * t.breadth, 0.5 * t.depth, -0.5 * t.length, 0.5 * t.length, 64, {0.9f, 0.75f, 0.65f},
+                    0.15);
+  }
+  if (p.table) {
+    const platform::TableModel& t = *p.table;
+    // The box's local z is up; its x across and y along: a 4-sided "cylinder" with corners at ±half.
+    box_or_cylinder(t.frame, 0.5 * t.width, 0.5 * t.length, -t.thickness, 0.0, 4, {0.45f, 0.5f, 0.55f}, 1.0);
+  }
+  return out;
+}
 
 namespace fs = std::filesystem;
 
@@ -78,11 +119,14 @@ render::Camera tip_camera(const VideoOutput& v, const FrameSample& f) {
 std::string experiment_videos(const ExperimentScene& scene, const ExperimentResult& result, const VideoInputs& in,
                               const fs::path& dir) {
   nlohmann::json entries = nlohmann::json::array();
-  if (scene.videos.empty() || result.frames.empty()) return nlohmann::json{{"videos", entries}, {"renderers", 0}}.dump();
+  if (scene.videos.empty() || result.frames.empty())
+    return nlohmann::json{{"videos", entries}, {"renderers", 0}}.dump();
   const int threads = static_cast<int>(std::clamp(std::thread::hardware_concurrency(), 1u, 8u));
   const render::AirwayRenderer renderer(scene.anatomy->mesh(), threads);
   create_output_directory(dir);
   const double last = result.frames.back().time;
+  const std::vector<render::OverviewMesh> platform_meshes =
+      scene.platform ? meshes_of(*scene.platform) : std::vector<render::OverviewMesh>{};
 
   for (const VideoOutput& v : scene.videos) {
     const bool tip = v.view == VideoOutput::View::kTip;
@@ -105,13 +149,29 @@ std::string experiment_videos(const ExperimentScene& scene, const ExperimentResu
           count += 1.0;
         }
       }
+      if (scene.platform) {
+        // The platform's torso in view too (the arms reach beyond it).
+        for (const render::OverviewMesh& m : platform_meshes) {
+          if (m.opacity >= 1.0) continue;  // the table runs far beyond the body
+          for (const Vec3& x : m.vertices) {
+            box.min = box.min.cwiseMin(x);
+            box.max = box.max.cwiseMax(x);
+          }
+        }
+      }
       auto [from, up] = render::face_on_view(anatomy_box);
       if (count > 0.0 && (magnets_mean / count - 0.5 * (anatomy_box.min + anatomy_box.max)).dot(from) > 0.0) {
         from = -from;
       }
-      overview = render::framing_camera(box, v.from.value_or(from), v.up.value_or(up),
-                                        v.fisheye ? render::Lens::kFisheye : render::Lens::kPinhole, v.fov, v.width,
-                                        v.height);
+      if (scene.platform && scene.platform->body) {
+        // The patient seen from the front and a little to the side, the head up (the table behind).
+        const Mat3& torso = scene.platform->body->frame.linear();
+        from = (torso.col(1) + 0.5 * torso.col(0)).normalized();
+        up = torso.col(2);
+      }
+      overview =
+          render::framing_camera(box, v.from.value_or(from), v.up.value_or(up),
+                                 v.fisheye ? render::Lens::kFisheye : render::Lens::kPinhole, v.fov, v.width, v.height);
     }
     render::VideoFile video(dir / v.name(), v.fps, v.width, v.height);
     std::optional<FrameFolder> pngs;
@@ -147,6 +207,8 @@ std::string experiment_videos(const ExperimentScene& scene, const ExperimentResu
                                      i < in.magnet_diameters.size() ? in.magnet_diameters[i] : 0.0,
                                      i < in.magnet_lengths.size() ? in.magnet_lengths[i] : 0.0});
         }
+        content.meshes = platform_meshes;
+        for (const platform::PlatformRun::Capsule& c : f.arm_links) content.capsules.push_back({c.a, c.b, c.radius});
         image = renderer.render_overview(overview, content);
       }
       video.write(image);
@@ -161,12 +223,9 @@ std::string experiment_videos(const ExperimentScene& scene, const ExperimentResu
       write_file_atomically(depths->temp() / "depth.json", scale.dump(2) + "\n");
       depths->commit();
     }
-    nlohmann::json e = {{"camera", v.name()},
-                        {"file", file.filename().string()},
-                        {"codec", video.codec()},
-                        {"frames", video.frames()},
-                        {"fps", v.fps},
-                        {"size", {v.width, v.height}}};
+    nlohmann::json e = {{"camera", v.name()},     {"file", file.filename().string()},
+                        {"codec", video.codec()}, {"frames", video.frames()},
+                        {"fps", v.fps},           {"size", {v.width, v.height}}};
     if (v.frames) e["frames_dir"] = v.name() + "_frames";
     if (v.depth) e["depth_dir"] = v.name() + "_depth";
     entries.push_back(e);
@@ -183,7 +242,9 @@ fs::path particle_video(const ParticleVideoRequest& r, const fs::path& stem) {
 }
 
 /// PNG bytes of an 8- or 16-bit image.
-std::string encode_png(const cv::Mat& image) { return render::encode_png(image, "png"); }
+std::string encode_png(const cv::Mat& image) {
+  return render::encode_png(image, "png");
+}
 
 /// The camera of a mesh image, checked: the field of view for the lens, a viewing direction and an up that is not
 /// along it (InputError otherwise).
@@ -201,7 +262,9 @@ render::Camera camera_of(const MeshImageRequest& r) {
   return cam;
 }
 
-void check_mesh_image(const MeshImageRequest& r) { (void)camera_of(r); }
+void check_mesh_image(const MeshImageRequest& r) {
+  (void)camera_of(r);
+}
 
 EncodedImages mesh_image(const MeshImageRequest& r) {
   const render::Camera cam = camera_of(r);
@@ -235,8 +298,8 @@ EncodedImages graph_picture(const anatomy::TriangleMesh& mesh, const anatomy::Ai
   return out;
 }
 
-const VideoPlugin kPlugin{VideoPlugin::kAbi, experiment_videos, particle_video, check_mesh_image, mesh_image,
-                          graph_picture};
+const VideoPlugin kPlugin{VideoPlugin::kAbi, experiment_videos, particle_video,
+                          check_mesh_image,  mesh_image,        graph_picture};
 
 }  // namespace
 }  // namespace magvine::scene

@@ -135,7 +135,7 @@ struct PlatformFigures {
   double max_tracking_error = 0.0;   ///< largest distance between the magnet's (feasible) pose asked for and the one
                                      ///< reached, every step: the arm's lag [m]
   int workspace_events = 0;          ///< requests replaced by the nearest feasible pose
-  double compute_s = 0.0;  ///< computing spent on the arms and on placing magnets through them [s]
+  double compute_s = 0.0;            ///< computing spent on the arms and on placing magnets through them [s]
 };
 
 /// One arm's joints at a time (arms.csv).
@@ -201,6 +201,13 @@ class PlatformRun {
   /// The holding torques of arm `arm` at joints q (not where it is) against gravity and a wrench on its magnet
   /// (force; torque about its centre), by Bullet's articulated bodies (PlatformWorld::holding_torques).
   JointVector holding_torques_at(int arm, const JointVector& q, const Vec3& force, const Vec3& torque);
+  /// A link's collision capsule in the world.
+  struct Capsule {
+    Vec3 a, b;
+    double radius;
+  };
+  /// Every arm's capsules where the arms are now (the foot and links 1–7; for drawing).
+  std::vector<Capsule> link_capsules() const;
   /// The magnet's pose the arm has reached.
   Iso3 magnet_pose(int arm) const;
   const JointVector& joints(int arm) const { return m_arms[static_cast<std::size_t>(arm)].q; }

@@ -11,13 +11,13 @@
 /// The gain is fixed or set by auto-exposure (the 95th percentile of luminance maps to `exposure_target`, eased
 /// from frame to frame as a bronchoscope's exposure loop does). Optional Gaussian sensor noise, seeded.
 
+#include <array>
 #include <cstdint>
 #include <memory>
+#include <opencv2/core/mat.hpp>
 #include <optional>
 #include <utility>
 #include <vector>
-
-#include <opencv2/core/mat.hpp>
 
 #include "magvine/anatomy/triangle_mesh.hpp"
 #include "magvine/render/camera.hpp"
@@ -42,14 +42,14 @@ struct EndoscopeLook {
 
 /// Auto-exposure state carried from frame to frame of a video.
 struct AutoExposure {
-  double gain = 0.0;       ///< the last frame's gain; 0: none yet (the first frame takes its own at once)
-  double easing = 0.5;     ///< fraction of the way (in log gain) to the new frame's ideal gain
+  double gain = 0.0;    ///< the last frame's gain; 0: none yet (the first frame takes its own at once)
+  double easing = 0.5;  ///< fraction of the way (in log gain) to the new frame's ideal gain
 };
 
 /// One endoscope frame.
 struct EndoscopeFrame {
-  cv::Mat color;  ///< CV_8UC3, BGR (OpenCV's order)
-  cv::Mat depth;  ///< CV_32F, z-depth along the optical axis [m]; 0 where the ray hits nothing
+  cv::Mat color;      ///< CV_8UC3, BGR (OpenCV's order)
+  cv::Mat depth;      ///< CV_32F, z-depth along the optical axis [m]; 0 where the ray hits nothing
   double gain = 0.0;  ///< the exposure gain used
 };
 
@@ -61,20 +61,38 @@ struct OverviewMagnet {
   double length = 0.0;           ///< [m]
 };
 
+/// A triangle mesh in the overview (the platform's torso and table): drawn with its opacity, below 1 composited like
+/// the walls.
+struct OverviewMesh {
+  std::vector<Vec3> vertices;  ///< [m]
+  std::vector<std::array<std::uint32_t, 3>> triangles;
+  std::array<float, 3> colour{0.8f, 0.8f, 0.8f};  ///< linear RGB
+  double opacity = 1.0;                           ///< per surface crossed
+};
+
+/// A capsule (a robot arm's link), grey.
+struct OverviewCapsule {
+  Vec3 a = Vec3::Zero();  ///< [m]
+  Vec3 b = Vec3::Zero();  ///< [m]
+  double radius = 0.0;    ///< [m]
+};
+
 struct OverviewContent {
-  std::vector<Vec3> body;        ///< the robot's centreline, base first [m]
-  double body_radius = 2.5e-3;   ///< [m]
+  std::vector<Vec3> body;       ///< the robot's centreline, base first [m]
+  double body_radius = 2.5e-3;  ///< [m]
   std::vector<OverviewMagnet> magnets;
-  std::optional<Vec3> target;    ///< [m]
-  double target_radius = 2e-3;   ///< [m]
-  std::vector<Vec3> path;        ///< the planned path [m]
-  std::vector<std::vector<Vec3>> lines;  ///< more polylines [m] (an airway graph's branches), dark orange
-  double line_radius = 0.5e-3;   ///< [m]
+  std::optional<Vec3> target;             ///< [m]
+  double target_radius = 2e-3;            ///< [m]
+  std::vector<Vec3> path;                 ///< the planned path [m]
+  std::vector<std::vector<Vec3>> lines;   ///< more polylines [m] (an airway graph's branches), dark orange
+  double line_radius = 0.5e-3;            ///< [m]
+  std::vector<OverviewMesh> meshes;       ///< the patient's torso (translucent), the table
+  std::vector<OverviewCapsule> capsules;  ///< the arms' links
 };
 
 struct OverviewLook {
-  double anatomy_opacity = 0.3;  ///< per wall layer the ray crosses
-  int max_layers = 4;            ///< wall layers composited before the rest counts as hidden
+  double anatomy_opacity = 0.3;         ///< per wall layer the ray crosses
+  int max_layers = 4;                   ///< wall layers composited before the rest counts as hidden
   cv::Vec3b background{250, 250, 250};  ///< BGR
 };
 

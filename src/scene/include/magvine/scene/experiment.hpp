@@ -59,6 +59,7 @@ struct FrameSample {
   Mat3 tip_frame = Mat3::Identity();   ///< the tip's directors (column 0: tangent)
   std::vector<Vec3> magnet_positions;  ///< [m]
   std::vector<Vec3> magnet_axes;
+  std::vector<platform::PlatformRun::Capsule> arm_links;  ///< with a platform: the arms' capsules [m]
 };
 
 struct ExperimentResult {
