@@ -80,8 +80,6 @@ figures: build
 	sed 's/speed: 0.5}/speed: 0.5, frames: true}/' assets/scenes/bronchial_tree_navigator.yaml \
 	    > $(BUILD)/navigator_frames.yaml
 	$(BUILD)/src/cli/magvine run $(BUILD)/navigator_frames.yaml --out $(BUILD)/navigator_frames
-	$(PYTHON) tools/plot_experiment.py $(BUILD)/navigator_frames --out docs/figures/demo_bronchial_tree.png \
-	    --title "Ø5 mm magnetic-fluid vine, navigator to branch 0-0-1 of the generated bronchial tree (35 kPa)"
 	$(PYTHON) tools/plot_frames.py $(BUILD)/navigator_frames --camera tip --speed 0.5 --frames 0,120,240,360 \
 	    --out docs/figures/tip_camera.png
 	$(PYTHON) tools/plot_frames.py $(BUILD)/navigator_frames --camera overview --speed 0.5 --frames 0,190,380 \
@@ -90,6 +88,8 @@ figures: build
 	    > $(BUILD)/platform_frames.yaml
 	$(BUILD)/src/cli/magvine run $(BUILD)/platform_frames.yaml --out $(BUILD)/platform_frames
 	cp $(BUILD)/platform_frames/overview_frames/000300.png docs/figures/platform_overview.png
+	$(PYTHON) tools/plot_experiment.py $(BUILD)/platform_frames --out docs/figures/demo_bronchial_tree.png \
+	    --title "Ø5 mm magnetic-fluid vine, navigator and iiwa arm to branch 0-0-1 of the generated bronchial tree (35 kPa)"
 
 format:
 	find src tests -name '*.?pp' | xargs clang-format -i
