@@ -372,6 +372,24 @@ EndoscopeFrame AirwayRenderer::render_endoscope(const Camera& camera, const Endo
 
 namespace {
 
+/// A triangle geometry of `device` holding the vertices and triangles (not yet committed).
+template <class Triangles>
+RTCGeometry triangle_geometry(RTCDevice device, const std::vector<Vec3>& vertices, const Triangles& triangles) {
+  RTCGeometry g = rtcNewGeometry(device, RTC_GEOMETRY_TYPE_TRIANGLE);
+  auto* v = static_cast<float*>(
+      rtcSetNewGeometryBuffer(g, RTC_BUFFER_TYPE_VERTEX, 0, RTC_FORMAT_FLOAT3, 3 * sizeof(float), vertices.size()));
+  auto* f = static_cast<std::uint32_t*>(rtcSetNewGeometryBuffer(g, RTC_BUFFER_TYPE_INDEX, 0, RTC_FORMAT_UINT3,
+                                                                3 * sizeof(std::uint32_t), triangles.size()));
+  if (v == nullptr || f == nullptr) embree_failure(device, "allocate a mesh's buffers");
+  for (std::size_t i = 0; i < vertices.size(); ++i) {
+    for (int k = 0; k < 3; ++k) v[3 * i + static_cast<std::size_t>(k)] = static_cast<float>(vertices[i][k]);
+  }
+  for (std::size_t i = 0; i < triangles.size(); ++i) {
+    for (std::size_t k = 0; k < 3; ++k) f[3 * i + k] = triangles[i][k];
+  }
+  return g;
+}
+
 /// The overview's per-frame scene: the airway as an instance of the renderer's static scene, plus the robot, the
 /// magnets, the target and the path; a colour per geometry id.
 class OverviewScene {
@@ -445,34 +463,13 @@ class OverviewScene {
       ts.push_back({ca, 2 * j, 2 * i});
       ts.push_back({ca + 1, 2 * i + 1, 2 * j + 1});
     }
-    RTCGeometry g = rtcNewGeometry(m_device, RTC_GEOMETRY_TYPE_TRIANGLE);
-    auto* v = static_cast<float*>(
-        rtcSetNewGeometryBuffer(g, RTC_BUFFER_TYPE_VERTEX, 0, RTC_FORMAT_FLOAT3, 3 * sizeof(float), vs.size()));
-    auto* f = static_cast<std::uint32_t*>(
-        rtcSetNewGeometryBuffer(g, RTC_BUFFER_TYPE_INDEX, 0, RTC_FORMAT_UINT3, 3 * sizeof(std::uint32_t), ts.size()));
-    for (std::size_t i = 0; i < vs.size(); ++i) {
-      for (int k = 0; k < 3; ++k) v[3 * i + static_cast<std::size_t>(k)] = static_cast<float>(vs[i][k]);
-    }
-    for (std::size_t i = 0; i < ts.size(); ++i) {
-      for (std::size_t k = 0; k < 3; ++k) f[3 * i + k] = ts[i][k];
-    }
-    attach(g, colour);
+    attach(triangle_geometry(m_device, vs, ts), colour);
   }
 
   /// A triangle mesh with its own opacity (below 1: composited like the walls).
   void add_mesh(const OverviewMesh& mesh) {
     if (mesh.vertices.empty() || mesh.triangles.empty()) return;
-    RTCGeometry g = rtcNewGeometry(m_device, RTC_GEOMETRY_TYPE_TRIANGLE);
-    auto* v = static_cast<float*>(rtcSetNewGeometryBuffer(g, RTC_BUFFER_TYPE_VERTEX, 0, RTC_FORMAT_FLOAT3,
-                                                          3 * sizeof(float), mesh.vertices.size()));
-    auto* f = static_cast<std::uint32_t*>(rtcSetNewGeometryBuffer(g, RTC_BUFFER_TYPE_INDEX, 0, RTC_FORMAT_UINT3,
-                                                                  3 * sizeof(std::uint32_t), mesh.triangles.size()));
-    for (std::size_t i = 0; i < mesh.vertices.size(); ++i) {
-      for (int k = 0; k < 3; ++k) v[3 * i + static_cast<std::size_t>(k)] = static_cast<float>(mesh.vertices[i][k]);
-    }
-    for (std::size_t i = 0; i < mesh.triangles.size(); ++i) {
-      for (std::size_t k = 0; k < 3; ++k) f[3 * i + k] = mesh.triangles[i][k];
-    }
+    RTCGeometry g = triangle_geometry(m_device, mesh.vertices, mesh.triangles);
     const unsigned id = attach(g, {mesh.colour[0], mesh.colour[1], mesh.colour[2]});
     if (m_opacity.size() <= id) m_opacity.resize(id + 1, 1.0f);
     m_opacity[id] = static_cast<float>(mesh.opacity);
