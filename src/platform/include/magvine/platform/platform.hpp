@@ -1,8 +1,8 @@
 #pragma once
 /// The magnetic manipulation platform (issue 30, docs/platform.md): the patient's torso and the table around the
 /// airway, and one or two arms each holding an EPM, as a Bullet rigid-body world (double precision) beside the soft
-/// robot. The model is immutable (PlatformModel); a run owns a PlatformWorld (the Bullet objects, which move) and a
-/// PlatformState (the arms' joints and what the run has measured of them).
+/// robot. The model is immutable (PlatformModel); a run owns a PlatformRun: the Bullet objects, which move
+/// (PlatformWorld), the arms' joints, goals and what the run has measured of them.
 ///
 /// The arms are kinematic: each step the joint tracker (arm.hpp) moves the joints within their velocity and
 /// acceleration limits and Bullet's articulated bodies and colliders follow; the KUKA's own joint position control
@@ -47,7 +47,7 @@ struct ArmMount {
   ArmTool tool;                            ///< where the magnet sits on the flange (z: its axis)
   double magnet_radius = 0.0508;           ///< [m]
   double magnet_length = 0.1016;           ///< [m]
-  JointVector home = JointVector::Zero();  ///< the posture the redundancy leans towards [rad]
+  JointVector home = JointVector::Zero();  ///< the posture it starts in, and a start of its IK [rad]
 };
 
 struct PlatformModel {
@@ -211,11 +211,6 @@ class PlatformRun {
   /// The magnet's pose the arm has reached.
   Iso3 magnet_pose(int arm) const;
   const JointVector& joints(int arm) const { return m_arms[static_cast<std::size_t>(arm)].q; }
-  /// The joints at the end of the way it is on.
-  const JointVector& final_goal(int arm) const {
-    const ArmState& s = m_arms[static_cast<std::size_t>(arm)];
-    return s.next.empty() ? s.goal : s.next.back();
-  }
   int arm_of_magnet(int magnet) const;
   /// The side of the patient arm `arm` stands on: the torso's ±x (zero without a torso).
   Vec3 arm_side(int arm) const;
