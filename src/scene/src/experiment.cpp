@@ -119,8 +119,8 @@ ExperimentResult run_experiment(const ExperimentScene& scene, const std::functio
     }
   };
   // dEPM: the wrenches the two held magnets put on each other, with arm 0's magnet at ta and arm 1's at tb: on
-  // magnet 1 by the exact field of magnet 0 over it (magnetics/interaction.hpp); on magnet 0 the reaction, −F and,
-  // about its own centre, −τ − (c_0 − c_1) × F... with F, τ those on magnet 1 (τ about its centre).
+  // magnet 1 (F₁, τ₁ about its centre) by the exact field of magnet 0 over it (magnetics/interaction.hpp); on
+  // magnet 0 the reaction F₀ = −F₁ and, about its own centre, τ₀ = −τ₁ − (c₀ − c₁) × F₀.
   const auto pair_wrench = [&](const platform::Iso3& ta, const platform::Iso3& tb) {
     const auto i = static_cast<std::size_t>(scene.platform->arms[0].magnet);
     const auto j = static_cast<std::size_t>(scene.platform->arms[1].magnet);
