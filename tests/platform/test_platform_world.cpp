@@ -93,5 +93,29 @@ TEST(PlatformWorld, AnArmThroughTheTableCollides) {
   EXPECT_TRUE(c.collision) << c.nearest_what << " " << c.nearest;
 }
 
+TEST(PlatformWorld, ArmsWhoseSideFollowsTheTargetCrossToItsSide) {
+  // place_arms_for: an arm placed on the target's side (its other side kept) moves to the other side for a target
+  // there, and back; an arm whose side the scene fixed stays.
+  PlatformModel model;
+  model.body = TorsoModel{};
+  model.table = TableModel{};
+  place_patient(Vec3::Zero(), Vec3(0, 0, -1), Vec3(0, -1, 0), 0.09, *model.body, &*model.table);
+  const Iso3 right = arm_base_beside(*model.body, *model.table, 1, 0.55, 0.0, Vec3::Zero());
+  const Iso3 left = arm_base_beside(*model.body, *model.table, -1, 0.55, 0.0, Vec3::Zero());
+  ArmMount m = epm_mount(right);
+  m.other_side = left;
+  model.arms.push_back(m);
+  const Vec3 x = model.body->frame.linear().col(0);
+  place_arms_for(model, -0.03 * x);  // a target on the left
+  EXPECT_LT((model.arms[0].base.translation() - left.translation()).norm(), 1e-12);
+  place_arms_for(model, -0.05 * x);  // still the left: nothing moves
+  EXPECT_LT((model.arms[0].base.translation() - left.translation()).norm(), 1e-12);
+  place_arms_for(model, 0.03 * x);
+  EXPECT_LT((model.arms[0].base.translation() - right.translation()).norm(), 1e-12);
+  model.arms[0].other_side.reset();  // the side fixed by the scene
+  place_arms_for(model, -0.03 * x);
+  EXPECT_LT((model.arms[0].base.translation() - right.translation()).norm(), 1e-12);
+}
+
 }  // namespace
 }  // namespace magvine::platform

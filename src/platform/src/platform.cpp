@@ -142,6 +142,17 @@ Iso3 arm_base_beside(const TorsoModel& torso, const TableModel& table, int side,
   return b;
 }
 
+void place_arms_for(PlatformModel& model, const Vec3& target) {
+  if (!model.body || model.arms.empty() || !model.arms.front().other_side) return;
+  const Iso3& torso = model.body->frame;
+  const Vec3 x = torso.linear().col(0);
+  const auto side_of = [&](const Vec3& p) { return (p - torso.translation()).dot(x) >= 0.0; };
+  if (side_of(model.arms.front().base.translation()) == side_of(target)) return;
+  for (ArmMount& m : model.arms) {
+    if (m.other_side) std::swap(m.base, *m.other_side);
+  }
+}
+
 Iso3 magnet_pose(const ArmModel& arm, const ArmMount& mount, const JointVector& q) {
   return flange_pose(arm, mount.base, q) * mount.tool.flange_to_magnet;
 }

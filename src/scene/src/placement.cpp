@@ -1,5 +1,6 @@
 #include <algorithm>
 #include <cmath>
+#include <memory>
 #include <sstream>
 
 #include "experiment_internal.hpp"
@@ -74,6 +75,11 @@ void aim_at(ExperimentScene& scene, int branch) {
   scene.navigator->target_branch = branch;
   scene.target = end.position;
   scene.target_tolerance = 1.5 * end.radius;
+  if (scene.platform) {
+    auto platform = std::make_shared<platform::PlatformModel>(*scene.platform);
+    platform::place_arms_for(*platform, end.position);
+    scene.platform = std::move(platform);
+  }
 }
 
 }  // namespace magvine::scene::detail

@@ -107,6 +107,7 @@ std::shared_ptr<const platform::PlatformModel> parse_platform(const YamlMap& p, 
   for (std::size_t i = 0; i < count; ++i) {
     platform::ArmMount mount;
     int side = i == 0 ? target_side : -target_side;
+    bool side_fixed = false;
     double lateral = 0.55, below_top = 0.0, along = 0.0, holder = 0.05;
     bool radial = true;
     mount.magnet = default_magnet;
@@ -116,8 +117,10 @@ std::shared_ptr<const platform::PlatformModel> parse_platform(const YamlMap& p, 
       const YamlMap& a = entries[i];
       a.allow_only({"magnet", "side", "lateral", "below_top", "along", "mount", "holder", "home"});
       mount.magnet = static_cast<int>(a.whole("magnet", 0, static_cast<long>(scene.magnets->size()) - 1));
-      if (a.has("side"))
+      side_fixed = a.has("side");
+      if (side_fixed) {
         side = a.choice("side", std::pair{std::string_view("right"), 1}, std::pair{std::string_view("left"), -1});
+      }
       if (a.has("lateral")) lateral = a.quantity("lateral", units.len, Range{0.0, 5.0});
       if (a.has("below_top")) below_top = a.quantity("below_top", units.len, Range{-2.0, 2.0});
       if (a.has("along")) along = a.quantity("along", units.len, Range{-3.0, 3.0});
@@ -165,6 +168,8 @@ std::shared_ptr<const platform::PlatformModel> parse_platform(const YamlMap& p, 
     mount.tool.com = mount.tool.flange_to_magnet.translation();
     const Vec3 at = carina + along * torso.frame.linear().col(2);
     mount.base = platform::arm_base_beside(torso, table, side, lateral, below_top, at);
+    // An arm whose side the scene did not fix follows a trial's target to its side (magvine trials --targets).
+    if (!side_fixed) mount.other_side = platform::arm_base_beside(torso, table, -side, lateral, below_top, at);
     model->arms.push_back(mount);
   }
   return model;

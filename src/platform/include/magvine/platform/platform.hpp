@@ -48,6 +48,9 @@ struct ArmMount {
   double magnet_radius = 0.0508;           ///< [m]
   double magnet_length = 0.1016;           ///< [m]
   JointVector home = JointVector::Zero();  ///< the posture it starts in, and a start of its IK [rad]
+  /// Where it would stand on the patient's other side, when its side follows the target (place_arms_for);
+  /// none when the scene fixed its side.
+  std::optional<Iso3> other_side;
 };
 
 struct PlatformModel {
@@ -70,6 +73,10 @@ void place_patient(const Vec3& carina, const Vec3& caudal, const Vec3& up, doubl
 /// A1 up and its x axis facing the table.
 Iso3 arm_base_beside(const TorsoModel& torso, const TableModel& table, int side, double lateral, double below_top,
                      const Vec3& at);
+
+/// Puts the arms whose side follows the target (ArmMount::other_side) so that the first stands on `target`'s side of
+/// the torso, a second on the other (a trial aimed at another branch than the scene's).
+void place_arms_for(PlatformModel& model, const Vec3& target);
 
 /// What a check of an arm's configuration found.
 struct ArmCheck {
