@@ -325,10 +325,14 @@ ArmCheck PlatformWorld::check(int arm) const {
   ArmCheck c;
   c.skin_clearance = std::numeric_limits<double>::infinity();
   c.nearest = std::numeric_limits<double>::infinity();
-  const auto note = [&](double d, const std::string& what) {
+  // The nearest pair: this arm's piece, and the torso (−1), the table (−2) or the other arm's piece (its index);
+  // named once at the end.
+  int near_mine = 0, near_other = -1;
+  const auto note = [&](double d, int mine, int other) {
     if (d < c.nearest) {
       c.nearest = d;
-      c.nearest_what = what;
+      near_mine = mine;
+      near_other = other;
     }
   };
   const std::vector<Impl::Piece> mine = m->pieces(a);
@@ -336,21 +340,25 @@ ArmCheck PlatformWorld::check(int arm) const {
     if (m->model.body) {
       const double d = signed_distance(*p.shape, p.transform, *m->torso_shape, m->torso_object.getWorldTransform());
       if (p.index == kArmJoints + 1) c.skin_clearance = d;
-      note(d, std::string(piece_name(p.index)) + " – torso");
+      note(d, p.index, -1);
     }
     if (m->model.table && p.index > 0) {  // the base stands beside the table
-      note(signed_distance(*p.shape, p.transform, *m->table_shape, m->table_object.getWorldTransform()),
-           std::string(piece_name(p.index)) + " – table");
+      note(signed_distance(*p.shape, p.transform, *m->table_shape, m->table_object.getWorldTransform()), p.index, -2);
     }
   }
   for (std::size_t o = 0; o < m->arms.size(); ++o) {
     if (o == a) continue;
+    const std::vector<Impl::Piece> theirs = m->pieces(o);
     for (const Impl::Piece& p : mine) {
-      for (const Impl::Piece& q : m->pieces(o)) {
-        note(signed_distance(*p.shape, p.transform, *q.shape, q.transform),
-             std::string(piece_name(p.index)) + " – other arm's " + piece_name(q.index));
-      }
+      for (const Impl::Piece& q : theirs)
+        note(signed_distance(*p.shape, p.transform, *q.shape, q.transform), p.index, q.index);
     }
+  }
+  if (std::isfinite(c.nearest)) {
+    c.nearest_what = std::string(piece_name(near_mine)) +
+                     (near_other == -1   ? " – torso"
+                      : near_other == -2 ? " – table"
+                                         : std::string(" – other arm's ") + piece_name(near_other));
   }
   c.collision = c.nearest < 0.0;
   return c;
