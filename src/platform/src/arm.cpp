@@ -110,6 +110,13 @@ ArmModel iiwa14_r820() {
   return a;
 }
 
+JointVector random_joints(const ArmModel& arm, std::mt19937_64& rng) {
+  std::uniform_real_distribution<double> unit(0.0, 1.0);
+  JointVector q;
+  for (int i = 0; i < kArmJoints; ++i) q[i] = arm.q_min[i] + unit(rng) * (arm.q_max[i] - arm.q_min[i]);
+  return q;
+}
+
 std::array<Iso3, kArmJoints> link_frames(const ArmModel& arm, const Iso3& base, const JointVector& q) {
   std::array<Iso3, kArmJoints> f;
   Iso3 t = base;
@@ -197,17 +204,13 @@ TaskError task_error(const ArmModel& arm, const Iso3& base, const Iso3& tool, co
 IkResult solve_ik(const ArmModel& arm, const Iso3& base, const Iso3& tool, const Iso3& target, const JointVector& start,
                   const IkOptions& options) {
   std::mt19937_64 rng(options.seed);
-  std::uniform_real_distribution<double> unit(0.0, 1.0);
   // Rows weighted so that a radian of orientation counts as kLength metres of position.
   constexpr double kLength = 0.3;
   constexpr double kMaxStep = 0.2;  // [rad]
   IkResult best;
   best.position_error = best.angle_error = std::numeric_limits<double>::infinity();
   for (int s = 0; s <= options.restarts; ++s) {
-    JointVector q = start;
-    if (s > 0) {
-      for (int i = 0; i < kArmJoints; ++i) q[i] = arm.q_min[i] + unit(rng) * (arm.q_max[i] - arm.q_min[i]);
-    }
+    JointVector q = s > 0 ? random_joints(arm, rng) : start;
     q = q.cwiseMax(arm.q_min).cwiseMin(arm.q_max);
     double lambda = 1e-3;
     TaskError t = task_error(arm, base, tool, target, options.task, q);

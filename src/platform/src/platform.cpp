@@ -541,15 +541,8 @@ Placement PlatformRun::evaluate(int arm, const Vec3& position, const Vec3& axis,
     starts.insert(starts.begin(), elbow_up * kPi / 180.0);
     starts.push_back(mount.home);
     std::mt19937_64 rng(static_cast<std::uint64_t>(std::abs(position.sum()) * 1e6) + a);
-    std::uniform_real_distribution<double> unit(0.0, 1.0);
     constexpr int kRandomStarts = 6;
-    for (int k = 0; k < kRandomStarts; ++k) {
-      JointVector q;
-      for (int i = 0; i < kArmJoints; ++i) {
-        q[i] = m_model.arm.q_min[i] + unit(rng) * (m_model.arm.q_max[i] - m_model.arm.q_min[i]);
-      }
-      starts.push_back(q);
-    }
+    for (int k = 0; k < kRandomStarts; ++k) starts.push_back(random_joints(m_model.arm, rng));
   }
   // The IK for a magnet pose from a start: converged joints or none.
   const auto solve = [&](const Vec3& p, const Vec3& ax, const JointVector& start) -> std::optional<JointVector> {

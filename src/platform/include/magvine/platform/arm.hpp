@@ -7,6 +7,7 @@
 #include <Eigen/Geometry>
 #include <array>
 #include <cstdint>
+#include <random>
 #include <string>
 
 #include "magvine/core/eigen_types.hpp"
@@ -52,6 +53,9 @@ struct ArmModel {
 
 /// The KUKA LBR iiwa 14 R820 (docs/platform.md cites the sources of every number).
 ArmModel iiwa14_r820();
+
+/// A joint vector drawn uniformly within the limits (the IK's random starts).
+JointVector random_joints(const ArmModel& arm, std::mt19937_64& rng);
 
 /// World frames of links 1..7 at joint angles q, the base at `base` (world ← base link frame).
 std::array<Iso3, kArmJoints> link_frames(const ArmModel& arm, const Iso3& base, const JointVector& q);
