@@ -109,7 +109,9 @@ TEST(PlatformScene, KeyframesThroughTheArmGiveTheFreeMagnetsResultWithinItsLag) 
   const ExperimentResult b = run_experiment(held);
   ASSERT_TRUE(a.converged && b.converged);
   expect_safe(held, b);
-  EXPECT_EQ(b.platform->workspace_events, 0);
+  EXPECT_EQ(std::count_if(b.events.begin(), b.events.end(),
+                          [](const RunEvent& e) { return e.kind == EventKind::kWorkspace; }),
+            0);
   ASSERT_EQ(a.samples.size(), b.samples.size());
   double apart = 0.0;
   for (std::size_t k = 0; k < a.samples.size(); ++k) {

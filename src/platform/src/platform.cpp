@@ -746,7 +746,6 @@ Placement PlatformRun::request(int arm, const Vec3& position, const Vec3& axis, 
     p.why = p.feasible ? why + "; moved " +
                              std::to_string(static_cast<int>(std::lround((p.position - position).norm() * 1e3))) + " mm"
                        : why + "; " + p.why + ", the arm holds its goal";
-    ++m_figures.workspace_events;
   }
   if (p.feasible) {
     set_goal(arm, p);

@@ -115,11 +115,13 @@ void write_experiment_outputs(const ExperimentScene& scene, const ExperimentResu
   for (const ExperimentSample& s : result.samples) imbalance = std::max(imbalance, s.imbalance);
   j["max_force_imbalance"] = imbalance;
   int stalls = 0;
+  int workspace = 0;
   int blocked = 0;
   nlohmann::json events = nlohmann::json::array();
   for (const RunEvent& e : result.events) {
     stalls += e.kind == EventKind::kStall || e.kind == EventKind::kSqueeze;
     blocked += e.kind == EventKind::kBlocked;
+    workspace += e.kind == EventKind::kWorkspace;
     events.push_back(
         {{"time_s", e.time}, {"length_m", e.length}, {"kind", std::string(event_name(e.kind))}, {"detail", e.detail}});
   }
@@ -147,7 +149,7 @@ void write_experiment_outputs(const ExperimentScene& scene, const ExperimentResu
     j["max_joint_torque_fraction"] = arms.max_torque_fraction;
     j["arm_path_length_rad"] = arms.path_length;
     j["max_arm_tracking_error_m"] = arms.max_tracking_error;
-    j["workspace_events"] = arms.workspace_events;
+    j["workspace_events"] = workspace;
     j["platform_runtime_s"] = arms.compute_s;
   }
   const double simulated = result.samples.empty() ? 0.0 : result.samples.back().time;

@@ -141,7 +141,6 @@ struct PlatformFigures {
   double path_length = 0.0;          ///< Σ over arms and joints of the joint travel [rad]
   double max_tracking_error = 0.0;   ///< largest distance between the magnet's (feasible) pose asked for and the one
                                      ///< reached, every step: the arm's lag [m]
-  int workspace_events = 0;          ///< requests replaced by the nearest feasible pose
   double compute_s = 0.0;            ///< computing spent on the arms and on placing magnets through them [s]
 };
 
