@@ -21,6 +21,16 @@ ArmMount epm_mount(const Iso3& base) {
   return m;
 }
 
+// An adult torso (0.33 × 0.25 m) lying supine round a carina at the origin (trachea along −z, front −y), its top
+// 0.09 m above it, on the table; no arms yet.
+PlatformModel supine_patient() {
+  PlatformModel model;
+  model.body = TorsoModel{};
+  model.table = TableModel{};
+  place_patient(Vec3::Zero(), Vec3(0, 0, -1), Vec3(0, -1, 0), 0.09, *model.body, &*model.table);
+  return model;
+}
+
 TEST(PlatformWorld, BulletFramesAndTorquesMatchTheArmModel) {
   PlatformModel model;
   Iso3 base = Iso3::Identity();
@@ -53,10 +63,7 @@ TEST(PlatformWorld, BulletFramesAndTorquesMatchTheArmModel) {
 TEST(PlatformWorld, MagnetClearanceFromTheTorso) {
   // A supine torso (0.33 × 0.25 m) round the carina at the origin, its top 0.09 m above; a magnet straight above the
   // carina, its axis vertical: the gap is the height of its lower face above the anterior skin at 0.125 m.
-  PlatformModel model;
-  model.body = TorsoModel{};
-  model.table = TableModel{};
-  place_patient(Vec3::Zero(), Vec3(0, 0, -1), Vec3(0, -1, 0), 0.09, *model.body, &*model.table);
+  PlatformModel model = supine_patient();
   model.arms.push_back(epm_mount(Iso3::Identity()));
   const PlatformWorld world(model);
   for (const double h : {0.2, 0.25, 0.4}) {
@@ -76,10 +83,7 @@ TEST(PlatformWorld, MagnetClearanceFromTheTorso) {
 }
 
 TEST(PlatformWorld, AnArmThroughTheTableCollides) {
-  PlatformModel model;
-  model.body = TorsoModel{};
-  model.table = TableModel{};
-  place_patient(Vec3::Zero(), Vec3(0, 0, -1), Vec3(0, -1, 0), 0.09, *model.body, &*model.table);
+  PlatformModel model = supine_patient();
   const Iso3 base = arm_base_beside(*model.body, *model.table, 1, 0.55, 0.1, Vec3::Zero());
   model.arms.push_back(epm_mount(base));
   PlatformWorld world(model);
@@ -96,10 +100,7 @@ TEST(PlatformWorld, AnArmThroughTheTableCollides) {
 TEST(PlatformWorld, ArmsWhoseSideFollowsTheTargetCrossToItsSide) {
   // place_arms_for: an arm placed on the target's side (its other side kept) moves to the other side for a target
   // there, and back; an arm whose side the scene fixed stays.
-  PlatformModel model;
-  model.body = TorsoModel{};
-  model.table = TableModel{};
-  place_patient(Vec3::Zero(), Vec3(0, 0, -1), Vec3(0, -1, 0), 0.09, *model.body, &*model.table);
+  PlatformModel model = supine_patient();
   const Iso3 right = arm_base_beside(*model.body, *model.table, 1, 0.55, 0.0, Vec3::Zero());
   const Iso3 left = arm_base_beside(*model.body, *model.table, -1, 0.55, 0.0, Vec3::Zero());
   ArmMount m = epm_mount(right);
