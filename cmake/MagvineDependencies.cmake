@@ -30,6 +30,22 @@ if(MAGVINE_WITH_RENDER)
   find_package(Threads REQUIRED)
 endif()
 
+if(MAGVINE_WITH_CT)
+  # libnifti2 (public domain) reads NIfTI-1/2 label maps, gzip included; OpenVDB (MPL-2.0) turns them into level sets
+  # and surfaces. Debian's NIFTI CMake config points at /usr/lib/libznz.so.3.0.0, which the package does not install,
+  # so the library is found by hand; OpenVDB ships a find module (not a config) beside its other modules.
+  find_path(NIFTI_INCLUDE_DIR nifti2_io.h PATH_SUFFIXES nifti REQUIRED)
+  find_library(NIFTI2_LIBRARY nifti2 REQUIRED)
+  find_library(ZNZ_LIBRARY znz REQUIRED)
+  find_package(ZLIB REQUIRED)
+  add_library(magvine_nifti INTERFACE)
+  target_include_directories(magvine_nifti SYSTEM INTERFACE ${NIFTI_INCLUDE_DIR})
+  target_link_libraries(magvine_nifti INTERFACE ${NIFTI2_LIBRARY} ${ZNZ_LIBRARY} ZLIB::ZLIB m)
+  add_library(magvine::nifti ALIAS magvine_nifti)
+  list(APPEND CMAKE_MODULE_PATH /usr/lib/x86_64-linux-gnu/cmake/OpenVDB)
+  find_package(OpenVDB REQUIRED)
+endif()
+
 if(MAGVINE_WITH_MPM)
   find_package(OpenMP REQUIRED COMPONENTS CXX)  # GCC's libgomp: the MPM solver's loops over particles and nodes
 endif()

@@ -20,6 +20,9 @@ packages=(
   libopencv-dev                        # optional render module: images and video (Apache-2.0)
   libgomp1                             # OpenMP runtime of GCC for the MPM solver (GCC runtime library exception)
   libembree-dev                        # BVH builder of the collision world; render: CPU ray casting (Apache-2.0)
+  libnifti2-dev                        # optional ct module: NIfTI-1/2 label maps, gzip (public domain)
+  libopenvdb-dev libboost-iostreams-dev  # optional ct module: level sets and surfaces from label maps (MPL-2.0;
+                                       # Boost's iostreams only because OpenVDB's CMake module asks for it, BSL-1.0)
   libgtest-dev libgmock-dev            # tests (BSD-3)
   libbenchmark-dev                     # benchmarks (Apache-2.0)
   python3 python3-numpy python3-matplotlib  # plots written by tools/*.py (PSF/BSD)

@@ -5,6 +5,7 @@
 #include <iostream>
 
 #include "commands.hpp"
+#include "ct_command.hpp"
 #include "magvine/config.hpp"
 #include "magvine/core/error.hpp"
 #include "mpm_command.hpp"
@@ -16,7 +17,8 @@ namespace {
 std::string build_info() {
   std::string s = std::string("magvine ") + MAGVINE_VERSION +
                   " (render: " + (magvine::config::kWithRender ? "on" : "off") +
-                  ", mpm: " + (magvine::config::kWithMpm ? "on" : "off") + ")";
+                  ", mpm: " + (magvine::config::kWithMpm ? "on" : "off") +
+                  ", ct: " + (magvine::config::kWithCt ? "on" : "off") + ")";
   return s;
 }
 
@@ -169,6 +171,8 @@ int main(int argc, char** argv) {
   mpm_cmd.attach(app, *study_cmd);
   magvine::cli::RenderCommand render_cmd;
   render_cmd.attach(app);
+  magvine::cli::CtCommand ct_cmd;
+  ct_cmd.attach(app, *study_cmd);
 
   try {
     app.parse(argc, argv);
@@ -196,6 +200,7 @@ int main(int argc, char** argv) {
     if (phantom.parsed()) return phantom.run();
     if (mpm_cmd.parsed()) return mpm_cmd.run();
     if (render_cmd.parsed()) return render_cmd.run();
+    if (ct_cmd.parsed()) return ct_cmd.run();
     if (run_cmd->parsed()) return magvine::cli::run_scene(run);
     if (validate_cmd->parsed()) return magvine::cli::run_validate(validate_out);
     if (trials_cmd->parsed()) return magvine::cli::run_trials(trials);

@@ -15,10 +15,14 @@
 #include "magvine/anatomy/mesh_io.hpp"
 #include "magvine/anatomy/mesh_report.hpp"
 #include "magvine/anatomy/phantom.hpp"
+#include "magvine/config.hpp"
 #include "magvine/core/error.hpp"
 #include "magvine/core/keyframes.hpp"
 #include "magvine/core/text.hpp"
 #include "magvine/core/units.hpp"
+#if MAGVINE_WITH_CT
+#include "magvine/ct/import.hpp"
+#endif
 #include "magvine/scene/experiment_scene.hpp"
 #include "platform_entry.hpp"
 #include "ranges.hpp"
@@ -142,17 +146,55 @@ std::shared_ptr<const SceneAnatomy> mesh_anatomy(const YamlMap& entry, const Fil
   return cache != nullptr ? cache->get(key.str(), build) : build();
 }
 
-/// anatomy: a generated phantom or a mesh file.
+/// anatomy.segmentation (+ label, graph_root): a CT label map imported as `magvine ct import` would (ct/import.hpp),
+/// its graph extracted. Only with the CT module.
+std::shared_ptr<const SceneAnatomy> segmentation_anatomy(const YamlMap& entry, const FileUnits& units,
+                                                         const std::filesystem::path& directory, AnatomyCache* cache) {
+  const std::filesystem::path file = directory / entry.text("segmentation");
+  const int label = entry.has("label") ? static_cast<int>(entry.whole("label", -1'000'000, 1'000'000)) : 1;
+  std::optional<Vec3> root;
+  if (entry.has("graph_root")) root = entry.vec3_quantity("graph_root", units.len, range::kCoordinate);
+#if MAGVINE_WITH_CT
+  std::ostringstream key;
+  key.precision(17);
+  key << "segmentation " << std::filesystem::absolute(file).lexically_normal().string() << " label " << label;
+  if (root) key << " root " << root->x() << ' ' << root->y() << ' ' << root->z();
+  const auto build = [&] {
+    ct::ImportOptions options;
+    options.surface.label = label;
+    if (root) options.graph.root = *root;
+    try {
+      ct::ImportResult r = ct::import_anatomy(file, options);
+      const bool closed = r.report.watertight;
+      return std::make_shared<const SceneAnatomy>(
+          SceneAnatomy{file.string(), std::move(r.graph), closed, anatomy::CollisionWorld(r.mesh.mesh)});
+    } catch (const InputError& e) {
+      entry.fail("segmentation", e.what());
+    }
+  };
+  return cache != nullptr ? cache->get(key.str(), build) : build();
+#else
+  (void)cache;
+  entry.fail("segmentation", "this magvine was built without the CT module (configure with -DMAGVINE_WITH_CT=ON)");
+#endif
+}
+
+/// anatomy: a generated phantom, a mesh file or a CT segmentation.
 std::shared_ptr<const SceneAnatomy> parse_anatomy(const YamlMap& entry, const FileUnits& units,
                                                   const std::filesystem::path& directory, AnatomyCache* cache) {
-  entry.allow_only({"phantom", "mesh", "mesh_units", "graph", "graph_root"});
-  if (entry.has("phantom") == entry.has("mesh")) {
-    entry.fail("phantom", "give exactly one of phantom: {kind: ...} or mesh: FILE");
+  entry.allow_only({"phantom", "mesh", "mesh_units", "graph", "graph_root", "segmentation", "label"});
+  if (int(entry.has("phantom")) + int(entry.has("mesh")) + int(entry.has("segmentation")) != 1) {
+    entry.fail("phantom", "give exactly one of phantom: {kind: ...}, mesh: FILE or segmentation: FILE.nii.gz");
   }
   if (entry.has("phantom")) {
-    refuse_keys(entry, {"mesh_units", "graph", "graph_root"}, "a generated phantom comes with its own graph");
+    refuse_keys(entry, {"mesh_units", "graph", "graph_root", "label"}, "a generated phantom comes with its own graph");
     return phantom_anatomy(entry.map("phantom"), cache);
   }
+  if (entry.has("segmentation")) {
+    refuse_keys(entry, {"mesh_units", "graph"}, "a segmentation is read in its own mm and its graph is extracted");
+    return segmentation_anatomy(entry, units, directory, cache);
+  }
+  refuse_keys(entry, {"label"}, "label belongs to segmentation: FILE");
   return mesh_anatomy(entry, units, directory, cache);
 }
 
