@@ -63,5 +63,49 @@ TEST(MeshClean, EmptyMeshAndUnusedVertices) {
   EXPECT_TRUE(lonely.vertices.empty());
 }
 
+/// An axis-aligned box [m] as 12 triangles, normals outward (or inward with `inward`).
+void add_box(TriangleMesh& mesh, const Vec3& lo, const Vec3& hi, bool inward = false) {
+  const auto base = static_cast<std::uint32_t>(mesh.vertices.size());
+  for (int c = 0; c < 8; ++c) {
+    mesh.vertices.emplace_back((c & 1) ? hi.x() : lo.x(), (c & 2) ? hi.y() : lo.y(), (c & 4) ? hi.z() : lo.z());
+  }
+  const std::array<Triangle, 12> faces{{{0, 2, 1},
+                                        {1, 2, 3},
+                                        {4, 5, 6},
+                                        {5, 7, 6},
+                                        {0, 1, 4},
+                                        {1, 5, 4},
+                                        {2, 6, 3},
+                                        {3, 6, 7},
+                                        {0, 4, 2},
+                                        {2, 4, 6},
+                                        {1, 3, 5},
+                                        {3, 7, 5}}};
+  for (Triangle f : faces) {
+    if (inward) std::swap(f[1], f[2]);
+    mesh.triangles.push_back({base + f[0], base + f[1], base + f[2]});
+  }
+}
+
+// A 10 mm box with a 2 mm cavity inside (inward normals) and a 1 mm box beside it: the big box stays, the cavity and
+// the fragment are counted with their exact volumes, and their vertices go with them.
+TEST(MeshClean, KeepLargestComponentDropsCavitiesAndFragments) {
+  TriangleMesh mesh;
+  add_box(mesh, Vec3(0.004, 0.004, 0.004), Vec3(0.006, 0.006, 0.006), true);
+  add_box(mesh, Vec3::Zero(), Vec3::Constant(0.010));
+  add_box(mesh, Vec3::Constant(0.020), Vec3::Constant(0.021));
+  TriangleMesh big;
+  add_box(big, Vec3::Zero(), Vec3::Constant(0.010));
+  ASSERT_NEAR(signed_volume(big), 1e-6, 1e-18);
+  const DroppedParts dropped = keep_largest_component(mesh);
+  EXPECT_EQ(dropped.cavities, 1u);
+  EXPECT_EQ(dropped.fragments, 1u);
+  EXPECT_NEAR(dropped.cavity_volume, 8e-9, 1e-20);
+  EXPECT_NEAR(dropped.fragment_volume, 1e-9, 1e-20);
+  EXPECT_EQ(mesh.triangles.size(), 12u);
+  EXPECT_EQ(mesh.vertices.size(), 8u);
+  EXPECT_NEAR(signed_volume(mesh), 1e-6, 1e-18);
+}
+
 }  // namespace
 }  // namespace magvine::anatomy

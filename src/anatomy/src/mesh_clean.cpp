@@ -6,6 +6,8 @@
 #include <limits>
 #include <vector>
 
+#include "magvine/core/disjoint_sets.hpp"
+
 namespace magvine::anatomy {
 namespace {
 
@@ -158,6 +160,47 @@ CleanStats weld_and_clean(TriangleMesh& mesh, double tolerance) {
   stats.unused_removed += mesh.vertices.size() - vertices.size();
   mesh.vertices = std::move(vertices);
   return stats;
+}
+
+DroppedParts keep_largest_component(TriangleMesh& mesh) {
+  DroppedParts dropped;
+  const std::size_t n = mesh.triangles.size();
+  if (n == 0) return dropped;
+  // Triangles sharing a vertex are joined (a manifold mesh's parts share no vertex).
+  DisjointSets sets(n);
+  std::vector<std::uint32_t> first_user(mesh.vertices.size(), kEmpty);
+  for (std::uint32_t t = 0; t < n; ++t) {
+    for (const std::uint32_t v : mesh.triangles[t]) {
+      if (first_user[v] == kEmpty) {
+        first_user[v] = t;
+      } else {
+        sets.unite(first_user[v], t);
+      }
+    }
+  }
+  std::vector<double> six_volume(n, 0.0);
+  for (std::uint32_t t = 0; t < n; ++t) {
+    six_volume[sets.find(t)] += corner(mesh, t, 0).dot(corner(mesh, t, 1).cross(corner(mesh, t, 2)));
+  }
+  std::uint32_t keep = 0;
+  for (std::uint32_t t = 0; t < n; ++t) {
+    if (sets.find(t) == t && std::abs(six_volume[t]) > std::abs(six_volume[keep])) keep = t;
+  }
+  const double sign = six_volume[keep] < 0.0 ? -1.0 : 1.0;
+  for (std::uint32_t t = 0; t < n; ++t) {
+    if (sets.find(t) != t || t == keep) continue;
+    if (sign * six_volume[t] < 0.0) {
+      ++dropped.cavities;
+      dropped.cavity_volume += std::abs(six_volume[t]) / 6.0;
+    } else {
+      ++dropped.fragments;
+      dropped.fragment_volume += std::abs(six_volume[t]) / 6.0;
+    }
+  }
+  if (dropped.cavities + dropped.fragments == 0) return dropped;
+  std::erase_if(mesh.triangles, [&](const Triangle& tri) { return sets.find(first_user[tri[0]]) != keep; });
+  weld_and_clean(mesh);  // drops the vertices only the removed parts used
+  return dropped;
 }
 
 }  // namespace magvine::anatomy

@@ -4,11 +4,11 @@
 #include <cmath>
 #include <cstdint>
 #include <iomanip>
+#include <nlohmann/json.hpp>
 #include <numeric>
 #include <sstream>
 
-#include <nlohmann/json.hpp>
-
+#include "magvine/core/disjoint_sets.hpp"
 #include "magvine/core/units.hpp"
 
 namespace magvine::anatomy {
@@ -27,23 +27,6 @@ std::uint64_t edge_key(std::uint32_t a, std::uint32_t b) {
   const std::uint32_t lo = std::min(a, b), hi = std::max(a, b);
   return (static_cast<std::uint64_t>(lo) << 32) | hi;
 }
-
-class DisjointSets {
- public:
-  explicit DisjointSets(std::size_t n) : m_parent(n) { std::iota(m_parent.begin(), m_parent.end(), 0u); }
-  std::uint32_t find(std::uint32_t x) {
-    while (m_parent[x] != x) x = m_parent[x] = m_parent[m_parent[x]];
-    return x;
-  }
-  void unite(std::uint32_t a, std::uint32_t b) {
-    a = find(a);
-    b = find(b);
-    if (a != b) m_parent[std::max(a, b)] = std::min(a, b);
-  }
-
- private:
-  std::vector<std::uint32_t> m_parent;
-};
 
 // A boundary loop as a vertex cycle, directed as the triangles that own its edges run.
 using Loop = std::vector<std::uint32_t>;
@@ -81,10 +64,14 @@ std::vector<Loop> trace_loops(std::vector<std::pair<std::uint32_t, std::uint32_t
 
 const char* to_string(Orientation orientation) {
   switch (orientation) {
-    case Orientation::kOutward: return "outward";
-    case Orientation::kInward: return "inward";
-    case Orientation::kInconsistent: return "inconsistent";
-    case Orientation::kUnknown: return "unknown";
+    case Orientation::kOutward:
+      return "outward";
+    case Orientation::kInward:
+      return "inward";
+    case Orientation::kInconsistent:
+      return "inconsistent";
+    case Orientation::kUnknown:
+      return "unknown";
   }
   return "unknown";
 }
@@ -200,15 +187,17 @@ MeshReport analyse_mesh(const TriangleMesh& mesh) {
   // Warnings a user should act on.
   auto warn = [&report](const std::string& s) { report.warnings.push_back(s); };
   if (report.boundary_edges > 0) {
-    warn("open mesh: " + std::to_string(report.boundary_edges) + " boundary edges in " +
-         std::to_string(loops.size()) + " openings (cut airway ends are openings; the robot can leave through them)");
+    warn("open mesh: " + std::to_string(report.boundary_edges) + " boundary edges in " + std::to_string(loops.size()) +
+         " openings (cut airway ends are openings; the robot can leave through them)");
   }
   if (report.non_manifold_edges > 0) {
-    warn(std::to_string(report.non_manifold_edges) + " non-manifold edges (shared by more than two triangles); "
+    warn(std::to_string(report.non_manifold_edges) +
+         " non-manifold edges (shared by more than two triangles); "
          "genus and inside/outside tests are unreliable there");
   }
   if (misoriented > 0) {
-    warn(std::to_string(misoriented) + " edges where neighbouring triangles have opposite winding; repair the "
+    warn(std::to_string(misoriented) +
+         " edges where neighbouring triangles have opposite winding; repair the "
          "normals (e.g. Slicer's Surface Toolbox) before use");
   }
   if (report.orientation == Orientation::kInward) warn("normals point into the lumen (inward-facing)");
@@ -228,7 +217,9 @@ MeshReport analyse_mesh(const TriangleMesh& mesh) {
 namespace magvine::anatomy {
 namespace {
 
-nlohmann::json vec_json(const Vec3& v) { return nlohmann::json::array({v.x(), v.y(), v.z()}); }
+nlohmann::json vec_json(const Vec3& v) {
+  return nlohmann::json::array({v.x(), v.y(), v.z()});
+}
 
 std::string unit_label(LengthUnit units) {
   return units == LengthUnit::kMm ? "mm" : units == LengthUnit::kCm ? "cm" : "m";
@@ -259,8 +250,8 @@ std::string report_json(const std::string& file, const ImportedMesh& imported, c
   j["duplicate_removed"] = imported.stats.duplicate_removed;
   nlohmann::json openings = nlohmann::json::array();
   for (const Opening& o : report.openings) {
-    openings.push_back({{"centroid_m", vec_json(o.centroid)}, {"normal", vec_json(o.normal)},
-                        {"diameter_m", o.diameter}});
+    openings.push_back(
+        {{"centroid_m", vec_json(o.centroid)}, {"normal", vec_json(o.normal)}, {"diameter_m", o.diameter}});
   }
   j["openings"] = openings;
   nlohmann::json warnings = nlohmann::json::array();

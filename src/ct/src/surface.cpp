@@ -195,6 +195,16 @@ anatomy::TriangleMesh segmentation_surface(const LabelVolume& volume, const Surf
     }
   }
   anatomy::weld_and_clean(mesh);
+  const anatomy::DroppedParts dropped = anatomy::keep_largest_component(mesh);
+  if (dropped.cavities + dropped.fragments > 0) {
+    std::ostringstream s;
+    s.precision(3);
+    s << "removed " << dropped.cavities << " cavities (" << 1e9 * dropped.cavity_volume
+      << " mm^3: unlabelled voxels enclosed by the lumen) and " << dropped.fragments << " fragments ("
+      << 1e9 * dropped.fragment_volume
+      << " mm^3: pieces joined to the tree only by a neck thinner than a voxel) from the surface";
+    r.notes.push_back(s.str());
+  }
   if (anatomy::signed_volume(mesh) < 0.0) anatomy::flip_orientation(mesh);
   r.seconds_surface = seconds_since(start);
   return mesh;

@@ -24,4 +24,17 @@ inline constexpr double kWeldRelativeTolerance = 1e-9;
 /// vertices. Vertex order follows first use, so the result is deterministic.
 CleanStats weld_and_clean(TriangleMesh& mesh, double tolerance = 0.0);
 
+/// What keep_largest_component dropped.
+struct DroppedParts {
+  std::size_t cavities = 0;      ///< closed parts enclosing a negative volume: holes inside the kept one
+  std::size_t fragments = 0;     ///< other parts: pieces apart from the kept one
+  double cavity_volume = 0.0;    ///< [m³]
+  double fragment_volume = 0.0;  ///< [m³], absolute
+};
+
+/// Keeps the edge-connected part enclosing the largest |signed volume| (an airway's lumen surface) and removes the
+/// others — cavities of a label map's unlabelled voxels inside the lumen, which would be obstacles there, and
+/// separate fragments — with the vertices they alone used.
+DroppedParts keep_largest_component(TriangleMesh& mesh);
+
 }  // namespace magvine::anatomy
