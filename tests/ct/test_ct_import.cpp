@@ -17,9 +17,11 @@
 #include "magvine/anatomy/mesh_report.hpp"
 #include "magvine/core/error.hpp"
 #include "magvine/ct/import.hpp"
+#include "magvine/scene/experiment.hpp"
 #include "support/airways.hpp"
 #include "support/mesh_distance.hpp"
 #include "support/nifti_file.hpp"
+#include "support/text_file.hpp"
 
 namespace magvine::ct {
 namespace {
@@ -243,6 +245,56 @@ TEST(CtImport, SurfaceDistanceMatchesBruteForce) {
   EXPECT_NEAR(d.mean, sum / weight, 1e-12);
   EXPECT_NEAR(d.max, max, 1e-12);
   EXPECT_GT(d.mean, 0.0);
+}
+
+// `anatomy: {segmentation: FILE}` in a scene: the bundled Y scene with its phantom swapped for a capped tube of
+// radius 5 mm given as a label map. The scene's anatomy is the imported surface (closed) with its extracted graph,
+// the tube's radius within half a voxel (the import's bound); a missing label is an error naming the key.
+TEST(CtImport, ScenesTakeASegmentation) {
+  test::NiftiLabels l;
+  l.dims = {30, 30, 100};
+  l.voxel_mm = {0.5f, 0.5f, 0.7f};
+  test::fill(l, [](int i, int j, int k) {
+    return std::hypot(i * 0.5 - 7.25, j * 0.5 - 7.25) <= 5.0 && k * 0.7 >= 5.0 && k * 0.7 <= 65.0 ? 1.0f : 0.0f;
+  });
+  const std::filesystem::path file = written("tube.nii", l);
+  const std::string text =
+      "units: {length: mm, pressure: kPa}\n"
+      "anatomy:\n"
+      "  segmentation: " +
+      file.string() +
+      "\n"
+      "robot:\n"
+      "  kind: vine\n"
+      "  length: 5\n"
+      "  diameter: 5\n"
+      "  pressure: 35\n"
+      "  wall: {thickness: 0.038, youngs_modulus: 10000, density: 1100, strength: 2900}\n"
+      "  fill: {kind: magnetic_fluid, volume_fraction: 0.23}\n"
+      "  base: {position: [7.25, 7.25, 10], direction: [0, 0, 1], normal: [1, 0, 0]}\n"
+      "growth: {yield_pressure: 20}\n"
+      "control: {pressure: [[0, 35]]}\n"
+      "simulation: {duration: 1, dt: 0.02}\n";
+  const scene::ExperimentScene sc = scene::parse_experiment_scene(text, "ct.yaml", MAGVINE_SOURCE_DIR);
+  EXPECT_TRUE(sc.anatomy->closed);
+  EXPECT_EQ(sc.anatomy->label, file.string());
+  ASSERT_TRUE(sc.anatomy->graph.has_value());
+  ASSERT_FALSE(sc.anatomy->graph->branches.empty());
+  const auto& trunk = sc.anatomy->graph->branches.front();
+  const double r = sc.anatomy->graph->nodes[trunk.nodes[trunk.nodes.size() / 2]].radius;
+  EXPECT_NEAR(r, 5e-3, 0.35e-3);
+
+  std::string bad = text;
+  const std::string given = "segmentation: " + file.string();
+  bad.replace(bad.find(given), given.size(), given + "\n  label: 9");
+  try {
+    (void)scene::parse_experiment_scene(bad, "ct.yaml", MAGVINE_SOURCE_DIR);
+    ADD_FAILURE() << "a missing label must be refused";
+  } catch (const InputError& e) {
+    const std::string what = e.what();
+    EXPECT_NE(what.find("anatomy.segmentation"), std::string::npos) << what;
+    EXPECT_NE(what.find("no voxel carries label 9"), std::string::npos) << what;
+  }
 }
 
 // The five Med-MPD segmentations (acceptance of issue 31): each imports watertight with a graph to generation ≥ 5
