@@ -55,7 +55,7 @@ demo: build
 
 bench: deps
 	cmake -S . -B $(BUILD) -DCMAKE_BUILD_TYPE=Release -DMAGVINE_BUILD_BENCHMARKS=ON $(CMAKE_FLAGS)
-	cmake --build $(BUILD) -j $(JOBS) --target bench_fields bench_mesh_import bench_contacts bench_rod bench_design bench_render bench_centerline
+	cmake --build $(BUILD) -j $(JOBS) --target bench_fields bench_mesh_import bench_contacts bench_rod bench_design bench_render bench_centerline bench_ct
 	$(BUILD)/tests/bench/bench_fields --benchmark_min_time=0.5
 	$(BUILD)/tests/bench/bench_mesh_import
 	$(BUILD)/tests/bench/bench_contacts --benchmark_min_time=0.5
@@ -63,6 +63,7 @@ bench: deps
 	$(BUILD)/tests/bench/bench_design
 	$(BUILD)/tests/bench/bench_render
 	$(BUILD)/tests/bench/bench_centerline
+	$(BUILD)/tests/bench/bench_ct
 
 # Regenerates the README figures in docs/figures (field-model and phantom-meshing error against runtime, the robot
 # mechanics validation; ~3 min).
@@ -76,6 +77,12 @@ figures: build
 	$(BUILD)/src/cli/magvine validate --out docs/figures
 	$(PYTHON) tools/plot_mechanics.py docs/figures
 	$(BUILD)/src/cli/magvine study design --out docs/figures
+	$(BUILD)/src/cli/magvine study ct-import --out docs/figures \
+	    --segmentation ../shared/airways/segmentations/Patient1/bronchialTree.nii.gz \
+	    --reference ../shared/airways/lidc0297_medmpd_p1_airway_mc.stl \
+	    --segmentation ../shared/airways/segmentations/Patient5/bronchialTree.nii.gz \
+	    --reference ../shared/airways/lidc0525_medmpd_p5_airway_mc.stl
+	$(PYTHON) tools/plot_ct_study.py docs/figures
 	$(PYTHON) tools/plot_design_study.py docs/figures --out docs/figures/design_study.png
 	sed 's/speed: 0.5}/speed: 0.5, frames: true}/' assets/scenes/bronchial_tree_navigator.yaml \
 	    > $(BUILD)/navigator_frames.yaml
