@@ -26,11 +26,11 @@ build: deps
 test: build
 	cd $(BUILD) && ctest --output-on-failure -j $(JOBS)
 
-# The minimal configuration: no render module, no MPM, core + magnetics + scene + cli and their tests; the hot
+# The minimal configuration: no render module, no MPM, no CT import, core + magnetics + scene + cli and their tests; the hot
 # kernels in their baseline x86-64 build only (the full build runs the AVX2 copies on machines that have AVX2).
 minimal: deps
 	cmake -S . -B $(MINIMAL) -DCMAKE_BUILD_TYPE=Release -DMAGVINE_WERROR=ON \
-	      -DMAGVINE_WITH_RENDER=OFF -DMAGVINE_WITH_MPM=OFF -DMAGVINE_MULTIVERSION=OFF $(CMAKE_FLAGS)
+	      -DMAGVINE_WITH_RENDER=OFF -DMAGVINE_WITH_MPM=OFF -DMAGVINE_WITH_CT=OFF -DMAGVINE_MULTIVERSION=OFF $(CMAKE_FLAGS)
 	cmake --build $(MINIMAL) -j $(JOBS)
 	cd $(MINIMAL) && ctest --output-on-failure -j $(JOBS)
 

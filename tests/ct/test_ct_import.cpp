@@ -322,7 +322,7 @@ INSTANTIATE_TEST_SUITE_P(Patients, RealSegmentation, ::testing::Values(1, 2, 3, 
 // Patients 1 and 5 against the shared marching-cubes meshes of the same maps (level ½, unsmoothed): mean surface
 // distance below one voxel and volume within 10 % (the acceptance figures of issue 31: the reference carries the
 // ±½-voxel staircase that the import smooths away, so neither can be zero).
-class AgainstMarchingCubes : public ::testing::TestWithParam<std::pair<int, const char*>> {};
+class AgainstMarchingCubes : public ::testing::TestWithParam<std::pair<int, std::string>> {};
 
 TEST_P(AgainstMarchingCubes, WithinOneVoxelAndTenPercentOfVolume) {
   const auto [patient, mesh_name] = GetParam();
@@ -342,8 +342,8 @@ TEST_P(AgainstMarchingCubes, WithinOneVoxelAndTenPercentOfVolume) {
 }
 
 INSTANTIATE_TEST_SUITE_P(Patients, AgainstMarchingCubes,
-                         ::testing::Values(std::pair<int, const char*>{1, "lidc0297_medmpd_p1_airway_mc.stl"},
-                                           std::pair<int, const char*>{5, "lidc0525_medmpd_p5_airway_mc.stl"}));
+                         ::testing::Values(std::pair<int, std::string>{1, "lidc0297_medmpd_p1_airway_mc.stl"},
+                                           std::pair<int, std::string>{5, "lidc0525_medmpd_p5_airway_mc.stl"}));
 
 }  // namespace
 }  // namespace magvine::ct
