@@ -1,0 +1,46 @@
+#pragma once
+/// Where to stop the robot's tip for a transbronchial needle biopsy of a nodule outside the airway (issue 31, item 2):
+/// the centreline point from which a straight needle, pushed out of the tip, reaches the nodule along the shortest
+/// path through tissue without entering another airway, in a branch the robot fits all the way in.
+
+#include <cstdint>
+#include <string>
+
+#include "magvine/anatomy/airway_graph.hpp"
+#include "magvine/anatomy/collision_world.hpp"
+
+namespace magvine::anatomy {
+
+struct BiopsyOptions {
+  double tool_radius = 2.5e-3;  ///< the robot's radius: every node on the way must be at least this wide [m]
+  double max_needle = 0.05;     ///< longest needle path through tissue, wall to nodule centre [m]
+  /// Largest angle between the needle and the branch's direction at the stop: the tip turns this far towards the
+  /// wall before the needle leaves it (the tool channel leaves along the tip). [rad]
+  double max_angle = 1.0471975511965976;  // 60°
+};
+
+/// The chosen stop and needle path.
+struct BiopsyPlan {
+  bool found = false;
+  std::uint32_t node = 0;                                       ///< the stop: a centreline node
+  int branch = -1;                                              ///< its branch
+  Vec3 start = Vec3::Zero();                                    ///< the node's position: where the tip stops [m]
+  Vec3 wall = Vec3::Zero();                                     ///< where the needle leaves the airway [m]
+  Vec3 direction = Vec3::UnitX();                               ///< unit, start → nodule centre
+  double needle = 0.0;                                          ///< needle path in tissue, wall → nodule centre [m]
+  double angle = 0.0;                                           ///< needle against the branch's direction [rad]
+  double lumen_radius = 0.0;                                    ///< the node's radius [m]
+  std::size_t reachable = 0;                                    ///< nodes the tool fits to
+  std::size_t too_long = 0, too_steep = 0, through_airway = 0;  ///< reachable nodes ruled out, by reason
+  std::string why;                                              ///< when none is found: the reasons, counted
+};
+
+/// Plans the stop for a nodule centred at `nodule` [m] (outside the lumen). Candidates are the graph's nodes reached
+/// from the root through nodes at least `tool_radius` wide; for each, the needle runs from the node straight to the
+/// nodule centre: the first wall crossing (ray cast) is where it leaves the airway, and a second crossing before the
+/// nodule would take it through another airway (ruled out). Among those within max_needle and max_angle the shortest
+/// needle path wins (ties: the smaller angle, then the lower node index).
+BiopsyPlan plan_biopsy(const AirwayGraph& graph, const CollisionWorld& world, const Vec3& nodule,
+                       const BiopsyOptions& options = {});
+
+}  // namespace magvine::anatomy

@@ -1,0 +1,86 @@
+#include "magvine/anatomy/biopsy_plan.hpp"
+
+#include <algorithm>
+#include <cmath>
+#include <limits>
+#include <numbers>
+#include <sstream>
+#include <vector>
+
+namespace magvine::anatomy {
+
+namespace {
+
+/// Direction of branch b at its k-th node (central difference along the polyline).
+Vec3 tangent_at(const AirwayGraph& graph, const AirwayBranch& b, std::size_t k) {
+  const std::size_t lo = k > 0 ? k - 1 : 0, hi = std::min(k + 1, b.nodes.size() - 1);
+  return (graph.nodes[b.nodes[hi]].position - graph.nodes[b.nodes[lo]].position).normalized();
+}
+
+}  // namespace
+
+BiopsyPlan plan_biopsy(const AirwayGraph& graph, const CollisionWorld& world, const Vec3& nodule,
+                       const BiopsyOptions& options) {
+  BiopsyPlan plan;
+  // Branches the tool fits into: their parent fits and every node is wide enough (a branch's first node is its
+  // parent's last, already checked).
+  std::vector<char> fits(graph.branches.size(), 0);
+  double best_needle = std::numeric_limits<double>::infinity(), best_angle = 0.0;
+  for (const AirwayBranch& b : graph.branches) {  // parents come before their children (add_branch order)
+    if (b.parent >= 0 && !fits[static_cast<std::size_t>(b.parent)]) continue;
+    for (std::size_t k = 0; k < b.nodes.size(); ++k) {
+      const std::uint32_t n = b.nodes[k];
+      const AirwayNode& node = graph.nodes[n];
+      if (node.radius < options.tool_radius) break;  // the tool stops here: the rest of the branch is out of reach
+      if (k + 1 == b.nodes.size()) fits[static_cast<std::size_t>(b.id)] = 1;
+      if (b.parent >= 0 && k == 0) continue;  // the parent's end node, already a candidate
+      ++plan.reachable;
+      const Vec3 d = nodule - node.position;
+      const double length = d.norm();
+      if (!(length > 0.0)) continue;
+      const Vec3 dir = d / length;
+      // The robot arrives from the root, so the tip points along the branch's direction of growth.
+      const double forward = std::acos(std::clamp(dir.dot(tangent_at(graph, b, k)), -1.0, 1.0));
+      if (forward > options.max_angle) {
+        ++plan.too_steep;
+        continue;
+      }
+      const auto exit = world.ray_cast(node.position, dir, length);
+      if (!exit) continue;  // the nodule lies inside the lumen from here: not a biopsy target
+      const double needle = length - exit->distance;
+      if (needle > options.max_needle) {
+        ++plan.too_long;
+        continue;
+      }
+      const Vec3 beyond = exit->point + 1e-6 * dir;
+      if (world.segment_crosses(beyond, nodule)) {
+        ++plan.through_airway;
+        continue;
+      }
+      if (needle < best_needle || (needle == best_needle && forward < best_angle)) {
+        best_needle = needle;
+        best_angle = forward;
+        plan.found = true;
+        plan.node = n;
+        plan.branch = b.id;
+        plan.start = node.position;
+        plan.wall = exit->point;
+        plan.direction = dir;
+        plan.needle = needle;
+        plan.angle = forward;
+        plan.lumen_radius = node.radius;
+      }
+    }
+  }
+  if (!plan.found) {
+    std::ostringstream s;
+    s << "no stop reaches the nodule: " << plan.reachable << " centreline nodes reachable by a tool of radius "
+      << 1e3 * options.tool_radius << " mm; " << plan.too_steep << " would turn the needle more than "
+      << options.max_angle * 180.0 / std::numbers::pi << " deg from the branch, " << plan.too_long << " need more than "
+      << 1e3 * options.max_needle << " mm of needle, " << plan.through_airway << " would cross another airway";
+    plan.why = s.str();
+  }
+  return plan;
+}
+
+}  // namespace magvine::anatomy

@@ -1,0 +1,103 @@
+// The biopsy planner (anatomy/biopsy_plan.hpp) on geometry with known answers: a straight tube with a nodule beside
+// it (the shortest needle path under the angle limit in closed form), a tool too wide for the tube, a second airway
+// in the way (checked against the brute-force segment distance of tests/support), and a needle too short.
+
+#include <gtest/gtest.h>
+
+#include <cmath>
+#include <numbers>
+
+#include "magvine/anatomy/biopsy_plan.hpp"
+#include "magvine/anatomy/primitives.hpp"
+#include "support/mesh_distance.hpp"
+
+namespace magvine::anatomy {
+namespace {
+
+constexpr double kR = 6e-3;  // tube radius [m]
+
+/// A capped tube of radius 6 mm along +x from x = 0 to 120 mm (256 facets round: its wall is within 0.5 µm of the
+/// cylinder), with a centreline node every 0.5 mm.
+struct Tube {
+  TriangleMesh mesh;
+  AirwayGraph graph;
+};
+
+Tube tube(const Vec3& offset = Vec3::Zero()) {
+  Tube t;
+  t.mesh = make_tube({.radius = kR, .length = 0.12, .segments = 256, .rings = 240, .capped = true});
+  for (Vec3& v : t.mesh.vertices) v = Vec3(v.z(), v.x(), v.y()) + offset;  // make_tube runs along z: turn it to x
+  std::vector<std::uint32_t> nodes;
+  for (int k = 0; k <= 230; ++k) nodes.push_back(add_node(t.graph, offset + Vec3(0.0025 + 0.0005 * k, 0, 0), kR));
+  add_branch(t.graph, -1, nodes);
+  return t;
+}
+
+// Nodule 26 mm from the axis (20 mm outside the wall) at x = 60 mm. At a stop x the needle leaves at angle θ to the
+// axis, tan θ = 26 / (60 − x), and runs (26 − 6) mm / sin θ through tissue: shortest at the largest allowed θ. With
+// the 60° limit: x* = 60 − 26/tan 60° = 44.99 mm and 23.094 mm of needle; the nearest node on the allowed side lies
+// within 0.5 mm, where the needle is at most 0.2 mm longer. With 90°: straight across, 20 mm.
+TEST(BiopsyPlan, ShortestNeedleUnderTheAngleLimitInATube) {
+  const Tube t = tube();
+  const CollisionWorld world(t.mesh);
+  const Vec3 nodule(0.06, 0.026, 0.0);
+  const BiopsyPlan p = plan_biopsy(t.graph, world, nodule, {.tool_radius = 2.5e-3});
+  ASSERT_TRUE(p.found) << p.why;
+  EXPECT_LE(p.angle, std::numbers::pi / 3.0);
+  EXPECT_NEAR(p.start.x(), 0.06 - 0.026 / std::tan(std::numbers::pi / 3.0), 0.5e-3);
+  EXPECT_GE(p.needle, 0.020 / std::sin(std::numbers::pi / 3.0) - 1e-6);
+  EXPECT_LE(p.needle, 0.020 / std::sin(std::numbers::pi / 3.0) + 0.2e-3);
+  EXPECT_NEAR(p.wall.y(), kR * p.direction.y() / std::hypot(p.direction.y(), p.direction.z()), 1e-5);
+
+  const BiopsyPlan across =
+      plan_biopsy(t.graph, world, nodule, {.tool_radius = 2.5e-3, .max_angle = std::numbers::pi / 2 + 1e-6});
+  ASSERT_TRUE(across.found);
+  EXPECT_NEAR(across.needle, 0.020, 1e-5);
+  EXPECT_NEAR(across.start.x(), 0.06, 0.25e-3 + 1e-9);
+}
+
+// A tool wider than the lumen reaches no node; a needle limit below 20 mm rules every stop out as too long.
+TEST(BiopsyPlan, SaysWhyWhenNoStopWorks) {
+  const Tube t = tube();
+  const CollisionWorld world(t.mesh);
+  const Vec3 nodule(0.06, 0.026, 0.0);
+  const BiopsyPlan wide = plan_biopsy(t.graph, world, nodule, {.tool_radius = 6.5e-3});
+  EXPECT_FALSE(wide.found);
+  EXPECT_EQ(wide.reachable, 0u);
+  EXPECT_NE(wide.why.find("0 centreline nodes reachable"), std::string::npos) << wide.why;
+  const BiopsyPlan shortn = plan_biopsy(t.graph, world, nodule, {.tool_radius = 2.5e-3, .max_needle = 0.019});
+  EXPECT_FALSE(shortn.found);
+  EXPECT_EQ(shortn.too_long + shortn.too_steep, shortn.reachable);
+  EXPECT_GT(shortn.too_long, 0u);
+}
+
+// A second airway (a tube along x at y = 16 mm from x = 90 mm on) between the first and a nodule at (100, 30) mm:
+// the unobstructed plan (a stop near x = 83 mm, 27.7 mm of needle) crosses it. A path from a stop at x passes y = 22 mm
+// (the second tube's far side) at x + (100 − x)·22/30, in front of its end at 90 mm only for x < 62.5 mm: at least
+// 24 mm / sin(atan(30/37.5)) = 38.4 mm of needle. The plan's needle, from its wall exit to the nodule, keeps
+// clear of every triangle (brute-force segment distance > 0), and stops whose paths cross it are counted.
+TEST(BiopsyPlan, NeedleStaysOutsideOtherAirways) {
+  const Tube t = tube();
+  const Tube other = tube(Vec3(0.09, 0.016, 0.0));
+  TriangleMesh both = t.mesh;
+  const auto base = static_cast<std::uint32_t>(both.vertices.size());
+  both.vertices.insert(both.vertices.end(), other.mesh.vertices.begin(), other.mesh.vertices.end());
+  for (const Triangle& tri : other.mesh.triangles)
+    both.triangles.push_back({tri[0] + base, tri[1] + base, tri[2] + base});
+  const CollisionWorld world(both);
+  const Vec3 nodule(0.10, 0.030, 0.0);
+  const BiopsyPlan p = plan_biopsy(t.graph, world, nodule, {.tool_radius = 2.5e-3, .max_needle = 0.08});
+  ASSERT_TRUE(p.found) << p.why;
+  EXPECT_GT(p.through_airway, 0u);
+  const test::BruteForceDistance brute(both);
+  EXPECT_GT(brute.segment(p.wall + 1e-6 * p.direction, nodule).distance, 0.0);
+  // Without the second airway the same nodule is reached by a shorter needle: the detour has a cost.
+  const BiopsyPlan free =
+      plan_biopsy(t.graph, CollisionWorld(t.mesh), nodule, {.tool_radius = 2.5e-3, .max_needle = 0.08});
+  EXPECT_NEAR(free.needle, 0.024 / std::sin(std::numbers::pi / 3.0), 0.2e-3);
+  EXPECT_GE(p.needle, 0.024 / std::sin(std::atan(30.0 / 37.5)) - 0.2e-3);
+  EXPECT_LT(p.start.x(), 0.0625);
+}
+
+}  // namespace
+}  // namespace magvine::anatomy
