@@ -129,6 +129,48 @@ ExperimentResult navigate_to(const std::filesystem::path& file, const std::strin
   return r;
 }
 
+// control.navigator.target: {nodule: ...}: a nodule 15 mm beyond the blind end of leaf 0-0-1-0 of the generated tree
+// (straight ahead of its last centreline node, past the end cap). The planned stop is that node, whose needle runs
+// 15 mm through tissue (the cap lies a radius beyond the node: the needle from the node to the nodule leaves the
+// lumen at the cap); the navigator's target is the stop. A nodule inside the lumen and a needle too short are refused
+// with the key and the reason.
+TEST(Experiment, NavigatorTakesANoduleAndStopsWhereTheNeedleReachesIt) {
+  const std::filesystem::path file =
+      std::filesystem::path(MAGVINE_SOURCE_DIR) / "assets/scenes/bronchial_tree_navigator.yaml";
+  const std::string text = text_of(file);
+  const ExperimentScene plain = load_experiment_scene(file);
+  const anatomy::AirwayGraph& g = *plain.anatomy->graph;
+  const auto leaf = anatomy::find_branch(g, "0-0-1-0");
+  ASSERT_TRUE(leaf);
+  const anatomy::AirwayBranch& b = g.branches[static_cast<std::size_t>(*leaf)];
+  const Vec3 end = g.nodes[b.nodes.back()].position;
+  const Vec3 along = (end - g.nodes[b.nodes[b.nodes.size() - 2]].position).normalized();
+  const double r = g.nodes[b.nodes.back()].radius;
+  const Vec3 nodule = end + (r + 0.015) * along;
+  std::ostringstream target;
+  target.precision(17);
+  target << "target: {nodule: [" << 1e3 * nodule.x() << ", " << 1e3 * nodule.y() << ", " << 1e3 * nodule.z() << "]}";
+  const std::string with = replaced(text, "target: \"0-0-1\"", target.str());
+  const ExperimentScene sc = parse_experiment_scene(with, file.string(), file.parent_path());
+  ASSERT_TRUE(sc.biopsy.has_value());
+  const anatomy::BiopsyPlan& plan = sc.biopsy->second;
+  EXPECT_EQ(g.branches[static_cast<std::size_t>(plan.branch)].name, "0-0-1-0");
+  EXPECT_EQ(plan.node, b.nodes.back());
+  EXPECT_NEAR(plan.needle, 0.015, 0.5e-3);  // the cap is meshed on a 0.4 mm-class grid
+  EXPECT_EQ(sc.navigator->target, "0-0-1-0");
+  EXPECT_EQ(*sc.target, plan.start);
+
+  const std::string inside = replaced(text, "target: \"0-0-1\"",
+                                      "target: {nodule: [" + std::to_string(1e3 * end.x()) + ", " +
+                                          std::to_string(1e3 * end.y()) + ", " + std::to_string(1e3 * end.z()) + "]}");
+  EXPECT_NE(error_of(inside).find("control.navigator.target.nodule"), std::string::npos) << error_of(inside);
+  EXPECT_NE(error_of(inside).find("inside the airway lumen"), std::string::npos);
+  std::string limited = target.str();
+  limited.replace(limited.size() - 1, 1, ", max_needle: 5}");
+  const std::string shortn = replaced(text, "target: \"0-0-1\"", limited);
+  EXPECT_NE(error_of(shortn).find("no stop reaches the nodule"), std::string::npos) << error_of(shortn);
+}
+
 TEST(Experiment, NavigatorSteersIntoEitherDaughterOfTheYAndToGenerationTwoOfTheTree) {
   // control.navigator: the path is planned on the phantom's graph and the EPM placed 110 mm from the tip on the line
   // through the aim point each 0.1 s. The Y's two daughters are mirror images (±35°), and so are the tree's 0-0-1

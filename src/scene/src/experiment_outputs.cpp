@@ -114,6 +114,17 @@ void write_experiment_outputs(const ExperimentScene& scene, const ExperimentResu
   double imbalance = 0.0;
   for (const ExperimentSample& s : result.samples) imbalance = std::max(imbalance, s.imbalance);
   j["max_force_imbalance"] = imbalance;
+  if (scene.biopsy) {
+    const auto& [nodule, plan] = *scene.biopsy;
+    j["biopsy"] = {{"nodule_m", vec(nodule)},
+                   {"stop_m", vec(plan.start)},
+                   {"stop_branch", scene.anatomy->graph->branches[static_cast<std::size_t>(plan.branch)].name},
+                   {"wall_m", vec(plan.wall)},
+                   {"needle_direction", vec(plan.direction)},
+                   {"needle_m", plan.needle},
+                   {"needle_angle_deg", plan.angle / kDegToRad},
+                   {"tip_to_stop_m", (tip - plan.start).norm()}};
+  }
   int stalls = 0;
   int workspace = 0;
   int blocked = 0;

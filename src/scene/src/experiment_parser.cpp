@@ -606,7 +606,28 @@ void parse_navigator(const YamlMap& n, const FileUnits& units, ExperimentScene& 
   }
   if (!scene.magnets) n.fail("magnet", "the navigator moves a magnet, but the scene has no magnets: list");
   Navigator nav;
-  if (n.node("target").IsSequence()) {
+  if (n.node("target").IsMap()) {
+    // A nodule outside the airway: the stop from which a straight needle reaches it (anatomy/biopsy_plan.hpp).
+    const YamlMap t = n.map("target");
+    t.allow_only({"nodule", "max_needle", "max_angle"});
+    anatomy::BiopsyOptions options;
+    options.tool_radius = scene.growth.rod ? scene.growth.rod->radius : scene.vine.radius;
+    if (t.has("max_needle")) options.max_needle = t.quantity("max_needle", units.len, range::kDistance);
+    if (t.has("max_angle")) {
+      options.max_angle = t.quantity("max_angle", Unit{kDegToRad, "deg"}, Range{kDegToRad, 90.0 * kDegToRad});
+    }
+    const Vec3 nodule = t.vec3_quantity("nodule", units.len, range::kCoordinate);
+    if (scene.anatomy->closed && scene.anatomy->world.contains(nodule)) {
+      t.fail("nodule", "lies inside the airway lumen; a biopsy target lies in the tissue outside it");
+    }
+    const anatomy::BiopsyPlan plan = anatomy::plan_biopsy(*graph, scene.anatomy->world, nodule, options);
+    if (!plan.found) t.fail("nodule", plan.why);
+    nav.target_branch = plan.branch;
+    nav.target = graph->branches[static_cast<std::size_t>(plan.branch)].name;
+    scene.target = plan.start;
+    scene.target_tolerance = 1.5 * plan.lumen_radius;
+    scene.biopsy = std::make_pair(nodule, plan);
+  } else if (n.node("target").IsSequence()) {
     // A point: snapped to the nearest centreline; success within 1.5 lumen radii of the snapped point.
     const anatomy::CentrelinePoint at =
         anatomy::nearest_centreline_point(*graph, n.vec3_quantity("target", units.len, range::kCoordinate));

@@ -15,6 +15,7 @@
 #include <vector>
 
 #include "magvine/anatomy/airway_graph.hpp"
+#include "magvine/anatomy/biopsy_plan.hpp"
 #include "magvine/anatomy/collision_world.hpp"
 #include "magvine/anatomy/triangle_mesh.hpp"
 #include "magvine/magnetics/field_model.hpp"
@@ -175,6 +176,9 @@ struct ExperimentScene {
   double duration = 0.0;                 ///< [s]
   double dt = 0.02;                      ///< [s]
   std::optional<Vec3> target;            ///< [m]
+  /// control.navigator.target: {nodule: ...}: the nodule [m] and the planned stop and needle path; the stop is the
+  /// target above.
+  std::optional<std::pair<Vec3, anatomy::BiopsyPlan>> biopsy;
   double target_tolerance = 0.0;         ///< [m]
   bool stop_at_target = true;            ///< end the run when the target is reached (simulation.stop_at_target)
   TrialPerturbation perturbation;        ///< for `magvine trials`
