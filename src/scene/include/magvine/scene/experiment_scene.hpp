@@ -173,9 +173,9 @@ struct ExperimentScene {
   std::optional<Schedule> tether;                             ///< [m]
   std::optional<FieldSchedule> uniform_field;                 ///< control.field, added to the magnets' field
   std::optional<Navigator> navigator;
-  double duration = 0.0;                 ///< [s]
-  double dt = 0.02;                      ///< [s]
-  std::optional<Vec3> target;            ///< [m]
+  double duration = 0.0;       ///< [s]
+  double dt = 0.02;            ///< [s]
+  std::optional<Vec3> target;  ///< [m]
   /// control.navigator.target: {nodule: ...}: the nodule [m] and the planned stop and needle path; the stop is the
   /// target above.
   std::optional<std::pair<Vec3, anatomy::BiopsyPlan>> biopsy;
