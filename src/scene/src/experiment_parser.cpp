@@ -174,7 +174,7 @@ std::shared_ptr<const SceneAnatomy> segmentation_anatomy(const YamlMap& entry, c
   };
   return cache != nullptr ? cache->get(key.str(), build) : build();
 #else
-  (void)cache;
+  (void)cache, (void)label, (void)root;  // parsed and checked all the same
   entry.fail("segmentation", "this magvine was built without the CT module (configure with -DMAGVINE_WITH_CT=ON)");
 #endif
 }
