@@ -4,7 +4,7 @@
 
 #include <algorithm>
 #include <array>
-#include <chrono>
+#include <atomic>
 #include <cmath>
 #include <nlohmann/json.hpp>
 #include <numbers>
@@ -13,16 +13,11 @@
 #include "magvine/anatomy/collision_world.hpp"
 #include "magvine/core/atomic_file.hpp"
 #include "magvine/core/error.hpp"
+#include "magvine/core/stopwatch.hpp"
 
 namespace magvine::ct {
 
 namespace {
-
-using Clock = std::chrono::steady_clock;
-
-double seconds_since(Clock::time_point start) {
-  return std::chrono::duration<double>(Clock::now() - start).count();
-}
 
 double median(std::vector<double> v) {
   if (v.empty()) return 0.0;
@@ -32,10 +27,9 @@ double median(std::vector<double> v) {
 
 /// ImportResult::trachea_lr, trachea_ap and trachea_diameter: rays from the middle half of the root branch's nodes,
 /// across the branch, in 32 directions starting from the world x axis (left–right in RAS and LPS).
-void trachea_widths(const anatomy::TriangleMesh& mesh, const anatomy::AirwayGraph& graph, ImportResult& result) {
+void trachea_widths(const anatomy::CollisionWorld& world, const anatomy::AirwayGraph& graph, ImportResult& result) {
   if (graph.branches.empty() || graph.branches.front().nodes.size() < 4) return;
   constexpr int kRays = 32;
-  const anatomy::CollisionWorld world(mesh);
   const std::vector<std::uint32_t>& nodes = graph.branches.front().nodes;
   std::vector<double> lr, ap, diameter;
   for (std::size_t n = nodes.size() / 4; n < nodes.size() - nodes.size() / 4; ++n) {
@@ -68,16 +62,17 @@ void trachea_widths(const anatomy::TriangleMesh& mesh, const anatomy::AirwayGrap
   result.trachea_diameter = median(diameter);
 }
 
-/// Everything after the surface: read back from `stl`, analysed, graph extracted.
+/// Everything after the surface: read back from `stl`, analysed, graph extracted, collision world built.
 void analyse(const std::filesystem::path& stl, const ImportOptions& options, ImportResult& result) {
-  Clock::time_point t = Clock::now();
+  const Stopwatch report_clock;
   result.mesh = anatomy::import_mesh(stl, {.units = LengthUnit::kMm});
   result.report = anatomy::analyse_mesh(result.mesh.mesh);
-  result.seconds_report = seconds_since(t);
-  t = Clock::now();
+  result.seconds_report = report_clock.seconds();
+  const Stopwatch graph_clock;
   result.graph = anatomy::extract_airway_graph(result.mesh.mesh, options.graph, &result.graph_report);
-  result.seconds_graph = seconds_since(t);
-  trachea_widths(result.mesh.mesh, result.graph, result);
+  result.seconds_graph = graph_clock.seconds();
+  result.world.emplace(result.mesh.mesh);
+  trachea_widths(*result.world, result.graph, result);
   for (const auto& b : result.graph.branches)
     result.deepest_generation = std::max(result.deepest_generation, b.generation);
 }
@@ -100,24 +95,35 @@ struct Cleanup {
 
 }  // namespace
 
-ImportResult import_anatomy(const std::filesystem::path& file, const ImportOptions& options) {
-  const Clock::time_point start = Clock::now();
+ImportResult import_anatomy(const LabelVolume& volume, const std::string& file, const ImportOptions& options) {
+  const Stopwatch clock;
   ImportResult result;
-  const anatomy::TriangleMesh surface = import_segmentation(file, options.surface, &result.surface);
+  const anatomy::TriangleMesh surface = segmentation_surface(volume, options.surface, file, &result.surface);
   // Through an STL in the temporary folder, so that the mesh is the one DIR/airway.stl would give.
+  static std::atomic<unsigned> serial{0};
   const std::filesystem::path stl =
-      std::filesystem::temp_directory_path() / ("magvine-ct-" + std::to_string(::getpid()) + "-" +
-                                                std::to_string(Clock::now().time_since_epoch().count()) + ".stl");
+      std::filesystem::temp_directory_path() /
+      ("magvine-ct-" + std::to_string(::getpid()) + "-" + std::to_string(serial++) + ".stl");
   Cleanup cleanup{{stl}};
   anatomy::write_stl(stl, surface);
   analyse(stl, options, result);
-  result.seconds_total = seconds_since(start);
+  result.seconds_total = clock.seconds();
+  return result;
+}
+
+ImportResult import_anatomy(const std::filesystem::path& file, const ImportOptions& options) {
+  const Stopwatch clock;
+  const LabelVolume volume = read_nifti_labels(file);
+  const double read = clock.seconds();
+  ImportResult result = import_anatomy(volume, file.string(), options);
+  result.surface.seconds_read = read;
+  result.seconds_total = clock.seconds();
   return result;
 }
 
 ImportResult import_to_folder(const std::filesystem::path& file, const std::filesystem::path& dir,
                               const ImportOptions& options) {
-  const Clock::time_point start = Clock::now();
+  const Stopwatch clock;
   ImportResult result;
   // All the work that can fail on the input happens before the folder is touched.
   const anatomy::TriangleMesh surface = import_segmentation(file, options.surface, &result.surface);
@@ -129,7 +135,7 @@ ImportResult import_to_folder(const std::filesystem::path& file, const std::file
   anatomy::write_stl(stl_scratch, surface);
   analyse(stl_scratch, options, result);
   anatomy::write_graph(graph_scratch, result.graph);
-  result.seconds_total = seconds_since(start);
+  result.seconds_total = clock.seconds();
   const std::string report = anatomy::report_json(stl.string(), result.mesh, result.report, LengthUnit::kMm);
   const std::string summary = import_json(file.string(), options, result);
   std::filesystem::rename(stl_scratch, stl);

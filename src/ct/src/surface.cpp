@@ -6,7 +6,6 @@
 #include <openvdb/tools/VolumeToMesh.h>
 
 #include <algorithm>
-#include <chrono>
 #include <cmath>
 #include <map>
 #include <numbers>
@@ -14,23 +13,17 @@
 
 #include "magvine/anatomy/mesh_clean.hpp"
 #include "magvine/core/error.hpp"
+#include "magvine/core/stopwatch.hpp"
+#include "magvine/core/text.hpp"
 #include "magvine/ct/segmentation.hpp"
 
 namespace magvine::ct {
 
 namespace {
 
-using Clock = std::chrono::steady_clock;
-
-double seconds_since(Clock::time_point start) {
-  return std::chrono::duration<double>(Clock::now() - start).count();
-}
-
-std::string mm(double metres, int precision = 3) {
-  std::ostringstream s;
-  s.precision(precision);
-  s << metres * 1e3;
-  return s.str();
+/// A length [m] in mm for messages, 3 significant digits.
+std::string mm(double metres) {
+  return printf_string("%.3g", 1e3 * metres);
 }
 
 /// OpenVDB's transform (row-vector convention, mm) of a voxel → world map given in metres.
@@ -97,7 +90,7 @@ void smooth_without_shrinking(openvdb::FloatGrid& sdf, int passes, float band) {
 
 anatomy::TriangleMesh segmentation_surface(const LabelVolume& volume, const SurfaceOptions& options,
                                            const std::string& file, SurfaceReport* report) {
-  const Clock::time_point start = Clock::now();
+  const Stopwatch clock;
   SurfaceReport local;
   SurfaceReport& r = report != nullptr ? *report : local;
   r.dims = volume.dims;
@@ -206,17 +199,17 @@ anatomy::TriangleMesh segmentation_surface(const LabelVolume& volume, const Surf
     r.notes.push_back(s.str());
   }
   if (anatomy::signed_volume(mesh) < 0.0) anatomy::flip_orientation(mesh);
-  r.seconds_surface = seconds_since(start);
+  r.seconds_surface = clock.seconds();
   return mesh;
 }
 
 anatomy::TriangleMesh import_segmentation(const std::filesystem::path& path, const SurfaceOptions& options,
                                           SurfaceReport* report) {
-  const Clock::time_point start = Clock::now();
+  const Stopwatch clock;
   SurfaceReport local;
   SurfaceReport& r = report != nullptr ? *report : local;
   const LabelVolume volume = read_nifti_labels(path);
-  const double read = seconds_since(start);
+  const double read = clock.seconds();
   anatomy::TriangleMesh mesh = segmentation_surface(volume, options, path.string(), &r);
   r.seconds_read = read;
   return mesh;

@@ -167,7 +167,7 @@ std::shared_ptr<const SceneAnatomy> segmentation_anatomy(const YamlMap& entry, c
       ct::ImportResult r = ct::import_anatomy(file, options);
       const bool closed = r.report.watertight;
       return std::make_shared<const SceneAnatomy>(
-          SceneAnatomy{file.string(), std::move(r.graph), closed, anatomy::CollisionWorld(r.mesh.mesh)});
+          SceneAnatomy{file.string(), std::move(r.graph), closed, std::move(*r.world)});
     } catch (const InputError& e) {
       entry.fail("segmentation", e.what());
     }

@@ -3,10 +3,12 @@
 /// the lumen surface, its mesh report and its airway graph — in memory or as files.
 
 #include <filesystem>
+#include <optional>
 #include <string>
 
 #include "magvine/anatomy/airway_graph.hpp"
 #include "magvine/anatomy/centerline.hpp"
+#include "magvine/anatomy/collision_world.hpp"
 #include "magvine/anatomy/mesh_io.hpp"
 #include "magvine/anatomy/mesh_report.hpp"
 #include "magvine/ct/segmentation.hpp"
@@ -34,11 +36,16 @@ struct ImportResult {
   /// median over the same nodes [m].
   double trachea_diameter = 0.0;
   int deepest_generation = 0;
+  std::optional<anatomy::CollisionWorld>
+      world;  ///< `mesh`'s collision world (the trachea's rays; a scene takes it over)
   double seconds_report = 0.0, seconds_graph = 0.0, seconds_total = 0.0;
 };
 
 /// Reads, surfaces, round-trips the surface through STL, analyses it and extracts its graph (nothing written).
 ImportResult import_anatomy(const std::filesystem::path& file, const ImportOptions& options = {});
+
+/// The same from a label map already read (`file` names it in messages; surface.seconds_read stays 0).
+ImportResult import_anatomy(const LabelVolume& volume, const std::string& file, const ImportOptions& options = {});
 
 /// The same, writing DIR/airway.stl (mm, in the chosen frame), DIR/report.json (`mesh check --json`'s report of it,
 /// byte for byte), DIR/graph.json (`mesh graph`'s) and DIR/import.json (options, notes, warnings, components,
