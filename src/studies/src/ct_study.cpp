@@ -1,34 +1,44 @@
 #include "magvine/studies/ct_study.hpp"
 
 #include <algorithm>
-#include <chrono>
+#include <array>
+#include <cmath>
 #include <sstream>
 
 #include "magvine/anatomy/mesh_distance.hpp"
 #include "magvine/anatomy/mesh_io.hpp"
 #include "magvine/core/atomic_file.hpp"
+#include "magvine/core/stopwatch.hpp"
 #include "magvine/ct/import.hpp"
 
 namespace magvine::studies {
 
-CtStudyRun ct_study_run(const CtStudyCase& c, double voxel_factor, int smoothing, double adaptivity) {
-  CtStudyRun run{.name = c.name, .voxel_factor = voxel_factor, .smoothing = smoothing, .adaptivity = adaptivity};
-  const anatomy::ImportedMesh reference = anatomy::import_mesh(c.reference, {.units = LengthUnit::kMm});
-  const ct::LabelVolume volume = ct::read_nifti_labels(c.segmentation);
-  const std::array<double, 3> h = volume.spacing();
+namespace {
+
+/// A case read once: its reference surface, its label map and the time the read took.
+struct LoadedCase {
+  const CtStudyCase& c;
+  anatomy::TriangleMesh reference;
+  ct::LabelVolume volume;
+  double seconds_read = 0.0;
+};
+
+CtStudyRun run_once(const LoadedCase& l, double voxel_factor, int smoothing, double adaptivity) {
+  CtStudyRun run{.name = l.c.name, .voxel_factor = voxel_factor, .smoothing = smoothing, .adaptivity = adaptivity};
+  const std::array<double, 3> h = l.volume.spacing();
   run.finest_voxel = std::min({h[0], h[1], h[2]});
   ct::ImportOptions options;
   options.surface.voxel = voxel_factor * run.finest_voxel;
   options.surface.smoothing = smoothing;
   options.surface.adaptivity = adaptivity;
-  const ct::ImportResult r = ct::import_anatomy(c.segmentation, options);
-  run.seconds = r.surface.seconds_read + r.surface.seconds_surface;
+  const ct::ImportResult r = ct::import_anatomy(l.volume, l.c.segmentation.string(), options);
+  run.seconds = l.seconds_read + r.surface.seconds_surface;
   run.triangles = r.report.triangles;
   run.watertight = r.report.watertight;
   run.genus = r.report.genus;
-  const double v_ref = std::abs(anatomy::signed_volume(reference.mesh));
+  const double v_ref = std::abs(anatomy::signed_volume(l.reference));
   run.volume_rel_err = (std::abs(anatomy::signed_volume(r.mesh.mesh)) - v_ref) / v_ref;
-  const anatomy::SurfaceDistance d = anatomy::symmetric_surface_distance(r.mesh.mesh, reference.mesh);
+  const anatomy::SurfaceDistance d = anatomy::symmetric_surface_distance(r.mesh.mesh, l.reference);
   run.mean_distance = d.mean;
   run.rms_distance = d.rms;
   run.max_distance = d.max;
@@ -36,6 +46,8 @@ CtStudyRun ct_study_run(const CtStudyCase& c, double voxel_factor, int smoothing
   run.deepest_generation = r.deepest_generation;
   return run;
 }
+
+}  // namespace
 
 void run_ct_study(const std::vector<CtStudyCase>& cases, const std::filesystem::path& dir,
                   const std::function<void(const CtStudyRun&)>& progress) {
@@ -58,8 +70,12 @@ void run_ct_study(const std::vector<CtStudyCase>& cases, const std::filesystem::
   csv << "case,voxel_factor,smoothing,adaptivity,finest_voxel_m,seconds,triangles,watertight,genus,volume_rel_err,"
          "mean_distance_m,rms_distance_m,max_distance_m,trachea_diameter_m,deepest_generation\n";
   for (const CtStudyCase& c : cases) {
+    const Stopwatch read_clock;
+    LoadedCase l{c, {}, ct::read_nifti_labels(c.segmentation), 0.0};
+    l.seconds_read = read_clock.seconds();
+    l.reference = anatomy::import_mesh(c.reference, {.units = LengthUnit::kMm}).mesh;
     for (const Setting& s : settings) {
-      const CtStudyRun r = ct_study_run(c, s.voxel_factor, s.smoothing, s.adaptivity);
+      const CtStudyRun r = run_once(l, s.voxel_factor, s.smoothing, s.adaptivity);
       csv << r.name << ',' << r.voxel_factor << ',' << r.smoothing << ',' << r.adaptivity << ',' << r.finest_voxel
           << ',' << r.seconds << ',' << r.triangles << ',' << (r.watertight ? 1 : 0) << ',' << r.genus << ','
           << r.volume_rel_err << ',' << r.mean_distance << ',' << r.rms_distance << ',' << r.max_distance << ','

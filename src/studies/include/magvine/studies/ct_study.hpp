@@ -43,7 +43,4 @@ struct CtStudyRun {
 void run_ct_study(const std::vector<CtStudyCase>& cases, const std::filesystem::path& dir,
                   const std::function<void(const CtStudyRun&)>& progress);
 
-/// One run (also what the tests use).
-CtStudyRun ct_study_run(const CtStudyCase& c, double voxel_factor, int smoothing, double adaptivity);
-
 }  // namespace magvine::studies
