@@ -2,7 +2,6 @@
 
 #include <algorithm>
 #include <cmath>
-#include <limits>
 #include <numbers>
 #include <sstream>
 #include <vector>
@@ -25,7 +24,6 @@ BiopsyPlan plan_biopsy(const AirwayGraph& graph, const CollisionWorld& world, co
   // Branches the tool fits into: their parent fits and every node is wide enough (a branch's first node is its
   // parent's last, already checked).
   std::vector<char> fits(graph.branches.size(), 0);
-  double best_needle = std::numeric_limits<double>::infinity(), best_angle = 0.0;
   for (const AirwayBranch& b : graph.branches) {  // parents come before their children (add_branch order)
     if (b.parent >= 0 && !fits[static_cast<std::size_t>(b.parent)]) continue;
     for (std::size_t k = 0; k < b.nodes.size(); ++k) {
@@ -57,9 +55,7 @@ BiopsyPlan plan_biopsy(const AirwayGraph& graph, const CollisionWorld& world, co
         ++plan.through_airway;
         continue;
       }
-      if (needle < best_needle || (needle == best_needle && forward < best_angle)) {
-        best_needle = needle;
-        best_angle = forward;
+      if (!plan.found || needle < plan.needle || (needle == plan.needle && forward < plan.angle)) {
         plan.found = true;
         plan.node = n;
         plan.branch = b.id;
