@@ -114,6 +114,7 @@ struct Stepper {
   GrowthState& state;
   GrowthWorkspace& ws;
   GrowthStatus& status;
+  Vec3 tip_force = Vec3::Zero();  ///< the step's load on the tip (GrowthControl::tip_force)
 
   const anatomy::CollisionWorld* world() const { return model.world; }
   double h() const { return model.edge_length; }
@@ -127,6 +128,7 @@ struct Stepper {
   void rebuild(double pressure) {
     state.pressure = pressure;
     growth_body(model, state, pressure, ws);
+    ws.body.tip_force = tip_force;
   }
   double magnetorheological_yield() const;
   int retract_to(double length);
@@ -921,7 +923,8 @@ GrowthStatus start_growth(const GrowthModel& model, const RodField& field, doubl
 GrowthStatus grow_step(const GrowthModel& model, const RodField& field, const GrowthControl& control,
                        GrowthState& state, GrowthWorkspace& workspace, double dt) {
   GrowthStatus status;
-  Stepper{model, field, state, workspace, status}.step(control, dt);
+  if (!control.tip_force.allFinite()) throw InputError("grow_step: the tip force must be finite");
+  Stepper{model, field, state, workspace, status, control.tip_force}.step(control, dt);
   return status;
 }
 

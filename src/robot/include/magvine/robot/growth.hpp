@@ -256,6 +256,9 @@ struct GrowthStatus {
 struct GrowthControl {
   double pressure = 0.0;  ///< P [Pa]
   double tether_length = std::numeric_limits<double>::infinity();  ///< the length the tether has released [m]
+  /// A load on the tip node [N], e.g. the reaction of a tool pushed out of the tip into tissue (needle.hpp). It
+  /// enters the body's equilibrium and the global balance (WallForces::imbalance) like every other load.
+  Vec3 tip_force = Vec3::Zero();
 };
 
 /// Checks what a growth model needs of its vine, options and base frame (make_growth_model calls it; scene loaders

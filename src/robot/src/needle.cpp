@@ -1,0 +1,127 @@
+#include "magvine/robot/needle.hpp"
+
+#include <algorithm>
+#include <cmath>
+#include <limits>
+
+#include "magvine/core/error.hpp"
+#include "magvine/core/text.hpp"
+
+namespace magvine::robot {
+
+void check_needle(const NeedleTool& n) {
+  const auto positive = [](double v) { return v > 0.0 && std::isfinite(v); };
+  if (!positive(n.length)) throw InputError("needle: length must be > 0");
+  if (!positive(n.diameter)) throw InputError("needle: diameter must be > 0");
+  if (!(n.cutting_force >= 0.0 && std::isfinite(n.cutting_force))) throw InputError("needle: force must be >= 0");
+  if (!(n.shaft_friction >= 0.0 && std::isfinite(n.shaft_friction))) {
+    throw InputError("needle: friction must be >= 0");
+  }
+  if (!positive(n.max_slide)) throw InputError("needle: max_slide must be > 0");
+  if (!positive(n.speed)) throw InputError("needle: speed must be > 0");
+  if (!positive(n.increment)) throw InputError("needle: increment must be > 0");
+}
+
+double needle_tissue_force(const NeedleTool& needle, double depth) {
+  return depth > 0.0 ? needle.cutting_force + needle.shaft_friction * depth : 0.0;
+}
+
+namespace {
+
+/// The walls' (normal and friction) force on the body [N]: the tissue forces of WallForces reversed.
+Vec3 wall_on_body(const WallForces& f) {
+  Vec3 total = Vec3::Zero();
+  for (std::size_t i = 0; i < f.normal_vector.size(); ++i) total -= f.normal_vector[i] + f.shear_vector[i];
+  return total;
+}
+
+/// From `tip` along `axis`, the distance to the wall [m] (infinity: none within `reach`).
+double wall_ahead(const anatomy::CollisionWorld* world, const Vec3& tip, const Vec3& axis, double reach) {
+  if (world == nullptr) return std::numeric_limits<double>::infinity();
+  const std::optional<anatomy::RayHit> hit = world->ray_cast(tip, axis, reach);
+  return hit ? hit->distance : std::numeric_limits<double>::infinity();
+}
+
+}  // namespace
+
+PunctureReport push_needle(const GrowthModel& model, const RodField& field, const NeedleTool& needle,
+                           const Vec3& nodule, double radius, double pressure, GrowthState& state,
+                           GrowthWorkspace& workspace) {
+  check_needle(needle);
+  if (!(radius > 0.0 && std::isfinite(radius))) throw InputError("needle: the nodule's radius must be > 0");
+  if (!nodule.allFinite()) throw InputError("needle: the nodule's centre must be finite");
+  PunctureReport out;
+  const Vec3 tip0 = state.body.tip();
+  const Vec3 t0 = state.body.frames.back().col(0);
+  out.direction = t0;
+  const double w0 = wall_ahead(model.world, tip0, t0, needle.length);
+  out.wall_distance = std::isfinite(w0) ? w0 : -1.0;
+  out.target_protrusion = std::min(needle.length, (nodule - tip0).dot(t0));
+  out.needle_tip = tip0;
+  const Vec3 wall0 = wall_on_body(state.forces);
+  const Vec3 clamp0 = state.forces.clamp;
+  GrowthControl control;
+  control.pressure = pressure;
+  control.tether_length = everted_length(model, state);  // held: the puncture grows nothing
+  double p = 0.0;
+  while (p < out.target_protrusion) {
+    p = std::min(p + needle.increment, out.target_protrusion);
+    const Vec3 x = state.body.tip();
+    const Vec3 t = state.body.frames.back().col(0);
+    // The reaction of the tissue on the needle, lagged by the increment: from where the tip is before the step.
+    const double depth = std::max(0.0, p - wall_ahead(model.world, x, t, needle.length));
+    const double force = needle_tissue_force(needle, depth);
+    control.tip_force = -force * t;
+    const GrowthStatus r = grow_step(model, field, control, state, workspace, needle.increment / needle.speed);
+    if (!r.converged) {
+      out.held = false;
+      out.why = printf_string("the vine found no equilibrium under the needle's %.2f N at %.1f mm protrusion: %s",
+                              force, 1e3 * p, r.failure.c_str());
+      break;
+    }
+    PunctureStep s;
+    s.time = state.time;
+    s.protrusion = p;
+    s.depth = depth;
+    s.force = force;
+    s.reaction = control.tip_force;
+    s.tip = state.body.tip();
+    s.needle_tip = s.tip + p * state.body.frames.back().col(0);
+    s.slide = (tip0 - s.tip).dot(t0);
+    s.wall = wall_on_body(state.forces) - wall0;
+    s.clamp = state.forces.clamp - clamp0;
+    s.max_normal = state.forces.max_normal;
+    s.total_normal = state.forces.total_normal;
+    s.imbalance = force > 0.0 ? state.forces.imbalance.norm() / force : 0.0;
+    s.unsupported = force > 0.0 ? (s.wall + s.clamp + s.reaction).norm() / force : 0.0;
+    out.steps.push_back(s);
+    out.needle_tip = s.needle_tip;
+    out.slide = std::max(out.slide, s.slide);
+    if (force > out.max_force) {
+      out.max_force = force;
+      out.wall_share = std::abs(s.wall.dot(s.reaction)) / (force * force);
+    }
+    out.max_unsupported = std::max(out.max_unsupported, s.unsupported);
+    out.max_imbalance = std::max(out.max_imbalance, s.imbalance);
+    out.max_normal = std::max(out.max_normal, s.max_normal);
+    if (s.slide > needle.max_slide) {
+      out.held = false;
+      out.why = printf_string(
+          "the vine's tip slid back %.1f mm under the needle's %.2f N (limit %.1f mm): its contacts do not hold the "
+          "puncture",
+          1e3 * s.slide, force, 1e3 * needle.max_slide);
+      break;
+    }
+  }
+  out.to_nodule = (out.needle_tip - nodule).norm();
+  if (out.held && out.target_protrusion <= 0.0) {
+    out.why = "the nodule lies behind the tip's direction: the needle cannot be aimed at it";
+  } else if (out.held && out.to_nodule > radius) {
+    out.why = printf_string("the needle's tip ends %.1f mm from the nodule's centre (radius %.1f mm)",
+                            1e3 * out.to_nodule, 1e3 * radius);
+  }
+  out.success = out.held && out.target_protrusion > 0.0 && out.to_nodule <= radius;
+  return out;
+}
+
+}  // namespace magvine::robot
