@@ -48,16 +48,23 @@ TEST(Needle, TheTissueForceIsTheCuttingForcePlusShaftFriction) {
   NeedleTool n;
   n.cutting_force = 1.2;
   n.shaft_friction = 20.0;
+  n.puncture_depth = 2e-3;
   EXPECT_EQ(needle_tissue_force(n, 0.0), 0.0);
   EXPECT_EQ(needle_tissue_force(n, -1e-3), 0.0);
-  EXPECT_DOUBLE_EQ(needle_tissue_force(n, 5e-3), 1.2 + 20.0 * 5e-3);
+  EXPECT_DOUBLE_EQ(needle_tissue_force(n, 0.5e-3), 1.2 * 0.25);  // the wall deflecting
+  EXPECT_DOUBLE_EQ(needle_tissue_force(n, 2e-3), 1.2);            // punctured
+  EXPECT_DOUBLE_EQ(needle_tissue_force(n, 5e-3), 1.2 + 20.0 * 3e-3);
   n.length = 0.0;
   EXPECT_THROW(check_needle(n), InputError);
 }
 
+// The vine grown to 50 mm in a Ø5.6 mm tube capped at 60 mm, the nodule 15 mm beyond the cap on the axis: the lumen
+// hugs the Ø5 mm vine up to its tip, the stabilisation the thesis found a biopsy needs (5.6.3: the force the vine
+// delivers depends on a support close to the tip). In a Ø8 mm tube the same 1 N moves the tip back 0.26 mm instead
+// of 0.013 mm and tilts it so the needle ends 5 mm off the axis (measured).
 TEST(Needle, TheReactionOfAOneNewtonPunctureIsCarriedByTheWallsAndTheClamp) {
   anatomy::TubeParams tp;
-  tp.diameter = 8e-3;
+  tp.diameter = 5.6e-3;
   tp.length = 60e-3;
   const Tube tube(tp);
   Grown g = grow(tube, 50e-3);
@@ -74,7 +81,7 @@ TEST(Needle, TheReactionOfAOneNewtonPunctureIsCarriedByTheWallsAndTheClamp) {
   EXPECT_DOUBLE_EQ(r.max_force, 1.0);
   int loaded = 0;
   for (const PunctureStep& s : r.steps) {
-    EXPECT_EQ(s.force > 0.0, s.depth > 0.0);
+    EXPECT_DOUBLE_EQ(s.force, needle_tissue_force(n, s.depth));
     if (s.force == 0.0) continue;
     ++loaded;
     // Statics (the issue's ±2 %): the changes of the walls' (barrier and friction) and the clamp's forces on the
@@ -90,14 +97,14 @@ TEST(Needle, TheReactionOfAOneNewtonPunctureIsCarriedByTheWallsAndTheClamp) {
 
 TEST(Needle, AStiffPunctureMakesTheTipSlideBack) {
   anatomy::TubeParams tp;
-  tp.diameter = 8e-3;
+  tp.diameter = 5.6e-3;
   tp.length = 60e-3;
   const Tube tube(tp);
   Grown g = grow(tube, 50e-3);
   NeedleTool n;
-  // 5 N: five times the thesis's design load. In the Ø8 mm tube the body holds 3 N with the tip 0.9 mm back
-  // (measured); at 5 N it snakes between the walls and its tip goes back past the 2 mm limit.
-  n.cutting_force = 5.0;
+  // 8 N: eight times the thesis's design load. In the Ø5.6 mm tube the body holds 5 N with its tip 0.13 mm back
+  // (measured); at 8 N it folds between the walls and its tip goes back past the 2 mm limit (11.6 mm).
+  n.cutting_force = 8.0;
   const PunctureReport r = push_needle(g.model, {}, n, Vec3(75e-3, 0.0, 0.0), 3e-3, 35e3, g.state, g.ws);
   std::printf("  held %d slide %.3f mm, max force %.2f N: %s\n", r.held, 1e3 * r.slide, r.max_force, r.why.c_str());
   EXPECT_FALSE(r.held);

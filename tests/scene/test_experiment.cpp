@@ -153,7 +153,7 @@ TEST(Experiment, NavigatorTakesANoduleAndStopsWhereTheNeedleReachesIt) {
   const std::string with = replaced(text, "target: \"0-0-1\"", target.str());
   const ExperimentScene sc = parse_experiment_scene(with, file.string(), file.parent_path());
   ASSERT_TRUE(sc.biopsy.has_value());
-  const anatomy::BiopsyPlan& plan = sc.biopsy->second;
+  const anatomy::BiopsyPlan& plan = sc.biopsy->plan;
   EXPECT_EQ(g.branches[static_cast<std::size_t>(plan.branch)].name, "0-0-1-0");
   EXPECT_EQ(plan.node, b.nodes.back());
   EXPECT_NEAR(plan.needle, 0.015, 0.5e-3);  // the cap is meshed on a 0.4 mm-class grid

@@ -2,6 +2,7 @@
 
 #include <algorithm>
 #include <cmath>
+#include <limits>
 #include <numbers>
 #include <sstream>
 #include <vector>
@@ -21,6 +22,7 @@ Vec3 tangent_at(const AirwayGraph& graph, const AirwayBranch& b, std::size_t k) 
 BiopsyPlan plan_biopsy(const AirwayGraph& graph, const CollisionWorld& world, const Vec3& nodule,
                        const BiopsyOptions& options) {
   BiopsyPlan plan;
+  std::vector<BiopsyPlan> candidates;  // every stop that passes the rules, in graph order
   // Branches the tool fits into: their parent fits and every node is wide enough (a branch's first node is its
   // parent's last, already checked).
   std::vector<char> fits(graph.branches.size(), 0);
@@ -55,18 +57,35 @@ BiopsyPlan plan_biopsy(const AirwayGraph& graph, const CollisionWorld& world, co
         ++plan.through_airway;
         continue;
       }
-      if (!plan.found || needle < plan.needle || (needle == plan.needle && forward < plan.angle)) {
-        plan.found = true;
-        plan.node = n;
-        plan.branch = b.id;
-        plan.start = node.position;
-        plan.wall = exit->point;
-        plan.direction = dir;
-        plan.needle = needle;
-        plan.angle = forward;
-        plan.lumen_radius = node.radius;
-      }
+      BiopsyPlan c;
+      c.found = true;
+      c.node = n;
+      c.branch = b.id;
+      c.start = node.position;
+      c.wall = exit->point;
+      c.direction = dir;
+      c.needle = needle;
+      c.angle = forward;
+      c.lumen_radius = node.radius;
+      candidates.push_back(c);
     }
+  }
+  // The shortest needle, and of those within needle_tolerance of it the one the tip needs to turn least for
+  // (then the shorter needle, then the first in graph order).
+  double shortest = std::numeric_limits<double>::infinity();
+  for (const BiopsyPlan& c : candidates) shortest = std::min(shortest, c.needle);
+  const BiopsyPlan* best = nullptr;
+  for (const BiopsyPlan& c : candidates) {
+    if (c.needle > shortest + options.needle_tolerance) continue;
+    if (best == nullptr || c.angle < best->angle || (c.angle == best->angle && c.needle < best->needle)) best = &c;
+  }
+  if (best != nullptr) {
+    const BiopsyPlan counts = plan;
+    plan = *best;
+    plan.reachable = counts.reachable;
+    plan.too_long = counts.too_long;
+    plan.too_steep = counts.too_steep;
+    plan.through_airway = counts.through_airway;
   }
   if (!plan.found) {
     std::ostringstream s;

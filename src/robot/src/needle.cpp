@@ -18,12 +18,15 @@ void check_needle(const NeedleTool& n) {
     throw InputError("needle: friction must be >= 0");
   }
   if (!positive(n.max_slide)) throw InputError("needle: max_slide must be > 0");
+  if (!positive(n.puncture_depth)) throw InputError("needle: puncture_depth must be > 0");
   if (!positive(n.speed)) throw InputError("needle: speed must be > 0");
   if (!positive(n.increment)) throw InputError("needle: increment must be > 0");
 }
 
 double needle_tissue_force(const NeedleTool& needle, double depth) {
-  return depth > 0.0 ? needle.cutting_force + needle.shaft_friction * depth : 0.0;
+  if (!(depth > 0.0)) return 0.0;
+  if (depth < needle.puncture_depth) return needle.cutting_force * depth / needle.puncture_depth;
+  return needle.cutting_force + needle.shaft_friction * (depth - needle.puncture_depth);
 }
 
 namespace {
@@ -46,7 +49,8 @@ double wall_ahead(const anatomy::CollisionWorld* world, const Vec3& tip, const V
 
 PunctureReport push_needle(const GrowthModel& model, const RodField& field, const NeedleTool& needle,
                            const Vec3& nodule, double radius, double pressure, GrowthState& state,
-                           GrowthWorkspace& workspace) {
+                           GrowthWorkspace& workspace,
+                           const std::function<void(const PunctureStep&, const GrowthState&)>& on_step) {
   check_needle(needle);
   if (!(radius > 0.0 && std::isfinite(radius))) throw InputError("needle: the nodule's radius must be > 0");
   if (!nodule.allFinite()) throw InputError("needle: the nodule's centre must be finite");
@@ -95,6 +99,7 @@ PunctureReport push_needle(const GrowthModel& model, const RodField& field, cons
     s.imbalance = force > 0.0 ? state.forces.imbalance.norm() / force : 0.0;
     s.unsupported = force > 0.0 ? (s.wall + s.clamp + s.reaction).norm() / force : 0.0;
     out.steps.push_back(s);
+    if (on_step) on_step(s, state);
     out.needle_tip = s.needle_tip;
     out.slide = std::max(out.slide, s.slide);
     if (force > out.max_force) {

@@ -225,19 +225,77 @@ ExperimentResult run_experiment(const ExperimentScene& scene, const std::functio
     }
   };
   record_frame(0.0);
+  // A biopsy (ExperimentScene::biopsy): once the tip reaches the stop, the navigator's magnet aims the tip at the
+  // nodule (the vine grows on towards it until the wall ahead blocks it) until aim_until; then the needle is pushed
+  // with the tether held and the run ends.
+  std::optional<double> aim_until;
+  const auto puncture = [&]() {
+    const Biopsy& b = *scene.biopsy;
+    const Vec3 tip = state.body.tip();
+    const Vec3 to_nodule = (b.nodule - tip).normalized();
+    out.aim_angle = std::acos(std::clamp(state.body.frames.back().col(0).dot(to_nodule), -1.0, 1.0));
+    const double radius = 0.5 * b.needle.diameter;
+    out.puncture = robot::push_needle(
+        model, field, b.needle, b.nodule, b.radius, scene.pressure.at(state.time), state, workspace,
+        [&](const robot::PunctureStep& p, const robot::GrowthState& st) {
+          ExperimentSample s;
+          s.time = p.time;
+          s.tip = p.tip;
+          s.length = workspace.body.length;
+          s.pressure = st.pressure;
+          s.max_normal = st.forces.max_normal;
+          s.mean_normal = st.forces.mean_normal;
+          s.total_normal = st.forces.total_normal;
+          s.total_shear = st.forces.total_shear;
+          s.max_pressure = st.forces.max_pressure;
+          s.imbalance = st.forces.largest_load > 0.0 ? st.forces.imbalance.norm() / st.forces.largest_load : 0.0;
+          if (anatomy.graph) {
+            const anatomy::CentrelinePoint near = anatomy::nearest_centreline_point(*anatomy.graph, s.tip);
+            s.branch = near.branch;
+            s.centreline = near.distance;
+          }
+          out.samples.push_back(s);
+          if (!scene.videos.empty() && p.time >= next_frame - 1e-9) {
+            FrameSample f;
+            f.nodes = st.body.x;
+            f.tip_frame = st.body.frames.back();
+            for (const magnetics::Pose& pose : poses) {
+              f.magnet_positions.push_back(pose.position);
+              f.magnet_axes.push_back(pose.rotation.col(2));
+            }
+            if (arms) f.arm_links = arms->link_capsules();
+            f.needle_base = p.tip;
+            f.needle_tip = p.needle_tip;
+            f.needle_radius = radius;
+            while (next_frame <= p.time + 1e-9) {
+              f.time = next_frame;
+              out.frames.push_back(f);
+              next_frame += frame_interval;
+            }
+          }
+        });
+  };
   const auto steps = static_cast<long>(std::ceil(scene.duration / scene.dt - 1e-9));
   const bool moving = magnets_move(scene) || scene.platform != nullptr;  // arms report every step
 
   for (long k = 1; k <= steps; ++k) {
     const double t = std::min(scene.duration, static_cast<double>(k) * scene.dt);
     const double dt = t - state.time;
-    if (navigator) {
+    if (navigator && !aim_until) {
       const Stopwatch placing;
       navigator->place(t, state.body.tip(), state.body.frames.back(), workspace.body.length, navigator_events);
       if (arms) platform_seconds += placing.seconds();
     }
     if (scene.magnets && moving) {
       std::vector<magnetics::Pose> next = poses_at(scene, navigator ? &*navigator : nullptr, t);
+      if (aim_until && !arms) {
+        // Aiming: the navigator's magnet on the line from the tip to the nodule, its distance away, axis along it
+        // (a fill is pulled towards it).
+        const auto i = static_cast<std::size_t>(navigator->magnet());
+        const Vec3 d = (scene.biopsy->nodule - state.body.tip()).normalized();
+        next[i] = magnetics::pose_at(scene.magnets->rest_poses[i],
+                                     state.body.tip() + scene.navigator->distance * d + scene.navigator_offset, d);
+      }
       if (arms) {
         const Stopwatch arm_clock;
         ask_arms(t, next, false);
@@ -259,7 +317,7 @@ ExperimentResult run_experiment(const ExperimentScene& scene, const std::functio
     robot::GrowthControl control;
     control.pressure = scene.pressure.at(t);
     if (scene.tether) control.tether_length = scene.tether->at(t);
-    if (navigator) {
+    if (navigator && !aim_until) {
       const int branch = out.samples.empty() ? -1 : out.samples.back().branch;
       navigator->regulate(t, workspace.body.length, branch, out.success, state.body.tip(), control, navigator_events);
     }
@@ -302,10 +360,17 @@ ExperimentResult run_experiment(const ExperimentScene& scene, const std::functio
       out.success = true;
     }
     if (progress) progress(static_cast<double>(k) / static_cast<double>(steps));
-    if (out.success && scene.stop_at_target) {
+    if (scene.biopsy && out.success && !aim_until) aim_until = t + scene.biopsy->aim_time;
+    if (aim_until && t >= *aim_until - 1e-9) break;
+    if (out.success && scene.stop_at_target && !scene.biopsy) {
       if (progress) progress(1.0);
       break;
     }
+  }
+  // The puncture ends a biopsy run that reached its stop (also when the run's duration ended the aiming).
+  if (aim_until && out.converged) {
+    puncture();
+    if (progress) progress(1.0);
   }
   if (navigator) out.recoveries = navigator->recoveries();
   if (arms) {

@@ -91,6 +91,7 @@ void write_experiment_outputs(const ExperimentScene& scene, const ExperimentResu
   const auto vec = [](const Vec3& v) { return nlohmann::json::array({v.x(), v.y(), v.z()}); };
   nlohmann::json j;
   const Vec3 tip = result.final_state.tip();
+  std::string puncture_csv;  // a biopsy's puncture.csv
   j["scene"] = scene.file;
   j["anatomy"] = scene.anatomy->label;
   j["seed"] = scene.seed;
@@ -115,8 +116,10 @@ void write_experiment_outputs(const ExperimentScene& scene, const ExperimentResu
   for (const ExperimentSample& s : result.samples) imbalance = std::max(imbalance, s.imbalance);
   j["max_force_imbalance"] = imbalance;
   if (scene.biopsy) {
-    const auto& [nodule, plan] = *scene.biopsy;
+    const Vec3& nodule = scene.biopsy->nodule;
+    const anatomy::BiopsyPlan& plan = scene.biopsy->plan;
     j["biopsy"] = {{"nodule_m", vec(nodule)},
+                   {"nodule_radius_m", scene.biopsy->radius},
                    {"stop_m", vec(plan.start)},
                    {"stop_branch", scene.anatomy->graph->branches[static_cast<std::size_t>(plan.branch)].name},
                    {"wall_m", vec(plan.wall)},
@@ -124,6 +127,42 @@ void write_experiment_outputs(const ExperimentScene& scene, const ExperimentResu
                    {"needle_m", plan.needle},
                    {"needle_angle_deg", plan.angle / kDegToRad},
                    {"tip_to_stop_m", (tip - plan.start).norm()}};
+    // The puncture (robot/needle.hpp): null fields when the vine did not reach its stop.
+    nlohmann::json& b = j["biopsy"];
+    const std::optional<robot::PunctureReport>& p = result.puncture;
+    b["punctured"] = p.has_value();
+    b["success"] = p && p->success;
+    b["why"] = p ? nlohmann::json(p->why) : nlohmann::json("the vine did not reach its stop");
+    b["aim_angle_deg"] = p ? nlohmann::json(result.aim_angle / kDegToRad) : nlohmann::json();
+    b["held"] = p ? nlohmann::json(p->held) : nlohmann::json();
+    b["slide_back_m"] = p ? nlohmann::json(p->slide) : nlohmann::json();
+    b["wall_distance_m"] = p && p->wall_distance >= 0.0 ? nlohmann::json(p->wall_distance) : nlohmann::json();
+    b["needle_tip_m"] = p ? vec(p->needle_tip) : nlohmann::json();
+    b["needle_to_nodule_m"] = p ? nlohmann::json(p->to_nodule) : nlohmann::json();
+    b["max_reaction_N"] = p ? nlohmann::json(p->max_force) : nlohmann::json();
+    b["wall_share"] = p ? nlohmann::json(p->wall_share) : nlohmann::json();
+    b["max_unsupported"] = p ? nlohmann::json(p->max_unsupported) : nlohmann::json();
+    b["max_wall_normal_N"] = p ? nlohmann::json(p->max_normal) : nlohmann::json();
+    if (p) {
+      std::ostringstream rows;
+      rows.precision(9);
+      rows << "time_s,protrusion_mm,depth_mm,force_N,tip_x_mm,tip_y_mm,tip_z_mm,needle_x_mm,needle_y_mm,"
+              "needle_z_mm,slide_mm,wall_x_N,wall_y_N,wall_z_N,clamp_x_N,clamp_y_N,clamp_z_N,max_normal_N,"
+              "total_normal_N,imbalance,unsupported\n";
+      for (const robot::PunctureStep& st : p->steps) {
+        rows << st.time << ',' << 1e3 * st.protrusion << ',' << 1e3 * st.depth << ',' << st.force;
+        for (const Vec3* v : {&st.tip, &st.needle_tip}) {
+          for (int c = 0; c < 3; ++c) rows << ',' << 1e3 * (*v)[c];
+        }
+        rows << ',' << 1e3 * st.slide;
+        for (const Vec3* v : {&st.wall, &st.clamp}) {
+          for (int c = 0; c < 3; ++c) rows << ',' << (*v)[c];
+        }
+        rows << ',' << st.max_normal << ',' << st.total_normal << ',' << st.imbalance << ',' << st.unsupported
+             << '\n';
+      }
+      puncture_csv = rows.str();
+    }
   }
   int stalls = 0;
   int workspace = 0;
@@ -224,6 +263,7 @@ void write_experiment_outputs(const ExperimentScene& scene, const ExperimentResu
     write_file_atomically(dir / "shapes.csv", shapes.str());
   }
   write_file_atomically(dir / "events.json", events.dump(2) + "\n");
+  if (!puncture_csv.empty()) write_file_atomically(dir / "puncture.csv", puncture_csv);
   if (scene.anatomy->graph) anatomy::write_graph(dir / "graph.json", *scene.anatomy->graph);
   if (scene.magnets) {
     std::ostringstream mags;

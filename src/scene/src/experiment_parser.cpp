@@ -609,7 +609,7 @@ void parse_navigator(const YamlMap& n, const FileUnits& units, ExperimentScene& 
   if (n.node("target").IsMap()) {
     // A nodule outside the airway: the stop from which a straight needle reaches it (anatomy/biopsy_plan.hpp).
     const YamlMap t = n.map("target");
-    t.allow_only({"nodule", "max_needle", "max_angle"});
+    t.allow_only({"nodule", "radius", "max_needle", "max_angle", "needle", "aim_time"});
     anatomy::BiopsyOptions options;
     options.tool_radius = scene.growth.rod ? scene.growth.rod->radius : scene.vine.radius;
     if (t.has("max_needle")) options.max_needle = t.quantity("max_needle", units.len, range::kDistance);
@@ -626,7 +626,25 @@ void parse_navigator(const YamlMap& n, const FileUnits& units, ExperimentScene& 
     nav.target = graph->branches[static_cast<std::size_t>(plan.branch)].name;
     scene.target = plan.start;
     scene.target_tolerance = 1.5 * plan.lumen_radius;
-    scene.biopsy = std::make_pair(nodule, plan);
+    Biopsy biopsy;
+    biopsy.nodule = nodule;
+    biopsy.plan = plan;
+    if (t.has("radius")) biopsy.radius = t.quantity("radius", units.len, range::kSectionSize);
+    if (t.has("aim_time")) biopsy.aim_time = t.quantity("aim_time", kSeconds, range::kTime);
+    if (t.has("needle")) {
+      const YamlMap m = t.map("needle");
+      m.allow_only({"length", "diameter", "force", "friction", "puncture_depth", "max_slide", "speed", "increment"});
+      robot::NeedleTool& tool = biopsy.needle;
+      if (m.has("length")) tool.length = m.quantity("length", units.len, range::kBodyLength);
+      if (m.has("diameter")) tool.diameter = m.quantity("diameter", units.len, range::kSectionSize);
+      if (m.has("force")) tool.cutting_force = m.quantity("force", Unit{1.0, "N"}, range::kForce);
+      if (m.has("friction")) tool.shaft_friction = m.quantity("friction", Unit{1e3, "N/mm"}, range::kForcePerLength);
+      if (m.has("puncture_depth")) tool.puncture_depth = m.quantity("puncture_depth", units.len, range::kDistance);
+      if (m.has("max_slide")) tool.max_slide = m.quantity("max_slide", units.len, range::kDistance);
+      if (m.has("speed")) tool.speed = m.quantity("speed", Unit{units.len.si, units.len.name + "/s"}, range::kPositiveSpeed);
+      if (m.has("increment")) tool.increment = m.quantity("increment", units.len, range::kDistance);
+    }
+    scene.biopsy = biopsy;
   } else if (n.node("target").IsSequence()) {
     // A point: snapped to the nearest centreline; success within 1.5 lumen radii of the snapped point.
     const anatomy::CentrelinePoint at =

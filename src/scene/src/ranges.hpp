@@ -46,6 +46,8 @@ inline constexpr Range kPositiveSpeed{0.0, 10.0, true};          ///< the naviga
 // Time [s] and loads.
 inline constexpr Range kTime{0.0, 1e6};                          ///< keyframe and command times
 inline constexpr Range kDuration{0.0, 1e6, true};                ///< durations, intervals, step sizes
+inline constexpr Range kForce{0.0, 1e3};                        ///< a tool's force [N]
+inline constexpr Range kForcePerLength{0.0, 1e6};               ///< friction along a tool [N/m]
 inline constexpr Range kGravity{-1e3, 1e3};                      ///< gravity components [m/s²]
 inline constexpr Range kSolverTolerance{0.0, 1.0, true};         ///< scaled-gradient tolerance
 

@@ -209,6 +209,7 @@ std::string experiment_videos(const ExperimentScene& scene, const ExperimentResu
         }
         content.meshes = platform_meshes;
         for (const platform::PlatformRun::Capsule& c : f.arm_links) content.capsules.push_back({c.a, c.b, c.radius});
+        if (f.needle_radius > 0.0) content.capsules.push_back({f.needle_base, f.needle_tip, f.needle_radius});
         image = renderer.render_overview(overview, content);
       }
       video.write(image);

@@ -17,6 +17,10 @@ struct BiopsyOptions {
   /// Largest angle between the needle and the branch's direction at the stop: the tip turns this far towards the
   /// wall before the needle leaves it (the tool channel leaves along the tip). [rad]
   double max_angle = 1.0471975511965976;  // 60°
+  /// Needle paths within this of the shortest count as equally short; of those the stop whose branch points most
+  /// nearly at the nodule wins (the needle leaves along the tip: the less it must be turned, the better) [m]. 1 mm:
+  /// two voxels of a CT segmentation, below what the surface's placement resolves.
+  double needle_tolerance = 1e-3;
 };
 
 /// The chosen stop and needle path.
@@ -38,8 +42,9 @@ struct BiopsyPlan {
 /// Plans the stop for a nodule centred at `nodule` [m] (outside the lumen). Candidates are the graph's nodes reached
 /// from the root through nodes at least `tool_radius` wide; for each, the needle runs from the node straight to the
 /// nodule centre: the first wall crossing (ray cast) is where it leaves the airway, and a second crossing before the
-/// nodule would take it through another airway (ruled out). Among those within max_needle and max_angle the shortest
-/// needle path wins (ties: the smaller angle, then the lower node index).
+/// nodule would take it through another airway (ruled out). Among those within max_needle and max_angle, of the
+/// needle paths within needle_tolerance of the shortest the smallest angle wins (then the shorter needle, then the
+/// first node in graph order).
 BiopsyPlan plan_biopsy(const AirwayGraph& graph, const CollisionWorld& world, const Vec3& nodule,
                        const BiopsyOptions& options = {});
 

@@ -87,7 +87,7 @@ struct OverviewContent {
   std::vector<std::vector<Vec3>> lines;   ///< more polylines [m] (an airway graph's branches), dark orange
   double line_radius = 0.5e-3;            ///< [m]
   std::vector<OverviewMesh> meshes;       ///< the patient's torso (translucent), the table
-  std::vector<OverviewCapsule> capsules;  ///< the arms' links
+  std::vector<OverviewCapsule> capsules;  ///< the arms' links, a biopsy needle
 };
 
 struct OverviewLook {

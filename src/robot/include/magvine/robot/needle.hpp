@@ -10,17 +10,19 @@
 /// equilibrium with the walls (barrier, lagged Coulomb friction, clamp) then carries that reaction; its global
 /// balance is the check that it does (PunctureStep::imbalance).
 ///
-/// Tissue resistance (needle_tissue_force): past the wall, a cutting force at the needle's tip plus friction along
-/// the shaft in tissue, F(d) = F_c + f·d (Okamura, Simone & O'Leary, IEEE TBME 51(10), 2004: insertion force =
-/// capsule stiffness before the puncture + friction + cutting after it; the capsule's stiffness phase is left out,
-/// its peak taken as the cutting force). The thesis designs the vine for ≥ 1 N at the tip (5.6.3: 1.05 and 1.26 N
-/// measured); the default F_c = 1 N, f = 0 is that design load, not a tissue measurement.
+/// Tissue resistance (needle_tissue_force), after Okamura, Simone & O'Leary (IEEE TBME 51(10), 2004: the insertion
+/// force is the capsule's stiffness before it ruptures, then cutting at the tip plus friction along the shaft):
+/// F(d) = F_c·d/d_p while the wall deflects (d < d_p, linear where Okamura fits a quadratic), then F_c + f·(d − d_p)
+/// once punctured. The thesis designs the vine for ≥ 1 N at the tip (5.6.3: 1.05 and 1.26 N measured); the defaults
+/// F_c = 1 N, f = 0 are that design load, not a tissue measurement, and d_p = 2 mm is an assumption (the rise that
+/// Okamura's liver needed was several mm).
 ///
 /// The vine holds while its tip slides back (against the needle, along the needle's axis) less than `max_slide`;
 /// beyond it, or when the body finds no equilibrium under the load (it collapses: the inflated beam's moment
 /// saturates), the puncture stops and the report says the vine did not hold. The biopsy succeeds when the vine holds
 /// and the needle's tip ends within the nodule.
 
+#include <functional>
 #include <string>
 #include <vector>
 
@@ -32,8 +34,9 @@ namespace magvine::robot {
 struct NeedleTool {
   double length = 0.05;            ///< the most it protrudes past the tip [m]
   double diameter = 0.91e-3;       ///< [m]; 20G, the thesis's needle (5.6.3)
-  double cutting_force = 1.0;      ///< F_c [N]: at the needle's tip once it is past the wall
+  double cutting_force = 1.0;      ///< F_c [N]: at the needle's tip once it has punctured the wall
   double shaft_friction = 0.0;     ///< f [N/m]: along the shaft in tissue
+  double puncture_depth = 2e-3;    ///< d_p [m]: how far the wall deflects before it ruptures (F rises to F_c)
   double max_slide = 2e-3;         ///< the vine holds while its tip slides back less than this [m]
   double speed = 5e-3;             ///< insertion speed [m/s] (the steps' time; quasi-static)
   double increment = 0.5e-3;       ///< protrusion per step [m]
@@ -42,8 +45,8 @@ struct NeedleTool {
 /// Checks a needle (InputError naming the field otherwise).
 void check_needle(const NeedleTool& needle);
 
-/// The tissue's resistance on a needle whose tip is `depth` [m] past the wall: F_c + f·depth for depth > 0, else 0
-/// [N] (Okamura et al. 2004, after the capsule's puncture; see the file comment).
+/// The tissue's resistance on a needle whose tip is `depth` [m] past the wall [N]: 0 for depth ≤ 0, F_c·depth/d_p up
+/// to d_p, F_c + f·(depth − d_p) beyond (Okamura et al. 2004; see the file comment).
 double needle_tissue_force(const NeedleTool& needle, double depth);
 
 /// One increment of the puncture.
@@ -90,9 +93,11 @@ struct PunctureReport {
 
 /// Pushes `needle` out of the tip of the grown vine in `state` towards a nodule centred at `nodule` with `radius`
 /// [m] (see the file comment), at `pressure` [Pa] with the field `field`; advances `state` (its time too). Throws
-/// InputError for a bad needle, radius or pressure.
+/// InputError for a bad needle, radius or pressure. `on_step` (optional) sees each converged increment and the state
+/// after it (a caller's outputs).
 PunctureReport push_needle(const GrowthModel& model, const RodField& field, const NeedleTool& needle,
                            const Vec3& nodule, double radius, double pressure, GrowthState& state,
-                           GrowthWorkspace& workspace);
+                           GrowthWorkspace& workspace,
+                           const std::function<void(const PunctureStep&, const GrowthState&)>& on_step = {});
 
 }  // namespace magvine::robot

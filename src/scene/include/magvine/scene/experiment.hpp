@@ -11,6 +11,7 @@
 #include <vector>
 
 #include "magvine/robot/growth.hpp"
+#include "magvine/robot/needle.hpp"
 #include "magvine/scene/events.hpp"
 #include "magvine/scene/experiment_scene.hpp"
 
@@ -60,6 +61,10 @@ struct FrameSample {
   std::vector<Vec3> magnet_positions;  ///< [m]
   std::vector<Vec3> magnet_axes;
   std::vector<platform::PlatformRun::Capsule> arm_links;  ///< with a platform: the arms' capsules [m]
+  /// During a biopsy's puncture: the needle from the tip to its point [m] (equal ends: none).
+  Vec3 needle_base = Vec3::Zero();
+  Vec3 needle_tip = Vec3::Zero();
+  double needle_radius = 0.0;  ///< [m]
 };
 
 struct ExperimentResult {
@@ -76,6 +81,9 @@ struct ExperimentResult {
   bool success = false;            ///< the tip came within the target's tolerance (false without a target)
   double time_to_target = -1;      ///< [s], −1 when not reached
   int recoveries = 0;              ///< times the navigator backed the vine out of a wrong turn (Navigator::Recovery)
+  /// A biopsy scene whose vine reached its stop: the tip's angle to the nodule after aiming [rad], and the puncture.
+  double aim_angle = 0.0;
+  std::optional<robot::PunctureReport> puncture;
   /// With a platform: what the run measured of the arms, and their joints every step (arms.csv).
   std::optional<platform::PlatformFigures> platform;
   std::vector<platform::ArmSample> arm_samples;

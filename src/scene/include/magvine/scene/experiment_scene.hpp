@@ -16,6 +16,7 @@
 
 #include "magvine/anatomy/airway_graph.hpp"
 #include "magvine/anatomy/biopsy_plan.hpp"
+#include "magvine/robot/needle.hpp"
 #include "magvine/anatomy/collision_world.hpp"
 #include "magvine/anatomy/triangle_mesh.hpp"
 #include "magvine/magnetics/field_model.hpp"
@@ -160,6 +161,18 @@ class AnatomyCache {
   std::map<std::string, std::shared_ptr<const SceneAnatomy>> m_built;
 };
 
+/// A biopsy (control.navigator.target: {nodule, radius, max_needle, max_angle, needle}; docs/ct.md): the navigator
+/// takes the vine to the planned stop; then for `aim_time` its magnet, on the line from the tip to the nodule, aims
+/// the tip while the vine grows on towards the nodule (until the wall ahead blocks it); then the needle is pushed out
+/// of the tip with the tether held (robot/needle.hpp) and the run ends.
+struct Biopsy {
+  Vec3 nodule = Vec3::Zero();  ///< its centre [m]
+  double radius = 5e-3;        ///< [m]
+  anatomy::BiopsyPlan plan;
+  robot::NeedleTool needle;
+  double aim_time = 2.0;  ///< [s]
+};
+
 struct ExperimentScene {
   std::string file;                             ///< the scene file (for messages)
   std::shared_ptr<const SceneAnatomy> anatomy;  ///< never null in a loaded scene
@@ -176,9 +189,8 @@ struct ExperimentScene {
   double duration = 0.0;       ///< [s]
   double dt = 0.02;            ///< [s]
   std::optional<Vec3> target;  ///< [m]
-  /// control.navigator.target: {nodule: ...}: the nodule [m] and the planned stop and needle path; the stop is the
-  /// target above.
-  std::optional<std::pair<Vec3, anatomy::BiopsyPlan>> biopsy;
+  /// control.navigator.target: {nodule: ...}: the nodule, the planned stop (the target above) and the needle.
+  std::optional<Biopsy> biopsy;
   double target_tolerance = 0.0;         ///< [m]
   bool stop_at_target = true;            ///< end the run when the target is reached (simulation.stop_at_target)
   TrialPerturbation perturbation;        ///< for `magvine trials`
