@@ -41,7 +41,7 @@ TEST(BiopsyPlan, ShortestNeedleUnderTheAngleLimitInATube) {
   const Tube t = tube();
   const CollisionWorld world(t.mesh);
   const Vec3 nodule(0.06, 0.026, 0.0);
-  const BiopsyPlan p = plan_biopsy(t.graph, world, nodule, {.tool_radius = 2.5e-3});
+  const BiopsyPlan p = plan_biopsy(t.graph, world, nodule, {.tool_radius = 2.5e-3, .needle_tolerance = 0.0});
   ASSERT_TRUE(p.found) << p.why;
   EXPECT_LE(p.angle, std::numbers::pi / 3.0);
   EXPECT_NEAR(p.start.x(), 0.06 - 0.026 / std::tan(std::numbers::pi / 3.0), 0.5e-3);
@@ -49,8 +49,18 @@ TEST(BiopsyPlan, ShortestNeedleUnderTheAngleLimitInATube) {
   EXPECT_LE(p.needle, 0.020 / std::sin(std::numbers::pi / 3.0) + 0.2e-3);
   EXPECT_NEAR(p.wall.y(), kR * p.direction.y() / std::hypot(p.direction.y(), p.direction.z()), 1e-5);
 
-  const BiopsyPlan across =
-      plan_biopsy(t.graph, world, nodule, {.tool_radius = 2.5e-3, .max_angle = std::numbers::pi / 2 + 1e-6});
+  // With the default 1 mm tolerance: the straightest stop whose needle is at most 1 mm longer. The needle 20/sin θ
+  // grows by 1 mm from θ = 60° to θ = 50.4° (20/sin θ = 24.094 mm), the stop moving back to x = 60 − 26/tan θ.
+  const BiopsyPlan easy = plan_biopsy(t.graph, world, nodule, {.tool_radius = 2.5e-3});
+  ASSERT_TRUE(easy.found);
+  EXPECT_LE(easy.needle, p.needle + 1e-3);
+  const double theta = std::asin(0.020 / (0.020 / std::sin(std::numbers::pi / 3.0) + 1e-3));
+  EXPECT_NEAR(easy.angle, theta, 0.5 * kDegToRad);
+  EXPECT_NEAR(easy.start.x(), 0.06 - 0.026 / std::tan(theta), 0.5e-3);
+
+  const BiopsyPlan across = plan_biopsy(
+      t.graph, world, nodule,
+      {.tool_radius = 2.5e-3, .max_angle = std::numbers::pi / 2 + 1e-6, .needle_tolerance = 0.0});
   ASSERT_TRUE(across.found);
   EXPECT_NEAR(across.needle, 0.020, 1e-5);
   EXPECT_NEAR(across.start.x(), 0.06, 0.25e-3 + 1e-9);
@@ -86,14 +96,15 @@ TEST(BiopsyPlan, NeedleStaysOutsideOtherAirways) {
     both.triangles.push_back({tri[0] + base, tri[1] + base, tri[2] + base});
   const CollisionWorld world(both);
   const Vec3 nodule(0.10, 0.030, 0.0);
-  const BiopsyPlan p = plan_biopsy(t.graph, world, nodule, {.tool_radius = 2.5e-3, .max_needle = 0.08});
+  const BiopsyPlan p =
+      plan_biopsy(t.graph, world, nodule, {.tool_radius = 2.5e-3, .max_needle = 0.08, .needle_tolerance = 0.0});
   ASSERT_TRUE(p.found) << p.why;
   EXPECT_GT(p.through_airway, 0u);
   const test::BruteForceDistance brute(both);
   EXPECT_GT(brute.segment(p.wall + 1e-6 * p.direction, nodule).distance, 0.0);
   // Without the second airway the same nodule is reached by a shorter needle: the detour has a cost.
-  const BiopsyPlan free =
-      plan_biopsy(t.graph, CollisionWorld(t.mesh), nodule, {.tool_radius = 2.5e-3, .max_needle = 0.08});
+  const BiopsyPlan free = plan_biopsy(t.graph, CollisionWorld(t.mesh), nodule,
+                                      {.tool_radius = 2.5e-3, .max_needle = 0.08, .needle_tolerance = 0.0});
   EXPECT_NEAR(free.needle, 0.024 / std::sin(std::numbers::pi / 3.0), 0.2e-3);
   EXPECT_GE(p.needle, 0.024 / std::sin(std::atan(30.0 / 37.5)) - 0.2e-3);
   EXPECT_LT(p.start.x(), 0.0625);

@@ -130,8 +130,8 @@ ExperimentResult navigate_to(const std::filesystem::path& file, const std::strin
 }
 
 // control.navigator.target: {nodule: ...}: a nodule 15 mm beyond the blind end of leaf 0-0-1-0 of the generated tree
-// (straight ahead of its last centreline node, past the end cap). The planned stop is that node, whose needle runs
-// 15 mm through tissue (the cap lies a radius beyond the node: the needle from the node to the nodule leaves the
+// (straight ahead of its last centreline node, past the end cap). The planned stop is at the leaf's end, whose needle
+// runs 15 mm through tissue (the cap lies a radius beyond the node: the needle from the node to the nodule leaves the
 // lumen at the cap); the navigator's target is the stop. A nodule inside the lumen and a needle too short are refused
 // with the key and the reason.
 TEST(Experiment, NavigatorTakesANoduleAndStopsWhereTheNeedleReachesIt) {
@@ -155,10 +155,36 @@ TEST(Experiment, NavigatorTakesANoduleAndStopsWhereTheNeedleReachesIt) {
   ASSERT_TRUE(sc.biopsy.has_value());
   const anatomy::BiopsyPlan& plan = sc.biopsy->plan;
   EXPECT_EQ(g.branches[static_cast<std::size_t>(plan.branch)].name, "0-0-1-0");
-  EXPECT_EQ(plan.node, b.nodes.back());
-  EXPECT_NEAR(plan.needle, 0.015, 0.5e-3);  // the cap is meshed on a 0.4 mm-class grid
+  // A node at the leaf's end: its needle within the planner's 1 mm of the shortest (15 mm from the last node; the
+  // cap is meshed on a 0.4 mm-class grid), the straightest of those.
+  EXPECT_NE(std::find(b.nodes.end() - 3, b.nodes.end(), plan.node), b.nodes.end());
+  EXPECT_GE(plan.needle, 0.015 - 0.5e-3);
+  EXPECT_LE(plan.needle, 0.015 + 1.5e-3);
+  EXPECT_LT(plan.angle, 5.0 * kDegToRad);
   EXPECT_EQ(sc.navigator->target, "0-0-1-0");
   EXPECT_EQ(*sc.target, plan.start);
+
+  // The run: the vine reaches the stop, the magnet aims the tip, the needle is pushed (robot/needle.hpp). Every
+  // increment's reaction is the tissue law's force at its depth, and the body balances it with everything else to
+  // 2 % of the reaction (the statics bound; the solve's own tolerance is far below). The outcome is
+  // reported, not asserted: in this tree the 180 mm body behind the Ø5.6 mm leaf lies in lumens up to Ø18 mm and
+  // gives way (measured: slides back 7 mm under 0.43 N; docs/ct.md).
+  const ExperimentResult run = run_experiment(sc);
+  ASSERT_TRUE(run.success) << "the vine did not reach the stop";
+  ASSERT_TRUE(run.puncture.has_value());
+  const robot::PunctureReport& p = *run.puncture;
+  std::printf("  biopsy: tip aimed %.1f deg off the nodule, wall %.1f mm ahead, %s, slid back %.2f mm, reaction up to "
+              "%.2f N (walls take %.0f %%), needle tip %.1f mm from the nodule: %s\n",
+              run.aim_angle / kDegToRad, 1e3 * p.wall_distance, p.held ? "held" : "did not hold", 1e3 * p.slide,
+              p.max_force, 100.0 * p.wall_share, 1e3 * p.to_nodule, p.success ? "success" : p.why.c_str());
+  ASSERT_FALSE(p.steps.empty());
+  for (const robot::PunctureStep& st : p.steps) {
+    EXPECT_DOUBLE_EQ(st.force, robot::needle_tissue_force(sc.biopsy->needle, st.depth));
+    EXPECT_LE(st.imbalance, 0.02) << "at " << 1e3 * st.protrusion << " mm";
+  }
+  EXPECT_GT(p.max_force, 0.0) << "the needle never met the wall";
+  EXPECT_EQ(p.held, p.slide <= sc.biopsy->needle.max_slide);
+  EXPECT_EQ(p.success, p.held && p.to_nodule <= sc.biopsy->radius);
 
   const std::string inside = replaced(text, "target: \"0-0-1\"",
                                       "target: {nodule: [" + std::to_string(1e3 * end.x()) + ", " +

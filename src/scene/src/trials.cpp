@@ -14,6 +14,7 @@
 #include "magvine/anatomy/airway_graph.hpp"
 #include "magvine/core/atomic_file.hpp"
 #include "magvine/core/error.hpp"
+#include "magvine/core/text.hpp"
 
 namespace magvine::scene {
 
@@ -110,6 +111,12 @@ std::vector<TrialOutcome> run_trials(const ExperimentScene& scene, const std::ve
         for (const RunEvent& e : res.events) o.burst = o.burst || e.kind == EventKind::kBurst;
         o.runtime_s = res.runtime_s;
         if (!o.success) o.reason = detail::failure_reason(res, f);
+        if (res.puncture) {
+          o.biopsy = res.puncture->success ? 1 : 0;
+          o.needle_to_nodule = res.puncture->to_nodule;
+          o.slide_back = res.puncture->slide;
+          if (!res.puncture->success) o.reason = "biopsy: " + res.puncture->why;
+        }
         if (!runs_dir.empty()) write_experiment_outputs(trial, res, runs_dir / (names[t] + "_r" + std::to_string(r)));
       } catch (...) {
         const std::lock_guard lock(report);
@@ -139,12 +146,14 @@ void write_trial_outputs(const std::vector<TrialOutcome>& outcomes, const std::f
   std::ostringstream all;
   all.precision(10);
   all << "target,repeat,seed,success,burst,time_to_target_s,everted_length_m,final_error_m,max_normal_N,"
-         "retractions,runtime_s,reason\n";
+         "retractions,biopsy,needle_to_nodule_m,slide_back_m,runtime_s,reason\n";
+  const auto number = [](double v) { return std::isnan(v) ? std::string() : printf_string("%.10g", v); };
   for (const TrialOutcome& o : outcomes) {
     all << o.target << ',' << o.repeat << ',' << o.seed << ',' << (o.success ? 1 : 0) << ',' << (o.burst ? 1 : 0) << ','
         << (o.success ? std::to_string(o.time_to_target) : std::string()) << ',' << o.everted_length << ','
-        << o.final_error << ',' << o.max_normal << ',' << o.retractions << ',' << o.runtime_s << ',' << quoted(o.reason)
-        << '\n';
+        << o.final_error << ',' << o.max_normal << ',' << o.retractions << ','
+        << (o.biopsy >= 0 ? std::to_string(o.biopsy) : std::string()) << ',' << number(o.needle_to_nodule) << ','
+        << number(o.slide_back) << ',' << o.runtime_s << ',' << quoted(o.reason) << '\n';
   }
   std::ostringstream csv;
   std::ostringstream md;

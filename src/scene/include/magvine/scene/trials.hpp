@@ -5,6 +5,7 @@
 #include <cstdint>
 #include <filesystem>
 #include <functional>
+#include <limits>
 #include <string>
 #include <vector>
 
@@ -30,6 +31,11 @@ struct TrialOutcome {
   double final_error = 0.0;      ///< tip to target [m]
   double max_normal = 0.0;       ///< largest wall normal force on a node [N]
   int retractions = 0;           ///< the navigator's (ExperimentResult::recoveries)
+  /// A biopsy scene's puncture (ExperimentResult::puncture): whether it succeeded (−1: not a biopsy scene or the
+  /// stop not reached), the needle tip's distance from the nodule's centre and the tip's slide back [m] (NaN: none).
+  int biopsy = -1;
+  double needle_to_nodule = std::numeric_limits<double>::quiet_NaN();
+  double slide_back = std::numeric_limits<double>::quiet_NaN();
   double runtime_s = 0.0;
   /// Why a failed trial failed, one line: the last event that stopped the tip (with its numbers), the branch it was
   /// in, how far from the target it ended and after how many retractions; empty on success.
