@@ -58,9 +58,9 @@ TEST(BiopsyPlan, ShortestNeedleUnderTheAngleLimitInATube) {
   EXPECT_NEAR(easy.angle, theta, 0.5 * kDegToRad);
   EXPECT_NEAR(easy.start.x(), 0.06 - 0.026 / std::tan(theta), 0.5e-3);
 
-  const BiopsyPlan across = plan_biopsy(
-      t.graph, world, nodule,
-      {.tool_radius = 2.5e-3, .max_angle = std::numbers::pi / 2 + 1e-6, .needle_tolerance = 0.0});
+  const BiopsyPlan across =
+      plan_biopsy(t.graph, world, nodule,
+                  {.tool_radius = 2.5e-3, .max_angle = std::numbers::pi / 2 + 1e-6, .needle_tolerance = 0.0});
   ASSERT_TRUE(across.found);
   EXPECT_NEAR(across.needle, 0.020, 1e-5);
   EXPECT_NEAR(across.start.x(), 0.06, 0.25e-3 + 1e-9);

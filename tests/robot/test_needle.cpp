@@ -52,7 +52,7 @@ TEST(Needle, TheTissueForceIsTheCuttingForcePlusShaftFriction) {
   EXPECT_EQ(needle_tissue_force(n, 0.0), 0.0);
   EXPECT_EQ(needle_tissue_force(n, -1e-3), 0.0);
   EXPECT_DOUBLE_EQ(needle_tissue_force(n, 0.5e-3), 1.2 * 0.25);  // the wall deflecting
-  EXPECT_DOUBLE_EQ(needle_tissue_force(n, 2e-3), 1.2);            // punctured
+  EXPECT_DOUBLE_EQ(needle_tissue_force(n, 2e-3), 1.2);           // punctured
   EXPECT_DOUBLE_EQ(needle_tissue_force(n, 5e-3), 1.2 + 20.0 * 3e-3);
   n.length = 0.0;
   EXPECT_THROW(check_needle(n), InputError);
@@ -71,10 +71,11 @@ TEST(Needle, TheReactionOfAOneNewtonPunctureIsCarriedByTheWallsAndTheClamp) {
   const Vec3 nodule(75e-3, 0.0, 0.0);
   NeedleTool n;
   const PunctureReport r = push_needle(g.model, {}, n, nodule, 3e-3, 35e3, g.state, g.ws);
-  std::printf("  wall %.2f mm ahead, target %.1f mm, held %d slide %.3f mm, needle tip %.2f mm from the nodule, "
-              "max force %.2f N, walls take %.1f %%, imbalance %.2e, unsupported %.2e %s\n",
-              1e3 * r.wall_distance, 1e3 * r.target_protrusion, r.held, 1e3 * r.slide, 1e3 * r.to_nodule,
-              r.max_force, 100.0 * r.wall_share, r.max_imbalance, r.max_unsupported, r.why.c_str());
+  std::printf(
+      "  wall %.2f mm ahead, target %.1f mm, held %d slide %.3f mm, needle tip %.2f mm from the nodule, "
+      "max force %.2f N, walls take %.1f %%, imbalance %.2e, unsupported %.2e %s\n",
+      1e3 * r.wall_distance, 1e3 * r.target_protrusion, r.held, 1e3 * r.slide, 1e3 * r.to_nodule, r.max_force,
+      100.0 * r.wall_share, r.max_imbalance, r.max_unsupported, r.why.c_str());
   EXPECT_TRUE(r.success) << r.why;
   // The wall is 8 mm ahead: the needle meets tissue there and the reaction is the cutting force from then on.
   EXPECT_NEAR(r.wall_distance, 8e-3, 0.1e-3);

@@ -173,10 +173,11 @@ TEST(Experiment, NavigatorTakesANoduleAndStopsWhereTheNeedleReachesIt) {
   ASSERT_TRUE(run.success) << "the vine did not reach the stop";
   ASSERT_TRUE(run.puncture.has_value());
   const robot::PunctureReport& p = *run.puncture;
-  std::printf("  biopsy: tip aimed %.1f deg off the nodule, wall %.1f mm ahead, %s, slid back %.2f mm, reaction up to "
-              "%.2f N (walls take %.0f %%), needle tip %.1f mm from the nodule: %s\n",
-              run.aim_angle / kDegToRad, 1e3 * p.wall_distance, p.held ? "held" : "did not hold", 1e3 * p.slide,
-              p.max_force, 100.0 * p.wall_share, 1e3 * p.to_nodule, p.success ? "success" : p.why.c_str());
+  std::printf(
+      "  biopsy: tip aimed %.1f deg off the nodule, wall %.1f mm ahead, %s, slid back %.2f mm, reaction up to "
+      "%.2f N (walls take %.0f %%), needle tip %.1f mm from the nodule: %s\n",
+      run.aim_angle / kDegToRad, 1e3 * p.wall_distance, p.held ? "held" : "did not hold", 1e3 * p.slide, p.max_force,
+      100.0 * p.wall_share, 1e3 * p.to_nodule, p.success ? "success" : p.why.c_str());
   ASSERT_FALSE(p.steps.empty());
   for (const robot::PunctureStep& st : p.steps) {
     EXPECT_DOUBLE_EQ(st.force, robot::needle_tissue_force(sc.biopsy->needle, st.depth));

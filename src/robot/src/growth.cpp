@@ -38,13 +38,19 @@ constexpr double kRadiusChange = 0.01;
 constexpr int kUndampedSolves = 10;
 constexpr double kCycleChange = 0.01;
 
-bool has_reference(const Vec3& a) { return !std::isnan(a.x()); }
+bool has_reference(const Vec3& a) {
+  return !std::isnan(a.x());
+}
 
 /// A tube of radius r squeezed into a slot of width g < 2r keeps its perimeter 2πr (a thin, inextensible film):
 /// its section is a stadium of width g, two flat strips of width πr − πg/2 against the walls joined by half
 /// circles, of area πrg − πg²/4. At g ≥ 2r, the round section.
-double slot_area(double r, double g) { return g >= 2.0 * r ? kPi * r * r : kPi * r * g - 0.25 * kPi * g * g; }
-double flat_width(double r, double g) { return g >= 2.0 * r ? 0.0 : kPi * r - 0.5 * kPi * g; }
+double slot_area(double r, double g) {
+  return g >= 2.0 * r ? kPi * r * r : kPi * r * g - 0.25 * kPi * g * g;
+}
+double flat_width(double r, double g) {
+  return g >= 2.0 * r ? 0.0 : kPi * r - 0.5 * kPi * g;
+}
 
 /// The line load on each wall [N/m] of a catheter tube pinched into a gap g (CatheterTube: Roark's thin ring).
 double ring_crush_load(const CatheterTube& c, double g) {
@@ -71,7 +77,6 @@ double made_radius(const VineParameters& vine, const GrowthOptions& options) {
   if (options.rod) return options.rod->radius;
   return vine.radius;
 }
-
 
 /// The inserted distal length of a pushed rod (PushedRod), as `edges` edges: the body's uniform properties, and per
 /// edge the magnetisation of the material there (edge midpoints mapped to the body's edges from its tip).
@@ -175,7 +180,9 @@ int Stepper::retract_to(double length) {
 /// Whether the segment from a to b crosses no wall: with a in the lumen, b is in it too and a body at a could reach
 /// it (a short ray cast; CollisionWorld::contains casts parity rays across the whole mesh, 10–20 times the cost).
 /// Unlike the parity test, a point in a neighbouring lumen behind tissue counts as out of sight.
-bool Stepper::in_sight(const Vec3& a, const Vec3& b) const { return !world()->segment_crosses(a, b); }
+bool Stepper::in_sight(const Vec3& a, const Vec3& b) const {
+  return !world()->segment_crosses(a, b);
+}
 
 /// Narrowest width of the lumen across the body at x (4 lines through x in the plane ⟂ frame.col(0), ray casts up to
 /// 2R each way) [m]. With `recentrings` > 0, where that would squeeze the body the lines are cast again from the mean
@@ -274,7 +281,7 @@ bool Stepper::barrier_step(double dt, double pressure, double cap) {
   const double axial = ws.body.axial_stiffness / robot::edge_length(ws.body, ws.body.edges - 1);
   double squeeze = 1.0;
   double tip_room = radius();  // the tip's flattened contact radius in a narrowing ahead
-  double push = 0.0;  // a pushed body's insertion in this step [m]
+  double push = 0.0;           // a pushed body's insertion in this step [m]
   // (At the tether, cap = 0, the tether takes the tip's pressure force: nothing pushes the body.)
   if (dt > 0.0 && cap > 0.0) {
     if (pushed || model.solid() || state.placing) {
@@ -291,8 +298,8 @@ bool Stepper::barrier_step(double dt, double pressure, double cap) {
         }
         squeeze = slot_area(radius(), tip_room / kSlack) / area;
       }
-      growth = {growth_force(pressure * squeeze, status.yield, radius()),
-                area / (model.options.law.extensibility * dt), cap};
+      growth = {growth_force(pressure * squeeze, status.yield, radius()), area / (model.options.law.extensibility * dt),
+                cap};
     }
   }
   // Contact radii (squeezed where the lumen is narrow), each at most what the node has room for at the start: a
@@ -422,8 +429,9 @@ bool Stepper::barrier_step(double dt, double pressure, double cap) {
       // pinched catheter with its ring's line load, 2·q(g)·h.
       if (c.wall->radius[i] > 0.0 && state.nodes[i].radius < radius()) {
         const double g = state.nodes[i].radius / kSlack;
-        next_strip[i] = 2.0 * h() * (model.options.catheter ? ring_crush_load(*model.options.catheter, g)
-                                                        : state.pressure * flat_width(radius(), g));
+        next_strip[i] = 2.0 * h() *
+                        (model.options.catheter ? ring_crush_load(*model.options.catheter, g)
+                                                : state.pressure * flat_width(radius(), g));
       }
       scale = std::max({scale, f[i].magnitude, next_strip[i]});
     }
@@ -506,8 +514,8 @@ bool Stepper::barrier_step(double dt, double pressure, double cap) {
   if (!settled && world() != nullptr) {
     restore();
     status.converged = false;
-    status.failure = "the lagged friction did not settle in " + std::to_string(model.options.max_friction_iterations) +
-                     " solves";
+    status.failure =
+        "the lagged friction did not settle in " + std::to_string(model.options.max_friction_iterations) + " solves";
     return false;
   }
   // Forces on the tissue (the converged solve's).
@@ -545,11 +553,10 @@ bool Stepper::barrier_step(double dt, double pressure, double cap) {
     // The walls within d̂ carry λ on one side; a flattened section's strips (or a pinched tube's ring) press two
     // opposite walls with s/2 each, the film there flat at its pressure.
     const double e = model.options.tissue_modulus;
-    const double p_contact =
-        model.solid() ? std::max(hertz_line_pressure(lambda[i] / share, radius(), e),
-                                 hertz_line_pressure(0.5 * strip[i] / share, radius(), e))
-                      : std::max(film_contact_pressure(lambda[i], pressure, radius(), share),
-                                 strip[i] > 0.0 ? pressure : 0.0);
+    const double p_contact = model.solid() ? std::max(hertz_line_pressure(lambda[i] / share, radius(), e),
+                                                      hertz_line_pressure(0.5 * strip[i] / share, radius(), e))
+                                           : std::max(film_contact_pressure(lambda[i], pressure, radius(), share),
+                                                      strip[i] > 0.0 ? pressure : 0.0);
     state.forces.pressure[i] = p_contact;
     state.forces.max_pressure = std::max(state.forces.max_pressure, p_contact);
     if (!(fn > 0.0) || pushed) reference[i] = Vec3::Constant(kNone);  // off the wall: released
@@ -635,8 +642,7 @@ void Stepper::start(double length, double pressure) {
   for (std::size_t i = 1; i < state.body.x.size() && world() != nullptr; ++i) {
     std::array<anatomy::NearTriangle, 1> near{};
     if (!world()->contains(state.body.x[i]) ||
-        (world()->triangles_within(state.body.x[i], radius(), near) > 0 &&
-         near[0].distance < radius() - model.dhat)) {
+        (world()->triangles_within(state.body.x[i], radius(), near) > 0 && near[0].distance < radius() - model.dhat)) {
       fit = i;
       break;
     }
@@ -688,8 +694,8 @@ void Stepper::step(const GrowthControl& control, double dt) {
     status.stalled = true;
     status.burst = true;
     add_event(GrowthEventKind::kBurst,
-              printf_string("pressure %.1f kPa: hoop stress %.2f MPa above the film's strength %.2f MPa",
-                            p / kKpaToPa, hoop / 1e6, vine.wall_strength / 1e6));
+              printf_string("pressure %.1f kPa: hoop stress %.2f MPa above the film's strength %.2f MPa", p / kKpaToPa,
+                            hoop / 1e6, vine.wall_strength / 1e6));
     return;
   }
   // The pressure is this step's load: the body at it.
@@ -699,16 +705,16 @@ void Stepper::step(const GrowthControl& control, double dt) {
   } else {
     const GrowthLaw& law = model.options.law;
     status.magnetorheological_yield = magnetorheological_yield();
-    const GrowthRate rate = growth_rate(law, p, ws.body.length, growth_turning(ws, state),
-                                        status.magnetorheological_yield);
+    const GrowthRate rate =
+        growth_rate(law, p, ws.body.length, growth_turning(ws, state), status.magnetorheological_yield);
     status.yield = rate.yield;
     status.speed = rate.speed;
     if (status.speed == 0.0 && !state.stalled) {
       state.stalled = true;
-      std::string detail = printf_string(
-          "pressure %.2f kPa at or below the yield %.2f kPa (Y0 %.2f + length %.2f + turning %.2f kPa",
-          p / kKpaToPa, status.yield / kKpaToPa, law.yield_pressure / kKpaToPa, rate.length_term / kKpaToPa,
-          rate.turning_term / kKpaToPa);
+      std::string detail =
+          printf_string("pressure %.2f kPa at or below the yield %.2f kPa (Y0 %.2f + length %.2f + turning %.2f kPa",
+                        p / kKpaToPa, status.yield / kKpaToPa, law.yield_pressure / kKpaToPa,
+                        rate.length_term / kKpaToPa, rate.turning_term / kKpaToPa);
       if (model.options.magnetorheology) {
         detail += printf_string(" + magnetorheological %.2f kPa", status.magnetorheological_yield / kKpaToPa);
       }
@@ -775,7 +781,9 @@ double film_contact_pressure(double force, double pressure, double radius, doubl
 
 namespace {
 /// The contact modulus E* = E/(1 − ν²) of an elastic half-space against a rigid body (Johnson 1985, §4.2).
-double contact_modulus(double modulus, double poisson) { return modulus / (1.0 - poisson * poisson); }
+double contact_modulus(double modulus, double poisson) {
+  return modulus / (1.0 - poisson * poisson);
+}
 }  // namespace
 
 double hertz_line_pressure(double line_load, double radius, double modulus, double poisson) {
@@ -790,13 +798,20 @@ double hertz_half_width(double line_load, double radius, double modulus, double 
 
 std::string_view growth_event_name(GrowthEventKind kind) {
   switch (kind) {
-    case GrowthEventKind::kStall: return "stall";
-    case GrowthEventKind::kResume: return "resume";
-    case GrowthEventKind::kBlocked: return "blocked";
-    case GrowthEventKind::kSqueeze: return "squeeze";
-    case GrowthEventKind::kBurst: return "burst";
-    case GrowthEventKind::kRetract: return "retract";
-    case GrowthEventKind::kSolver: return "solver";
+    case GrowthEventKind::kStall:
+      return "stall";
+    case GrowthEventKind::kResume:
+      return "resume";
+    case GrowthEventKind::kBlocked:
+      return "blocked";
+    case GrowthEventKind::kSqueeze:
+      return "squeeze";
+    case GrowthEventKind::kBurst:
+      return "burst";
+    case GrowthEventKind::kRetract:
+      return "retract";
+    case GrowthEventKind::kSolver:
+      return "solver";
   }
   return "unknown";
 }
@@ -834,8 +849,8 @@ void check_growth(const VineParameters& vine, const GrowthOptions& options, cons
   if (options.catheter) {
     const CatheterTube& c = *options.catheter;
     check(options.mode == InsertionMode::kPushed, "mode", "a catheter tube is pushed: set mode to pushed");
-    check(c.inner_diameter >= 0.0 && c.outer_diameter > c.inner_diameter && std::isfinite(c.outer_diameter),
-          "catheter", "catheter: need 0 <= inner_diameter < outer_diameter");
+    check(c.inner_diameter >= 0.0 && c.outer_diameter > c.inner_diameter && std::isfinite(c.outer_diameter), "catheter",
+          "catheter: need 0 <= inner_diameter < outer_diameter");
     check(c.modulus > 0.0 && std::isfinite(c.modulus) && finite_non_negative(c.density), "catheter",
           "catheter: modulus must be > 0 and density >= 0");
   }
@@ -853,7 +868,6 @@ void check_growth(const VineParameters& vine, const GrowthOptions& options, cons
   const double h = options.edge_length > 0.0 ? options.edge_length : made_radius(vine, options);
   check(vine.length / h <= 1e6, "edge_length", "the edges would number more than a million");
 }
-
 
 GrowthModel make_growth_model(const VineParameters& vine, const GrowthOptions& options,
                               const anatomy::CollisionWorld* world, const Vec3& base_position, const Mat3& base_frame) {
@@ -902,10 +916,10 @@ void growth_body(const GrowthModel& model, const GrowthState& state, double pres
   const double ei = m.bending_stiffness_3;
   // A solid rod presses the wall with its section's stiffness over an edge, E·h (E from EI = Eπr⁴/4).
   const double solid = o.rod ? 4.0 * ei / (kPi * std::pow(r, 4)) * h : 0.0;
-  workspace.stiffness = o.contact_stiffness > 0.0
-                            ? o.contact_stiffness
-                            : std::max({50.0 * kPi * (model.solid() ? 0.0 : pressure) * r, 10.0 * ei / (h * h * h),
-                                        solid});
+  workspace.stiffness =
+      o.contact_stiffness > 0.0
+          ? o.contact_stiffness
+          : std::max({50.0 * kPi * (model.solid() ? 0.0 : pressure) * r, 10.0 * ei / (h * h * h), solid});
 }
 
 double growth_turning(const GrowthWorkspace& workspace, const GrowthState& state) {

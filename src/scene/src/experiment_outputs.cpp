@@ -158,8 +158,7 @@ void write_experiment_outputs(const ExperimentScene& scene, const ExperimentResu
         for (const Vec3* v : {&st.wall, &st.clamp}) {
           for (int c = 0; c < 3; ++c) rows << ',' << (*v)[c];
         }
-        rows << ',' << st.max_normal << ',' << st.total_normal << ',' << st.imbalance << ',' << st.unsupported
-             << '\n';
+        rows << ',' << st.max_normal << ',' << st.total_normal << ',' << st.imbalance << ',' << st.unsupported << '\n';
       }
       puncture_csv = rows.str();
     }

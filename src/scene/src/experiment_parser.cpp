@@ -641,7 +641,8 @@ void parse_navigator(const YamlMap& n, const FileUnits& units, ExperimentScene& 
       if (m.has("friction")) tool.shaft_friction = m.quantity("friction", Unit{1e3, "N/mm"}, range::kForcePerLength);
       if (m.has("puncture_depth")) tool.puncture_depth = m.quantity("puncture_depth", units.len, range::kDistance);
       if (m.has("max_slide")) tool.max_slide = m.quantity("max_slide", units.len, range::kDistance);
-      if (m.has("speed")) tool.speed = m.quantity("speed", Unit{units.len.si, units.len.name + "/s"}, range::kPositiveSpeed);
+      if (m.has("speed"))
+        tool.speed = m.quantity("speed", Unit{units.len.si, units.len.name + "/s"}, range::kPositiveSpeed);
       if (m.has("increment")) tool.increment = m.quantity("increment", units.len, range::kDistance);
     }
     scene.biopsy = biopsy;

@@ -59,8 +59,6 @@
 #include "magvine/robot/rod.hpp"
 #include "magvine/robot/vine.hpp"
 
-#include "magvine/anatomy/collision_world.hpp"
-
 namespace magvine::robot {
 
 /// L̇ = K·max(0, P − Y0 − c_L·L − c_θ·Σθ). The constants are not published for these robots. Defaults, for the Ø8 mm
@@ -88,7 +86,7 @@ struct CatheterTube {
   /// Young's modulus [Pa]. TPU of Shore 85A–95A has E ≈ 20–50 MPa; 26 MPa is an assumption (the thesis gives no
   /// grade), not fitted.
   double modulus = 26e6;
-  double density = 1200.0;       ///< [kg/m³] (TPU)
+  double density = 1200.0;  ///< [kg/m³] (TPU)
 };
 
 /// A solid rod or catheter, magnetic or not (the mechanics' rod kind: rod.hpp), pushed in place of the vine's body
@@ -99,8 +97,8 @@ struct CatheterTube {
 /// `radius` (the section's circumscribed radius: a square's corners do not enter the wall).
 struct PushedRod {
   RodModel body;
-  double radius = 0.0;           ///< contact radius [m]
-  double insertion_speed = 0.01; ///< [m/s]: the insertion follows the tether at this speed (no growth law)
+  double radius = 0.0;            ///< contact radius [m]
+  double insertion_speed = 0.01;  ///< [m/s]: the insertion follows the tether at this speed (no growth law)
 };
 
 /// The body's solver in a growth step: from the last equilibrium at full load, no ramp (RodSolveOptions::ramp), at
@@ -125,8 +123,8 @@ struct GrowthOptions {
   std::optional<CatheterTube> catheter;
   /// Pushed mode only: push this rod instead (PushedRod; not with `catheter`).
   std::optional<PushedRod> rod;
-  double edge_length = 0.0;        ///< h [m]; 0: the vine's radius
-  double friction = 0.3;           ///< Coulomb μ between the body and the wall
+  double edge_length = 0.0;  ///< h [m]; 0: the vine's radius
+  double friction = 0.3;     ///< Coulomb μ between the body and the wall
   /// The barrier stiffness κ [N/m]; 0: automatic (the growth force at 2 % R depth).
   double contact_stiffness = 0.0;
   double max_length = std::numeric_limits<double>::infinity();  ///< the vine's made length [m]
@@ -207,7 +205,7 @@ struct GrowthEvent {
   double time = 0.0;    ///< [s]
   double length = 0.0;  ///< everted length then [m]
   GrowthEventKind kind = GrowthEventKind::kStall;
-  std::string detail;   ///< human-readable cause with numbers (kPa, mm, N)
+  std::string detail;  ///< human-readable cause with numbers (kPa, mm, N)
 };
 
 /// Forces on the tissue after a step [N], per node (0 for the clamp and nodes out of contact).
@@ -238,23 +236,23 @@ struct WallForces {
 /// What one step did (grow_step), with the events it raised.
 struct GrowthStatus {
   int edges_added = 0;
-  bool stalled = false;    ///< no growth this step (yield, blocked, tether, length or burst)
+  bool stalled = false;  ///< no growth this step (yield, blocked, tether, length or burst)
   bool burst = false;
-  bool converged = true;   ///< the body reached equilibrium (else the cause is in failure and a kSolver event)
-  int solves = 0;          ///< body solves in the step (the friction lag's iterations)
-  int retries = 0;         ///< steps that failed and were taken again as two halves
+  bool converged = true;  ///< the body reached equilibrium (else the cause is in failure and a kSolver event)
+  int solves = 0;         ///< body solves in the step (the friction lag's iterations)
+  int retries = 0;        ///< steps that failed and were taken again as two halves
   int newton_iterations = 0;
-  double yield = 0.0;      ///< Y [Pa] (with the magnetorheological term)
+  double yield = 0.0;                     ///< Y [Pa] (with the magnetorheological term)
   double magnetorheological_yield = 0.0;  ///< its magnetorheological part ΔP [Pa]
-  int edges_removed = 0;   ///< retraction
-  double speed = 0.0;      ///< the growth law's L̇ before tether and blocking [m/s]
+  int edges_removed = 0;                  ///< retraction
+  double speed = 0.0;                     ///< the growth law's L̇ before tether and blocking [m/s]
   std::string failure;
   std::vector<GrowthEvent> events;  ///< what happened in this step, in order
 };
 
 /// The control inputs of one step: the loads of the step, not parts of the model.
 struct GrowthControl {
-  double pressure = 0.0;  ///< P [Pa]
+  double pressure = 0.0;                                           ///< P [Pa]
   double tether_length = std::numeric_limits<double>::infinity();  ///< the length the tether has released [m]
   /// A load on the tip node [N], e.g. the reaction of a tool pushed out of the tip into tissue (needle.hpp). It
   /// enters the body's equilibrium and the global balance (WallForces::imbalance) like every other load.
@@ -270,15 +268,15 @@ void check_growth(const VineParameters& vine, const GrowthOptions& options, cons
 /// rod), the options, the anatomy and the clamp. Immutable after make_growth_model; shared by trials and threads.
 /// The world is borrowed (it must outlive the model); null is free space.
 struct GrowthModel {
-  VineParameters vine;     ///< as made: radius the body's made radius (the tube's or rod's when pushed); the
-                           ///< pressure, length and edges are not read (the state's)
+  VineParameters vine;  ///< as made: radius the body's made radius (the tube's or rod's when pushed); the
+                        ///< pressure, length and edges are not read (the state's)
   GrowthOptions options;
   const anatomy::CollisionWorld* world = nullptr;
-  Vec3 base_position = Vec3::Zero();     ///< the clamp [m]
-  Mat3 base_frame = Mat3::Identity();    ///< the clamp's frame (tangent = first column)
-  double edge_length = 0.0;  ///< h [m]
-  double dhat = 0.0;         ///< the barrier's activation distance d̂ [m]
-  double slip = 0.0;         ///< the static friction's slip ε [m]
+  Vec3 base_position = Vec3::Zero();   ///< the clamp [m]
+  Mat3 base_frame = Mat3::Identity();  ///< the clamp's frame (tangent = first column)
+  double edge_length = 0.0;            ///< h [m]
+  double dhat = 0.0;                   ///< the barrier's activation distance d̂ [m]
+  double slip = 0.0;                   ///< the static friction's slip ε [m]
   /// A pushed catheter tube or rod rather than the vine's film: no pressure in its wall, no burst, no squeeze.
   bool solid() const { return options.catheter.has_value() || options.rod.has_value(); }
 };
@@ -298,27 +296,27 @@ struct GrowthNode {
   Vec3 wall_force = Vec3::Zero();    ///< the wall's net force on the body at the last solve [N]
   /// Where its contact radius was last measured (reused while the node moves less than 2 % R) [m].
   Vec3 radius_at = Vec3::Constant(std::numeric_limits<double>::quiet_NaN());
-  double radius = 0.0;               ///< its (squeezed) contact radius there [m]
-  Vec3 across = Vec3::UnitY();       ///< the pinch direction there
+  double radius = 0.0;          ///< its (squeezed) contact radius there [m]
+  Vec3 across = Vec3::UnitY();  ///< the pinch direction there
 };
 
 /// Everything of a growing body that changes in time (STYLE.md, State): plain and copyable, no pointers; a
 /// checkpoint is a copy, and grow_step from a copy repeats the same step bit for bit.
 struct GrowthState {
-  double time = 0.0;       ///< [s]
-  double pressure = 0.0;   ///< the pressure the body is at (the last step's) [Pa]
-  int edges = 0;           ///< N
-  double tip_length = 0.0; ///< the tip edge's made length [m] (between h/2 and 3h/2)
-  double tip_grown = 0.0;  ///< the tip's growth in the last step [m] (its friction's slip scale)
-  RodState body;           ///< nodes and frames
+  double time = 0.0;              ///< [s]
+  double pressure = 0.0;          ///< the pressure the body is at (the last step's) [Pa]
+  int edges = 0;                  ///< N
+  double tip_length = 0.0;        ///< the tip edge's made length [m] (between h/2 and 3h/2)
+  double tip_grown = 0.0;         ///< the tip's growth in the last step [m] (its friction's slip scale)
+  RodState body;                  ///< nodes and frames
   std::vector<GrowthNode> nodes;  ///< per node, its contact history (as many as body.x)
-  WallForces forces;       ///< the forces on the tissue after the last step
+  WallForces forces;              ///< the forces on the tissue after the last step
   bool burst = false;
-  bool stalled = false;    ///< by the yield (a "stall" event was given)
-  bool blocked = false;    ///< by the wall or a narrowing (a "blocked" or "squeeze" event was given)
+  bool stalled = false;          ///< by the yield (a "stall" event was given)
+  bool blocked = false;          ///< by the wall or a narrowing (a "blocked" or "squeeze" event was given)
   bool retract_refused = false;  ///< a "retract" event said the vine must be deflated
   bool retracting = false;       ///< a "retract" event announced this retraction
-  bool placing = false;    ///< start_growth is everting the initial body: prescribed growth, no events
+  bool placing = false;          ///< start_growth is everting the initial body: prescribed growth, no events
 };
 
 /// The everted length of a state [m]: (N − 1)·h plus the tip edge's made length.
@@ -327,11 +325,11 @@ double everted_length(const GrowthModel& model, const GrowthState& state);
 /// Scratch of grow_step (STYLE.md, Workspace), reused between steps: the rod model of the body at the step's
 /// pressure, the rod solver's workspace, the checkpoint a failed step returns to.
 struct GrowthWorkspace {
-  RodModel body;            ///< the state's body as a rod at the step's pressure (derived: growth_body)
-  double radius = 0.0;      ///< the body's (extended) radius at that pressure [m]
-  double stiffness = 0.0;   ///< the barrier stiffness κ at that pressure [N/m]
+  RodModel body;           ///< the state's body as a rod at the step's pressure (derived: growth_body)
+  double radius = 0.0;     ///< the body's (extended) radius at that pressure [m]
+  double stiffness = 0.0;  ///< the barrier stiffness κ at that pressure [N/m]
   RodWorkspace rod;
-  GrowthState checkpoint;   ///< the state before the step being tried
+  GrowthState checkpoint;  ///< the state before the step being tried
   /// The friction lag's scratch, per node: the references, the lagged λ, strip forces and axes, and the last two
   /// solves' inputs and outputs (the secant relaxation).
   std::vector<Vec3> reference;
@@ -388,7 +386,7 @@ class VineGrowth {
   double time() const { return m_state.time; }
   double length() const { return m_workspace.body.length; }  ///< everted length [m]
   double edge_length() const { return m_model.edge_length; }
-  double radius() const { return m_workspace.radius; }        ///< current (extended) radius [m]
+  double radius() const { return m_workspace.radius; }                     ///< current (extended) radius [m]
   double turning() const { return growth_turning(m_workspace, m_state); }  ///< Σθ over the joints [rad]
   bool burst() const { return m_state.burst; }
   const std::vector<GrowthEvent>& events() const { return m_events; }

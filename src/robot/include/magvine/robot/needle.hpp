@@ -32,14 +32,14 @@
 namespace magvine::robot {
 
 struct NeedleTool {
-  double length = 0.05;            ///< the most it protrudes past the tip [m]
-  double diameter = 0.91e-3;       ///< [m]; 20G, the thesis's needle (5.6.3)
-  double cutting_force = 1.0;      ///< F_c [N]: at the needle's tip once it has punctured the wall
-  double shaft_friction = 0.0;     ///< f [N/m]: along the shaft in tissue
-  double puncture_depth = 2e-3;    ///< d_p [m]: how far the wall deflects before it ruptures (F rises to F_c)
-  double max_slide = 2e-3;         ///< the vine holds while its tip slides back less than this [m]
-  double speed = 5e-3;             ///< insertion speed [m/s] (the steps' time; quasi-static)
-  double increment = 0.5e-3;       ///< protrusion per step [m]
+  double length = 0.05;          ///< the most it protrudes past the tip [m]
+  double diameter = 0.91e-3;     ///< [m]; 20G, the thesis's needle (5.6.3)
+  double cutting_force = 1.0;    ///< F_c [N]: at the needle's tip once it has punctured the wall
+  double shaft_friction = 0.0;   ///< f [N/m]: along the shaft in tissue
+  double puncture_depth = 2e-3;  ///< d_p [m]: how far the wall deflects before it ruptures (F rises to F_c)
+  double max_slide = 2e-3;       ///< the vine holds while its tip slides back less than this [m]
+  double speed = 5e-3;           ///< insertion speed [m/s] (the steps' time; quasi-static)
+  double increment = 0.5e-3;     ///< protrusion per step [m]
 };
 
 /// Checks a needle (InputError naming the field otherwise).
@@ -51,22 +51,22 @@ double needle_tissue_force(const NeedleTool& needle, double depth);
 
 /// One increment of the puncture.
 struct PunctureStep {
-  double time = 0.0;        ///< [s]
-  double protrusion = 0.0;  ///< p [m]
-  double depth = 0.0;       ///< the needle tip past the wall [m]
-  double force = 0.0;       ///< the tissue's resistance F(depth) = the reaction on the vine's tip [N]
-  Vec3 reaction = Vec3::Zero();  ///< R = −F·t on the vine's tip, t the needle's axis then [N]
+  double time = 0.0;               ///< [s]
+  double protrusion = 0.0;         ///< p [m]
+  double depth = 0.0;              ///< the needle tip past the wall [m]
+  double force = 0.0;              ///< the tissue's resistance F(depth) = the reaction on the vine's tip [N]
+  Vec3 reaction = Vec3::Zero();    ///< R = −F·t on the vine's tip, t the needle's axis then [N]
   Vec3 tip = Vec3::Zero();         ///< the vine's tip [m]
   Vec3 needle_tip = Vec3::Zero();  ///< [m]
-  double slide = 0.0;       ///< the vine tip's slide back along the needle's first axis since the start [m]
+  double slide = 0.0;              ///< the vine tip's slide back along the needle's first axis since the start [m]
   /// The change, since before the needle touched tissue, of the walls' and the clamp's forces on the body [N]:
   /// what takes up the reaction. With the reaction R = −F·t, wall + clamp + R is the part of R taken by no support
   /// (the magnetic and gravity loads change a little as the body moves).
   Vec3 wall = Vec3::Zero();
   Vec3 clamp = Vec3::Zero();
-  double max_normal = 0.0;   ///< the largest node force on the tissue then [N]
-  double total_normal = 0.0; ///< [N]
-  double imbalance = 0.0;    ///< |Σ forces on the body| / |R| (0 when F = 0): the global statics check
+  double max_normal = 0.0;    ///< the largest node force on the tissue then [N]
+  double total_normal = 0.0;  ///< [N]
+  double imbalance = 0.0;     ///< |Σ forces on the body| / |R| (0 when F = 0): the global statics check
   /// |wall + clamp + R| / |R| (0 when F = 0): the share of the reaction that no support takes up (in a field, also
   /// the magnetic load's change as the body moves).
   double unsupported = 0.0;
@@ -86,9 +86,9 @@ struct PunctureReport {
   double max_unsupported = 0.0;    ///< the largest PunctureStep::unsupported
   /// At the largest reaction: the share of it the walls take up, |wall·R̂|/|R| (the rest: the clamp).
   double wall_share = 0.0;
-  double max_normal = 0.0;         ///< the largest node force on the tissue during the puncture [N]
-  bool success = false;            ///< held, and the needle's tip within the nodule
-  std::string why;                 ///< when it did not succeed
+  double max_normal = 0.0;  ///< the largest node force on the tissue during the puncture [N]
+  bool success = false;     ///< held, and the needle's tip within the nodule
+  std::string why;          ///< when it did not succeed
 };
 
 /// Pushes `needle` out of the tip of the grown vine in `state` towards a nodule centred at `nodule` with `radius`

@@ -16,13 +16,13 @@
 
 #include "magvine/anatomy/airway_graph.hpp"
 #include "magvine/anatomy/biopsy_plan.hpp"
-#include "magvine/robot/needle.hpp"
 #include "magvine/anatomy/collision_world.hpp"
 #include "magvine/anatomy/triangle_mesh.hpp"
 #include "magvine/magnetics/field_model.hpp"
 #include "magvine/magnetics/magnet_motion.hpp"
 #include "magvine/platform/platform.hpp"
 #include "magvine/robot/growth.hpp"
+#include "magvine/robot/needle.hpp"
 #include "magvine/robot/vine.hpp"
 
 namespace magvine::scene {
