@@ -24,6 +24,14 @@ struct Tube {
   explicit Tube(const anatomy::TubeParams& p) : phantom(anatomy::make_tube_phantom(p)), world(phantom.mesh) {}
 };
 
+/// A tube of `diameter` capped at 60 mm.
+anatomy::TubeParams capped_tube(double diameter) {
+  anatomy::TubeParams p;
+  p.diameter = diameter;
+  p.length = 60e-3;
+  return p;
+}
+
 struct Grown {
   GrowthModel model;
   GrowthState state;
@@ -63,10 +71,7 @@ TEST(Needle, TheTissueForceIsTheCuttingForcePlusShaftFriction) {
 // delivers depends on a support close to the tip). In a Ø8 mm tube the same 1 N moves the tip back 0.26 mm instead
 // of 0.013 mm and tilts it so the needle ends 5 mm off the axis (measured).
 TEST(Needle, TheReactionOfAOneNewtonPunctureIsCarriedByTheWallsAndTheClamp) {
-  anatomy::TubeParams tp;
-  tp.diameter = 5.6e-3;
-  tp.length = 60e-3;
-  const Tube tube(tp);
+  const Tube tube(capped_tube(5.6e-3));
   Grown g = grow(tube, 50e-3);
   const Vec3 nodule(75e-3, 0.0, 0.0);
   NeedleTool n;
@@ -97,10 +102,7 @@ TEST(Needle, TheReactionOfAOneNewtonPunctureIsCarriedByTheWallsAndTheClamp) {
 }
 
 TEST(Needle, AStiffPunctureMakesTheTipSlideBack) {
-  anatomy::TubeParams tp;
-  tp.diameter = 5.6e-3;
-  tp.length = 60e-3;
-  const Tube tube(tp);
+  const Tube tube(capped_tube(5.6e-3));
   Grown g = grow(tube, 50e-3);
   NeedleTool n;
   // 8 N: eight times the thesis's design load. In the Ø5.6 mm tube the body holds 5 N with its tip 0.13 mm back

@@ -207,7 +207,8 @@ ExperimentResult run_experiment(const ExperimentScene& scene, const std::functio
   double next_frame = 0.0;  // outputs.video: one record per frame of the most frequent video
   double frame_interval = std::numeric_limits<double>::infinity();
   for (const VideoOutput& v : scene.videos) frame_interval = std::min(frame_interval, v.speed / v.fps);
-  const auto record_frame = [&](double t) {
+  // `needle`: during a biopsy's puncture, its increment (the needle drawn from the tip to its point).
+  const auto record_frame = [&](double t, const robot::PunctureStep* needle = nullptr) {
     if (scene.videos.empty() || t < next_frame - 1e-9) return;
     // One record per frame time passed (a step longer than a frame repeats the state: the video keeps time).
     FrameSample f;
@@ -218,6 +219,11 @@ ExperimentResult run_experiment(const ExperimentScene& scene, const std::functio
       f.magnet_axes.push_back(pose.rotation.col(2));
     }
     if (arms) f.arm_links = arms->link_capsules();
+    if (needle != nullptr) {
+      f.needle_base = needle->tip;
+      f.needle_tip = needle->needle_tip;
+      f.needle_radius = 0.5 * scene.biopsy->needle.diameter;
+    }
     while (next_frame <= t + 1e-9) {
       f.time = next_frame;
       out.frames.push_back(f);
@@ -225,6 +231,27 @@ ExperimentResult run_experiment(const ExperimentScene& scene, const std::functio
     }
   };
   record_frame(0.0);
+  // The sample of the state after a step at time t under `pressure`.
+  const auto sample_at = [&](double t, double pressure) {
+    ExperimentSample s;
+    s.time = t;
+    s.tip = state.body.tip();
+    s.length = workspace.body.length;
+    s.pressure = pressure;
+    const robot::WallForces& forces = state.forces;
+    s.max_normal = forces.max_normal;
+    s.mean_normal = forces.mean_normal;
+    s.total_normal = forces.total_normal;
+    s.total_shear = forces.total_shear;
+    s.max_pressure = forces.max_pressure;
+    s.imbalance = forces.largest_load > 0.0 ? forces.imbalance.norm() / forces.largest_load : 0.0;
+    if (anatomy.graph) {
+      const anatomy::CentrelinePoint near = anatomy::nearest_centreline_point(*anatomy.graph, s.tip);
+      s.branch = near.branch;
+      s.centreline = near.distance;
+    }
+    return s;
+  };
   // A biopsy (ExperimentScene::biopsy): once the tip reaches the stop, the navigator's magnet aims the tip at the
   // nodule (the vine grows on towards it until the wall ahead blocks it) until aim_until; then the needle is pushed
   // with the tether held and the run ends.
@@ -234,46 +261,11 @@ ExperimentResult run_experiment(const ExperimentScene& scene, const std::functio
     const Vec3 tip = state.body.tip();
     const Vec3 to_nodule = (b.nodule - tip).normalized();
     out.aim_angle = std::acos(std::clamp(state.body.frames.back().col(0).dot(to_nodule), -1.0, 1.0));
-    const double radius = 0.5 * b.needle.diameter;
-    out.puncture = robot::push_needle(
-        model, field, b.needle, b.nodule, b.radius, scene.pressure.at(state.time), state, workspace,
-        [&](const robot::PunctureStep& p, const robot::GrowthState& st) {
-          ExperimentSample s;
-          s.time = p.time;
-          s.tip = p.tip;
-          s.length = workspace.body.length;
-          s.pressure = st.pressure;
-          s.max_normal = st.forces.max_normal;
-          s.mean_normal = st.forces.mean_normal;
-          s.total_normal = st.forces.total_normal;
-          s.total_shear = st.forces.total_shear;
-          s.max_pressure = st.forces.max_pressure;
-          s.imbalance = st.forces.largest_load > 0.0 ? st.forces.imbalance.norm() / st.forces.largest_load : 0.0;
-          if (anatomy.graph) {
-            const anatomy::CentrelinePoint near = anatomy::nearest_centreline_point(*anatomy.graph, s.tip);
-            s.branch = near.branch;
-            s.centreline = near.distance;
-          }
-          out.samples.push_back(s);
-          if (!scene.videos.empty() && p.time >= next_frame - 1e-9) {
-            FrameSample f;
-            f.nodes = st.body.x;
-            f.tip_frame = st.body.frames.back();
-            for (const magnetics::Pose& pose : poses) {
-              f.magnet_positions.push_back(pose.position);
-              f.magnet_axes.push_back(pose.rotation.col(2));
-            }
-            if (arms) f.arm_links = arms->link_capsules();
-            f.needle_base = p.tip;
-            f.needle_tip = p.needle_tip;
-            f.needle_radius = radius;
-            while (next_frame <= p.time + 1e-9) {
-              f.time = next_frame;
-              out.frames.push_back(f);
-              next_frame += frame_interval;
-            }
-          }
-        });
+    out.puncture = robot::push_needle(model, field, b.needle, b.nodule, b.radius, scene.pressure.at(state.time), state,
+                                      workspace, [&](const robot::PunctureStep& p, const robot::GrowthState& st) {
+                                        out.samples.push_back(sample_at(p.time, st.pressure));
+                                        record_frame(p.time, &p);
+                                      });
   };
   const auto steps = static_cast<long>(std::ceil(scene.duration / scene.dt - 1e-9));
   const bool moving = magnets_move(scene) || scene.platform != nullptr;  // arms report every step
@@ -331,23 +323,8 @@ ExperimentResult run_experiment(const ExperimentScene& scene, const std::functio
       out.failure = printf_string("step %ld at %.3f s failed: %s", k, t, r.failure.c_str());
       break;
     }
-    ExperimentSample s;
-    s.time = t;
-    s.tip = state.body.tip();
-    s.length = workspace.body.length;
-    s.pressure = control.pressure;
+    const ExperimentSample s = sample_at(t, control.pressure);
     const robot::WallForces& forces = state.forces;
-    s.max_normal = forces.max_normal;
-    s.mean_normal = forces.mean_normal;
-    s.total_normal = forces.total_normal;
-    s.total_shear = forces.total_shear;
-    s.max_pressure = forces.max_pressure;
-    s.imbalance = forces.largest_load > 0.0 ? forces.imbalance.norm() / forces.largest_load : 0.0;
-    if (anatomy.graph) {
-      const anatomy::CentrelinePoint near = anatomy::nearest_centreline_point(*anatomy.graph, s.tip);
-      s.branch = near.branch;
-      s.centreline = near.distance;
-    }
     out.samples.push_back(s);
     record_frame(t);
     if (scene.shape_interval > 0.0 && t >= next_shape - 1e-9) {
