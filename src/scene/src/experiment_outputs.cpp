@@ -132,7 +132,9 @@ void write_experiment_outputs(const ExperimentScene& scene, const ExperimentResu
     const std::optional<robot::PunctureReport>& p = result.puncture;
     b["punctured"] = p.has_value();
     b["success"] = p && p->success;
-    b["why"] = p ? nlohmann::json(p->why) : nlohmann::json("the vine did not reach its stop");
+    b["why"] = p                ? nlohmann::json(p->why)
+               : result.success ? nlohmann::json("the run failed before the puncture: " + result.failure)
+                                : nlohmann::json("the vine did not reach its stop");
     b["aim_angle_deg"] = p ? nlohmann::json(result.aim_angle / kDegToRad) : nlohmann::json();
     b["held"] = p ? nlohmann::json(p->held) : nlohmann::json();
     b["slide_back_m"] = p ? nlohmann::json(p->slide) : nlohmann::json();
