@@ -792,6 +792,8 @@ void fill_screens(Tables& w) {
 
 struct CollisionWorld::Impl {
   Impl(const TriangleMesh& source, const CollisionWorldOptions& opts);
+  /// The tables of the mesh as it is now, over the BVH's slot order.
+  void fill_tables();
 
   TriangleMesh mesh;
   CollisionWorldOptions options;
@@ -816,24 +818,49 @@ CollisionWorld::Impl::Impl(const TriangleMesh& source, const CollisionWorldOptio
   w.triangles = mesh.triangles;
   w.side = options.free_side == FreeSide::kInside ? -1.0 : 1.0;
   w.merge_cos = std::cos(options.merge_angle);
-  const Aabb box = bounding_box(mesh);
-  w.box_min = box.min;
-  w.box_max = box.max;
-  w.incidence = vertex_triangles(mesh);
   bvh.emplace(mesh.vertices, mesh.triangles);
-  fill_geometry(w, bvh->order());  // records in the BVH's leaf order
-  fill_edges(w, edge_bends(mesh, w.incidence), options.free_side, stats);
-  fill_screens(w);
-  std::vector<Vec3>().swap(w.incidence.normals);  // the queries read only the incidence lists
-
+  fill_tables();
   stats.triangles = mesh.triangles.size();
   stats.build_seconds = std::chrono::duration<double>(std::chrono::steady_clock::now() - start).count();
 }
 
+void CollisionWorld::Impl::fill_tables() {
+  Tables& w = tables;
+  const Aabb box = bounding_box(mesh);
+  w.box_min = box.min;
+  w.box_max = box.max;
+  w.incidence = vertex_triangles(mesh);
+  w.data.assign(mesh.triangles.size(), TriangleData{});
+  w.arcs.assign(mesh.triangles.size(), EdgeArcs{});
+  w.points.clear();
+  stats.degenerate_triangles = stats.ridge_edges = stats.boundary_edges = 0;
+  fill_geometry(w, bvh->order());  // records in the BVH's leaf order
+  fill_edges(w, edge_bends(mesh, w.incidence), options.free_side, stats);
+  fill_screens(w);
+  std::vector<Vec3>().swap(w.incidence.normals);  // the queries read only the incidence lists
+}
+
 CollisionWorld::CollisionWorld(const TriangleMesh& mesh, const CollisionWorldOptions& options)
-    : m_impl(std::make_unique<const Impl>(mesh, options)) {
+    : m_impl(std::make_unique<Impl>(mesh, options)) {
   usage::note(usage::Component::kCollisionWorld);
 }
+void CollisionWorld::refit(std::span<const Vec3> vertices) {
+  const auto start = std::chrono::steady_clock::now();
+  Impl& m = *m_impl;
+  if (vertices.size() != m.mesh.vertices.size()) {
+    throw InputError("collision world refit: " + std::to_string(vertices.size()) + " vertices for a mesh of " +
+                     std::to_string(m.mesh.vertices.size()));
+  }
+  for (const Vec3& v : vertices) {
+    if (!v.allFinite()) throw InputError("collision world refit: a vertex is not finite");
+  }
+  std::copy(vertices.begin(), vertices.end(), m.mesh.vertices.begin());
+  m.bvh->refit(m.mesh.vertices, m.mesh.triangles);
+  m.fill_tables();
+  m.id = Impl::next_id();  // caches filled before hold the old geometry
+  m.stats.refit_seconds = std::chrono::duration<double>(std::chrono::steady_clock::now() - start).count();
+}
+
 CollisionWorld::~CollisionWorld() = default;
 CollisionWorld::CollisionWorld(CollisionWorld&&) noexcept = default;
 CollisionWorld& CollisionWorld::operator=(CollisionWorld&&) noexcept = default;
@@ -856,7 +883,7 @@ struct ContactCache::Storage {
   std::size_t group_count = 0;
   std::size_t leaf_count = 0;  ///< leaves in the groups
   std::size_t slot_count = 0;
-  const void* world = nullptr;  ///< the tables that filled it; null when empty
+  std::uint64_t world = 0;      ///< the id of the world (and refit) that filled it; 0 when empty
   Vec3 centre = Vec3::Zero();   ///< fill centre [m]
   double radius = 0.0;          ///< fill radius [m]
 
@@ -896,10 +923,10 @@ ContactCache::ContactCache(ContactCache&&) noexcept = default;
 ContactCache& ContactCache::operator=(ContactCache&&) noexcept = default;
 
 void ContactCache::clear() {
-  m_storage->world = nullptr;
+  m_storage->world = 0;
 }
 bool ContactCache::filled() const {
-  return m_storage->world != nullptr;
+  return m_storage->world != 0;
 }
 
 MAGVINE_HOT_KERNEL std::size_t CollisionWorld::sphere_contacts(const Vec3& centre, double radius,
@@ -915,7 +942,7 @@ MAGVINE_HOT_KERNEL std::size_t CollisionWorld::sphere_contacts(const Vec3& centr
   // always qualifies). The walk's node test then picks, of the kept leaves, exactly the walk's, in its order.
   const double moved = (centre - kept.centre).norm();
   const double room = 1e-12 * (centre.cwiseAbs().maxCoeff() + kept.radius);
-  if (kept.world == &w && radius <= kept.radius && (moved == 0.0 || moved + room <= cache.m_margin)) {
+  if (kept.world == m_impl->id && radius <= kept.radius && (moved == 0.0 || moved + room <= cache.m_margin)) {
     const detail::SphereBoxTest test(centre, radius);
     for (std::size_t i = 0; i < kept.group_count; ++i) {
       const detail::TriangleBvh::Node& group = kept.groups[i];
@@ -932,7 +959,7 @@ MAGVINE_HOT_KERNEL std::size_t CollisionWorld::sphere_contacts(const Vec3& centr
   }
   // Refill: walk the leaves within r + margin, keep those triangles that may touch within the margin, and answer
   // this query from the leaves within r (the plain walk's leaves, in its order).
-  kept.world = nullptr;
+  kept.world = 0;
   kept.group_count = 0;
   kept.leaf_count = 0;
   kept.slot_count = 0;
@@ -955,7 +982,7 @@ MAGVINE_HOT_KERNEL std::size_t CollisionWorld::sphere_contacts(const Vec3& centr
         for (std::uint32_t slot = first; slot < end; ++slot) query.process(slot);
       });
   if (fits) {
-    kept.world = &w;
+    kept.world = m_impl->id;
     kept.centre = centre;
     kept.radius = radius;
   }

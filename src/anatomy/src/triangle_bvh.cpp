@@ -207,4 +207,53 @@ TriangleBvh::TriangleBvh(std::span<const Vec3> vertices, std::span<const Triangl
   if (m_order.size() != triangles.size()) fail(device.get(), "the BVH lost triangles");
 }
 
+void TriangleBvh::refit(std::span<const Vec3> vertices, std::span<const Triangle> triangles) {
+  Vec3 lo = vertices[triangles[0][0]];
+  Vec3 hi = lo;
+  for (const Triangle& t : triangles) {
+    for (const std::uint32_t v : t) {
+      lo = lo.cwiseMin(vertices[v]);
+      hi = hi.cwiseMax(vertices[v]);
+    }
+  }
+  const double pad = kBoxPad * (hi - lo).norm();
+  // Children come after their parents (the flattening appends a node before its subtree): from the last node back,
+  // every inner child's box is its node's union, already refitted.
+  for (std::size_t i = m_nodes.size(); i-- > 0;) {
+    Node& n = m_nodes[i];
+    for (std::size_t k = 0; k < 4; ++k) {
+      const std::uint32_t c = n.child[k];
+      Vec3 a = Vec3::Constant(std::numeric_limits<double>::infinity());
+      Vec3 b = -a;
+      if ((c & kLeafBit) != 0) {
+        const std::uint32_t first = (c & ~kLeafBit) >> 4;
+        const std::uint32_t count = c & 0xFu;
+        if (count == 0) continue;  // an empty leaf keeps its empty box
+        for (std::uint32_t slot = first; slot < first + count; ++slot) {
+          for (const std::uint32_t v : triangles[m_order[slot]]) {
+            a = a.cwiseMin(vertices[v]);
+            b = b.cwiseMax(vertices[v]);
+          }
+        }
+        a.array() -= pad;
+        b.array() += pad;
+        n.lo_x[k] = float_down(a.x());
+        n.lo_y[k] = float_down(a.y());
+        n.lo_z[k] = float_down(a.z());
+        n.hi_x[k] = float_up(b.x());
+        n.hi_y[k] = float_up(b.y());
+        n.hi_z[k] = float_up(b.z());
+      } else {
+        const Node& m = m_nodes[c];
+        n.lo_x[k] = *std::min_element(m.lo_x.begin(), m.lo_x.end());
+        n.lo_y[k] = *std::min_element(m.lo_y.begin(), m.lo_y.end());
+        n.lo_z[k] = *std::min_element(m.lo_z.begin(), m.lo_z.end());
+        n.hi_x[k] = *std::max_element(m.hi_x.begin(), m.hi_x.end());
+        n.hi_y[k] = *std::max_element(m.hi_y.begin(), m.hi_y.end());
+        n.hi_z[k] = *std::max_element(m.hi_z.begin(), m.hi_z.end());
+      }
+    }
+  }
+}
+
 }  // namespace magvine::anatomy::detail

@@ -8,8 +8,8 @@
 /// 200 k-triangle airway once the records no longer fit in cache.
 ///
 /// Boxes are float, rounded outward from the double vertices, so every test against them is conservative. Walks are
-/// templates that inline the caller's box test and leaf visit. Immutable after construction; walks are const,
-/// allocation-free (a fixed stack) and thread-safe.
+/// templates that inline the caller's box test and leaf visit. Walks are const, allocation-free (a fixed stack) and
+/// thread-safe; refit moves the boxes between walks.
 
 #include <algorithm>
 #include <array>
@@ -47,6 +47,10 @@ class TriangleBvh {
   /// Builds over `triangles` (indices into `vertices`). Throws InputError when Embree fails, or when the mesh has
   /// more than 2^27 triangles (the slot field of a leaf).
   TriangleBvh(std::span<const Vec3> vertices, std::span<const Triangle> triangles);
+
+  /// Recomputes every box bottom-up for the moved `vertices` of the same `triangles`, keeping the tree (its nodes,
+  /// leaves and slot order), with the build's padding and outward rounding.
+  void refit(std::span<const Vec3> vertices, std::span<const Triangle> triangles);
 
   /// slot → triangle index: leaves are contiguous runs of slots.
   std::span<const std::uint32_t> order() const { return m_order; }

@@ -49,6 +49,9 @@ std::vector<Vec3> airway_path(const YamlMap& path, const FileUnits& units, const
                               const std::filesystem::path& directory, AnatomyCache* cache,
                               DesignScene::AirwayPath& out) {
   path.allow_only({"anatomy", "branch", "points", "speed"});
+  if (path.map("anatomy").has("breathing")) {
+    path.map("anatomy").fail("breathing", "a design follows the airway as imaged; breathing belongs to experiments");
+  }
   const std::shared_ptr<const SceneAnatomy> anatomy =
       detail::parse_anatomy_entry(path.map("anatomy"), units, directory, cache);
   if (!anatomy->graph) {

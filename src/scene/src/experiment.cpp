@@ -197,8 +197,24 @@ ExperimentResult run_experiment(const ExperimentScene& scene, const std::functio
   const bool solid = scene.growth.catheter || scene.growth.rod;
   if (!solid && robot::bursts(vine, vine.pressure)) vine.pressure *= 0.5;
   // The growth step function (growth.hpp): the model, the state (a checkpoint is a copy), the workspace.
+  // Breathing (scene.breathing): the run moves its own copy of the airway, refitted every step, from the rest shape
+  // (the planning CT's, at full inspiration). The graph, the navigator's plan, the target and the nodule stay in the
+  // rest frame; the tip is taken back to it (less the displacement where it is) to read them.
+  std::optional<anatomy::CollisionWorld> breathing_world;
+  std::vector<Vec3> rest_vertices;
+  std::vector<Vec3> moved_vertices;
+  if (scene.breathing) {
+    breathing_world.emplace(anatomy.mesh(), anatomy.world.options());
+    rest_vertices = anatomy.mesh().vertices;
+    moved_vertices.resize(rest_vertices.size());
+  }
+  const auto displacement = [&](const Vec3& x, double t) {
+    return scene.breathing ? anatomy::breathing_displacement(*scene.breathing, x, t) : Vec3::Zero();
+  };
+  const auto at_rest = [&](const Vec3& x, double t) { return Vec3(x - displacement(x, t)); };
+  const anatomy::CollisionWorld& world = breathing_world ? *breathing_world : anatomy.world;
   const robot::GrowthModel model =
-      robot::make_growth_model(vine, scene.growth, &anatomy.world, scene.base_position, scene.base_frame);
+      robot::make_growth_model(vine, scene.growth, &world, scene.base_position, scene.base_frame);
   robot::GrowthState state;
   robot::GrowthWorkspace workspace;
   std::vector<robot::GrowthEvent> growth_events =
@@ -245,8 +261,9 @@ ExperimentResult run_experiment(const ExperimentScene& scene, const std::functio
     s.total_shear = forces.total_shear;
     s.max_pressure = forces.max_pressure;
     s.imbalance = forces.largest_load > 0.0 ? forces.imbalance.norm() / forces.largest_load : 0.0;
+    if (scene.breathing) s.inspiration = anatomy::inspiration(*scene.breathing, t);
     if (anatomy.graph) {
-      const anatomy::CentrelinePoint near = anatomy::nearest_centreline_point(*anatomy.graph, s.tip);
+      const anatomy::CentrelinePoint near = anatomy::nearest_centreline_point(*anatomy.graph, at_rest(s.tip, t));
       s.branch = near.branch;
       s.centreline = near.distance;
     }
@@ -259,9 +276,11 @@ ExperimentResult run_experiment(const ExperimentScene& scene, const std::functio
   const auto puncture = [&]() {
     const Biopsy& b = *scene.biopsy;
     const Vec3 tip = state.body.tip();
-    const Vec3 to_nodule = (b.nodule - tip).normalized();
+    // The nodule where breathing has it now (the puncture itself is quick: the airway is held there during it).
+    const Vec3 nodule = b.nodule + displacement(b.nodule, state.time);
+    const Vec3 to_nodule = (nodule - tip).normalized();
     out.aim_angle = std::acos(std::clamp(state.body.frames.back().col(0).dot(to_nodule), -1.0, 1.0));
-    out.puncture = robot::push_needle(model, field, b.needle, b.nodule, b.radius, scene.pressure.at(state.time), state,
+    out.puncture = robot::push_needle(model, field, b.needle, nodule, b.radius, scene.pressure.at(state.time), state,
                                       workspace, [&](const robot::PunctureStep& p, const robot::GrowthState& st) {
                                         out.samples.push_back(sample_at(p.time, st.pressure));
                                         record_frame(p.time, &p);
@@ -275,16 +294,23 @@ ExperimentResult run_experiment(const ExperimentScene& scene, const std::functio
     const double dt = t - state.time;
     if (navigator && !aim_until) {
       const Stopwatch placing;
-      navigator->place(t, state.body.tip(), state.body.frames.back(), workspace.body.length, navigator_events);
+      navigator->place(t, at_rest(state.body.tip(), state.time), state.body.frames.back(), workspace.body.length,
+                       navigator_events);
       if (arms) platform_seconds += placing.seconds();
     }
     if (scene.magnets && moving) {
       std::vector<magnetics::Pose> next = poses_at(scene, navigator ? &*navigator : nullptr, t);
+      if (navigator && scene.breathing && !aim_until && !arms) {
+        // The navigator placed its magnet from the tip taken back to the rest frame: carried with the tip.
+        next[static_cast<std::size_t>(navigator->magnet())].position +=
+            displacement(at_rest(state.body.tip(), state.time), state.time);
+      }
       if (aim_until && !arms) {
         // Aiming: the navigator's magnet on the line from the tip to the nodule, its distance away, axis along it
         // (a fill is pulled towards it).
         const auto i = static_cast<std::size_t>(navigator->magnet());
-        const Vec3 d = (scene.biopsy->nodule - state.body.tip()).normalized();
+        const Vec3 nodule = scene.biopsy->nodule + displacement(scene.biopsy->nodule, state.time);
+        const Vec3 d = (nodule - state.body.tip()).normalized();
         next[i] = magnetics::pose_at(scene.magnets->rest_poses[i],
                                      state.body.tip() + scene.navigator->distance * d + scene.navigator_offset, d);
       }
@@ -311,7 +337,24 @@ ExperimentResult run_experiment(const ExperimentScene& scene, const std::functio
     if (scene.tether) control.tether_length = scene.tether->at(t);
     if (navigator && !aim_until) {
       const int branch = out.samples.empty() ? -1 : out.samples.back().branch;
-      navigator->regulate(t, workspace.body.length, branch, out.success, state.body.tip(), control, navigator_events);
+      navigator->regulate(t, workspace.body.length, branch, out.success, at_rest(state.body.tip(), state.time), control,
+                          navigator_events);
+    }
+    if (breathing_world) {
+      // The airway moves to its shape at t, and carries the body and the material laid on its wall with it (the
+      // displacement's change where each point is; the clamp, at the fixed entry, stays).
+      for (std::size_t i = 0; i < rest_vertices.size(); ++i) {
+        moved_vertices[i] = rest_vertices[i] + displacement(rest_vertices[i], t);
+      }
+      breathing_world->refit(moved_vertices);
+      const auto carry = [&](Vec3& x) {
+        if (x.allFinite()) x += displacement(at_rest(x, state.time), t) - displacement(at_rest(x, state.time), state.time);
+      };
+      for (std::size_t i = 1; i < state.body.x.size(); ++i) {
+        carry(state.body.x[i]);
+        carry(state.nodes[i].reference);
+        carry(state.nodes[i].radius_at);
+      }
     }
     const robot::GrowthStatus r = robot::grow_step(model, field, control, state, workspace, dt);
     growth_events.insert(growth_events.end(), r.events.begin(), r.events.end());
@@ -332,7 +375,8 @@ ExperimentResult run_experiment(const ExperimentScene& scene, const std::functio
           {t, state.body.x, forces.normal, forces.shear, forces.normal_vector, forces.shear_vector, forces.pressure});
       next_shape += scene.shape_interval;
     }
-    if (scene.target && out.time_to_target < 0.0 && (s.tip - *scene.target).norm() <= scene.target_tolerance) {
+    if (scene.target && out.time_to_target < 0.0 &&
+        (s.tip - *scene.target - displacement(*scene.target, t)).norm() <= scene.target_tolerance) {
       out.time_to_target = t;
       out.success = true;
     }

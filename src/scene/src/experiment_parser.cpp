@@ -179,10 +179,31 @@ std::shared_ptr<const SceneAnatomy> segmentation_anatomy(const YamlMap& entry, c
 #endif
 }
 
+/// anatomy.breathing: the displacement field (anatomy/breathing.hpp), its entry and carina from the airway graph.
+void parse_breathing(const YamlMap& b, const FileUnits& units, ExperimentScene& scene) {
+  b.allow_only({"period", "profile", "carina_amplitude", "lower_amplitude", "lower_depth", "superior"});
+  const std::optional<anatomy::AirwayGraph>& graph = scene.anatomy->graph;
+  if (!graph || graph->branches.empty()) {
+    b.fail("period", "breathing moves the airway from its carina down: the anatomy needs an airway graph");
+  }
+  anatomy::BreathingParams p;
+  if (b.has("period")) p.period = b.quantity("period", kSeconds, range::kDuration);
+  if (b.has("profile")) p.profile = static_cast<int>(b.whole("profile", 1, 10));
+  if (b.has("carina_amplitude")) p.carina_amplitude = b.quantity("carina_amplitude", units.len, range::kSmallDistance);
+  if (b.has("lower_amplitude")) p.lower_amplitude = b.quantity("lower_amplitude", units.len, range::kSmallDistance);
+  if (b.has("lower_depth")) p.lower_depth = b.quantity("lower_depth", units.len, range::kDistance);
+  if (b.has("superior")) p.superior = b.direction("superior");
+  const anatomy::AirwayBranch& root = graph->branches.front();
+  p.entry = graph->nodes[root.nodes.front()].position;
+  p.carina = graph->nodes[root.nodes.back()].position;
+  anatomy::check_breathing(p);
+  scene.breathing = p;
+}
+
 /// anatomy: a generated phantom, a mesh file or a CT segmentation.
 std::shared_ptr<const SceneAnatomy> parse_anatomy(const YamlMap& entry, const FileUnits& units,
                                                   const std::filesystem::path& directory, AnatomyCache* cache) {
-  entry.allow_only({"phantom", "mesh", "mesh_units", "graph", "graph_root", "segmentation", "label"});
+  entry.allow_only({"phantom", "mesh", "mesh_units", "graph", "graph_root", "segmentation", "label", "breathing"});
   if (int(entry.has("phantom")) + int(entry.has("mesh")) + int(entry.has("segmentation")) != 1) {
     entry.fail("phantom", "give exactly one of phantom: {kind: ...}, mesh: FILE or segmentation: FILE.nii.gz");
   }
@@ -788,6 +809,7 @@ ExperimentScene parse_experiment_scene(const std::string& text, const std::strin
   scene.file = file_label;
   scene.seed = seed_of(top, scene.seed);
   scene.anatomy = parse_anatomy(top.map("anatomy"), units, directory, cache);
+  if (top.map("anatomy").has("breathing")) parse_breathing(top.map("anatomy").map("breathing"), units, scene);
   const std::optional<robot::PushedRod> rod = parse_robot(top.map("robot"), units, scene);
   if (top.has("growth")) parse_growth(top.map("growth"), units, rod.has_value(), scene);
   if (rod) {

@@ -40,8 +40,9 @@
 /// to several kept ones absorbs them all, so the result does not depend on the triangle order); when more distinct
 /// contacts exist than the caller's span holds, the deepest are kept. Results are sorted deepest first.
 ///
-/// Model: immutable after construction, queries are const, allocation-free and safe to call from several threads at
-/// once (each query keeps its scratch on the stack, so there is no workspace to pass).
+/// Model: queries are const, allocation-free and safe to call from several threads at once (each query keeps its
+/// scratch on the stack, so there is no workspace to pass). The geometry changes only through refit (a breathing
+/// airway), between queries.
 
 #include <cstddef>
 #include <cstdint>
@@ -103,6 +104,7 @@ struct CollisionWorldStats {
   std::size_t ridge_edges = 0;           ///< triangle edges that bend away from the free side (counted per side)
   std::size_t boundary_edges = 0;        ///< triangle edges without a neighbour (open mesh rims)
   double build_seconds = 0.0;            ///< wall time of BVH + edge bends + tables [s]
+  double refit_seconds = 0.0;            ///< wall time of the last refit [s]
 };
 
 class CollisionWorld;
@@ -228,6 +230,13 @@ class CollisionWorld {
   /// The fixed, deliberately irregular unit directions `contains` casts, in order.
   static std::span<const Vec3> parity_directions();
 
+  /// Moves the mesh's vertices to `vertices` (as many as the mesh has, same triangles) and brings every query up to
+  /// date: the BVH's boxes are refitted bottom-up over its unchanged tree (no rebuild: the tree's quality degrades
+  /// as the motion departs from a smooth one), the per-triangle records, edge bends and screens recomputed. Caches
+  /// filled before (NearCache, ContactCache) refill at their next query. Not thread-safe against queries running
+  /// at the same time. Throws InputError for a wrong count or a non-finite vertex.
+  void refit(std::span<const Vec3> vertices);
+
   /// The world's own copy of the mesh [m].
   const TriangleMesh& mesh() const;
   const CollisionWorldOptions& options() const;
@@ -235,7 +244,7 @@ class CollisionWorld {
 
  private:
   struct Impl;
-  std::unique_ptr<const Impl> m_impl;
+  std::unique_ptr<Impl> m_impl;
 };
 
 }  // namespace magvine::anatomy

@@ -6,6 +6,7 @@
 
 #include <filesystem>
 #include <functional>
+#include <limits>
 #include <optional>
 #include <string>
 #include <vector>
@@ -33,6 +34,9 @@ struct ExperimentSample {
   /// The global balance of the converged body: |Σ(wall + friction + magnetic + gravity + clamp)| over the largest
   /// of those loads (robot::WallForces::imbalance, largest_load); 0 for a body without loads.
   double imbalance = 0.0;
+  /// With anatomy.breathing: the fraction of inspiration (anatomy::inspiration; 1 at full inspiration, the rest
+  /// shape); NaN without.
+  double inspiration = std::numeric_limits<double>::quiet_NaN();
 };
 
 struct MagnetSample {

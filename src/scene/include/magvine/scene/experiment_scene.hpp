@@ -16,6 +16,7 @@
 
 #include "magvine/anatomy/airway_graph.hpp"
 #include "magvine/anatomy/biopsy_plan.hpp"
+#include "magvine/anatomy/breathing.hpp"
 #include "magvine/anatomy/collision_world.hpp"
 #include "magvine/anatomy/triangle_mesh.hpp"
 #include "magvine/magnetics/field_model.hpp"
@@ -191,6 +192,9 @@ struct ExperimentScene {
   std::optional<Vec3> target;  ///< [m]
   /// control.navigator.target: {nodule: ...}: the nodule, the planned stop (the target above) and the needle.
   std::optional<Biopsy> biopsy;
+  /// anatomy.breathing: the airway moves (anatomy/breathing.hpp); the run refits its own copy of the collision world
+  /// every step, and the nodule, the target and the navigator's path move with it.
+  std::optional<anatomy::BreathingParams> breathing;
   double target_tolerance = 0.0;         ///< [m]
   bool stop_at_target = true;            ///< end the run when the target is reached (simulation.stop_at_target)
   TrialPerturbation perturbation;        ///< for `magvine trials`

@@ -1,0 +1,40 @@
+#include "magvine/anatomy/breathing.hpp"
+
+#include <algorithm>
+#include <cmath>
+
+#include "magvine/core/error.hpp"
+#include "magvine/core/units.hpp"
+
+namespace magvine::anatomy {
+
+void check_breathing(const BreathingParams& p) {
+  if (!(p.period > 0.0 && std::isfinite(p.period))) throw InputError("breathing: period must be > 0");
+  if (p.profile < 1 || p.profile > 10) throw InputError("breathing: profile (n of cos^2n) must be in 1..10");
+  for (const double a : {p.carina_amplitude, p.lower_amplitude}) {
+    if (!(a >= 0.0 && std::isfinite(a))) throw InputError("breathing: amplitudes must be >= 0");
+  }
+  if (!(p.lower_depth > 0.0 && std::isfinite(p.lower_depth))) throw InputError("breathing: lower_depth must be > 0");
+  if (!(std::abs(p.superior.norm() - 1.0) < 1e-9)) throw InputError("breathing: superior must be a unit vector");
+  if (!p.entry.allFinite() || !p.carina.allFinite()) throw InputError("breathing: entry and carina must be finite");
+}
+
+double inspiration(const BreathingParams& p, double time) {
+  return std::pow(std::cos(kPi * time / p.period), 2 * p.profile);
+}
+
+double breathing_amplitude(const BreathingParams& p, const Vec3& x) {
+  const double below = (p.carina - x).dot(p.superior);  // depth below the carina [m]
+  if (below >= 0.0) return p.carina_amplitude + (p.lower_amplitude - p.carina_amplitude) *
+                                                    std::min(1.0, below / p.lower_depth);
+  // Above the carina: from the fixed entry (0) to A_c at the carina, by height along ŝ.
+  const double height = (p.entry - p.carina).dot(p.superior);
+  if (!(height > 0.0)) return p.carina_amplitude;
+  return p.carina_amplitude * std::clamp(1.0 + below / height, 0.0, 1.0);
+}
+
+Vec3 breathing_displacement(const BreathingParams& p, const Vec3& x, double time) {
+  return breathing_amplitude(p, x) * (1.0 - inspiration(p, time)) * p.superior;
+}
+
+}  // namespace magvine::anatomy
