@@ -38,6 +38,7 @@
 #include <string>
 #include <vector>
 
+#include "magvine/anatomy/breathing.hpp"
 #include "magvine/anatomy/collision_world.hpp"
 #include "magvine/anatomy/mesh_io.hpp"
 #include "magvine/anatomy/primitives.hpp"
@@ -480,6 +481,28 @@ void BM_Contains(benchmark::State& state) {
   state.counters["agree"] = per_iteration(state, static_cast<double>(agree));
 }
 
+/// The per-step refit of a breathing airway (CollisionWorld::refit, issue 31 item 4; target ≤ 1 ms for ~200 k
+/// triangles): the mesh moved by the default breathing field at alternating phases, the world refitted each time.
+void BM_Refit(benchmark::State& state) {
+  const TriangleMesh& mesh = scene().mesh;
+  CollisionWorld w(mesh);
+  BreathingParams b;
+  const Aabb box = bounding_box(mesh);
+  b.entry = Vec3(0.5 * (box.min.x() + box.max.x()), 0.5 * (box.min.y() + box.max.y()), box.max.z());
+  b.carina = b.entry - 0.1 * (box.max.z() - box.min.z()) * Vec3::UnitZ();
+  std::vector<Vec3> moved(mesh.vertices.size());
+  double t = 0.0;
+  for (auto _ : state) {
+    t += 0.37;
+    for (std::size_t i = 0; i < moved.size(); ++i)
+      moved[i] = mesh.vertices[i] + breathing_displacement(b, mesh.vertices[i], t);
+    w.refit(moved);
+    benchmark::DoNotOptimize(&w);
+  }
+  state.SetLabel(scene().label);
+  state.counters["triangles"] = static_cast<double>(mesh.triangles.size());
+}
+
 void BM_BuildWorld(benchmark::State& state) {
   const TriangleMesh& mesh = scene().mesh;
   for (auto _ : state) {
@@ -511,6 +534,7 @@ BENCHMARK_CAPTURE(BM_RayCast, random, Order::kRandom)->Unit(benchmark::kNanoseco
 BENCHMARK_CAPTURE(BM_RayCast, hot, Order::kHot)->Unit(benchmark::kNanosecond);
 BENCHMARK(BM_Contains)->Unit(benchmark::kMicrosecond);
 BENCHMARK(BM_BuildWorld)->Unit(benchmark::kMillisecond)->Iterations(3);
+BENCHMARK(BM_Refit)->Unit(benchmark::kMillisecond);
 
 }  // namespace
 
