@@ -196,7 +196,6 @@ ExperimentResult run_experiment(const ExperimentScene& scene, const std::functio
   // (an event and an outcome, not an error). A pushed rod or catheter has no film to burst.
   const bool solid = scene.growth.catheter || scene.growth.rod;
   if (!solid && robot::bursts(vine, vine.pressure)) vine.pressure *= 0.5;
-  // The growth step function (growth.hpp): the model, the state (a checkpoint is a copy), the workspace.
   // Breathing (scene.breathing): the run moves its own copy of the airway, refitted every step, from the rest shape
   // (the planning CT's, at full inspiration). The graph, the navigator's plan, the target and the nodule stay in the
   // rest frame; the tip is taken back to it (less the displacement where it is) to read them.
@@ -213,6 +212,7 @@ ExperimentResult run_experiment(const ExperimentScene& scene, const std::functio
   };
   const auto at_rest = [&](const Vec3& x, double t) { return Vec3(x - displacement(x, t)); };
   const anatomy::CollisionWorld& world = breathing_world ? *breathing_world : anatomy.world;
+  // The growth step function (growth.hpp): the model, the state (a checkpoint is a copy), the workspace.
   const robot::GrowthModel model =
       robot::make_growth_model(vine, scene.growth, &world, scene.base_position, scene.base_frame);
   robot::GrowthState state;
