@@ -75,6 +75,19 @@ struct BvhDeleter {
 }
 
 /// Depth-first flattening: inner nodes get consecutive indices, leaves consecutive slot runs.
+/// The box of the triangles' corners [mesh units].
+std::pair<Vec3, Vec3> triangle_box(std::span<const Vec3> vertices, std::span<const Triangle> triangles) {
+  Vec3 lo = vertices[triangles[0][0]];
+  Vec3 hi = lo;
+  for (const Triangle& t : triangles) {
+    for (const std::uint32_t v : t) {
+      lo = lo.cwiseMin(vertices[v]);
+      hi = hi.cwiseMax(vertices[v]);
+    }
+  }
+  return {lo, hi};
+}
+
 class Flattener {
  public:
   Flattener(std::vector<TriangleBvh::Node>& nodes, std::vector<std::uint32_t>& order)
@@ -141,14 +154,7 @@ TriangleBvh::TriangleBvh(std::span<const Vec3> vertices, std::span<const Triangl
     throw InputError("collision world BVH: " + std::to_string(triangles.size()) + " triangles, more than the " +
                      std::to_string(kMaxTriangles) + " supported");
   }
-  Vec3 lo = vertices[triangles[0][0]];
-  Vec3 hi = lo;
-  for (const Triangle& t : triangles) {
-    for (const std::uint32_t v : t) {
-      lo = lo.cwiseMin(vertices[v]);
-      hi = hi.cwiseMax(vertices[v]);
-    }
-  }
+  const auto [lo, hi] = triangle_box(vertices, triangles);
   const double pad = kBoxPad * (hi - lo).norm();
 
   std::vector<RTCBuildPrimitive> primitives(triangles.size());
@@ -208,14 +214,7 @@ TriangleBvh::TriangleBvh(std::span<const Vec3> vertices, std::span<const Triangl
 }
 
 void TriangleBvh::refit(std::span<const Vec3> vertices, std::span<const Triangle> triangles) {
-  Vec3 lo = vertices[triangles[0][0]];
-  Vec3 hi = lo;
-  for (const Triangle& t : triangles) {
-    for (const std::uint32_t v : t) {
-      lo = lo.cwiseMin(vertices[v]);
-      hi = hi.cwiseMax(vertices[v]);
-    }
-  }
+  const auto [lo, hi] = triangle_box(vertices, triangles);
   const double pad = kBoxPad * (hi - lo).norm();
   // Children come after their parents (the flattening appends a node before its subtree): from the last node back,
   // every inner child's box is its node's union, already refitted.
