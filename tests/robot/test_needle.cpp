@@ -14,15 +14,12 @@
 #include "magvine/robot/growth.hpp"
 #include "magvine/robot/needle.hpp"
 #include "magvine/robot/vine.hpp"
+#include "support/tube_world.hpp"
 
 namespace magvine::robot {
 namespace {
 
-struct Tube {
-  anatomy::Phantom phantom;
-  anatomy::CollisionWorld world;
-  explicit Tube(const anatomy::TubeParams& p) : phantom(anatomy::make_tube_phantom(p)), world(phantom.mesh) {}
-};
+using Tube = test::TubeWorld;
 
 /// A tube of `diameter` capped at 60 mm.
 anatomy::TubeParams capped_tube(double diameter) {

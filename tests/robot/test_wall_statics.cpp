@@ -5,9 +5,9 @@
 
 #include <gtest/gtest.h>
 
+#include <algorithm>
 #include <cmath>
 #include <cstdio>
-#include <algorithm>
 #include <string>
 
 #include "magvine/anatomy/collision_world.hpp"
@@ -17,15 +17,12 @@
 #include "magvine/magnetics/field_model.hpp"
 #include "magvine/robot/growth.hpp"
 #include "magvine/robot/vine.hpp"
+#include "support/tube_world.hpp"
 
 namespace magvine::robot {
 namespace {
 
-struct Tube {
-  anatomy::Phantom phantom;
-  anatomy::CollisionWorld world;
-  explicit Tube(const anatomy::TubeParams& p) : phantom(anatomy::make_tube_phantom(p)), world(phantom.mesh) {}
-};
+using Tube = test::TubeWorld;
 
 TEST(WallStatics, AVineGrownHeadOnIntoAWallPressesItWithTheGrowthForce) {
   // The thesis's Ø5 mm fluid vine in a Ø8 mm, 60 mm capped tube, constant yield Y = 20 kPa (no length or turning
@@ -53,7 +50,8 @@ TEST(WallStatics, AVineGrownHeadOnIntoAWallPressesItWithTheGrowthForce) {
     std::printf("  %.0f kPa: tip at %.2f mm (cap 60 mm), cap carries %.4f N, (P - Y)piR^2 = %.4f N, length %.1f mm\n",
                 pressure / 1e3, 1e3 * g.state().tip().x(), carried, expected, 1e3 * g.length());
     for (const GrowthEvent& e : g.events()) {
-      std::printf("    %.1f mm: %s: %s\n", 1e3 * e.length, std::string(growth_event_name(e.kind)).c_str(), e.detail.c_str());
+      std::printf("    %.1f mm: %s: %s\n", 1e3 * e.length, std::string(growth_event_name(e.kind)).c_str(),
+                  e.detail.c_str());
     }
     EXPECT_NEAR(carried, expected, 0.05 * expected);
   }
@@ -80,9 +78,10 @@ TEST(WallStatics, AVineLyingInAHorizontalTubeRestsItsWeightOnTheWall) {
   const WallForces& f = g.wall_forces();
   const double weight = g.model().mass_per_length * (g.model().length - 0.5 * g.edge_length()) * 9.81;
   const double rests = weight - f.clamp.z();
-  std::printf("  length %.1f mm, weight %.4f N, clamp carries %.4f N, wall normal forces %.4f N (rests with %.4f N), "
-              "%d nodes in contact\n",
-              1e3 * g.length(), weight, f.clamp.z(), f.total_normal, rests, f.nodes_in_contact);
+  std::printf(
+      "  length %.1f mm, weight %.4f N, clamp carries %.4f N, wall normal forces %.4f N (rests with %.4f N), "
+      "%d nodes in contact\n",
+      1e3 * g.length(), weight, f.clamp.z(), f.total_normal, rests, f.nodes_in_contact);
   EXPECT_NEAR(g.length(), 100e-3, 1e-6);
   EXPECT_GT(f.nodes_in_contact, 20);
   EXPECT_NEAR(f.total_normal, rests, 0.03 * rests);

@@ -348,8 +348,9 @@ ExperimentResult run_experiment(const ExperimentScene& scene, const std::functio
       }
       breathing_world->refit(moved_vertices);
       const auto carry = [&](Vec3& x) {
-        if (x.allFinite())
-          x += displacement(at_rest(x, state.time), t) - displacement(at_rest(x, state.time), state.time);
+        if (!x.allFinite()) return;
+        const Vec3 rest = at_rest(x, state.time);
+        x += displacement(rest, t) - displacement(rest, state.time);
       };
       for (std::size_t i = 1; i < state.body.x.size(); ++i) {
         carry(state.body.x[i]);
