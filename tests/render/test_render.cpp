@@ -4,17 +4,17 @@
 
 #include <cmath>
 #include <filesystem>
-#include <vector>
-
 #include <opencv2/imgcodecs.hpp>
 #include <opencv2/imgproc.hpp>
 #include <opencv2/videoio.hpp>
+#include <vector>
 
 #include "magvine/anatomy/phantom.hpp"
 #include "magvine/anatomy/primitives.hpp"
 #include "magvine/core/error.hpp"
 #include "magvine/core/units.hpp"
 #include "magvine/render/camera.hpp"
+#include "magvine/render/lumen.hpp"
 #include "magvine/render/renderer.hpp"
 #include "magvine/render/video.hpp"
 
@@ -204,7 +204,8 @@ TEST_F(TubeView, SeenFromItsAxisItIsRadiallySymmetricBrightWallDarkCentre) {
       const double t = wall ? kRadius / rho : 0.09 / d.z();
       const double cos_i = wall ? rho : d.z();
       const double dx = x + 0.5 - 160.0, dy = y + 0.5 - 160.0;
-      const double weight = std::pow(dc.z(), look.spot_exponent) * (1.0 - look.vignetting * (dx * dx + dy * dy) / half_diag2);
+      const double weight =
+          std::pow(dc.z(), look.spot_exponent) * (1.0 - look.vignetting * (dx * dx + dy * dy) / half_diag2);
       const double e = weight / (t * t + look.light_softening * look.light_softening);
       const cv::Vec3b px = f.color.at<cv::Vec3b>(y, x);
       for (int c = 0; c < 3; ++c) {
@@ -246,8 +247,8 @@ TEST_F(TubeView, DepthAlongTheAxisAndAtTheWallIsTheTubesOwn) {
       }
     }
   }
-  std::cout << "[ tube depth ] " << cap << " cap pixels, worst " << worst_cap << "; " << wall
-            << " wall pixels, worst " << worst_wall << " (relative)\n";
+  std::cout << "[ tube depth ] " << cap << " cap pixels, worst " << worst_cap << "; " << wall << " wall pixels, worst "
+            << worst_wall << " (relative)\n";
   EXPECT_GT(cap, 10);
   EXPECT_GT(wall, 1000);
   EXPECT_LT(worst_cap, 2e-4);
@@ -314,6 +315,91 @@ TEST(Endoscope, ABronchialPhantomFrameIsNeitherBlackNorSaturated) {
   EXPECT_LT(black, 0.25);      // the carina, 10 cm of airway deep, still gets light
 }
 
+/// The angle between two directions [deg].
+double angle_deg(const Vec3& a, const Vec3& b) {
+  return std::acos(std::clamp(a.normalized().dot(b.normalized()), -1.0, 1.0)) / kDegToRad;
+}
+
+TEST(Lumen, ATubeSeenFromOffItsAxisShowsOneLumenWhereTheTubeGoes) {
+  // A Ø12 mm, 120 mm tube, the camera 2 mm off its axis, 20 mm in, turned 20° off it: the one dark opening is the
+  // far end, whose ray runs along the axis (its vanishing point). Tolerance 4°: the end cap is 100 mm away and 6 mm
+  // in radius (3.4° seen from the lens), and the blob's darkness-weighted centre may sit anywhere on it (measured:
+  // 2.7°).
+  const anatomy::Phantom tube = anatomy::make_tube_phantom(anatomy::TubeParams{});
+  const AirwayRenderer renderer(tube.mesh);
+  Camera cam;
+  cam.position = Vec3(20e-3, 2e-3, 0.0);
+  cam.forward = Vec3(std::cos(20 * kDegToRad), 0.0, std::sin(20 * kDegToRad));
+  cam.up = Vec3::UnitZ();
+  cam.fov = 120 * kDegToRad;
+  const EndoscopeFrame f = renderer.render_endoscope(cam, EndoscopeLook{});
+  const std::vector<Lumen> lumens = detect_lumens(f.color, cam);
+  ASSERT_EQ(lumens.size(), 1u);
+  const Vec3 seen = camera_frame(cam) * lumens.front().direction;
+  std::cout << "[ tube ] lumen " << angle_deg(seen, Vec3::UnitX()) << " deg off the axis, area "
+            << 100 * lumens.front().area << " %\n";
+  EXPECT_LT(angle_deg(seen, Vec3::UnitX()), 4.0);
+}
+
+TEST(Lumen, AboveTheCarinaBothMainBronchiShowEachWhereItGoes) {
+  // The generated tree (Weibel A, generation 2), the camera on the trachea's axis 25 mm above its end, looking down
+  // it: two openings, each nearest in direction to its own main bronchus (the ray to the point 20 mm into it).
+  // Tolerance 12°: the opening of a bronchus seen from above is its near part (the far part hides behind the
+  // carina's spur), which lies off the ray to its centreline by up to the bronchus's angular radius (6 mm at ~45 mm,
+  // 8°) plus the curve of the blend.
+  anatomy::BronchialTreeParams p;
+  p.max_generation = 2;
+  const anatomy::Phantom tree = anatomy::make_bronchial_tree(p);
+  const AirwayRenderer renderer(tree.mesh);
+  const anatomy::AirwayGraph& g = tree.graph;
+  const auto& trachea = g.branches.front();
+  const Vec3 a = g.nodes[trachea.nodes.front()].position;
+  const Vec3 b = g.nodes[trachea.nodes.back()].position;
+  Camera cam;
+  cam.position = b - 25e-3 * (b - a).normalized();
+  cam.forward = b - a;
+  cam.up = (b - a).unitOrthogonal();
+  cam.fov = 120 * kDegToRad;
+  const EndoscopeFrame f = renderer.render_endoscope(cam, EndoscopeLook{});
+  const std::vector<Lumen> lumens = detect_lumens(f.color, cam);
+  ASSERT_EQ(lumens.size(), 2u);
+  std::vector<Vec3> bronchi;
+  for (const int c : trachea.children) {
+    const auto& br = g.branches[static_cast<std::size_t>(c)];
+    Vec3 x = g.nodes[br.nodes.front()].position;
+    double run = 0.0;
+    for (std::size_t k = 1; k < br.nodes.size() && run < 20e-3; ++k) {
+      const Vec3 y = g.nodes[br.nodes[k]].position;
+      run += (y - x).norm();
+      x = y;
+    }
+    bronchi.push_back(x - cam.position);
+  }
+  for (const Lumen& l : lumens) {
+    const Vec3 seen = camera_frame(cam) * l.direction;
+    const double d0 = angle_deg(seen, bronchi[0]);
+    const double d1 = angle_deg(seen, bronchi[1]);
+    std::cout << "[ carina ] lumen at " << d0 << " / " << d1 << " deg from the main bronchi, area " << 100 * l.area
+              << " %\n";
+    EXPECT_LT(std::min(d0, d1), 12.0);
+    EXPECT_GT(std::max(d0, d1), 2.0 * std::min(d0, d1));
+  }
+  const double first = angle_deg(camera_frame(cam) * lumens[0].direction, bronchi[0]);
+  const double second = angle_deg(camera_frame(cam) * lumens[1].direction, bronchi[0]);
+  EXPECT_NE(first < 12.0, second < 12.0);  // one opening per bronchus
+}
+
+TEST(Lumen, BadFramesAndSettingsAreRefused) {
+  Camera cam;
+  EXPECT_THROW(detect_lumens(cv::Mat(), cam), InputError);
+  EXPECT_THROW(detect_lumens(cv::Mat(8, 8, CV_8UC1, cv::Scalar(0)), cam), InputError);
+  LumenSettings s;
+  s.levels = {1.5};
+  EXPECT_THROW(detect_lumens(cv::Mat(8, 8, CV_8UC3, cv::Scalar(0, 0, 0)), cam, s), InputError);
+  // A black frame has no lumen to tell from the wall.
+  EXPECT_TRUE(detect_lumens(cv::Mat(8, 8, CV_8UC3, cv::Scalar(0, 0, 0)), cam).empty());
+}
+
 TEST(Files, AVideoReadsBackWithItsFrameCountAndSize) {
   const fs::path dir = scratch("video");
   VideoFile v(dir / "clip", 30.0, 96, 64);
@@ -367,10 +453,10 @@ TEST(Files, AnAbandonedVideoLeavesNothing) {
 TEST(Files, DepthPngHoldsMillimetresOnTheC3vdScale) {
   const fs::path dir = scratch("depth");
   cv::Mat d(2, 2, CV_32F);
-  d.at<float>(0, 0) = 0.0f;      // no hit
-  d.at<float>(0, 1) = 0.05f;     // 50 mm: half the 100 mm range
-  d.at<float>(1, 0) = 0.2f;      // beyond the range: clamped
-  d.at<float>(1, 1) = 1e-9f;     // a hit at the lens still reads as a hit
+  d.at<float>(0, 0) = 0.0f;   // no hit
+  d.at<float>(0, 1) = 0.05f;  // 50 mm: half the 100 mm range
+  d.at<float>(1, 0) = 0.2f;   // beyond the range: clamped
+  d.at<float>(1, 1) = 1e-9f;  // a hit at the lens still reads as a hit
   write_png(dir / "d.png", depth_to_u16(d, 0.1));
   const cv::Mat back = cv::imread((dir / "d.png").string(), cv::IMREAD_UNCHANGED);
   ASSERT_EQ(back.type(), CV_16U);
@@ -407,7 +493,7 @@ TEST(Overview, ShowsTheBodyInsideTheSemiTransparentAirwayAndTheMagnetsPoles) {
   const cv::Vec3b north = pixel(Vec3(0.06, 0.0, 0.058));  // red
   const cv::Vec3b south = pixel(Vec3(0.06, 0.0, 0.042));  // blue
   const cv::Vec3b target = pixel(Vec3(0.0, 0.0, 0.09));   // green
-  const cv::Vec3b wall = pixel(Vec3(0.0045, 0.0, 0.07));   // pink: beside the body, through both walls
+  const cv::Vec3b wall = pixel(Vec3(0.0045, 0.0, 0.07));  // pink: beside the body, through both walls
   EXPECT_GT(body[0], body[2]);
   EXPECT_GT(north[2], north[0] + 60);
   EXPECT_GT(south[0], south[2] + 60);

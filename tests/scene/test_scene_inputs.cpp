@@ -192,6 +192,7 @@ std::vector<std::string> bundled_files() {
     const std::string name = e.path().filename().string();
     if (!config::kWithMpm && name.rfind("mpm_", 0) == 0) continue;
     if (!config::kWithCt && text_of(e.path()).find("segmentation:") != std::string::npos) continue;
+    if (!config::kWithRender && text_of(e.path()).find("mode: camera") != std::string::npos) continue;
     // The CT scenes read ../shared/airways (absent on some machines: their own tests skip).
     if (text_of(e.path()).find("shared/airways") != std::string::npos &&
         !std::filesystem::exists(std::filesystem::path(MAGVINE_SOURCE_DIR) / "../shared/airways")) {

@@ -11,6 +11,7 @@
 #include "magvine/magnetics/field_function.hpp"
 #include "magvine/magnetics/interaction.hpp"
 #include "magvine/scene/navigator.hpp"
+#include "magvine/scene/video_plugin.hpp"
 
 namespace magvine::scene {
 
@@ -81,6 +82,11 @@ ExperimentResult run_experiment(const ExperimentScene& scene, const std::functio
   const SceneAnatomy& anatomy = *scene.anatomy;
   std::optional<NavigatorController> navigator;
   if (scene.navigator) navigator.emplace(scene);
+  // Camera guidance: the tip camera (the video plugin's) shows the navigator the lumens from where the tip is.
+  std::unique_ptr<TipEye> eye;
+  const robot::GrowthState* seen_state = nullptr;  // the state the eye looks from (set once the growth starts)
+  std::vector<Vec3> plan;                          // the planned path, for the report beside each placement
+  if (scene.navigator && scene.navigator->camera) plan = planned_path(*anatomy.graph, scene.navigator->target_branch);
   std::vector<RunEvent> navigator_events;  // merged with the growth's at the end
   std::vector<magnetics::Pose> poses;
   const auto record_magnets = [&](double t) {
@@ -219,6 +225,12 @@ ExperimentResult run_experiment(const ExperimentScene& scene, const std::functio
   robot::GrowthWorkspace workspace;
   std::vector<robot::GrowthEvent> growth_events =
       robot::start_growth(model, field, vine.length, vine.pressure, state, workspace).events;
+  if (navigator && scene.navigator->camera) {
+    eye = video_plugin("control.navigator.guidance").tip_eye(scene);
+    seen_state = &state;
+    navigator->use_camera(
+        [&eye, &seen_state]() { return eye->look(seen_state->body.tip(), seen_state->body.frames.back()); });
+  }
   double next_shape = 0.0;  // outputs.shape_interval
   double next_frame = 0.0;  // outputs.video: one record per frame of the most frequent video
   double frame_interval = std::numeric_limits<double>::infinity();
@@ -294,9 +306,19 @@ ExperimentResult run_experiment(const ExperimentScene& scene, const std::functio
     const double dt = t - state.time;
     if (navigator && !aim_until) {
       const Stopwatch placing;
+      const std::size_t looked = navigator->guidance().size();
       navigator->place(t, at_rest(state.body.tip(), state.time), state.body.frames.back(), workspace.body.length,
                        navigator_events);
       if (arms) platform_seconds += placing.seconds();
+      if (navigator->guidance().size() > looked) {
+        // The truth beside a camera-guided placement, for the report.
+        GuidanceSample& g = navigator->guidance().back();
+        const Vec3 tip = state.body.tip();
+        g.true_arc = arc_length_of_nearest(plan, tip);
+        const Vec3 oracle = navigator->oracle_line(tip, state.body.frames.back());
+        g.line_error = std::acos(std::clamp(oracle.dot(g.line), -1.0, 1.0));
+        if (scene.navigator->camera->frames && g.lumens > 1) g.picture = eye->picture(g.chosen);
+      }
     }
     if (scene.magnets && moving) {
       std::vector<magnetics::Pose> next = poses_at(scene, navigator ? &*navigator : nullptr, t);
@@ -395,7 +417,10 @@ ExperimentResult run_experiment(const ExperimentScene& scene, const std::functio
     puncture();
     if (progress) progress(1.0);
   }
-  if (navigator) out.recoveries = navigator->recoveries();
+  if (navigator) {
+    out.recoveries = navigator->recoveries();
+    out.guidance = std::move(navigator->guidance());
+  }
   if (arms) {
     out.platform = arms->figures();
     out.platform->compute_s = platform_seconds;

@@ -9,6 +9,7 @@
 #include "magvine/anatomy/airway_graph.hpp"
 #include "magvine/config.hpp"
 #include "magvine/core/atomic_file.hpp"
+#include "magvine/core/text.hpp"
 #include "magvine/core/usage.hpp"
 #include "magvine/scene/experiment.hpp"
 #include "magvine/scene/navigator.hpp"
@@ -179,6 +180,38 @@ void write_experiment_outputs(const ExperimentScene& scene, const ExperimentResu
   j["stalls"] = stalls;
   j["blocked"] = blocked;
   j["retractions"] = result.recoveries;  // the navigator's, out of wrong turns (control.navigator.recover)
+  std::string guidance_csv;              // a camera-guided navigator's guidance.csv
+  if (scene.navigator && scene.navigator->camera) {
+    // Camera guidance: what the navigator saw and chose at each placement, with the truth beside it.
+    int blind = 0;
+    int several = 0;
+    double error = 0.0;
+    double max_error = 0.0;
+    double drift = 0.0;
+    std::ostringstream rows;
+    rows.precision(10);
+    rows << "t_s,everted_length_m,estimated_arc_m,true_arc_m,lumens,chosen,junction,line_x,line_y,line_z,"
+            "line_error_deg\n";
+    for (const GuidanceSample& g : result.guidance) {
+      blind += g.lumens == 0;
+      several += g.lumens > 1;
+      error += g.line_error;
+      max_error = std::max(max_error, g.line_error);
+      drift = std::max(drift, std::abs(g.arc - g.true_arc));
+      rows << g.time << ',' << g.length << ',' << g.arc << ',' << g.true_arc << ',' << g.lumens << ',' << g.chosen
+           << ',' << g.junction << ',' << g.line.x() << ',' << g.line.y() << ',' << g.line.z() << ','
+           << g.line_error / kDegToRad << '\n';
+    }
+    const double n = std::max<double>(1.0, static_cast<double>(result.guidance.size()));
+    j["guidance"] = {{"mode", "camera"},
+                     {"placements", result.guidance.size()},
+                     {"placements_without_lumen", blind},
+                     {"placements_with_several_lumens", several},
+                     {"mean_line_error_deg", error / n / kDegToRad},
+                     {"max_line_error_deg", max_error / kDegToRad},
+                     {"max_arc_estimate_error_m", drift}};
+    guidance_csv = rows.str();
+  }
   j["events"] = static_cast<int>(result.events.size());
   double travel = 0.0;
   std::vector<std::optional<Vec3>> previous(scene.magnets ? scene.magnets->size() : 0);
@@ -268,6 +301,17 @@ void write_experiment_outputs(const ExperimentScene& scene, const ExperimentResu
   }
   write_file_atomically(dir / "events.json", events.dump(2) + "\n");
   if (!puncture_csv.empty()) write_file_atomically(dir / "puncture.csv", puncture_csv);
+  if (!guidance_csv.empty()) {
+    write_file_atomically(dir / "guidance.csv", guidance_csv);
+    // The frames it chose between lumens in (Camera::frames), named by their time in ms.
+    bool any = false;
+    for (const GuidanceSample& g : result.guidance) {
+      if (g.picture.empty()) continue;
+      if (!any) create_output_directory(dir / "guidance");
+      any = true;
+      write_file_atomically(dir / "guidance" / printf_string("%06ld.png", std::lround(1e3 * g.time)), g.picture);
+    }
+  }
   if (scene.anatomy->graph) anatomy::write_graph(dir / "graph.json", *scene.anatomy->graph);
   if (scene.magnets) {
     std::ostringstream mags;

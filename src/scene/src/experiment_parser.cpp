@@ -24,6 +24,7 @@
 #include "magvine/ct/import.hpp"
 #endif
 #include "magvine/scene/experiment_scene.hpp"
+#include "magvine/scene/video_plugin.hpp"
 #include "platform_entry.hpp"
 #include "ranges.hpp"
 #include "robot_entries.hpp"
@@ -614,11 +615,37 @@ Navigator::Recovery parse_recovery(const YamlMap& r, const FileUnits& units, con
   return rec;
 }
 
+/// control.navigator.guidance: the oracle (the tip's position read; the default) or the tip camera.
+std::optional<Navigator::Camera> parse_guidance(const YamlMap& g, const FileUnits& units,
+                                                const ExperimentScene& scene) {
+  g.allow_only({"mode", "size", "fov", "noise", "min_area", "junction_window", "frames"});
+  const bool camera = g.choice<bool>("mode", {"oracle", false}, {"camera", true});
+  if (!camera) {
+    refuse_keys(g, {"size", "fov", "noise", "min_area", "junction_window", "frames"},
+                "belongs to camera guidance (mode: camera)");
+    return std::nullopt;
+  }
+  if (!video_plugin_built()) {
+    g.fail("mode",
+           "camera guidance renders the tip camera: this magvine was built without the render module "
+           "(MAGVINE_WITH_RENDER=ON)");
+  }
+  if (scene.breathing) g.fail("mode", "camera guidance renders the airway at rest: not with anatomy.breathing yet");
+  Navigator::Camera c;
+  if (g.has("size")) c.size = static_cast<int>(g.whole("size", 32, 1024));
+  if (g.has("fov")) c.fov = g.quantity("fov", Unit{kDegToRad, "deg"}, Range{0.0, 180.0 * kDegToRad, true, true});
+  if (g.has("noise")) c.noise = g.quantity("noise", kPlain, Range{0.0, 64.0});
+  if (g.has("min_area")) c.min_area = g.quantity("min_area", kPlain, Range{0.0, 0.5, true});
+  if (g.has("junction_window")) c.junction_window = g.quantity("junction_window", units.len, range::kDistance);
+  if (g.has("frames")) c.frames = g.flag("frames");
+  return c;
+}
+
 /// control.navigator: its target on the airway graph, its magnet and its settings.
 void parse_navigator(const YamlMap& n, const FileUnits& units, ExperimentScene& scene) {
   n.allow_only({"target", "magnet", "distance", "min_distance", "max_distance", "lead", "interval", "deflate_pressure",
                 "deflate_time", "junction_distance", "lateral", "mode", "boost_pressure", "boost_after", "boost_length",
-                "recover"});
+                "recover", "guidance"});
   const std::optional<anatomy::AirwayGraph>& graph = scene.anatomy->graph;
   if (!graph) {
     n.fail("target",
@@ -720,6 +747,7 @@ void parse_navigator(const YamlMap& n, const FileUnits& units, ExperimentScene& 
   if (n.has("boost_after")) nav.boost_after = n.quantity("boost_after", kSeconds, range::kDuration);
   if (n.has("boost_length")) nav.boost_length = n.quantity("boost_length", units.len, range::kDistance);
   if (n.has("recover")) nav.recover = parse_recovery(n.map("recover"), units, scene);
+  if (n.has("guidance")) nav.camera = parse_guidance(n.map("guidance"), units, scene);
   scene.navigator = nav;
 }
 
@@ -827,6 +855,11 @@ ExperimentScene parse_experiment_scene(const std::string& text, const std::strin
   if (top.has("trials")) parse_trials(top.map("trials"), units, scene);
   if (scene.navigator && !scene.target) detail::aim_at(scene, scene.navigator->target_branch);
   if (top.has("platform")) scene.platform = parse_platform(top.map("platform"), units, scene);
+  if (scene.platform && scene.navigator && scene.navigator->camera) {
+    control.map("navigator")
+        .map("guidance")
+        .fail("mode", "camera guidance through the platform's arms is not built yet");
+  }
   check_scene(top, units, scene);
   return scene;
 }

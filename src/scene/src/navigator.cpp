@@ -87,22 +87,29 @@ Vec3 aim_point(const Navigator& nav, const std::vector<Vec3>& path, const Vec3& 
   return point_at_arc_length(path, arc_length_of_nearest(path, tip) + nav.lead);
 }
 
-MagnetKeyframe navigate(const Navigator& nav, const std::vector<Vec3>& path, const Vec3& tip, const Mat3& tip_frame,
-                        const std::optional<Vec3>& skin, double time, const Vec3& offset, Vec3& line) {
-  const Vec3 aim = aim_point(nav, path, tip);
-  Vec3 u = aim - tip;
+namespace {
+
+/// The magnet's line from the tip towards `towards` (not normalised): with `lateral`, only the pull across the tip
+/// bends it (growth carries it forward), so that share of the component along the tip's tangent goes, unless the aim
+/// lies nearly straight ahead. Unit; `fallback` where nothing is left.
+Vec3 magnet_line(const Navigator& nav, Vec3 u, const Mat3& tip_frame, const Vec3& fallback) {
   if (nav.lateral > 0.0) {
-    // Only the pull across the tip bends it (growth carries it forward): take away that share of the component
-    // along the tip's tangent, unless the aim lies nearly straight ahead.
     const Vec3 t = tip_frame.col(0);
     if ((u - u.dot(t) * t).norm() > 0.1 * u.norm()) u -= nav.lateral * u.dot(t) * t;
   }
-  if (u.norm() < 1e-9) u = path.back() - tip;
+  if (u.norm() < 1e-9) u = fallback;
   if (u.norm() < 1e-9) u = Vec3::UnitX();
-  u.normalize();
-  line = u;
-  return pose_on_line(nav, tip, tip_frame, skin, aim, u, std::clamp(nav.distance, nav.min_distance, nav.max_distance),
-                      time, offset);
+  return u.normalized();
+}
+
+}  // namespace
+
+MagnetKeyframe navigate(const Navigator& nav, const std::vector<Vec3>& path, const Vec3& tip, const Mat3& tip_frame,
+                        const std::optional<Vec3>& skin, double time, const Vec3& offset, Vec3& line) {
+  const Vec3 aim = aim_point(nav, path, tip);
+  line = magnet_line(nav, aim - tip, tip_frame, path.back() - tip);
+  return pose_on_line(nav, tip, tip_frame, skin, aim, line,
+                      std::clamp(nav.distance, nav.min_distance, nav.max_distance), time, offset);
 }
 
 NavigatorController::NavigatorController(const ExperimentScene& scene) : m_scene(scene), m_nav(*scene.navigator) {
@@ -340,9 +347,117 @@ bool NavigatorController::keep_clear(const Vec3& tip) {
   return true;
 }
 
+void NavigatorController::use_camera(std::function<std::vector<SeenLumen>()> look) {
+  m_look = std::move(look);
+  const anatomy::AirwayGraph& graph = *m_scene.anatomy->graph;
+  m_base_arc = arc_length_of_nearest(m_path, m_scene.base_position);
+  // The plan's junctions, from the pre-operative graph: where each plan branch ends along the joined path, and the
+  // directions from there into the planned child and into its siblings (to the point `lead` along each).
+  const auto node = [&](std::uint32_t n) { return graph.nodes[n].position; };
+  const auto into = [&](int branch) {
+    const anatomy::AirwayBranch& b = graph.branches[static_cast<std::size_t>(branch)];
+    std::vector<Vec3> line;
+    for (const std::uint32_t n : b.nodes) line.push_back(node(n));
+    return Vec3((point_at_arc_length(line, m_nav.lead) - line.front()).normalized());
+  };
+  m_junctions.clear();
+  m_branch_end.clear();
+  double arc = 0.0;
+  for (std::size_t i = 0; i < m_plan.size(); ++i) {
+    const anatomy::AirwayBranch& b = graph.branches[static_cast<std::size_t>(m_plan[i])];
+    for (std::size_t k = 1; k < b.nodes.size(); ++k) arc += (node(b.nodes[k]) - node(b.nodes[k - 1])).norm();
+    m_branch_end.push_back(arc);
+    if (i + 1 == m_plan.size()) break;
+    Junction j;
+    j.arc = arc;
+    j.planned = into(m_plan[i + 1]);
+    for (const int c : b.children) {
+      if (c != m_plan[i + 1]) j.others.push_back(into(c));
+    }
+    m_junctions.push_back(std::move(j));
+  }
+}
+
+int NavigatorController::estimated_branch(double length) const {
+  const double s = estimated_arc(length);
+  for (std::size_t i = 0; i < m_branch_end.size(); ++i) {
+    if (s <= m_branch_end[i]) return m_plan[i];
+  }
+  return m_plan.back();
+}
+
+Vec3 NavigatorController::oracle_line(const Vec3& tip, const Mat3& tip_frame) const {
+  Vec3 line;
+  (void)navigate(m_nav, m_path, tip, tip_frame, m_skin, 0.0, Vec3::Zero(), line);
+  return line;
+}
+
+void NavigatorController::place_by_camera(double t, const Mat3& tip_frame, double length) {
+  // Where the plan says the tip is (dead reckoning), and what the camera shows.
+  const Navigator::Camera& cam = *m_nav.camera;
+  GuidanceSample g;
+  g.time = t;
+  g.length = length;
+  g.arc = estimated_arc(length);
+  const Vec3 tip = point_at_arc_length(m_path, g.arc);
+  const std::vector<SeenLumen> seen = m_look();
+  g.lumens = static_cast<int>(seen.size());
+  // The choice is about the first junction on the plan not yet passed by more than half the window (the tip may
+  // still see both openings just past it); within the window before it, a lumen scores by how much nearer its ray
+  // is to the planned child than to the nearest sibling (a common error of the orientation cancels). Elsewhere, by
+  // its nearness to the plan's direction ahead.
+  const auto next = std::find_if(m_junctions.begin(), m_junctions.end(),
+                                 [&](const Junction& j) { return j.arc > g.arc - 0.5 * cam.junction_window; });
+  const bool at_junction = next != m_junctions.end() && next->arc - g.arc < cam.junction_window;
+  const Vec3 ahead = (point_at_arc_length(m_path, g.arc + m_nav.lead) - tip).normalized();
+  const auto score = [&](const Vec3& d) {
+    if (!at_junction) return d.dot(ahead);
+    double other = -1.0;
+    for (const Vec3& o : next->others) other = std::max(other, d.dot(o));
+    return d.dot(next->planned) - other;
+  };
+  if (at_junction) g.junction = static_cast<int>(next - m_junctions.begin());
+  double best = -std::numeric_limits<double>::infinity();
+  for (std::size_t k = 0; k < seen.size(); ++k) {
+    const double sc = score(seen[k].direction);
+    if (sc > best) {
+      best = sc;
+      g.chosen = static_cast<int>(k);
+    }
+  }
+  // The one opening seen at a junction looks like a sibling's: the planned child is out of view, so the magnet
+  // pulls the way the plan goes into it. Nothing seen (the lens on the wall): along the plan ahead.
+  Vec3 u = ahead;
+  if (g.chosen >= 0 && !(at_junction && seen.size() == 1 && best < 0.0)) {
+    u = seen[static_cast<std::size_t>(g.chosen)].direction;
+  } else if (at_junction) {
+    u = next->planned;
+    g.chosen = -1;
+  } else {
+    g.chosen = -1;
+  }
+  g.line = magnet_line(m_nav, u, tip_frame, ahead);
+  m_line = g.line;
+  m_pose =
+      pose_on_line(m_nav, tip, tip_frame, m_skin, tip + m_nav.lead * u, m_line,
+                   std::clamp(m_nav.distance, m_nav.min_distance, m_nav.max_distance), t, m_scene.navigator_offset);
+  m_guidance.push_back(std::move(g));
+}
+
 void NavigatorController::place(double t, const Vec3& tip, const Mat3& tip_frame, double length,
                                 std::vector<RunEvent>& events) {
   if (t < m_next_placement - 1e-12) return;
+  if (m_look) {
+    // Camera-guided: the tip's position is not read (its estimate along the plan stands in for it).
+    place_by_camera(t, tip_frame, length);
+    if (!keep_clear(point_at_arc_length(m_path, estimated_arc(length))) && !m_workspace_warned) {
+      m_workspace_warned = true;
+      events.push_back({t, length, EventKind::kWorkspace,
+                        "the navigator's magnet overlaps the anatomy even at max_distance; placed there anyway"});
+    }
+    m_next_placement += m_nav.interval;
+    return;
+  }
   m_pose = navigate(m_nav, m_path, tip, tip_frame, m_skin, t, m_scene.navigator_offset, m_line);
   if (m_platform != nullptr) {
     for (HeldMagnet& h : m_held) place_with_arm(h, t, tip, tip_frame, length, events);
@@ -355,9 +470,12 @@ void NavigatorController::place(double t, const Vec3& tip, const Mat3& tip_frame
   m_next_placement += m_nav.interval;
 }
 
-void NavigatorController::regulate(double t, double length, int branch, bool reached, const Vec3& tip,
+void NavigatorController::regulate(double t, double length, int branch, bool reached, const Vec3& tip_read,
                                    robot::GrowthControl& control, std::vector<RunEvent>& events) {
   const anatomy::AirwayGraph& graph = *m_scene.anatomy->graph;
+  // Camera-guided: the branch and the tip are the dead reckoning's (a wrong turn is not seen; a held tip is).
+  if (m_look) branch = estimated_branch(length);
+  const Vec3 tip = m_look ? point_at_arc_length(m_path, estimated_arc(length)) : tip_read;
   // Held (the boost's and the recovery's test): the length has not changed since m_grown_at, and no tether or made
   // length caps it.
   if (length != m_grown_length || length >= std::min(control.tether_length, m_scene.growth.max_length) - 1e-9) {

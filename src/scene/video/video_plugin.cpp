@@ -17,6 +17,7 @@
 
 #include "magvine/core/atomic_file.hpp"
 #include "magvine/core/error.hpp"
+#include "magvine/render/lumen.hpp"
 #include "magvine/render/particles.hpp"
 #include "magvine/render/renderer.hpp"
 #include "magvine/render/video.hpp"
@@ -299,8 +300,52 @@ EncodedImages graph_picture(const anatomy::TriangleMesh& mesh, const anatomy::Ai
   return out;
 }
 
-const VideoPlugin kPlugin{VideoPlugin::kAbi, experiment_videos, particle_video,
-                          check_mesh_image,  mesh_image,        graph_picture};
+/// The camera-guided navigator's tip camera (TipEye): the endoscope's view with auto-exposure carried from look to
+/// look, as a bronchoscope's exposure loop does, and the lumens found in it.
+class LumenEye final : public TipEye {
+ public:
+  LumenEye(const anatomy::TriangleMesh& mesh, const Navigator::Camera& settings)
+      : m_renderer(mesh, 1), m_settings(settings) {
+    m_look.noise = settings.noise;
+    m_lumen.min_area = settings.min_area;
+  }
+  std::vector<SeenLumen> look(const Vec3& lens, const Mat3& tip_frame) override {
+    m_camera.position = lens;
+    m_camera.forward = tip_frame.col(0);
+    m_camera.up = tip_frame.col(1);
+    m_camera.lens = render::Lens::kFisheye;
+    m_camera.fov = m_settings.fov;
+    m_camera.width = m_settings.size;
+    m_camera.height = m_settings.size;
+    m_frame = m_renderer.render_endoscope(m_camera, m_look, m_count++, &m_exposure).color;
+    m_lumens = render::detect_lumens(m_frame, m_camera, m_lumen);
+    const Mat3 frame = render::camera_frame(m_camera);
+    std::vector<SeenLumen> out;
+    for (const render::Lumen& l : m_lumens) out.push_back({frame * l.direction, l.area});
+    return out;
+  }
+  std::string picture(int chosen) const override {
+    return m_frame.empty() ? std::string() : encode_png(render::draw_lumens(m_frame, m_lumens, chosen));
+  }
+
+ private:
+  render::AirwayRenderer m_renderer;
+  Navigator::Camera m_settings;
+  render::EndoscopeLook m_look;
+  render::LumenSettings m_lumen;
+  render::AutoExposure m_exposure;
+  render::Camera m_camera;
+  std::uint64_t m_count = 0;
+  cv::Mat m_frame;
+  std::vector<render::Lumen> m_lumens;
+};
+
+std::unique_ptr<TipEye> tip_eye(const ExperimentScene& scene) {
+  return std::make_unique<LumenEye>(scene.anatomy->mesh(), *scene.navigator->camera);
+}
+
+const VideoPlugin kPlugin{VideoPlugin::kAbi, experiment_videos, particle_video, check_mesh_image,
+                          mesh_image,        graph_picture,     tip_eye};
 
 }  // namespace
 }  // namespace magvine::scene

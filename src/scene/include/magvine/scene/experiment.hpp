@@ -15,6 +15,7 @@
 #include "magvine/robot/needle.hpp"
 #include "magvine/scene/events.hpp"
 #include "magvine/scene/experiment_scene.hpp"
+#include "magvine/scene/navigator.hpp"
 
 namespace magvine::scene {
 
@@ -88,6 +89,8 @@ struct ExperimentResult {
   /// A biopsy scene whose vine reached its stop: the tip's angle to the nodule after aiming [rad], and the puncture.
   double aim_angle = 0.0;
   std::optional<robot::PunctureReport> puncture;
+  /// A camera-guided navigator's placements (Navigator::Camera), with the truth beside each.
+  std::vector<GuidanceSample> guidance;
   /// With a platform: what the run measured of the arms, and their joints every step (arms.csv).
   std::optional<platform::PlatformFigures> platform;
   std::vector<platform::ArmSample> arm_samples;

@@ -94,6 +94,19 @@ struct Navigator {
     double speed = 20e-3;  ///< [m/s]
   };
   Recovery recover;
+  /// Camera guidance (control.navigator.guidance: {mode: camera}; docs/experiments.md, camera guidance): the magnet's
+  /// line comes from the lumens the tip camera shows (render/lumen.hpp), chosen with the plan; the tip's place along
+  /// the plan is dead reckoning from the everted length, its orientation read as from a sensor in the tip. The
+  /// navigator never reads the tip's position (the oracle's mode, without it, does).
+  struct Camera {
+    int size = 160;                   ///< the image's side [px]
+    double fov = 2.0943951023931953;  ///< equidistant fisheye, across the width [rad] (120°)
+    double noise = 0.0;               ///< sensor noise σ [8-bit grey levels]
+    double min_area = 0.002;          ///< smallest lumen, fraction of the image
+    double junction_window = 20e-3;   ///< [m] (below)
+    bool frames = false;              ///< annotated frames of each choice between lumens (guidance/*.png)
+  };
+  std::optional<Camera> camera;
 };
 
 /// Seeded perturbations of `magvine trials` (the scene's optional `trials:` section; each trial draws its own

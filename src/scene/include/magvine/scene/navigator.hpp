@@ -4,9 +4,11 @@
 /// held tip (boost), at junctions (deflation) and out of wrong turns (recovery).
 
 #include <array>
+#include <functional>
 #include <map>
-#include <tuple>
 #include <optional>
+#include <string>
+#include <tuple>
 #include <vector>
 
 #include "magvine/core/eigen_types.hpp"
@@ -14,6 +16,7 @@
 #include "magvine/robot/growth.hpp"
 #include "magvine/scene/events.hpp"
 #include "magvine/scene/experiment_scene.hpp"
+#include "magvine/scene/video_plugin.hpp"
 
 namespace magvine::scene {
 
@@ -32,6 +35,21 @@ std::vector<Vec3> planned_path(const anatomy::AirwayGraph& graph, int branch);
 double arc_length_of_nearest(const std::vector<Vec3>& path, const Vec3& x);
 /// The point of a polyline at arc length s from its start [m] (its ends beyond [0, length]).
 Vec3 point_at_arc_length(const std::vector<Vec3>& path, double s);
+
+/// One placement of a camera-guided navigator (Navigator::Camera): what it saw and what it chose.
+struct GuidanceSample {
+  double time = 0.0;          ///< [s]
+  double length = 0.0;        ///< everted [m]
+  double arc = 0.0;           ///< its estimate of the tip's arc length along the plan [m]
+  int lumens = 0;             ///< seen
+  int chosen = -1;            ///< the lumen it steered for (index in what it saw); −1: none, it steered by the plan
+  int junction = -1;          ///< the junction on the plan the choice was about (0: the first), −1: none ahead
+  Vec3 line = Vec3::UnitX();  ///< the magnet's line from the tip, world
+  // The truth, for the report: the experiment fills these in; the navigator never reads them.
+  double true_arc = 0.0;    ///< the tip's arc length along the plan [m]
+  double line_error = 0.0;  ///< angle between `line` and the oracle's line from the true tip [rad]
+  std::string picture;      ///< the frame with its lumens drawn (PNG; Camera::frames, when it chose between several)
+};
 
 /// The navigator of one run. Each step: `place` (before the magnets' poses are updated), then `regulate` (after the
 /// schedules set the control, before the growth advances).
@@ -57,6 +75,16 @@ class NavigatorController {
   void use_platform(platform::PlatformRun* run, double t, const Vec3& tip, const Mat3& tip_frame, double length,
                     std::vector<RunEvent>& events);
 
+  /// Camera guidance (scene.navigator->camera): `look` shows it the tip camera's lumens (the experiment renders the
+  /// view from where the tip is; the navigator sees only the lumens). From then on each placement steers from them,
+  /// and place() and regulate() read the tip's orientation and the everted length, never the tip's position.
+  void use_camera(std::function<std::vector<SeenLumen>()> look);
+  /// Every camera-guided placement so far.
+  std::vector<GuidanceSample>& guidance() { return m_guidance; }
+  const std::vector<GuidanceSample>& guidance() const { return m_guidance; }
+  /// The oracle's line from `tip` (navigate's), for the report of a camera-guided run.
+  Vec3 oracle_line(const Vec3& tip, const Mat3& tip_frame) const;
+
   /// Whether it places magnet `magnet` (its own, or with a platform the other arm's of a dEPM pair).
   bool steers(int magnet) const;
 
@@ -68,6 +96,12 @@ class NavigatorController {
 
  private:
   bool keep_clear(const Vec3& tip);
+  /// Camera guidance: the tip's arc length along the plan by dead reckoning (the base's, plus the everted length),
+  /// the point there, and the branch of the plan there.
+  double estimated_arc(double length) const { return m_base_arc + length; }
+  int estimated_branch(double length) const;
+  /// Camera guidance's placement: the magnet's line from the lumens seen.
+  void place_by_camera(double t, const Mat3& tip_frame, double length);
   /// A magnet it places through an arm, and where the arm has it.
   struct HeldMagnet {
     int arm = -1;
@@ -115,6 +149,19 @@ class NavigatorController {
   double m_last = 0.0;         ///< the everted length at the last step of the retraction [m]
   double m_last_tether = 0.0;  ///< and the tether it set then [m]
   int m_recovery_used = 0;
+  // Camera guidance.
+  std::function<std::vector<SeenLumen>()> m_look;  ///< set: camera-guided
+  double m_base_arc = 0.0;                         ///< the base's arc length along the plan [m]
+  /// The plan's junctions: arc length along the plan [m], the planned child's direction from there and its
+  /// siblings' (world, unit; to the point `lead` into each), the plan branch that ends there.
+  struct Junction {
+    double arc = 0.0;
+    Vec3 planned = Vec3::UnitX();
+    std::vector<Vec3> others;
+  };
+  std::vector<Junction> m_junctions;
+  std::vector<double> m_branch_end;  ///< arc length along the plan at each plan branch's end [m]
+  std::vector<GuidanceSample> m_guidance;
 };
 
 }  // namespace magvine::scene

@@ -7,6 +7,7 @@
 
 #include <cstdint>
 #include <filesystem>
+#include <memory>
 #include <optional>
 #include <string>
 #include <vector>
@@ -61,9 +62,28 @@ struct EncodedImages {
   double hit_fraction = 1.0;  ///< of the endoscope's rays that hit the wall
 };
 
+/// A dark opening the tip camera shows (render/lumen.hpp): its ray in the world (from the camera's orientation) and
+/// its share of the picture.
+struct SeenLumen {
+  Vec3 direction = Vec3::UnitX();  ///< unit, world frame
+  double area = 0.0;               ///< fraction of the image
+};
+
+/// The tip camera of a camera-guided navigator (Navigator::Camera): renders the endoscope's view from a lens pose
+/// and finds the lumens in it. Frames are numbered from 0 in the order looked (the sensor noise's seed).
+class TipEye {
+ public:
+  virtual ~TipEye() = default;
+  /// The lumens seen from `lens` with the tip's directors `tip_frame` (column 0 the optical axis, column 1 image up),
+  /// largest first.
+  virtual std::vector<SeenLumen> look(const Vec3& lens, const Mat3& tip_frame) = 0;
+  /// The last frame looked with its lumens drawn, `chosen` (index into look's answer, −1: none) in green: PNG bytes.
+  virtual std::string picture(int chosen) const = 0;
+};
+
 /// The plugin's entry points (C++ types; the plugin is built from this tree with the same compiler).
 struct VideoPlugin {
-  static constexpr int kAbi = 2;
+  static constexpr int kAbi = 3;
   int abi = kAbi;
   /// Renders every video of scene.videos from result.frames into `dir` (each file, and each PNG folder, appears
   /// complete or not at all). Returns JSON text {"videos": [{camera, file, codec, frames, fps, size}, ...],
@@ -81,6 +101,8 @@ struct VideoPlugin {
   EncodedImages (*mesh_image)(const MeshImageRequest& request) = nullptr;
   /// A picture of an airway graph over its semi-transparent mesh (800 × 800, face-on).
   EncodedImages (*graph_picture)(const anatomy::TriangleMesh& mesh, const anatomy::AirwayGraph& graph) = nullptr;
+  /// The tip camera of scene.navigator's camera guidance, on the scene's airway mesh.
+  std::unique_ptr<TipEye> (*tip_eye)(const ExperimentScene& scene) = nullptr;
 };
 
 /// Whether this magvine was built with the render module (and so has the plugin).
