@@ -58,8 +58,9 @@ struct RunFigures {
 };
 RunFigures figures_of(const ExperimentScene& scene, const ExperimentResult& result);
 
-/// Why a run did not reach its target, in one line: the last event that stopped the tip (stall, blocked, squeeze,
-/// burst, solver), where the tip was, or that the time ran out while it was still moving.
+/// Why a run did not reach its target, in one line: a failed step (the run ended there), else the last event that
+/// stopped the tip (stall, blocked, squeeze, burst, solver), or that the time ran out while it was still moving;
+/// then where the tip was.
 std::string failure_reason(const ExperimentResult& result, const RunFigures& figures);
 
 }  // namespace magvine::scene::detail

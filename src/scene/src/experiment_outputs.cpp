@@ -54,8 +54,6 @@ RunFigures figures_of(const ExperimentScene& scene, const ExperimentResult& resu
   return f;
 }
 
-/// Why a run did not reach its target, in one line: the last event that stopped the tip (stall, blocked, squeeze,
-/// burst, solver), where the tip was, or that the time ran out while it was still moving.
 std::string failure_reason(const ExperimentResult& result, const RunFigures& figures) {
   std::ostringstream why;
   why.precision(3);
@@ -70,7 +68,9 @@ std::string failure_reason(const ExperimentResult& result, const RunFigures& fig
     }
   }
   const std::string branch = figures.branches.empty() ? std::string() : ", last in branch " + figures.branches.back();
-  if (last != nullptr) {
+  if (!result.converged) {
+    why << "the run failed: " << result.failure;
+  } else if (last != nullptr) {
     why << event_name(last->kind) << " at " << last->time << " s, " << 1e3 * last->length
         << " mm everted: " << last->detail;
   } else {
@@ -248,7 +248,10 @@ void write_experiment_outputs(const ExperimentScene& scene, const ExperimentResu
   if (!result.converged) {
     // A failed run (its last step has no equilibrium) leaves its metrics.json only (docs/cli.md: failed runs).
     if (!scene.videos.empty()) j["videos"] = nlohmann::json::array();
-    detail::write_failed_run(dir, j);
+    detail::write_failed_run(dir, j,
+                             {"tip_trajectory.csv", "shape.csv", "shapes.csv", "events.json", "puncture.csv",
+                              "guidance.csv", "guidance", "graph.json", "magnet_trajectory.csv", "arms.csv", "tip.mp4",
+                              "tip.avi", "overview.mp4", "overview.avi", "tip_frames", "tip_depth", "overview_frames"});
     return;
   }
   std::ostringstream tips;
