@@ -304,9 +304,10 @@ EncodedImages graph_picture(const anatomy::TriangleMesh& mesh, const anatomy::Ai
 /// look, as a bronchoscope's exposure loop does, and the lumens found in it.
 class LumenEye final : public TipEye {
  public:
-  LumenEye(const anatomy::TriangleMesh& mesh, const Navigator::Camera& settings)
+  LumenEye(const anatomy::TriangleMesh& mesh, const Navigator::Camera& settings, std::uint64_t seed)
       : m_renderer(mesh, 1), m_settings(settings) {
     m_look.noise = settings.noise;
+    m_look.seed = seed;
     m_lumen.min_area = settings.min_area;
   }
   std::vector<SeenLumen> look(const Vec3& lens, const Mat3& tip_frame) override {
@@ -341,7 +342,7 @@ class LumenEye final : public TipEye {
 };
 
 std::unique_ptr<TipEye> tip_eye(const ExperimentScene& scene) {
-  return std::make_unique<LumenEye>(scene.anatomy->mesh(), *scene.navigator->camera);
+  return std::make_unique<LumenEye>(scene.anatomy->mesh(), *scene.navigator->camera, scene.seed);
 }
 
 const VideoPlugin kPlugin{VideoPlugin::kAbi, experiment_videos, particle_video, check_mesh_image,
