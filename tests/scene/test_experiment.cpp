@@ -138,6 +138,69 @@ ExperimentResult navigate_to(const std::filesystem::path& file, const std::strin
 // runs 15 mm through tissue (the cap lies a radius beyond the node: the needle from the node to the nodule leaves the
 // lumen at the cap); the navigator's target is the stop. A nodule inside the lumen and a needle too short are refused
 // with the key and the reason.
+TEST(Experiment, TheBaseAtTheAirwayEntryAndANoduleFromAPlanningProblemFile) {
+  // base: {entry: 12} against the bundled scene's hand-set base (12 mm down the generated tree's trachea, along −z);
+  // a nodule from a file of three numbers in mm (Med-MPD's target.txt) against the same point inline.
+  const std::filesystem::path file =
+      std::filesystem::path(MAGVINE_SOURCE_DIR) / "assets/scenes/bronchial_tree_navigator.yaml";
+  const std::string text = text_of(file);
+  const ExperimentScene plain = load_experiment_scene(file);
+  // The scene's base lies on the trachea's axis, some way down from the root's first node.
+  const anatomy::AirwayGraph& g = *plain.anatomy->graph;
+  const Vec3 first = g.nodes[g.branches.front().nodes.front()].position;
+  const double inset = 1e3 * (plain.base_position - first).dot(plain.base_frame.col(0));
+  std::printf("  the root's first node at (%g, %g, %g) mm: entry %g mm\n", 1e3 * first.x(), 1e3 * first.y(),
+              1e3 * first.z(), inset);
+  std::ostringstream base;
+  base.precision(17);
+  base << "base: {entry: " << inset << "}";
+  const std::string at_entry =
+      replaced(text, "base: {position: [0, 0, -12], direction: [0, 0, -1], normal: [1, 0, 0]}", base.str());
+  const ExperimentScene entry = parse_experiment_scene(at_entry, file.string(), file.parent_path());
+  EXPECT_LT((entry.base_position - plain.base_position).norm(), 1e-9);
+  EXPECT_LT((entry.base_frame.col(0) - plain.base_frame.col(0)).norm(), 1e-9);
+  EXPECT_LT(std::abs(entry.base_frame.col(0).dot(entry.base_frame.col(1))), 1e-12);
+  EXPECT_THROW((void)parse_experiment_scene(replaced(text,
+                                                     "base: {position: [0, 0, -12], direction: [0, 0, -1], "
+                                                     "normal: [1, 0, 0]}",
+                                                     "base: {entry: 500}"),
+                                            file.string(), file.parent_path()),
+               InputError);
+
+  const std::filesystem::path dir = std::filesystem::temp_directory_path() / "magvine_test_nodule_file";
+  std::filesystem::create_directories(dir);
+  // 15 mm past the end of leaf 0-0-1-0, in the tissue.
+  const anatomy::AirwayBranch& leaf = g.branches[static_cast<std::size_t>(*anatomy::find_branch(g, "0-0-1-0"))];
+  const Vec3 end = g.nodes[leaf.nodes.back()].position;
+  const Vec3 along = (end - g.nodes[leaf.nodes[leaf.nodes.size() - 2]].position).normalized();
+  const Vec3 point = 1e3 * (end + (g.nodes[leaf.nodes.back()].radius + 0.015) * along);
+  std::ostringstream numbers;
+  numbers.precision(17);
+  numbers << point.x() << "\n" << point.y() << "\n" << point.z() << "\n";
+  {
+    std::ofstream(dir / "target.txt") << numbers.str();
+    std::ofstream(dir / "short.txt") << "20 -5\n";
+  }
+  const auto with_nodule = [&](const std::string& nodule) {
+    return parse_experiment_scene(replaced(text, "target: \"0-0-1\"", "target: {nodule: " + nodule + "}"),
+                                  (dir / "scene.yaml").string(), dir);
+  };
+  const ExperimentScene from_file = with_nodule("target.txt");
+  std::ostringstream inline_text;
+  inline_text.precision(17);
+  inline_text << "[" << point.x() << ", " << point.y() << ", " << point.z() << "]";
+  const ExperimentScene inline_point = with_nodule(inline_text.str());
+  ASSERT_TRUE(from_file.biopsy && inline_point.biopsy);
+  EXPECT_EQ(from_file.biopsy->nodule, inline_point.biopsy->nodule);
+  try {
+    (void)with_nodule("short.txt");
+    ADD_FAILURE() << "a two-number nodule file was accepted";
+  } catch (const InputError& e) {
+    EXPECT_NE(std::string(e.what()).find("short.txt"), std::string::npos) << e.what();
+  }
+  std::filesystem::remove_all(dir);
+}
+
 TEST(Experiment, NavigatorTakesANoduleAndStopsWhereTheNeedleReachesIt) {
   const std::filesystem::path file =
       std::filesystem::path(MAGVINE_SOURCE_DIR) / "assets/scenes/bronchial_tree_navigator.yaml";

@@ -24,6 +24,7 @@
 #include "magvine/ct/import.hpp"
 #endif
 #include "magvine/scene/experiment_scene.hpp"
+#include "magvine/scene/navigator.hpp"
 #include "magvine/scene/video_plugin.hpp"
 #include "platform_entry.hpp"
 #include "ranges.hpp"
@@ -243,6 +244,34 @@ std::optional<robot::PushedRod> parse_robot(const YamlMap& robot, const FileUnit
     scene.vine = parse_vine(robot, units);
   } else {
     robot.fail("kind", "an experiment grows a vine (kind: vine) or pushes a rod (kind: rod); got '" + kind + "'");
+  }
+  const YamlMap base_map = robot.map("base");
+  if (base_map.has("entry")) {
+    // At the airway's entry: `entry` down the graph's root branch from its first node (where a CT cuts the trachea),
+    // along the root's direction there.
+    base_map.allow_only({"entry"});
+    const std::optional<anatomy::AirwayGraph>& graph = scene.anatomy->graph;
+    if (!graph || graph->branches.empty()) {
+      base_map.fail("entry", "places the base on the airway graph's root: the anatomy needs a graph");
+    }
+    const double inset = base_map.quantity("entry", units.len, range::kSmallDistance);
+    std::vector<Vec3> root;
+    for (const std::uint32_t n : graph->branches.front().nodes) root.push_back(graph->nodes[n].position);
+    const double length = arc_length_of_nearest(root, root.back());
+    if (inset >= length) {
+      base_map.fail("entry", printf_string("must be shorter than the root branch, %.1f mm", length / units.len.si));
+    }
+    scene.base_position = point_at_arc_length(root, inset);
+    const Vec3 ahead = point_at_arc_length(root, std::min(length, inset + 10e-3)) - scene.base_position;
+    const Vec3 t = ahead.normalized();
+    const Vec3 n = t.unitOrthogonal();
+    scene.base_frame.col(0) = t;
+    scene.base_frame.col(1) = n;
+    scene.base_frame.col(2) = t.cross(n);
+    if (scene.anatomy->closed && !scene.anatomy->world.contains(scene.base_position)) {
+      base_map.fail("entry", "puts the base outside the airway lumen: take a larger inset");
+    }
+    return pushed_rod;
   }
   const BasePose base = base_of(robot, units);
   scene.base_position = base.position;
@@ -615,6 +644,22 @@ Navigator::Recovery parse_recovery(const YamlMap& r, const FileUnits& units, con
   return rec;
 }
 
+/// A nodule file at `nodule` (relative to the scene's folder): three numbers in mm, whitespace apart (Med-MPD's
+/// target.txt).
+Vec3 nodule_file(const YamlMap& t, const std::filesystem::path& directory) {
+  const std::filesystem::path file = directory / t.text("nodule");
+  std::istringstream in(read_text_file(file.string(), "nodule file"));
+  Vec3 x;
+  for (int k = 0; k < 3; ++k) {
+    if (!(in >> x[k]) || !std::isfinite(x[k]) || std::abs(x[k]) > 1e4) {
+      t.fail("nodule", file.string() + ": needs three finite numbers in mm (a point), as Med-MPD's target.txt");
+    }
+  }
+  std::string rest;
+  if (in >> rest) t.fail("nodule", file.string() + ": more than three numbers (a point in mm)");
+  return 1e-3 * x;
+}
+
 /// control.navigator.guidance: the oracle (the tip's position read; the default) or the tip camera.
 std::optional<Navigator::Camera> parse_guidance(const YamlMap& g, const FileUnits& units,
                                                 const ExperimentScene& scene) {
@@ -642,7 +687,8 @@ std::optional<Navigator::Camera> parse_guidance(const YamlMap& g, const FileUnit
 }
 
 /// control.navigator: its target on the airway graph, its magnet and its settings.
-void parse_navigator(const YamlMap& n, const FileUnits& units, ExperimentScene& scene) {
+void parse_navigator(const YamlMap& n, const FileUnits& units, const std::filesystem::path& directory,
+                     ExperimentScene& scene) {
   n.allow_only({"target", "magnet", "distance", "min_distance", "max_distance", "lead", "interval", "deflate_pressure",
                 "deflate_time", "junction_distance", "lateral", "mode", "boost_pressure", "boost_after", "boost_length",
                 "recover", "guidance"});
@@ -664,7 +710,9 @@ void parse_navigator(const YamlMap& n, const FileUnits& units, ExperimentScene& 
     if (t.has("max_angle")) {
       options.max_angle = t.quantity("max_angle", Unit{kDegToRad, "deg"}, Range{kDegToRad, 90.0 * kDegToRad});
     }
-    const Vec3 nodule = t.vec3_quantity("nodule", units.len, range::kCoordinate);
+    // The nodule: a point, or a planning problem's file of three numbers in mm (Med-MPD's target.txt).
+    const Vec3 nodule = t.node("nodule").IsScalar() ? nodule_file(t, directory)
+                                                    : t.vec3_quantity("nodule", units.len, range::kCoordinate);
     if (scene.anatomy->closed && scene.anatomy->world.contains(nodule)) {
       t.fail("nodule", "lies inside the airway lumen; a biopsy target lies in the tissue outside it");
     }
@@ -850,7 +898,7 @@ ExperimentScene parse_experiment_scene(const std::string& text, const std::strin
   parse_simulation(top.map("simulation"), scene);
   const YamlMap control = top.map("control");
   parse_control(control, units, scene);
-  if (control.has("navigator")) parse_navigator(control.map("navigator"), units, scene);
+  if (control.has("navigator")) parse_navigator(control.map("navigator"), units, directory, scene);
   if (top.has("target")) parse_target(top.map("target"), units, scene);
   if (top.has("trials")) parse_trials(top.map("trials"), units, scene);
   if (scene.navigator && !scene.target) detail::aim_at(scene, scene.navigator->target_branch);

@@ -1,0 +1,183 @@
+#!/usr/bin/python3
+"""The CT case study (issue 31, item 5; thesis 5.6.5 and its table 5.2): for each Med-MPD patient, a vine navigated
+from the trachea to the stop from which a straight needle reaches the patient's nodule, then the puncture; perturbed
+repeats with and without breathing, as one table.
+
+    /usr/bin/python3 tools/ct_case_study.py SEGMENTATIONS_DIR --out DIR [--magvine BIN] [--repeats 4] [--jobs 2]
+        [--patients 1,2,3,4,5] [--diameter 3] [--needle 100] [--no-breathing]
+
+SEGMENTATIONS_DIR holds Patient1..5/ (bronchialTree.nii.gz, target.txt), e.g. ../shared/airways/segmentations.
+For each patient and breathing setting it writes DIR/scenes/<case>.yaml (the segmentation imported by the scene,
+the base 15 mm down the airway graph's root, the nodule from target.txt, the generation-4 scene's fluid vine at the
+given diameter, boost and recovery; the supine patient's gravity, posterior, is −y in the scans' RAS frame) and runs
+`magvine trials --keep-runs` on it into DIR/<case>/. Then DIR/case_study.csv and DIR/case_study.md: per case the
+stop (branch, generation, needle length), reached k/N, the generation reached (median), the everted length and the
+time to the stop (mean over those that reached it), punctured and biopsy k/N, the needle tip's distance to the
+nodule (median over the punctured), the largest wall force (median over the runs, and the largest), and the
+failures' reasons. A missing input gives one line on stderr and exit status 2.
+"""
+import argparse
+import csv
+import json
+import os
+import statistics
+import subprocess
+import sys
+
+SCENE = """# The CT case study's scene for {label} (tools/ct_case_study.py writes it).
+units: {{length: mm, pressure: kPa}}
+seed: {seed}
+anatomy:
+  segmentation: {segmentation}
+{breathing}robot:
+  kind: vine
+  length: 5
+  diameter: {diameter}
+  pressure: 35
+  wall: {{thickness: 0.038, youngs_modulus: 10000, density: 1100, strength: 2900}}
+  fill: {{kind: magnetic_fluid, volume_fraction: 0.23}}
+  base: {{entry: 15}}
+growth: {{yield_pressure: 20, retraction_pressure: 5}}
+magnets:
+  - {{kind: cylinder, diameter: 101.6, length: 101.6, polarisation: 1.48, position: [0, 400, 0], axis: [0, 1, 0]}}
+control:
+  pressure: [[0, 35]]
+  navigator:
+    target: {{nodule: {target}, max_needle: {needle}, needle: {{length: {needle}}}}}
+    magnet: 0
+    distance: 110
+    boost_pressure: {boost}
+    recover: {{retries: 3}}
+simulation: {{duration: 40, dt: 0.02, gravity: [0, -9.81, 0]}}
+"""
+
+
+def fail(path, problem):
+    print(f"ct_case_study: {path}: {problem}", file=sys.stderr)
+    sys.exit(2)
+
+
+def number(text):
+    try:
+        return float(text)
+    except ValueError:
+        return None
+
+
+def summarise(case, runs_dir, rows):
+    """One row of the table from a case's trials.csv rows and its runs' metrics.json."""
+    n = len(rows)
+    reached = [r for r in rows if r["success"] == "1"]
+    generations = []
+    walls = []
+    punctured = 0
+    stop = {}
+    for r in rows:
+        path = os.path.join(runs_dir, f"{r['target']}_r{r['repeat']}", "metrics.json")
+        try:
+            with open(path) as f:
+                m = json.load(f)
+        except (OSError, ValueError):
+            continue
+        if m.get("generation_reached") is not None:
+            generations.append(m["generation_reached"])
+        if m.get("max_wall_normal_N") is not None:
+            walls.append(m["max_wall_normal_N"])
+        b = m.get("biopsy") or {}
+        punctured += bool(b.get("punctured"))
+        if not stop and b.get("stop_branch"):
+            stop = b
+    to_nodule = [number(r["needle_to_nodule_m"]) for r in rows if number(r["needle_to_nodule_m"]) is not None]
+    biopsies = sum(r["biopsy"] == "1" for r in rows)
+    mean = lambda xs: statistics.mean(xs) if xs else None  # noqa: E731
+    return {
+        "case": case,
+        "stop_branch": stop.get("stop_branch", ""),
+        "stop_generation": stop.get("stop_branch", "").count("-") if stop else "",
+        "needle_mm": round(1e3 * stop["needle_m"], 1) if stop else "",
+        "runs": n,
+        "reached": len(reached),
+        "generation_median": statistics.median(generations) if generations else "",
+        "everted_mm": round(1e3 * mean([float(r["everted_length_m"]) for r in reached]), 1) if reached else "",
+        "time_s": round(mean([float(r["time_to_target_s"]) for r in reached]), 2) if reached else "",
+        "punctured": punctured,
+        "biopsy": biopsies,
+        "needle_to_nodule_mm": round(1e3 * statistics.median(to_nodule), 1) if to_nodule else "",
+        "wall_N_median": round(statistics.median(walls), 3) if walls else "",
+        "wall_N_max": round(max(walls), 3) if walls else "",
+        "failures": "; ".join(f"r{r['repeat']}: {r['reason']}" for r in rows if r["reason"]),
+    }
+
+
+def main():
+    p = argparse.ArgumentParser(description=__doc__.split("\n")[0])
+    p.add_argument("segmentations")
+    p.add_argument("--out", required=True)
+    p.add_argument("--magvine", default=os.path.join(os.path.dirname(__file__), "..", "build", "src", "cli", "magvine"))
+    p.add_argument("--repeats", type=int, default=4)
+    p.add_argument("--jobs", type=int, default=2)
+    p.add_argument("--patients", default="1,2,3,4,5")
+    p.add_argument("--diameter", type=float, default=3.0, help="the vine's diameter [mm]")
+    p.add_argument("--needle", type=float, default=100.0, help="the needle's length and the planner's limit [mm]")
+    p.add_argument("--no-breathing", action="store_true")
+    a = p.parse_args()
+    if not os.access(a.magvine, os.X_OK):
+        fail(a.magvine, "not an executable magvine (build it, or give --magvine)")
+    os.makedirs(os.path.join(a.out, "scenes"), exist_ok=True)
+    cases = []
+    for patient in [int(x) for x in a.patients.split(",")]:
+        folder = os.path.abspath(os.path.join(a.segmentations, f"Patient{patient}"))
+        for f in ("bronchialTree.nii.gz", "target.txt"):
+            if not os.path.exists(os.path.join(folder, f)):
+                fail(os.path.join(folder, f), "missing")
+        for breathing in ([False] if a.no_breathing else [False, True]):
+            case = f"patient{patient}" + ("_breathing" if breathing else "")
+            scene = os.path.join(a.out, "scenes", case + ".yaml")
+            with open(scene, "w") as f:
+                f.write(SCENE.format(
+                    label=f"Med-MPD patient {patient}" + (", breathing" if breathing else ""),
+                    seed=patient, segmentation=os.path.join(folder, "bronchialTree.nii.gz"),
+                    breathing="  breathing: {period: 4}\n" if breathing else "", diameter=a.diameter,
+                    target=os.path.join(folder, "target.txt"), needle=a.needle,
+                    boost=45 if a.diameter <= 3 else 42))
+            out = os.path.join(a.out, case)
+            print(f"ct_case_study: {case} ...", flush=True)
+            r = subprocess.run([a.magvine, "trials", scene, "--repeats", str(a.repeats), "--jobs", str(a.jobs),
+                                "--keep-runs", "--out", out], stdout=subprocess.DEVNULL, stderr=subprocess.PIPE,
+                               text=True)
+            trials = os.path.join(out, "trials.csv")
+            if r.returncode != 0 or not os.path.exists(trials):
+                cases.append({"case": case, "runs": 0, "failures": r.stderr.strip().splitlines()[-1] if r.stderr
+                              else f"magvine trials exited {r.returncode}"})
+                continue
+            with open(trials, newline="") as f:
+                rows = list(csv.DictReader(f))
+            cases.append(summarise(case, os.path.join(out, "runs"), rows))
+    columns = ["case", "stop_branch", "stop_generation", "needle_mm", "runs", "reached", "generation_median",
+               "everted_mm", "time_s", "punctured", "biopsy", "needle_to_nodule_mm", "wall_N_median", "wall_N_max",
+               "failures"]
+    with open(os.path.join(a.out, "case_study.csv"), "w", newline="") as f:
+        w = csv.DictWriter(f, fieldnames=columns)
+        w.writeheader()
+        for c in cases:
+            w.writerow({k: c.get(k, "") for k in columns})
+    with open(os.path.join(a.out, "case_study.md"), "w") as f:
+        f.write("| case | stop (generation) | needle [mm] | reached | generation reached | everted [mm] | time [s] | "
+                "punctured | biopsy | needle tip to nodule [mm] | peak wall force, median / largest [N] |\n")
+        f.write("|---|---|---|---|---|---|---|---|---|---|---|\n")
+        for c in cases:
+            n = c.get("runs", 0)
+            f.write(f"| {c['case']} | {c.get('stop_branch', '')} ({c.get('stop_generation', '')}) | "
+                    f"{c.get('needle_mm', '')} | {c.get('reached', 0)}/{n} | {c.get('generation_median', '')} | "
+                    f"{c.get('everted_mm', '')} | {c.get('time_s', '')} | {c.get('punctured', 0)}/{n} | "
+                    f"{c.get('biopsy', 0)}/{n} | {c.get('needle_to_nodule_mm', '')} | "
+                    f"{c.get('wall_N_median', '')} / {c.get('wall_N_max', '')} |\n")
+        f.write("\nFailures:\n\n")
+        for c in cases:
+            for line in filter(None, c.get("failures", "").split("; ")):
+                f.write(f"- {c['case']} {line}\n")
+    print(f"ct_case_study: {os.path.join(a.out, 'case_study.md')}")
+
+
+if __name__ == "__main__":
+    main()
