@@ -116,6 +116,10 @@ std::vector<TrialOutcome> run_trials(const ExperimentScene& scene, const std::ve
           o.needle_to_nodule = res.puncture->to_nodule;
           o.slide_back = res.puncture->slide;
           if (!res.puncture->success) o.reason = "biopsy: " + res.puncture->why;
+        } else if (trial.biopsy && o.success && !res.converged) {
+          // Reached the stop, then failed while aiming: no puncture.
+          o.biopsy = 0;
+          o.reason = "biopsy: the run failed before the puncture: " + res.failure;
         }
         if (!runs_dir.empty()) write_experiment_outputs(trial, res, runs_dir / (names[t] + "_r" + std::to_string(r)));
       } catch (...) {

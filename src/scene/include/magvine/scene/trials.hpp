@@ -32,7 +32,8 @@ struct TrialOutcome {
   double max_normal = 0.0;       ///< largest wall normal force on a node [N]
   int retractions = 0;           ///< the navigator's (ExperimentResult::recoveries)
   /// A biopsy scene's puncture (ExperimentResult::puncture): whether it succeeded (−1: not a biopsy scene or the
-  /// stop not reached), the needle tip's distance from the nodule's centre and the tip's slide back [m] (NaN: none).
+  /// stop not reached; 0 also when the run reached the stop and failed while aiming), the needle tip's distance from
+  /// the nodule's centre and the tip's slide back [m] (NaN: none).
   int biopsy = -1;
   double needle_to_nodule = std::numeric_limits<double>::quiet_NaN();
   double slide_back = std::numeric_limits<double>::quiet_NaN();
