@@ -4,7 +4,7 @@ from the trachea to the stop from which a straight needle reaches the patient's 
 repeats with and without breathing, as one table.
 
     /usr/bin/python3 tools/ct_case_study.py SEGMENTATIONS_DIR --out DIR [--magvine BIN] [--repeats 4] [--jobs 2]
-        [--patients 1,2,3,4,5] [--diameter 3] [--needle 100] [--no-breathing]
+        [--patients 1,2,3,4,5] [--diameter 3] [--needle 100] [--no-breathing] [--figure CASE]
 
 SEGMENTATIONS_DIR holds Patient1..5/ (bronchialTree.nii.gz, target.txt), e.g. ../shared/airways/segmentations.
 For each patient and breathing setting it writes DIR/scenes/<case>.yaml (the segmentation imported by the scene,
@@ -14,7 +14,10 @@ given diameter, boost and recovery; the supine patient's gravity, posterior, is 
 stop (branch, generation, needle length), reached k/N, the generation reached (median), the everted length and the
 time to the stop (mean over those that reached it), punctured and biopsy k/N, the needle tip's distance to the
 nodule (median over the punctured), the largest wall force (median over the runs, and the largest), and the
-failures' reasons. A missing input gives one line on stderr and exit status 2.
+failures' reasons. --figure CASE (e.g. patient1) runs that case's scene once, unperturbed, with the tip camera
+filmed, and draws DIR/<case>_frames.png: the tip camera at each branch point on the way (the first frame in each new
+branch) and at the end (the puncture; the tip camera draws the airway, not the needle). A missing input gives one
+line on stderr and exit status 2.
 """
 import argparse
 import csv
@@ -23,6 +26,12 @@ import os
 import statistics
 import subprocess
 import sys
+
+import matplotlib
+
+matplotlib.use("Agg")
+import matplotlib.image as mpimg  # noqa: E402
+import matplotlib.pyplot as plt  # noqa: E402
 
 SCENE = """# The CT case study's scene for {label} (tools/ct_case_study.py writes it).
 units: {{length: mm, pressure: kPa}}
@@ -109,6 +118,44 @@ def summarise(case, runs_dir, rows):
     }
 
 
+def figure(magvine, scene, out_dir, case):
+    """The tip camera at each branch point and at the end of one unperturbed run of `scene`."""
+    fps = 10.0
+    filmed = os.path.join(out_dir, "scenes", case + "_filmed.yaml")
+    with open(scene) as f, open(filmed, "w") as g:
+        g.write(f.read() + "outputs:\n  video:\n    - {camera: tip, size: [240, 240], fov: 120, lens: fisheye, "
+                f"fps: {fps:g}, frames: true}}\n")
+    run = os.path.join(out_dir, case + "_run")
+    subprocess.run([magvine, "run", filmed, "--out", run], stdout=subprocess.DEVNULL, stderr=subprocess.DEVNULL)
+    trajectory = os.path.join(run, "tip_trajectory.csv")
+    frames_dir = os.path.join(run, "tip_frames")
+    if not os.path.exists(trajectory) or not os.path.isdir(frames_dir):
+        fail(run, "the filmed run left no trajectory or frames (it failed: see its metrics.json)")
+    with open(trajectory, newline="") as f:
+        rows = list(csv.DictReader(f))
+    with open(os.path.join(run, "metrics.json")) as f:
+        stop = (json.load(f).get("biopsy") or {}).get("stop_branch", "")
+    # The first time the tip is in each branch on the way to the stop (a junction just passed), the trachea left out.
+    picks = []
+    seen = set()
+    for r in rows:
+        name = r["branch"]
+        on_way = name != "0" and (stop + "-").startswith(name + "-")
+        if on_way and name not in seen:
+            seen.add(name)
+            picks.append((float(r["t_s"]), name))
+    last = len(os.listdir(frames_dir)) - 1
+    picks = picks[-7:] + [(last / fps, "end")]
+    fig, axes = plt.subplots(1, len(picks), figsize=(2.4 * len(picks), 2.8))
+    for ax, (t, name) in zip(axes if len(picks) > 1 else [axes], picks):
+        k = min(last, int(round(t * fps)))
+        ax.imshow(mpimg.imread(os.path.join(frames_dir, "%06d.png" % k)))
+        ax.set_title(f"{name}\n{t:.1f} s", fontsize=8)
+        ax.axis("off")
+    fig.tight_layout()
+    fig.savefig(os.path.join(out_dir, case + "_frames.png"), dpi=90)
+
+
 def main():
     p = argparse.ArgumentParser(description=__doc__.split("\n")[0])
     p.add_argument("segmentations")
@@ -120,6 +167,7 @@ def main():
     p.add_argument("--diameter", type=float, default=3.0, help="the vine's diameter [mm]")
     p.add_argument("--needle", type=float, default=100.0, help="the needle's length and the planner's limit [mm]")
     p.add_argument("--no-breathing", action="store_true")
+    p.add_argument("--figure", default="", help="a case to film and draw (e.g. patient1)")
     a = p.parse_args()
     if not os.access(a.magvine, os.X_OK):
         fail(a.magvine, "not an executable magvine (build it, or give --magvine)")
@@ -177,6 +225,11 @@ def main():
             for line in filter(None, c.get("failures", "").split("; ")):
                 f.write(f"- {c['case']} {line}\n")
     print(f"ct_case_study: {os.path.join(a.out, 'case_study.md')}")
+    if a.figure:
+        scene = os.path.join(a.out, "scenes", a.figure + ".yaml")
+        if not os.path.exists(scene):
+            fail(scene, "no such case in this study")
+        figure(a.magvine, scene, a.out, a.figure)
 
 
 if __name__ == "__main__":
