@@ -96,6 +96,35 @@ if(NOT EXISTS ${WORK}/strip.png OR EXISTS ${WORK}/strip_bad.png)
   message(FATAL_ERROR "plot_frames: want strip.png and no strip_bad.png")
 endif()
 
+# 3b. A 2 s camera-guided run (the bundled scene cut short): guidance.csv with a row per 0.1 s placement, annotated
+#     frames where it saw several lumens, metrics.json's guidance entry; drawn by tools/plot_guidance.py, whose bad
+#     input is refused with exit 2 and no PNG.
+file(READ ${SRC}/assets/scenes/bronchial_tree_camera_navigator.yaml scene)
+string(REPLACE "duration: 20," "duration: 2," scene "${scene}")
+string(REGEX REPLACE "outputs:.*" "" scene "${scene}")
+file(WRITE ${WORK}/guided.yaml "${scene}")
+execute_process(COMMAND ${MAGVINE} run ${WORK}/guided.yaml --out ${WORK}/guided RESULT_VARIABLE rc ERROR_VARIABLE err)
+expect_rc(${rc} 0 "camera-guided run: ${err}")
+file(STRINGS ${WORK}/guided/guidance.csv rows)
+list(LENGTH rows n)
+if(NOT n EQUAL 21)
+  message(FATAL_ERROR "guidance.csv: want a header and 20 placements, got ${n} lines")
+endif()
+file(READ ${WORK}/guided/metrics.json metrics)
+string(JSON placements GET "${metrics}" guidance placements)
+if(NOT placements EQUAL 20)
+  message(FATAL_ERROR "metrics.json guidance.placements: want 20, got ${placements}")
+endif()
+execute_process(COMMAND ${PYTHON} ${SRC}/tools/plot_guidance.py ${WORK}/guided --out ${WORK}/guided.png
+                RESULT_VARIABLE rc ERROR_VARIABLE err)
+expect_rc(${rc} 0 "plot_guidance: ${err}")
+execute_process(COMMAND ${PYTHON} ${SRC}/tools/plot_guidance.py ${WORK}/filmed --out ${WORK}/guided_bad.png
+                RESULT_VARIABLE rc ERROR_VARIABLE err)
+expect_rc(${rc} 2 "plot_guidance without guidance.csv: ${err}")
+if(NOT EXISTS ${WORK}/guided.png OR EXISTS ${WORK}/guided_bad.png)
+  message(FATAL_ERROR "plot_guidance: want guided.png and no guided_bad.png")
+endif()
+
 # 4. `magvine mesh graph --png`: the extracted graph drawn over the mesh.
 execute_process(COMMAND ${MAGVINE} mesh graph ${WORK}/tube.stl --out ${WORK}/tube_graph.json --png ${WORK}/tube_graph.png
                 RESULT_VARIABLE rc ERROR_VARIABLE err)
