@@ -25,8 +25,8 @@ double inspiration(const BreathingParams& p, double time) {
 
 double breathing_amplitude(const BreathingParams& p, const Vec3& x) {
   const double below = (p.carina - x).dot(p.superior);  // depth below the carina [m]
-  if (below >= 0.0) return p.carina_amplitude + (p.lower_amplitude - p.carina_amplitude) *
-                                                    std::min(1.0, below / p.lower_depth);
+  if (below >= 0.0)
+    return p.carina_amplitude + (p.lower_amplitude - p.carina_amplitude) * std::min(1.0, below / p.lower_depth);
   // Above the carina: from the fixed entry (0) to A_c at the carina, by height along ŝ.
   const double height = (p.entry - p.carina).dot(p.superior);
   if (!(height > 0.0)) return p.carina_amplitude;
@@ -34,7 +34,11 @@ double breathing_amplitude(const BreathingParams& p, const Vec3& x) {
 }
 
 Vec3 breathing_displacement(const BreathingParams& p, const Vec3& x, double time) {
-  return breathing_amplitude(p, x) * (1.0 - inspiration(p, time)) * p.superior;
+  return breathing_displacement(p, breathing_amplitude(p, x), inspiration(p, time));
+}
+
+Vec3 breathing_displacement(const BreathingParams& p, double amplitude, double inspiration) {
+  return amplitude * (1.0 - inspiration) * p.superior;
 }
 
 }  // namespace magvine::anatomy

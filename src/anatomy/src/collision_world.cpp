@@ -1,5 +1,4 @@
 #include "magvine/anatomy/collision_world.hpp"
-#include "magvine/core/usage.hpp"
 
 #include <algorithm>
 #include <array>
@@ -8,6 +7,7 @@
 #include <cmath>
 #include <limits>
 #include <string>
+#include <thread>
 #include <tuple>
 #include <utility>
 #include <vector>
@@ -18,6 +18,7 @@
 #include "magvine/core/error.hpp"
 #include "magvine/core/multiversion.hpp"
 #include "magvine/core/units.hpp"
+#include "magvine/core/usage.hpp"
 #include "triangle_bvh.hpp"
 
 namespace magvine::anatomy {
@@ -96,6 +97,15 @@ struct alignas(16) SlotScreen {
 };
 static_assert(sizeof(SlotScreen) == 80, "four lanes of four floats and the slacks");
 
+struct Tables;
+/// The slow path of Tables::ensure: brings a stale slot's records up to date, or waits while another query does.
+void refresh_or_wait(const Tables& w, std::uint32_t slot);
+
+/// A slot's state while one query fills its records after a refit (Tables::current).
+constexpr std::uint32_t kBusy = std::numeric_limits<std::uint32_t>::max();
+/// No triangle across an edge (Tables::neighbours).
+constexpr std::uint32_t kNoNeighbour = std::numeric_limits<std::uint32_t>::max();
+
 /// Geometry tables shared by the queries; spans point into the owning Impl's mesh copy.
 struct Tables {
   std::span<const Vec3> vertices;
@@ -119,8 +129,26 @@ struct Tables {
   VertexTriangles incidence;
   double side = -1.0;      ///< free-side normal = side · outward normal
   double merge_cos = 1.0;  ///< cos(merge_angle)
+  FreeSide free_side = FreeSide::kInside;
   Vec3 box_min = Vec3::Zero();
   Vec3 box_max = Vec3::Zero();
+
+  // What a refit (CollisionWorld::refit) needs to move the tables without rebuilding them.
+  std::vector<std::array<std::uint32_t, 3>> slot_corners;  ///< per slot: TriangleData::corner, packed
+  std::vector<std::uint32_t> point_source;                 ///< per point: its mesh vertex
+  /// Per triangle and edge: the triangle across it, or kNoNeighbour (the build's topology, which a refit keeps).
+  std::vector<std::array<std::uint32_t, 3>> neighbours;
+  /// Records filled lazily after a refit. Version 0: built and never refitted, every record current. After a refit
+  /// the points, boxes and screen frame are current at once, and a slot's records (data, arcs, screens) are brought
+  /// up to date by the first query that reads them, under the slot's own claim in `current` (a version, or kBusy
+  /// while a query fills them), so concurrent queries stay safe and each slot is filled once per refit.
+  std::uint32_t version = 0;
+  std::unique_ptr<std::atomic<std::uint32_t>[]> current;
+
+  /// Makes slot's records current (a no-op for a world never refitted, and for a slot already brought up to date).
+  void ensure(std::uint32_t slot) const {
+    if (version != 0 && current[slot].load(std::memory_order_acquire) != version) refresh_or_wait(*this, slot);
+  }
 };
 
 /// Collects contacts into the caller's span: merges close normals (keeps the deepest) and, once full, replaces the
@@ -313,6 +341,7 @@ class SphereQuery {
   /// norms), so the screen's bounds below are widened by that move.
   bool may_touch_within(std::uint32_t slot, float margin) const {
     if (!m_screen) return true;
+    m_w.ensure(slot);
     const SlotScreen& f = m_w.screens[slot];
     const Float4 g = screen_lanes(f, m_p);
     const Float4 norm2 = f.col[0] * f.col[0] + f.col[1] * f.col[1] + f.col[2] * f.col[2];
@@ -329,6 +358,7 @@ class SphereQuery {
   }
 
   void process(std::uint32_t slot) {
+    m_w.ensure(slot);
     if (m_screen && !may_touch(m_w.screens[slot])) return;
     const TriangleData& d = m_w.data[slot];
     const double reach = m_r + d.bound_radius;
@@ -408,6 +438,7 @@ class CapsuleQuery {
         m_r_screen(screen_radius(radius)) {}
 
   void process(std::uint32_t slot) {
+    m_w.ensure(slot);
     if (m_screen && !may_touch(m_w.screens[slot])) return;
     const TriangleData& d = m_w.data[slot];
     const double reach = m_r + d.bound_radius;
@@ -656,12 +687,16 @@ void validate(const TriangleMesh& mesh, const CollisionWorldOptions& options) {
   }
 }
 
-/// Per-triangle normals (from the incidence, computed once) and bounding spheres; degenerate triangles are flagged.
-void fill_geometry(Tables& w, std::span<const std::uint32_t> order) {
+/// The slots' corners: TriangleData::corner (and slot_corners) index `points`, the mesh's vertices renumbered in
+/// order of first use by the slots (point_source maps them back); TriangleData::triangle the slot's triangle.
+void fill_corners(Tables& w, std::span<const std::uint32_t> order) {
   constexpr std::uint32_t kUnused = std::numeric_limits<std::uint32_t>::max();
   std::vector<std::uint32_t> renumber(w.vertices.size(), kUnused);
-  w.data.resize(w.triangles.size());
+  w.points.clear();
+  w.point_source.clear();
   w.points.reserve(w.vertices.size());
+  w.point_source.reserve(w.vertices.size());
+  w.slot_corners.resize(order.size());
   for (std::size_t slot = 0; slot < order.size(); ++slot) {
     const std::uint32_t t = order[slot];
     const Triangle& tri = w.triangles[t];
@@ -671,120 +706,165 @@ void fill_geometry(Tables& w, std::span<const std::uint32_t> order) {
       if (to == kUnused) {
         to = static_cast<std::uint32_t>(w.points.size());
         w.points.push_back(w.vertices[tri[k]]);
+        w.point_source.push_back(tri[k]);
       }
       d.corner[k] = to;
     }
+    w.slot_corners[slot] = d.corner;
     d.triangle = t;
-    const Vec3& a = w.vertices[tri[0]];
-    const Vec3& b = w.vertices[tri[1]];
-    const Vec3& c = w.vertices[tri[2]];
-    const Vec3 centroid = w.centroid(d);
-    d.bound_radius =
-        std::sqrt(std::max({(a - centroid).squaredNorm(), (b - centroid).squaredNorm(), (c - centroid).squaredNorm()}));
-    const Vec3& outward = w.incidence.normals[t];  // zero when no direction survives rounding
-    if (outward.isZero()) {
-      d.flags = kDegenerate;
-      d.offset = std::numeric_limits<double>::infinity();
-      continue;
-    }
-    d.normal = w.side * outward;
-    d.offset = d.normal.dot(a);
   }
 }
 
-/// Edge classes from the edge bends (edge_bends.hpp). From the free side, a ridge is an edge convex toward the
-/// free side: concave seen from outside when the free side is inside. Flat edges and valleys emit nothing;
-/// valleys widen the face regions behind the wall.
-void fill_edges(Tables& w, const std::vector<std::array<EdgeBend, 3>>& bends, FreeSide free_side,
-                CollisionWorldStats& stats) {
-  w.arcs.resize(w.data.size());
-  for (std::size_t slot = 0; slot < w.data.size(); ++slot) {
-    TriangleData& d = w.data[slot];
-    EdgeArcs& arcs = w.arcs[slot];
-    const std::uint32_t t = d.triangle;
-    if ((d.flags & kDegenerate) != 0) {
-      ++stats.degenerate_triangles;
-      continue;
+/// A slot's record from its corners and its triangle's unit outward normal (zero: degenerate, flagged).
+void fill_record(Tables& w, std::size_t slot, const Vec3& outward) {
+  TriangleData& d = w.data[slot];
+  const std::array<const Vec3*, 3> v = w.corners(d);
+  const Vec3 centroid = w.centroid(d);
+  d.bound_radius = std::sqrt(
+      std::max({(*v[0] - centroid).squaredNorm(), (*v[1] - centroid).squaredNorm(), (*v[2] - centroid).squaredNorm()}));
+  d.flags = 0;
+  if (outward.isZero()) {
+    d.normal = Vec3::Zero();
+    d.flags = kDegenerate;
+    d.offset = std::numeric_limits<double>::infinity();
+    return;
+  }
+  d.normal = w.side * outward;
+  d.offset = d.normal.dot(*v[0]);
+}
+
+/// A slot's edge classes from its triangle's edge bends (edge_bends.hpp). From the free side, a ridge is an edge
+/// convex toward the free side: concave seen from outside when the free side is inside. Flat edges and valleys emit
+/// nothing; valleys widen the face regions behind the wall. `stats` (optional) counts the classes.
+void fill_arcs(Tables& w, std::size_t slot, const std::array<EdgeBend, 3>& bends, CollisionWorldStats* stats) {
+  TriangleData& d = w.data[slot];
+  EdgeArcs& arcs = w.arcs[slot];
+  arcs = EdgeArcs{};
+  const std::uint32_t t = d.triangle;
+  if ((d.flags & kDegenerate) != 0) {
+    if (stats != nullptr) ++stats->degenerate_triangles;
+    return;
+  }
+  for (std::size_t k = 0; k < 3; ++k) {
+    const EdgeBend& edge = bends[k];
+    bool emits = false;
+    double c = 0.0;  // boundary: the arc runs a quarter turn, to the in-plane direction
+    double sn = 1.0;
+    if (edge.boundary) {
+      emits = true;
+      if (stats != nullptr) ++stats->boundary_edges;
+    } else if (edge.sin != 0.0 || edge.cos < 0.0) {
+      if (edge.convex == (w.free_side == FreeSide::kOutside)) {
+        // Both triangles at a ridge see the same arc of normals and would report the same contact: the one with
+        // the lower index owns it (both are always visited when a body reaches the edge).
+        emits = t < edge.neighbour;
+        c = edge.cos;
+        sn = edge.sin;
+        if (stats != nullptr) ++stats->ridge_edges;
+      } else {
+        const Triangle& tri = w.triangles[t];
+        const double length = (w.vertices[tri[(k + 1) % 3]] - w.vertices[tri[k]]).norm();
+        // tan(min(bend, kMaxValleyBend)); cos(kMaxValleyBend) = 1/2.
+        const double tan = edge.cos > 0.5 ? edge.sin / edge.cos : std::tan(kMaxValleyBend);
+        arcs.valley_margin[k] = static_cast<float>(tan * length);
+      }
     }
-    for (std::size_t k = 0; k < 3; ++k) {
-      const EdgeBend& edge = bends[t][k];
-      bool emits = false;
-      double c = 0.0;  // boundary: the arc runs a quarter turn, to the in-plane direction
-      double sn = 1.0;
-      if (edge.boundary) {
-        emits = true;
-        ++stats.boundary_edges;
-      } else if (edge.sin != 0.0 || edge.cos < 0.0) {
-        if (edge.convex == (free_side == FreeSide::kOutside)) {
-          // Both triangles at a ridge see the same arc of normals and would report the same contact: the one
-          // with the lower index owns it (both are always visited when a body reaches the edge).
-          emits = t < edge.neighbour;
-          c = edge.cos;
-          sn = edge.sin;
-          ++stats.ridge_edges;
-        } else {
-          const Triangle& tri = w.triangles[t];
-          const double length = (w.vertices[tri[(k + 1) % 3]] - w.vertices[tri[k]]).norm();
-          // tan(min(bend, kMaxValleyBend)); cos(kMaxValleyBend) = 1/2.
-          const double tan = edge.cos > 0.5 ? edge.sin / edge.cos : std::tan(kMaxValleyBend);
-          arcs.valley_margin[k] = static_cast<float>(tan * length);
-        }
-      }
-      if (emits) {
-        d.flags = static_cast<std::uint8_t>(d.flags | (1u << k));
-        if (edge.boundary) d.flags = static_cast<std::uint8_t>(d.flags | (1u << (kBoundaryShift + k)));
-        arcs.arc_cos[k] = static_cast<float>(c);
-        arcs.arc_sin[k] = static_cast<float>(sn);
-      }
+    if (emits) {
+      d.flags = static_cast<std::uint8_t>(d.flags | (1u << k));
+      if (edge.boundary) d.flags = static_cast<std::uint8_t>(d.flags | (1u << (kBoundaryShift + k)));
+      arcs.arc_cos[k] = static_cast<float>(c);
+      arcs.arc_sin[k] = static_cast<float>(sn);
     }
   }
 }
 
-/// The slot screens (SlotScreen), from the records and edge classes already filled.
-void fill_screens(Tables& w) {
-  constexpr double kUnitRoundoff = 0x1p-24;  // float
-  constexpr double kRoundoffs = 16.0;        // per summed magnitude: a 3-term dot product, its constant, the inputs
+/// The screens' coordinate frame from the mesh's box (SlotScreen).
+void set_screen_frame(Tables& w) {
   w.screen_origin = 0.5 * (w.box_min + w.box_max);
   // Bodies reach the wall from at most their radius away; beyond a box half-diagonal past the box the exact tests
   // alone decide (the bounds grow with the reach).
   w.screen_reach = (w.box_max - w.box_min).norm();
+}
+
+/// A slot's screen (SlotScreen), from its record and edge classes already filled.
+void fill_screen(Tables& w, std::size_t slot) {
+  constexpr double kUnitRoundoff = 0x1p-24;  // float
+  constexpr double kRoundoffs = 16.0;        // per summed magnitude: a 3-term dot product, its constant, the inputs
   const double reach = w.screen_reach;
   const auto lanes = [](double g0, double g1, double g2, double s) {
     return Float4{static_cast<float>(g0), static_cast<float>(g1), static_cast<float>(g2), static_cast<float>(s)};
   };
-  w.screens.resize(w.data.size());
-  for (std::size_t slot = 0; slot < w.data.size(); ++slot) {
-    const TriangleData& d = w.data[slot];
-    SlotScreen& f = w.screens[slot];
-    if ((d.flags & kDegenerate) != 0) {
-      f.col[3] = lanes(0.0, 0.0, 0.0, std::numeric_limits<double>::infinity());  // s = +∞: out of every reach
-      continue;
-    }
-    const std::array<const Vec3*, 3> v = w.corners(d);
-    const Vec3 outward = w.side * d.normal;
-    std::array<Vec3, 4> rows;
-    std::array<double, 4> constant{};
+  const TriangleData& d = w.data[slot];
+  SlotScreen& f = w.screens[slot];
+  f = SlotScreen{};
+  if ((d.flags & kDegenerate) != 0) {
+    f.col[3] = lanes(0.0, 0.0, 0.0, std::numeric_limits<double>::infinity());  // s = +∞: out of every reach
+    return;
+  }
+  const std::array<const Vec3*, 3> v = w.corners(d);
+  const Vec3 outward = w.side * d.normal;
+  std::array<Vec3, 4> rows;
+  std::array<double, 4> constant{};
+  for (std::size_t k = 0; k < 3; ++k) {
+    rows[k] = outward.cross(*v[(k + 1) % 3] - *v[k]);
+    constant[k] = -rows[k].dot(*v[k] - w.screen_origin);
+  }
+  rows[3] = d.normal;
+  constant[3] = d.normal.dot(w.screen_origin) - d.offset;
+  std::array<double, 4> error{};
+  for (std::size_t k = 0; k < 4; ++k) {
+    error[k] = kRoundoffs * kUnitRoundoff * (rows[k].cwiseAbs().sum() * reach + std::abs(constant[k]));
+  }
+  for (int axis = 0; axis < 3; ++axis) {
+    f.col[static_cast<std::size_t>(axis)] = lanes(rows[0][axis], rows[1][axis], rows[2][axis], rows[3][axis]);
+  }
+  f.col[3] = lanes(constant[0], constant[1], constant[2], constant[3]);
+  const EdgeArcs& arcs = w.arcs[slot];
+  const double valley = std::max({arcs.valley_margin[0], arcs.valley_margin[1], arcs.valley_margin[2]}) * (1.0 + 1e-6);
+  f.valley = static_cast<float>(valley);
+  f.slack_s = static_cast<float>(2.0 * error[3]);
+  f.slack_g = static_cast<float>(2.0 * (d.face_tol() + std::max({error[0], error[1], error[2]}) + error[3] * valley));
+  f.emits = d.flags & kEdgeMask;
+}
+
+/// A slot's records for its triangle's current corners (after a refit): the normal from the moved vertices, the
+/// bends across the build's edge topology (an edge whose neighbour has become degenerate is a boundary), the arcs and
+/// the screen. The same laws as the build's, so the records equal a fresh build's on the moved mesh.
+void refresh_slot(Tables& w, std::uint32_t slot) {
+  const std::uint32_t t = w.data[slot].triangle;
+  const Triangle& tri = w.triangles[t];
+  const Vec3 nt = triangle_unit_normal(w.vertices[tri[0]], w.vertices[tri[1]], w.vertices[tri[2]]);
+  fill_record(w, slot, nt);
+  std::array<EdgeBend, 3> bends{};
+  if (!nt.isZero()) {
     for (std::size_t k = 0; k < 3; ++k) {
-      rows[k] = outward.cross(*v[(k + 1) % 3] - *v[k]);
-      constant[k] = -rows[k].dot(*v[k] - w.screen_origin);
+      const std::uint32_t u = w.neighbours[t][k];
+      if (u == kNoNeighbour) continue;
+      const Triangle& o = w.triangles[u];
+      const Vec3 nu = triangle_unit_normal(w.vertices[o[0]], w.vertices[o[1]], w.vertices[o[2]]);
+      if (!nu.isZero()) bends[k] = bend_across(w.vertices, tri, k, nt, u, o, nu);
     }
-    rows[3] = d.normal;
-    constant[3] = d.normal.dot(w.screen_origin) - d.offset;
-    std::array<double, 4> error{};
-    for (std::size_t k = 0; k < 4; ++k) {
-      error[k] = kRoundoffs * kUnitRoundoff * (rows[k].cwiseAbs().sum() * reach + std::abs(constant[k]));
+  }
+  fill_arcs(w, slot, bends, nullptr);
+  fill_screen(w, slot);
+}
+
+void refresh_or_wait(const Tables& w, std::uint32_t slot) {
+  std::atomic<std::uint32_t>& state = w.current[slot];
+  std::uint32_t seen = state.load(std::memory_order_acquire);
+  while (seen != w.version) {
+    if (seen != kBusy) {
+      if (state.compare_exchange_weak(seen, kBusy, std::memory_order_acquire, std::memory_order_acquire)) {
+        // This query holds the slot's claim: its records are written by no one else. The tables are never const
+        // objects (CollisionWorld::Impl owns them); queries see them through const references.
+        refresh_slot(const_cast<Tables&>(w), slot);
+        state.store(w.version, std::memory_order_release);
+        return;
+      }
+      continue;  // `seen` holds the state now
     }
-    for (int axis = 0; axis < 3; ++axis) {
-      f.col[static_cast<std::size_t>(axis)] = lanes(rows[0][axis], rows[1][axis], rows[2][axis], rows[3][axis]);
-    }
-    f.col[3] = lanes(constant[0], constant[1], constant[2], constant[3]);
-    const EdgeArcs& arcs = w.arcs[slot];
-    const double valley =
-        std::max({arcs.valley_margin[0], arcs.valley_margin[1], arcs.valley_margin[2]}) * (1.0 + 1e-6);
-    f.valley = static_cast<float>(valley);
-    f.slack_s = static_cast<float>(2.0 * error[3]);
-    f.slack_g = static_cast<float>(2.0 * (d.face_tol() + std::max({error[0], error[1], error[2]}) + error[3] * valley));
-    f.emits = d.flags & kEdgeMask;
+    std::this_thread::yield();  // another query is filling it
+    seen = state.load(std::memory_order_acquire);
   }
 }
 
@@ -817,6 +897,7 @@ CollisionWorld::Impl::Impl(const TriangleMesh& source, const CollisionWorldOptio
   w.vertices = mesh.vertices;
   w.triangles = mesh.triangles;
   w.side = options.free_side == FreeSide::kInside ? -1.0 : 1.0;
+  w.free_side = options.free_side;
   w.merge_cos = std::cos(options.merge_angle);
   bvh.emplace(mesh.vertices, mesh.triangles);
   fill_tables();
@@ -830,13 +911,22 @@ void CollisionWorld::Impl::fill_tables() {
   w.box_min = box.min;
   w.box_max = box.max;
   w.incidence = vertex_triangles(mesh);
-  w.data.assign(mesh.triangles.size(), TriangleData{});
-  w.arcs.assign(mesh.triangles.size(), EdgeArcs{});
-  w.points.clear();
+  const std::size_t n = mesh.triangles.size();
+  w.data.assign(n, TriangleData{});
+  w.arcs.assign(n, EdgeArcs{});
+  w.screens.assign(n, SlotScreen{});
   stats.degenerate_triangles = stats.ridge_edges = stats.boundary_edges = 0;
-  fill_geometry(w, bvh->order());  // records in the BVH's leaf order
-  fill_edges(w, edge_bends(mesh, w.incidence), options.free_side, stats);
-  fill_screens(w);
+  fill_corners(w, bvh->order());  // records in the BVH's leaf order
+  for (std::size_t slot = 0; slot < n; ++slot) fill_record(w, slot, w.incidence.normals[w.data[slot].triangle]);
+  const std::vector<std::array<EdgeBend, 3>> bends = edge_bends(mesh, w.incidence);
+  w.neighbours.resize(n);
+  for (std::size_t t = 0; t < n; ++t) {
+    for (std::size_t k = 0; k < 3; ++k)
+      w.neighbours[t][k] = bends[t][k].boundary ? kNoNeighbour : bends[t][k].neighbour;
+  }
+  for (std::size_t slot = 0; slot < n; ++slot) fill_arcs(w, slot, bends[w.data[slot].triangle], &stats);
+  set_screen_frame(w);
+  for (std::size_t slot = 0; slot < n; ++slot) fill_screen(w, slot);
   std::vector<Vec3>().swap(w.incidence.normals);  // the queries read only the incidence lists
 }
 
@@ -854,9 +944,36 @@ void CollisionWorld::refit(std::span<const Vec3> vertices) {
   for (const Vec3& v : vertices) {
     if (!v.allFinite()) throw InputError("collision world refit: a vertex is not finite");
   }
-  std::copy(vertices.begin(), vertices.end(), m.mesh.vertices.begin());
-  m.bvh->refit(m.mesh.vertices, m.mesh.triangles);
-  m.fill_tables();
+  // The vertices and the mesh's box; the corners in slot order and their box; the BVH's boxes; the screen frame.
+  // The slots' records follow lazily, each at the first query that reads it (Tables::ensure).
+  Tables& w = m.tables;
+  Vec3 lo = Vec3::Constant(std::numeric_limits<double>::infinity());
+  Vec3 hi = -lo;
+  for (std::size_t i = 0; i < vertices.size(); ++i) {
+    m.mesh.vertices[i] = vertices[i];
+    lo = lo.cwiseMin(vertices[i]);
+    hi = hi.cwiseMax(vertices[i]);
+  }
+  w.box_min = lo;
+  w.box_max = hi;
+  lo = Vec3::Constant(std::numeric_limits<double>::infinity());
+  hi = -lo;
+  for (std::size_t p = 0; p < w.points.size(); ++p) {
+    const Vec3& v = m.mesh.vertices[w.point_source[p]];
+    w.points[p] = v;
+    lo = lo.cwiseMin(v);
+    hi = hi.cwiseMax(v);
+  }
+  m.bvh->refit(w.points, w.slot_corners, lo, hi);
+  set_screen_frame(w);
+  const std::size_t n = w.data.size();
+  if (!w.current || w.version + 1 == kBusy) {
+    // First refit (or the versions ran out): every slot stale.
+    if (!w.current) w.current = std::make_unique<std::atomic<std::uint32_t>[]>(n);
+    for (std::size_t slot = 0; slot < n; ++slot) w.current[slot].store(0, std::memory_order_relaxed);
+    w.version = 0;
+  }
+  ++w.version;
   m.id = Impl::next_id();  // caches filled before hold the old geometry
   m.stats.refit_seconds = std::chrono::duration<double>(std::chrono::steady_clock::now() - start).count();
 }
@@ -866,7 +983,7 @@ CollisionWorld::CollisionWorld(CollisionWorld&&) noexcept = default;
 CollisionWorld& CollisionWorld::operator=(CollisionWorld&&) noexcept = default;
 
 MAGVINE_HOT_KERNEL std::size_t CollisionWorld::sphere_contacts(const Vec3& centre, double radius,
-                                                                std::span<Contact> out) const {
+                                                               std::span<Contact> out) const {
   MAGVINE_ASSERT(radius > 0.0 && centre.allFinite());
   const Tables& w = m_impl->tables;
   ContactSink sink(out, w.merge_cos);
@@ -883,9 +1000,9 @@ struct ContactCache::Storage {
   std::size_t group_count = 0;
   std::size_t leaf_count = 0;  ///< leaves in the groups
   std::size_t slot_count = 0;
-  std::uint64_t world = 0;      ///< the id of the world (and refit) that filled it; 0 when empty
-  Vec3 centre = Vec3::Zero();   ///< fill centre [m]
-  double radius = 0.0;          ///< fill radius [m]
+  std::uint64_t world = 0;     ///< the id of the world (and refit) that filled it; 0 when empty
+  Vec3 centre = Vec3::Zero();  ///< fill centre [m]
+  double radius = 0.0;         ///< fill radius [m]
 
   /// Appends a leaf with its box and the kept slots [first, slot_count); false when full.
   bool add_leaf(const detail::ChildBox& box, std::size_t first) {
@@ -930,7 +1047,7 @@ bool ContactCache::filled() const {
 }
 
 MAGVINE_HOT_KERNEL std::size_t CollisionWorld::sphere_contacts(const Vec3& centre, double radius,
-                                                                std::span<Contact> out, ContactCache& cache) const {
+                                                               std::span<Contact> out, ContactCache& cache) const {
   MAGVINE_ASSERT(radius > 0.0 && centre.allFinite());
   const Tables& w = m_impl->tables;
   ContactCache::Storage& kept = *cache.m_storage;
@@ -965,22 +1082,22 @@ MAGVINE_HOT_KERNEL std::size_t CollisionWorld::sphere_contacts(const Vec3& centr
   kept.slot_count = 0;
   bool fits = true;
   const auto margin = static_cast<float>(cache.m_margin);
-  m_impl->bvh->walk_leaves(
-      detail::SphereBoxTest(centre, radius + cache.m_margin), [&](const detail::TriangleBvh::Node& node, int k) {
-        const std::uint32_t child = node.child[static_cast<std::size_t>(k)];
-        const std::uint32_t first = (child & ~detail::TriangleBvh::kLeafBit) >> 4;
-        const std::uint32_t end = first + (child & 0xFu);
-        const detail::ChildBox box = detail::child_box(node, k);
-        const std::size_t start = kept.slot_count;
-        for (std::uint32_t slot = first; slot < end && fits; ++slot) {
-          if (!query.may_touch_within(slot, margin)) continue;
-          fits = kept.slot_count < kept.slots.size();
-          if (fits) kept.slots[kept.slot_count++] = slot;
-        }
-        if (fits && kept.slot_count > start) fits = kept.add_leaf(box, start);
-        if (!detail::sphere_touches(box, centre, r2)) return;
-        for (std::uint32_t slot = first; slot < end; ++slot) query.process(slot);
-      });
+  m_impl->bvh->walk_leaves(detail::SphereBoxTest(centre, radius + cache.m_margin),
+                           [&](const detail::TriangleBvh::Node& node, int k) {
+                             const std::uint32_t child = node.child[static_cast<std::size_t>(k)];
+                             const std::uint32_t first = (child & ~detail::TriangleBvh::kLeafBit) >> 4;
+                             const std::uint32_t end = first + (child & 0xFu);
+                             const detail::ChildBox box = detail::child_box(node, k);
+                             const std::size_t start = kept.slot_count;
+                             for (std::uint32_t slot = first; slot < end && fits; ++slot) {
+                               if (!query.may_touch_within(slot, margin)) continue;
+                               fits = kept.slot_count < kept.slots.size();
+                               if (fits) kept.slots[kept.slot_count++] = slot;
+                             }
+                             if (fits && kept.slot_count > start) fits = kept.add_leaf(box, start);
+                             if (!detail::sphere_touches(box, centre, r2)) return;
+                             for (std::uint32_t slot = first; slot < end; ++slot) query.process(slot);
+                           });
   if (fits) {
     kept.world = m_impl->id;
     kept.centre = centre;
@@ -990,7 +1107,7 @@ MAGVINE_HOT_KERNEL std::size_t CollisionWorld::sphere_contacts(const Vec3& centr
 }
 
 MAGVINE_HOT_KERNEL std::size_t CollisionWorld::capsule_contacts(const Vec3& a, const Vec3& b, double radius,
-                                                                 std::span<Contact> out) const {
+                                                                std::span<Contact> out) const {
   MAGVINE_ASSERT(radius > 0.0 && a.allFinite() && b.allFinite());
   // A segment too short to define a direction is a sphere (its length is far below any triangle size).
   if ((b - a).squaredNorm() <= 1e-24 * radius * radius) return sphere_contacts(0.5 * (a + b), radius, out);
@@ -1028,6 +1145,7 @@ struct NearSink {
   /// room (sorted once by finish()); once full, in order, the farthest kept one making room for a nearer one.
   bool process(std::uint32_t slot) {
     if (stopped) return false;
+    w.ensure(slot);
     const TriangleData& d = w.data[slot];
     // Farther from the triangle's plane than the radius (a degenerate triangle's offset is infinite: always).
     if (!(std::abs(d.normal.dot(point) - d.offset) <= radius)) return false;
@@ -1065,7 +1183,7 @@ struct NearSink {
 }  // namespace
 
 MAGVINE_HOT_KERNEL std::size_t CollisionWorld::triangles_within(const Vec3& point, double radius,
-                                                                 std::span<NearTriangle> out) const {
+                                                                std::span<NearTriangle> out) const {
   MAGVINE_ASSERT(radius > 0.0 && point.allFinite());
   NearSink sink{m_impl->tables, point, radius, out};
   m_impl->bvh->visit_slots(detail::SphereBoxTest(point, radius), [&](std::uint32_t slot) { sink.process(slot); });
@@ -1080,8 +1198,8 @@ NearCache::NearCache(double margin, std::size_t capacity) : m_margin(margin), m_
 }
 
 MAGVINE_HOT_KERNEL std::size_t CollisionWorld::triangles_within(const Vec3& point, double radius,
-                                                                 std::span<NearTriangle> out, NearCache& cache,
-                                                                 double stop_within) const {
+                                                                std::span<NearTriangle> out, NearCache& cache,
+                                                                double stop_within) const {
   MAGVINE_ASSERT(radius > 0.0 && point.allFinite());
   const Tables& w = m_impl->tables;
   // The last whole answer (every triangle it found fitted its span): again at the same point and radius, for any
@@ -1153,7 +1271,10 @@ void walk_ray(const detail::TriangleBvh& bvh, const Tables& w, const Vec3& origi
               Length&& length) {
   const Vec3 inv(1.0 / dir.x(), 1.0 / dir.y(), 1.0 / dir.z());  // ±∞ for a zero component
   bvh.visit_slots([&](const detail::TriangleBvh::Node& node) { return detail::ray_mask(node, origin, inv, length()); },
-                  [&](std::uint32_t slot) { query.process(w.data[slot]); });
+                  [&](std::uint32_t slot) {
+                    w.ensure(slot);
+                    query.process(w.data[slot]);
+                  });
 }
 
 }  // namespace

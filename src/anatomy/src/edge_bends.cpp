@@ -10,19 +10,43 @@ namespace {
 /// Bends whose sine is below this are coplanar up to rounding (unit normals from cross products agree to ~1e-16).
 constexpr double kFlatSine = 1e-10;
 
-/// Unit normal of t, or zero when its area is below 1e-12 of its longest edge squared (no direction).
 Vec3 unit_normal(const TriangleMesh& mesh, const Triangle& t) {
-  const Vec3& a = mesh.vertices[t[0]];
-  const Vec3& b = mesh.vertices[t[1]];
-  const Vec3& c = mesh.vertices[t[2]];
+  return triangle_unit_normal(mesh.vertices[t[0]], mesh.vertices[t[1]], mesh.vertices[t[2]]);
+}
+
+}  // namespace
+
+Vec3 triangle_unit_normal(const Vec3& a, const Vec3& b, const Vec3& c) {
   const Vec3 n = (b - a).cross(c - a);
   const double longest2 = std::max({(b - a).squaredNorm(), (c - b).squaredNorm(), (a - c).squaredNorm()});
   return n.norm() > 1e-12 * longest2 ? Vec3(n.normalized()) : Vec3(Vec3::Zero());
 }
 
-}  // namespace
+EdgeBend bend_across(std::span<const Vec3> vertices, const Triangle& tri, std::size_t k, const Vec3& nt,
+                     std::uint32_t u, const Triangle& o, const Vec3& nu) {
+  const std::uint32_t a = tri[k];
+  const std::uint32_t b = tri[(k + 1) % 3];
+  const std::size_t ku = o[0] == a ? 0 : o[1] == a ? 1 : 2;  // u's corner at a
+  // The neighbour's normal as if it were oriented like t: a consistently oriented neighbour runs the shared edge
+  // b → a, i.e. its corner after a is not b.
+  const bool reversed = o[(ku + 1) % 3] != b;
+  const Vec3 nr = reversed ? nu : Vec3(-nu);
+  const double sine = nt.cross(nr).norm();
+  const std::uint32_t c = o[0] != a && o[0] != b ? o[0] : o[1] != a && o[1] != b ? o[1] : o[2];
+  EdgeBend bend;
+  bend.boundary = false;
+  bend.neighbour = u;
+  if (sine >= kFlatSine || nt.dot(nr) < 0.0) {
+    bend.cos = nt.dot(nr);
+    bend.sin = sine;
+  }
+  bend.convex = nt.dot(vertices[c] - vertices[a]) < 0.0;  // c: the neighbour's corner off the edge
+  return bend;
+}
 
-double EdgeBend::angle() const { return std::atan2(sin, cos); }
+double EdgeBend::angle() const {
+  return std::atan2(sin, cos);
+}
 
 VertexTriangles vertex_triangles(const TriangleMesh& mesh) {
   const std::size_t n = mesh.triangles.size();
@@ -65,7 +89,6 @@ std::vector<std::array<EdgeBend, 3>> edge_bends(const TriangleMesh& mesh, const 
       // The other triangles at a that also contain b: exactly one for a manifold edge; otherwise a boundary.
       std::size_t found = 0;
       std::uint32_t u = 0;
-      std::size_t ku = 0;  // u's corner at a
       for (std::uint32_t i = first[a]; i < first[a + 1]; ++i) {
         const std::uint32_t other = incident[i];
         if (other == t) continue;
@@ -73,25 +96,9 @@ std::vector<std::array<EdgeBend, 3>> edge_bends(const TriangleMesh& mesh, const 
         if (o[0] != b && o[1] != b && o[2] != b) continue;
         ++found;
         u = other;
-        ku = o[0] == a ? 0 : o[1] == a ? 1 : 2;
       }
       if (found != 1) continue;
-      const Triangle& o = mesh.triangles[u];
-      const Vec3& nt = normals[t];
-      // The neighbour's normal as if it were oriented like t: a consistently oriented neighbour runs the shared
-      // edge b → a, i.e. its corner after a is not b.
-      const bool reversed = o[(ku + 1) % 3] != b;
-      const Vec3 nu = reversed ? normals[u] : Vec3(-normals[u]);
-      const double sine = nt.cross(nu).norm();
-      const std::uint32_t c = o[0] != a && o[0] != b ? o[0] : o[1] != a && o[1] != b ? o[1] : o[2];
-      EdgeBend& bend = bends[t][k];
-      bend.boundary = false;
-      bend.neighbour = u;
-      if (sine >= kFlatSine || nt.dot(nu) < 0.0) {
-        bend.cos = nt.dot(nu);
-        bend.sin = sine;
-      }
-      bend.convex = nt.dot(mesh.vertices[c] - mesh.vertices[a]) < 0.0;  // c: the neighbour's corner off the edge
+      bends[t][k] = bend_across(mesh.vertices, tri, k, normals[t], u, mesh.triangles[u], normals[u]);
     }
   }
   return bends;

@@ -213,9 +213,29 @@ TriangleBvh::TriangleBvh(std::span<const Vec3> vertices, std::span<const Triangl
   if (m_order.size() != triangles.size()) fail(device.get(), "the BVH lost triangles");
 }
 
-void TriangleBvh::refit(std::span<const Vec3> vertices, std::span<const Triangle> triangles) {
-  const auto [lo, hi] = triangle_box(vertices, triangles);
+void TriangleBvh::refit(std::span<const Vec3> points, std::span<const std::array<std::uint32_t, 3>> corners,
+                        const Vec3& lo, const Vec3& hi) {
   const double pad = kBoxPad * (hi - lo).norm();
+  if (m_leaf_range.empty()) {
+    // Each leaf child's distinct corners, once (the tree and the corners' indices never change).
+    m_leaf_range.assign(4 * m_nodes.size(), {0, 0});
+    for (std::size_t i = 0; i < m_nodes.size(); ++i) {
+      for (std::size_t k = 0; k < 4; ++k) {
+        const std::uint32_t c = m_nodes[i].child[k];
+        if ((c & kLeafBit) == 0) continue;
+        const std::uint32_t first = (c & ~kLeafBit) >> 4;
+        const auto begin = static_cast<std::uint32_t>(m_leaf_points.size());
+        for (std::uint32_t slot = first; slot < first + (c & 0xFu); ++slot) {
+          for (const std::uint32_t v : corners[slot]) {
+            if (std::find(m_leaf_points.begin() + begin, m_leaf_points.end(), v) == m_leaf_points.end()) {
+              m_leaf_points.push_back(v);
+            }
+          }
+        }
+        m_leaf_range[4 * i + k] = {begin, static_cast<std::uint32_t>(m_leaf_points.size())};
+      }
+    }
+  }
   // Children come after their parents (the flattening appends a node before its subtree): from the last node back,
   // every inner child's box is its node's union, already refitted.
   for (std::size_t i = m_nodes.size(); i-- > 0;) {
@@ -225,14 +245,12 @@ void TriangleBvh::refit(std::span<const Vec3> vertices, std::span<const Triangle
       Vec3 a = Vec3::Constant(std::numeric_limits<double>::infinity());
       Vec3 b = -a;
       if ((c & kLeafBit) != 0) {
-        const std::uint32_t first = (c & ~kLeafBit) >> 4;
-        const std::uint32_t count = c & 0xFu;
-        if (count == 0) continue;  // an empty leaf keeps its empty box
-        for (std::uint32_t slot = first; slot < first + count; ++slot) {
-          for (const std::uint32_t v : triangles[m_order[slot]]) {
-            a = a.cwiseMin(vertices[v]);
-            b = b.cwiseMax(vertices[v]);
-          }
+        const auto [begin, end] = m_leaf_range[4 * i + k];
+        if (begin == end) continue;  // an empty leaf keeps its empty box
+        for (std::uint32_t j = begin; j < end; ++j) {
+          const Vec3& p = points[m_leaf_points[j]];
+          a = a.cwiseMin(p);
+          b = b.cwiseMax(p);
         }
         a.array() -= pad;
         b.array() += pad;

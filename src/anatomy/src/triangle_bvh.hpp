@@ -13,6 +13,7 @@
 
 #include <algorithm>
 #include <array>
+#include <bit>
 #include <cmath>
 #include <cstdint>
 #include <cstring>
@@ -48,9 +49,12 @@ class TriangleBvh {
   /// more than 2^27 triangles (the slot field of a leaf).
   TriangleBvh(std::span<const Vec3> vertices, std::span<const Triangle> triangles);
 
-  /// Recomputes every box bottom-up for the moved `vertices` of the same `triangles`, keeping the tree (its nodes,
-  /// leaves and slot order), with the build's padding and outward rounding.
-  void refit(std::span<const Vec3> vertices, std::span<const Triangle> triangles);
+  /// Recomputes every box bottom-up for moved corners, keeping the tree (its nodes, leaves and slot order), with the
+  /// build's padding and outward rounding. `corners[slot]` indexes the slot's triangle's corners in `points` (the
+  /// slots in leaf order; the same every call: the first keeps each leaf's distinct corners); [lo, hi] is the box of
+  /// every corner.
+  void refit(std::span<const Vec3> points, std::span<const std::array<std::uint32_t, 3>> corners, const Vec3& lo,
+             const Vec3& hi);
 
   /// slot → triangle index: leaves are contiguous runs of slots.
   std::span<const std::uint32_t> order() const { return m_order; }
@@ -103,6 +107,10 @@ class TriangleBvh {
  private:
   std::vector<Node> m_nodes;  ///< node 0 is the root
   std::vector<std::uint32_t> m_order;
+  /// For refit, filled at the first: each leaf child's distinct corner points (a leaf's triangles share most of
+  /// their corners, so its box reads each once), as ranges of m_leaf_points per node and child (node·4 + child).
+  std::vector<std::uint32_t> m_leaf_points;
+  std::vector<std::array<std::uint32_t, 2>> m_leaf_range;
 };
 
 /// One child's box as plain floats [mesh units], kept by callers that re-test a leaf later.
@@ -158,13 +166,21 @@ inline Float4 load4(const std::array<float, 4>& a) {
 }
 
 /// The nearest float at or below (`down`) / above (`up`) a double.
+/// The float after f towards −∞ (sign −1) or +∞ (+1): std::nextafter's value for a finite f, by the bits (the
+/// refit calls it for every box face).
+inline float float_step(float f, int sign) {
+  if (!std::isfinite(f)) return std::nextafter(f, sign * std::numeric_limits<float>::infinity());
+  if (f == 0.0F) return sign * std::numeric_limits<float>::denorm_min();
+  const auto bits = std::bit_cast<std::uint32_t>(f);
+  return std::bit_cast<float>((f > 0.0F) == (sign > 0) ? bits + 1 : bits - 1);
+}
 inline float float_down(double x) {
   const auto f = static_cast<float>(x);
-  return static_cast<double>(f) <= x ? f : std::nextafter(f, -std::numeric_limits<float>::infinity());
+  return static_cast<double>(f) <= x ? f : float_step(f, -1);
 }
 inline float float_up(double x) {
   const auto f = static_cast<float>(x);
-  return static_cast<double>(f) >= x ? f : std::nextafter(f, std::numeric_limits<float>::infinity());
+  return static_cast<double>(f) >= x ? f : float_step(f, 1);
 }
 
 /// The walk mask of a conservative single-precision test: `maybe` the children it may admit, `sure` those it surely

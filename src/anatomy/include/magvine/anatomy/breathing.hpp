@@ -26,14 +26,14 @@
 namespace magvine::anatomy {
 
 struct BreathingParams {
-  double period = 4.0;                ///< τ [s]
-  int profile = 2;                    ///< n of cos^{2n}, ≥ 1
-  double carina_amplitude = 5e-3;     ///< A_c [m]
-  double lower_amplitude = 22e-3;     ///< A_l [m]
-  double lower_depth = 0.08;          ///< depth below the carina where A_l is reached [m]
-  Vec3 superior = Vec3::UnitZ();      ///< ŝ, unit (RAS: +z)
-  Vec3 entry = Vec3::Zero();          ///< the airway's entry (fixed) [m]
-  Vec3 carina = Vec3::Zero();         ///< the carina [m]
+  double period = 4.0;             ///< τ [s]
+  int profile = 2;                 ///< n of cos^{2n}, ≥ 1
+  double carina_amplitude = 5e-3;  ///< A_c [m]
+  double lower_amplitude = 22e-3;  ///< A_l [m]
+  double lower_depth = 0.08;       ///< depth below the carina where A_l is reached [m]
+  Vec3 superior = Vec3::UnitZ();   ///< ŝ, unit (RAS: +z)
+  Vec3 entry = Vec3::Zero();       ///< the airway's entry (fixed) [m]
+  Vec3 carina = Vec3::Zero();      ///< the carina [m]
 };
 
 /// Checks the parameters (InputError naming the field).
@@ -47,5 +47,8 @@ double breathing_amplitude(const BreathingParams& params, const Vec3& x);
 
 /// u(x, t) = A(x)·(1 − inspiration(t))·ŝ [m].
 Vec3 breathing_displacement(const BreathingParams& params, const Vec3& x, double time);
+/// The same law from a point's amplitude A(x) (breathing_amplitude, time-independent: a moving mesh keeps its
+/// vertices') and the phase's inspiration(t): u = A·(1 − inspiration)·ŝ.
+Vec3 breathing_displacement(const BreathingParams& params, double amplitude, double inspiration);
 
 }  // namespace magvine::anatomy

@@ -132,9 +132,9 @@ class NearCache {
   friend class CollisionWorld;
   double m_margin = 0.0;
   std::size_t m_capacity = 0;
-  std::uint64_t m_world = 0;      ///< the id of the world that filled it; 0 when empty
-  Vec3 m_centre = Vec3::Zero();   ///< fill point [m]
-  double m_reach = 0.0;           ///< fill radius [m]
+  std::uint64_t m_world = 0;     ///< the id of the world that filled it; 0 when empty
+  Vec3 m_centre = Vec3::Zero();  ///< fill point [m]
+  double m_reach = 0.0;          ///< fill radius [m]
   std::vector<std::uint32_t> m_slots;
   /// The last whole answer and its query: asked again at the same point and radius (a solver's gradient and
   /// Hessian at one state), it is returned as it was.
@@ -232,9 +232,13 @@ class CollisionWorld {
 
   /// Moves the mesh's vertices to `vertices` (as many as the mesh has, same triangles) and brings every query up to
   /// date: the BVH's boxes are refitted bottom-up over its unchanged tree (no rebuild: the tree's quality degrades
-  /// as the motion departs from a smooth one), the per-triangle records, edge bends and screens recomputed. Caches
-  /// filled before (NearCache, ContactCache) refill at their next query. Not thread-safe against queries running
-  /// at the same time. Throws InputError for a wrong count or a non-finite vertex.
+  /// as the motion departs from a smooth one); each triangle's records (plane, edge bends across the build's edge
+  /// topology, screen) are recomputed by the first query that reads them, by the build's own laws, so a refitted
+  /// world answers as one built on the moved mesh and a refit costs the boxes alone (a body touches a small part of
+  /// an airway). Lazy filling is safe under concurrent queries (a per-triangle claim). stats() keeps the build's
+  /// edge and degeneracy counts. Caches filled before (NearCache, ContactCache) refill at their next query. Not
+  /// thread-safe against queries running at the same time. Throws InputError for a wrong count or a non-finite
+  /// vertex.
   void refit(std::span<const Vec3> vertices);
 
   /// The world's own copy of the mesh [m].
