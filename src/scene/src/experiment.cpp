@@ -207,10 +207,12 @@ ExperimentResult run_experiment(const ExperimentScene& scene, const std::functio
   // rest frame; the tip is taken back to it (less the displacement where it is) to read them.
   std::optional<anatomy::CollisionWorld> breathing_world;
   std::vector<Vec3> rest_vertices;
+  std::vector<double> amplitudes;  // each vertex's breathing amplitude (time-independent)
   std::vector<Vec3> moved_vertices;
   if (scene.breathing) {
     breathing_world.emplace(anatomy.mesh(), anatomy.world.options());
     rest_vertices = anatomy.mesh().vertices;
+    for (const Vec3& x : rest_vertices) amplitudes.push_back(anatomy::breathing_amplitude(*scene.breathing, x));
     moved_vertices.resize(rest_vertices.size());
   }
   const auto displacement = [&](const Vec3& x, double t) {
@@ -365,8 +367,9 @@ ExperimentResult run_experiment(const ExperimentScene& scene, const std::functio
     if (breathing_world) {
       // The airway moves to its shape at t, and carries the body and the material laid on its wall with it (the
       // displacement's change where each point is; the clamp, at the fixed entry, stays).
+      const double phase = anatomy::inspiration(*scene.breathing, t);
       for (std::size_t i = 0; i < rest_vertices.size(); ++i) {
-        moved_vertices[i] = rest_vertices[i] + displacement(rest_vertices[i], t);
+        moved_vertices[i] = rest_vertices[i] + anatomy::breathing_displacement(*scene.breathing, amplitudes[i], phase);
       }
       breathing_world->refit(moved_vertices);
       const auto carry = [&](Vec3& x) {
