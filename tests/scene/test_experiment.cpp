@@ -12,6 +12,7 @@
 #include <limits>
 #include <nlohmann/json.hpp>
 #include <numeric>
+#include <regex>
 #include <sstream>
 #include <string>
 #include <vector>
@@ -1337,6 +1338,67 @@ outputs: {shape_interval: 0.25}
               1e3 * last.length, last.branch);
   EXPECT_NEAR(last.length, 0.15, 1e-6);
   EXPECT_EQ(scene.anatomy->graph->branches[static_cast<std::size_t>(last.branch)].name, "0-0");
+}
+
+TEST(Experiment, AGatedNavigatorGrowsTheVineOnlyNearExhalation) {
+  // control.navigator.gate: {from: 0, to: 0.2}: the vine grows only while inspiration(t) ≤ 0.2 and never while the
+  // window is shut. Lujan's profile with n = 1 and τ = 2 s: cos²(πt/τ) ≤ 0.2 for a share 1 − 2·acos(√0.2)/π = 29.5 %
+  // of the time (closed form). The same coarse tree as above.
+  const std::filesystem::path dir = std::filesystem::temp_directory_path() / "magvine_gate_test";
+  std::filesystem::create_directories(dir);
+  const anatomy::Phantom tree =
+      anatomy::make_bronchial_tree({.max_generation = 1, .clearance = 3e-3, .spacing = 1.5e-3});
+  anatomy::write_stl(dir / "tree.stl", tree.mesh);
+  anatomy::write_graph(dir / "tree.json", tree.graph);
+  const std::string text = R"(units: {length: mm, pressure: kPa}
+anatomy:
+  mesh: tree.stl
+  graph: tree.json
+  breathing: {period: 2, profile: 1, carina_amplitude: 5}
+robot:
+  kind: vine
+  length: 5
+  diameter: 5
+  pressure: 35
+  wall: {thickness: 0.038, youngs_modulus: 10000, density: 1100, strength: 2900}
+  fill: {kind: magnetic_fluid, volume_fraction: 0.23}
+  base: {position: [0, 0, -12], direction: [0, 0, -1], normal: [1, 0, 0]}
+growth: {yield_pressure: 20}
+magnets:
+  - {kind: cylinder, diameter: 101.6, length: 101.6, polarisation: 1.48, position: [0, -250, -100], axis: [0, 1, 0]}
+control:
+  pressure: [[0, 35]]
+  navigator: {target: "0-0", magnet: 0, distance: 110, gate: {from: 0, to: 0.2}}
+simulation: {duration: 4, dt: 0.02, gravity: [0, 9.81, 0]}
+)";
+  const ExperimentScene scene = parse_experiment_scene(text, "gate.yaml", dir);
+  ASSERT_TRUE(scene.navigator && scene.navigator->gate);
+  const ExperimentResult r = run_experiment(scene);
+  ASSERT_TRUE(r.converged) << r.failure;
+  // Growth in each step, against the window at the step's time (the phase the step's control was set at).
+  double grown_open = 0.0;
+  double grown_shut = 0.0;
+  int open_steps = 0;
+  for (std::size_t k = 1; k < r.samples.size(); ++k) {
+    const double grown = r.samples[k].length - r.samples[k - 1].length;
+    if (anatomy::inspiration(*scene.breathing, r.samples[k].time) <= 0.2) {
+      grown_open += grown;
+      ++open_steps;
+    } else {
+      grown_shut = std::max(grown_shut, grown);
+    }
+  }
+  const double share = 1.0 - 2.0 * std::acos(std::sqrt(0.2)) / kPi;
+  std::printf(
+      "  grown %.1f mm in %d open steps (%.0f %% of them; the window's share %.0f %%), at most %.2g m in a shut "
+      "one\n",
+      1e3 * grown_open, open_steps, 100.0 * open_steps / (r.samples.size() - 1), 100.0 * share, grown_shut);
+  EXPECT_GT(grown_open, 10e-3);
+  EXPECT_LE(grown_shut, 1e-9);  // the tether holds the everted length
+  EXPECT_NEAR(static_cast<double>(open_steps) / static_cast<double>(r.samples.size() - 1), share, 0.03);
+  // Without breathing there is no phase to gate to.
+  const std::string still = std::regex_replace(text, std::regex("  breathing: \\{[^}]*\\}\n"), "");
+  EXPECT_THROW((void)parse_experiment_scene(still, "gate.yaml", dir), InputError);
 }
 
 }  // namespace

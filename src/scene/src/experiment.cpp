@@ -306,7 +306,10 @@ ExperimentResult run_experiment(const ExperimentScene& scene, const std::functio
   for (long k = 1; k <= steps; ++k) {
     const double t = std::min(scene.duration, static_cast<double>(k) * scene.dt);
     const double dt = t - state.time;
-    if (navigator && !aim_until) {
+    // Gating (Navigator::Gate): outside the phase window the navigator holds the vine and its magnet.
+    const bool open = !(scene.navigator && scene.navigator->gate) ||
+                      scene.navigator->gate->open(anatomy::inspiration(*scene.breathing, t));
+    if (navigator && !aim_until && open) {
       const Stopwatch placing;
       const std::size_t looked = navigator->guidance().size();
       navigator->place(t, at_rest(state.body.tip(), state.time), state.body.frames.back(), workspace.body.length,
@@ -359,6 +362,7 @@ ExperimentResult run_experiment(const ExperimentScene& scene, const std::functio
     robot::GrowthControl control;
     control.pressure = scene.pressure.at(t);
     if (scene.tether) control.tether_length = scene.tether->at(t);
+    if (!open) control.tether_length = std::min(control.tether_length, workspace.body.length);
     if (navigator && !aim_until) {
       const int branch = out.samples.empty() ? -1 : out.samples.back().branch;
       navigator->regulate(t, workspace.body.length, branch, out.success, at_rest(state.body.tip(), state.time), control,
@@ -409,7 +413,7 @@ ExperimentResult run_experiment(const ExperimentScene& scene, const std::functio
     }
     if (progress) progress(static_cast<double>(k) / static_cast<double>(steps));
     if (scene.biopsy && out.success && !aim_until) aim_until = t + scene.biopsy->aim_time;
-    if (aim_until && t >= *aim_until - 1e-9) break;
+    if (aim_until && t >= *aim_until - 1e-9 && open) break;  // the puncture starts inside the gate's window
     if (out.success && scene.stop_at_target && !scene.biopsy) {
       if (progress) progress(1.0);
       break;

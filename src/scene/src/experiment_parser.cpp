@@ -691,7 +691,7 @@ void parse_navigator(const YamlMap& n, const FileUnits& units, const std::filesy
                      ExperimentScene& scene) {
   n.allow_only({"target", "magnet", "distance", "min_distance", "max_distance", "lead", "interval", "deflate_pressure",
                 "deflate_time", "junction_distance", "lateral", "mode", "boost_pressure", "boost_after", "boost_length",
-                "recover", "guidance"});
+                "recover", "guidance", "gate"});
   const std::optional<anatomy::AirwayGraph>& graph = scene.anatomy->graph;
   if (!graph) {
     n.fail("target",
@@ -796,6 +796,16 @@ void parse_navigator(const YamlMap& n, const FileUnits& units, const std::filesy
   if (n.has("boost_length")) nav.boost_length = n.quantity("boost_length", units.len, range::kDistance);
   if (n.has("recover")) nav.recover = parse_recovery(n.map("recover"), units, scene);
   if (n.has("guidance")) nav.camera = parse_guidance(n.map("guidance"), units, scene);
+  if (n.has("gate")) {
+    const YamlMap g = n.map("gate");
+    g.allow_only({"from", "to"});
+    if (!scene.breathing) g.fail("from", "gates to the breathing phase: the anatomy needs breathing: {...}");
+    Navigator::Gate gate;
+    if (g.has("from")) gate.from = g.quantity("from", kPlain, Range{0.0, 1.0});
+    if (g.has("to")) gate.to = g.quantity("to", kPlain, Range{0.0, 1.0});
+    if (gate.to <= gate.from) g.fail("to", "must be above from (inspiration fractions, 0 exhalation to 1 full)");
+    nav.gate = gate;
+  }
   scene.navigator = nav;
 }
 

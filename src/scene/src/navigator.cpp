@@ -444,6 +444,13 @@ void NavigatorController::place_by_camera(double t, const Mat3& tip_frame, doubl
   m_guidance.push_back(std::move(g));
 }
 
+void NavigatorController::next_placement_after(double t) {
+  // One interval on; after a pause (a gated run's closed window), the first interval boundary past t.
+  do {
+    m_next_placement += m_nav.interval;
+  } while (m_next_placement <= t - 1e-12);
+}
+
 void NavigatorController::place(double t, const Vec3& tip, const Mat3& tip_frame, double length,
                                 std::vector<RunEvent>& events) {
   if (t < m_next_placement - 1e-12) return;
@@ -455,7 +462,7 @@ void NavigatorController::place(double t, const Vec3& tip, const Mat3& tip_frame
       events.push_back({t, length, EventKind::kWorkspace,
                         "the navigator's magnet overlaps the anatomy even at max_distance; placed there anyway"});
     }
-    m_next_placement += m_nav.interval;
+    next_placement_after(t);
     return;
   }
   m_pose = navigate(m_nav, m_path, tip, tip_frame, m_skin, t, m_scene.navigator_offset, m_line);
@@ -467,7 +474,7 @@ void NavigatorController::place(double t, const Vec3& tip, const Mat3& tip_frame
     events.push_back({t, length, EventKind::kWorkspace,
                       "the navigator's magnet overlaps the anatomy even at max_distance; placed there anyway"});
   }
-  m_next_placement += m_nav.interval;
+  next_placement_after(t);
 }
 
 void NavigatorController::regulate(double t, double length, int branch, bool reached, const Vec3& tip_read,

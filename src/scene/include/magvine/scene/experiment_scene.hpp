@@ -107,6 +107,16 @@ struct Navigator {
     bool frames = false;              ///< annotated frames of each choice between lumens (guidance/*.png)
   };
   std::optional<Camera> camera;
+  /// Gating to the breathing phase (control.navigator.gate; a scene with anatomy.breathing): the navigator lets the
+  /// vine grow and moves its magnet only while inspiration(t) lies in [from, to] (e.g. [0, 0.2]: near exhalation,
+  /// where Lujan's profile rests); outside, the tether holds the everted length and the magnet stays. A biopsy's
+  /// puncture starts inside the window.
+  struct Gate {
+    double from = 0.0;
+    double to = 1.0;
+    bool open(double inspiration) const { return inspiration >= from && inspiration <= to; }
+  };
+  std::optional<Gate> gate;
 };
 
 /// Seeded perturbations of `magvine trials` (the scene's optional `trials:` section; each trial draws its own

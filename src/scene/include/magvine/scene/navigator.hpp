@@ -96,6 +96,7 @@ class NavigatorController {
 
  private:
   bool keep_clear(const Vec3& tip);
+  void next_placement_after(double t);
   /// Camera guidance: the tip's arc length along the plan by dead reckoning (the base's, plus the everted length),
   /// the point there, and the branch of the plan there.
   double estimated_arc(double length) const { return m_base_arc + length; }
