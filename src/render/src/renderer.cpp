@@ -10,10 +10,12 @@
 #include <mutex>
 #include <opencv2/core.hpp>
 #include <random>
+#include <span>
 #include <string>
 #include <thread>
 
 #include "magvine/core/error.hpp"
+#include "magvine/core/text.hpp"
 #include "magvine/core/units.hpp"
 #include "magvine/core/usage.hpp"
 
@@ -157,9 +159,32 @@ void check_look(const EndoscopeLook& look) {
 
 }  // namespace
 
+namespace {
+
+/// Area-weighted unit vertex normals, 3 floats per vertex (UnitZ for a vertex of zero-area triangles only).
+std::vector<float> vertex_normals(std::span<const Vec3> vertices, const std::vector<anatomy::Triangle>& triangles) {
+  std::vector<Vec3> acc(vertices.size(), Vec3::Zero());
+  for (const anatomy::Triangle& t : triangles) {
+    const Vec3 a = (vertices[t[1]] - vertices[t[0]]).cross(vertices[t[2]] - vertices[t[0]]);  // area_vector
+    for (const std::uint32_t v : t) acc[v] += a;
+  }
+  std::vector<float> out(3 * acc.size());
+  for (std::size_t i = 0; i < acc.size(); ++i) {
+    const double n = acc[i].norm();
+    const Vec3 u = n > 0.0 ? Vec3(acc[i] / n) : Vec3::UnitZ();
+    for (int k = 0; k < 3; ++k) out[3 * i + static_cast<std::size_t>(k)] = static_cast<float>(u[k]);
+  }
+  return out;
+}
+
+}  // namespace
+
 struct AirwayRenderer::Impl {
   RTCDevice device = nullptr;
   RTCScene scene = nullptr;
+  RTCGeometry geometry = nullptr;            ///< the airway's triangles (owned by the scene)
+  float* vertices = nullptr;                 ///< its vertex buffer, 3 per vertex (Embree's)
+  bool refitting = false;                    ///< moved at least once: later commits refit the tree
   std::vector<float> normals;                ///< 3 per vertex, unit
   std::vector<anatomy::Triangle> triangles;  ///< for the normals' interpolation
   int threads = 1;
@@ -203,26 +228,44 @@ AirwayRenderer::AirwayRenderer(const anatomy::TriangleMesh& mesh, int threads) :
   for (std::size_t i = 0; i < mesh.vertices.size(); ++i) {
     for (int k = 0; k < 3; ++k) v[3 * i + static_cast<std::size_t>(k)] = static_cast<float>(mesh.vertices[i][k]);
   }
-  std::vector<Vec3> acc(mesh.vertices.size(), Vec3::Zero());
   for (std::size_t t = 0; t < mesh.triangles.size(); ++t) {
-    const Vec3 a = anatomy::area_vector(mesh, t);  // area-weighted vertex normals
     for (int k = 0; k < 3; ++k) {
       f[3 * t + static_cast<std::size_t>(k)] = mesh.triangles[t][static_cast<std::size_t>(k)];
-      acc[mesh.triangles[t][static_cast<std::size_t>(k)]] += a;
     }
   }
-  s.normals.resize(3 * acc.size());
-  for (std::size_t i = 0; i < acc.size(); ++i) {
-    const double n = acc[i].norm();
-    const Vec3 u = n > 0.0 ? Vec3(acc[i] / n) : Vec3::UnitZ();
-    for (int k = 0; k < 3; ++k) s.normals[3 * i + static_cast<std::size_t>(k)] = static_cast<float>(u[k]);
-  }
+  s.normals = vertex_normals(mesh.vertices, mesh.triangles);
   s.triangles = mesh.triangles;
+  s.geometry = geom;
+  s.vertices = v;
   rtcCommitGeometry(geom);
   rtcAttachGeometry(s.scene, geom);
-  rtcReleaseGeometry(geom);
+  rtcReleaseGeometry(geom);  // the scene holds it
   rtcCommitScene(s.scene);
   if (rtcGetDeviceError(s.device) != RTC_ERROR_NONE) embree_failure(s.device, "build the airway's BVH");
+}
+
+void AirwayRenderer::move(std::span<const Vec3> vertices) {
+  Impl& s = *m_impl;
+  const std::size_t n = s.normals.size() / 3;
+  if (vertices.size() != n) {
+    throw InputError("render", 0, "vertices", printf_string("%zu vertices for an airway of %zu", vertices.size(), n));
+  }
+  for (const Vec3& x : vertices) {
+    if (!x.allFinite()) throw InputError("render", 0, "vertices", "a moved vertex is not finite");
+  }
+  if (!s.refitting) {
+    // From now on each commit refits the tree built on the first shape (Embree's refit keeps its topology).
+    rtcSetGeometryBuildQuality(s.geometry, RTC_BUILD_QUALITY_REFIT);
+    s.refitting = true;
+  }
+  for (std::size_t i = 0; i < n; ++i) {
+    for (int k = 0; k < 3; ++k) s.vertices[3 * i + static_cast<std::size_t>(k)] = static_cast<float>(vertices[i][k]);
+  }
+  s.normals = vertex_normals(vertices, s.triangles);
+  rtcUpdateGeometryBuffer(s.geometry, RTC_BUFFER_TYPE_VERTEX, 0);
+  rtcCommitGeometry(s.geometry);
+  rtcCommitScene(s.scene);
+  if (rtcGetDeviceError(s.device) != RTC_ERROR_NONE) embree_failure(s.device, "refit the airway's BVH");
 }
 
 AirwayRenderer::~AirwayRenderer() = default;

@@ -15,6 +15,7 @@
 #include <system_error>
 #include <thread>
 
+#include "magvine/anatomy/breathing.hpp"
 #include "magvine/core/atomic_file.hpp"
 #include "magvine/core/error.hpp"
 #include "magvine/render/lumen.hpp"
@@ -123,7 +124,28 @@ std::string experiment_videos(const ExperimentScene& scene, const ExperimentResu
   if (scene.videos.empty() || result.frames.empty())
     return nlohmann::json{{"videos", entries}, {"renderers", 0}}.dump();
   const int threads = static_cast<int>(std::clamp(std::thread::hardware_concurrency(), 1u, 8u));
-  const render::AirwayRenderer renderer(scene.anatomy->mesh(), threads);
+  render::AirwayRenderer renderer(scene.anatomy->mesh(), threads);
+  // A breathing airway (anatomy.breathing) is drawn in its shape at each frame's time: the renderer's vertices moved
+  // by the displacement field (each vertex's amplitude kept, the phase once a frame).
+  std::vector<double> amplitudes;
+  std::vector<Vec3> moved;
+  double shape_time = 0.0;  // the time the renderer's shape is at (the rest shape: inspiration 1, t = 0)
+  if (scene.breathing) {
+    for (const Vec3& x : scene.anatomy->mesh().vertices) {
+      amplitudes.push_back(anatomy::breathing_amplitude(*scene.breathing, x));
+    }
+    moved.resize(amplitudes.size());
+  }
+  const auto shape_at = [&](double t) {
+    if (!scene.breathing || t == shape_time) return;
+    const std::vector<Vec3>& rest = scene.anatomy->mesh().vertices;
+    const double phase = anatomy::inspiration(*scene.breathing, t);
+    for (std::size_t i = 0; i < rest.size(); ++i) {
+      moved[i] = rest[i] + anatomy::breathing_displacement(*scene.breathing, amplitudes[i], phase);
+    }
+    renderer.move(moved);
+    shape_time = t;
+  };
   create_output_directory(dir);
   const double last = result.frames.back().time;
   const std::vector<render::OverviewMesh> platform_meshes =
@@ -190,6 +212,7 @@ std::string experiment_videos(const ExperimentScene& scene, const ExperimentResu
       if (t > last + 1e-9) break;
       while (j + 1 < result.frames.size() && result.frames[j].time < t - 1e-9) ++j;
       const FrameSample& f = result.frames[j];
+      shape_at(f.time);
       cv::Mat image;
       if (tip) {
         const render::EndoscopeFrame e =
@@ -203,6 +226,14 @@ std::string experiment_videos(const ExperimentScene& scene, const ExperimentResu
         content.target = scene.target;
         content.target_radius = std::max(scene.target_tolerance, 1e-3);
         content.path = in.planned_path;
+        if (scene.breathing) {
+          // The target and the planned path ride with the airway, as the wall does.
+          const auto carried = [&](const Vec3& x) {
+            return Vec3(x + anatomy::breathing_displacement(*scene.breathing, x, f.time));
+          };
+          if (content.target) content.target = carried(*content.target);
+          for (Vec3& x : content.path) x = carried(x);
+        }
         for (std::size_t i = 0; i < f.magnet_positions.size(); ++i) {
           content.magnets.push_back({f.magnet_positions[i], f.magnet_axes[i],
                                      i < in.magnet_diameters.size() ? in.magnet_diameters[i] : 0.0,

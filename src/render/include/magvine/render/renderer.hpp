@@ -16,6 +16,7 @@
 #include <memory>
 #include <opencv2/core/mat.hpp>
 #include <optional>
+#include <span>
 #include <utility>
 #include <vector>
 
@@ -115,6 +116,12 @@ class AirwayRenderer {
   /// (green ball) and the planned path (yellow). Headlight shading. CV_8UC3, BGR.
   cv::Mat render_overview(const Camera& camera, const OverviewContent& content,
                           const OverviewLook& look = OverviewLook{}) const;
+
+  /// Moves the airway's vertices (as many as the mesh has, same triangles; a breathing airway's shape at a frame's
+  /// time): the vertex normals follow, and Embree refits its tree (built on the first shape) instead of rebuilding
+  /// it. Not thread-safe against renders running at the same time. InputError for a wrong count or a non-finite
+  /// vertex.
+  void move(std::span<const Vec3> vertices);
 
   std::size_t triangle_count() const;
   int threads() const;
