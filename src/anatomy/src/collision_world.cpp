@@ -99,7 +99,7 @@ static_assert(sizeof(SlotScreen) == 80, "four lanes of four floats and the slack
 
 struct Tables;
 /// The slow path of Tables::ensure: brings a stale slot's records up to date, or waits while another query does.
-void refresh_or_wait(const Tables& w, std::uint32_t slot);
+void refresh_or_wait(const Tables& w, std::uint32_t slot) noexcept;
 
 /// A slot's state while one query fills its records after a refit (Tables::current).
 constexpr std::uint32_t kBusy = std::numeric_limits<std::uint32_t>::max();
@@ -830,7 +830,7 @@ void fill_screen(Tables& w, std::size_t slot) {
 /// A slot's records for its triangle's current corners (after a refit): the normal from the moved vertices, the
 /// bends across the build's edge topology (an edge whose neighbour has become degenerate is a boundary), the arcs and
 /// the screen. The same laws as the build's, so the records equal a fresh build's on the moved mesh.
-void refresh_slot(Tables& w, std::uint32_t slot) {
+void refresh_slot(Tables& w, std::uint32_t slot) noexcept {
   const std::uint32_t t = w.data[slot].triangle;
   const Triangle& tri = w.triangles[t];
   const Vec3 nt = triangle_unit_normal(w.vertices[tri[0]], w.vertices[tri[1]], w.vertices[tri[2]]);
@@ -849,7 +849,7 @@ void refresh_slot(Tables& w, std::uint32_t slot) {
   fill_screen(w, slot);
 }
 
-void refresh_or_wait(const Tables& w, std::uint32_t slot) {
+void refresh_or_wait(const Tables& w, std::uint32_t slot) noexcept {
   std::atomic<std::uint32_t>& state = w.current[slot];
   std::uint32_t seen = state.load(std::memory_order_acquire);
   while (seen != w.version) {
@@ -944,9 +944,13 @@ void CollisionWorld::refit(std::span<const Vec3> vertices) {
   for (const Vec3& v : vertices) {
     if (!v.allFinite()) throw InputError("collision world refit: a vertex is not finite");
   }
+  // What may allocate comes first, so that nothing below can throw with the world half moved.
+  Tables& w = m.tables;
+  const std::size_t n = w.data.size();
+  if (!w.current) w.current = std::make_unique<std::atomic<std::uint32_t>[]>(n);  // every slot stale (0)
+  m.bvh->prepare_refit(w.slot_corners);
   // The vertices and the mesh's box; the corners in slot order and their box; the BVH's boxes; the screen frame.
   // The slots' records follow lazily, each at the first query that reads it (Tables::ensure).
-  Tables& w = m.tables;
   Vec3 lo = Vec3::Constant(std::numeric_limits<double>::infinity());
   Vec3 hi = -lo;
   for (std::size_t i = 0; i < vertices.size(); ++i) {
@@ -964,12 +968,10 @@ void CollisionWorld::refit(std::span<const Vec3> vertices) {
     lo = lo.cwiseMin(v);
     hi = hi.cwiseMax(v);
   }
-  m.bvh->refit(w.points, w.slot_corners, lo, hi);
+  m.bvh->refit(w.points, lo, hi);
   set_screen_frame(w);
-  const std::size_t n = w.data.size();
-  if (!w.current || w.version + 1 == kBusy) {
-    // First refit (or the versions ran out): every slot stale.
-    if (!w.current) w.current = std::make_unique<std::atomic<std::uint32_t>[]>(n);
+  if (w.version + 1 == kBusy) {
+    // The versions ran out (after 2^32 − 2 refits): every slot stale again.
     for (std::size_t slot = 0; slot < n; ++slot) w.current[slot].store(0, std::memory_order_relaxed);
     w.version = 0;
   }

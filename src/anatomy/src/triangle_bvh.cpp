@@ -8,6 +8,7 @@
 #include <memory>
 #include <string>
 
+#include "magvine/core/check.hpp"
 #include "magvine/core/error.hpp"
 
 namespace magvine::anatomy::detail {
@@ -213,29 +214,32 @@ TriangleBvh::TriangleBvh(std::span<const Vec3> vertices, std::span<const Triangl
   if (m_order.size() != triangles.size()) fail(device.get(), "the BVH lost triangles");
 }
 
-void TriangleBvh::refit(std::span<const Vec3> points, std::span<const std::array<std::uint32_t, 3>> corners,
-                        const Vec3& lo, const Vec3& hi) {
-  const double pad = kBoxPad * (hi - lo).norm();
-  if (m_leaf_range.empty()) {
-    // Each leaf child's distinct corners, once (the tree and the corners' indices never change).
-    m_leaf_range.assign(4 * m_nodes.size(), {0, 0});
-    for (std::size_t i = 0; i < m_nodes.size(); ++i) {
-      for (std::size_t k = 0; k < 4; ++k) {
-        const std::uint32_t c = m_nodes[i].child[k];
-        if ((c & kLeafBit) == 0) continue;
-        const std::uint32_t first = (c & ~kLeafBit) >> 4;
-        const auto begin = static_cast<std::uint32_t>(m_leaf_points.size());
-        for (std::uint32_t slot = first; slot < first + (c & 0xFu); ++slot) {
-          for (const std::uint32_t v : corners[slot]) {
-            if (std::find(m_leaf_points.begin() + begin, m_leaf_points.end(), v) == m_leaf_points.end()) {
-              m_leaf_points.push_back(v);
-            }
-          }
+void TriangleBvh::prepare_refit(std::span<const std::array<std::uint32_t, 3>> corners) {
+  if (!m_leaf_range.empty()) return;
+  // Each leaf child's distinct corners, once (the tree and the corners' indices never change).
+  std::vector<std::uint32_t> points;
+  std::vector<std::array<std::uint32_t, 2>> range(4 * m_nodes.size(), {0, 0});
+  for (std::size_t i = 0; i < m_nodes.size(); ++i) {
+    for (std::size_t k = 0; k < 4; ++k) {
+      const std::uint32_t c = m_nodes[i].child[k];
+      if ((c & kLeafBit) == 0) continue;
+      const std::uint32_t first = (c & ~kLeafBit) >> 4;
+      const auto begin = static_cast<std::uint32_t>(points.size());
+      for (std::uint32_t slot = first; slot < first + (c & 0xFu); ++slot) {
+        for (const std::uint32_t v : corners[slot]) {
+          if (std::find(points.begin() + begin, points.end(), v) == points.end()) points.push_back(v);
         }
-        m_leaf_range[4 * i + k] = {begin, static_cast<std::uint32_t>(m_leaf_points.size())};
       }
+      range[4 * i + k] = {begin, static_cast<std::uint32_t>(points.size())};
     }
   }
+  m_leaf_points = std::move(points);
+  m_leaf_range = std::move(range);
+}
+
+void TriangleBvh::refit(std::span<const Vec3> points, const Vec3& lo, const Vec3& hi) {
+  MAGVINE_ASSERT(m_leaf_range.size() == 4 * m_nodes.size());
+  const double pad = kBoxPad * (hi - lo).norm();
   // Children come after their parents (the flattening appends a node before its subtree): from the last node back,
   // every inner child's box is its node's union, already refitted.
   for (std::size_t i = m_nodes.size(); i-- > 0;) {

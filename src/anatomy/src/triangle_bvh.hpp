@@ -49,12 +49,14 @@ class TriangleBvh {
   /// more than 2^27 triangles (the slot field of a leaf).
   TriangleBvh(std::span<const Vec3> vertices, std::span<const Triangle> triangles);
 
-  /// Recomputes every box bottom-up for moved corners, keeping the tree (its nodes, leaves and slot order), with the
-  /// build's padding and outward rounding. `corners[slot]` indexes the slot's triangle's corners in `points` (the
-  /// slots in leaf order; the same every call: the first keeps each leaf's distinct corners); [lo, hi] is the box of
-  /// every corner.
-  void refit(std::span<const Vec3> points, std::span<const std::array<std::uint32_t, 3>> corners, const Vec3& lo,
-             const Vec3& hi);
+  /// Readies refit (once; later calls return at once): each leaf child's distinct corners, from `corners[slot]`,
+  /// the slot's triangle's corners as indices into the points refit will be given (slots in leaf order). The only
+  /// part of a refit that allocates.
+  void prepare_refit(std::span<const std::array<std::uint32_t, 3>> corners);
+
+  /// Recomputes every box bottom-up for moved corners `points` (prepare_refit first), keeping the tree (its nodes,
+  /// leaves and slot order), with the build's padding and outward rounding; [lo, hi] is the box of every corner.
+  void refit(std::span<const Vec3> points, const Vec3& lo, const Vec3& hi);
 
   /// slot → triangle index: leaves are contiguous runs of slots.
   std::span<const std::uint32_t> order() const { return m_order; }

@@ -235,10 +235,12 @@ class CollisionWorld {
   /// as the motion departs from a smooth one); each triangle's records (plane, edge bends across the build's edge
   /// topology, screen) are recomputed by the first query that reads them, by the build's own laws, so a refitted
   /// world answers as one built on the moved mesh and a refit costs the boxes alone (a body touches a small part of
-  /// an airway). Lazy filling is safe under concurrent queries (a per-triangle claim). stats() keeps the build's
-  /// edge and degeneracy counts. Caches filled before (NearCache, ContactCache) refill at their next query. Not
-  /// thread-safe against queries running at the same time. Throws InputError for a wrong count or a non-finite
-  /// vertex.
+  /// an airway). One limit: the edge topology and the vertex→triangle lists are the build's, so a triangle that
+  /// was degenerate (zero area) at the build stays nobody's neighbour, and one that becomes degenerate turns its
+  /// neighbours' shared edges into boundaries, where a fresh build might pair them differently. Lazy filling is safe
+  /// under concurrent queries (a per-triangle claim). stats() keeps the build's edge and degeneracy counts. Caches
+  /// filled before (NearCache, ContactCache) refill at their next query. Not thread-safe against queries running at the
+  /// same time. Throws InputError for a wrong count or a non-finite vertex.
   void refit(std::span<const Vec3> vertices);
 
   /// The world's own copy of the mesh [m].
