@@ -41,4 +41,18 @@ Vec3 breathing_displacement(const BreathingParams& p, double amplitude, double i
   return amplitude * (1.0 - inspiration) * p.superior;
 }
 
+std::vector<double> breathing_amplitudes(const BreathingParams& p, std::span<const Vec3> rest) {
+  std::vector<double> out;
+  out.reserve(rest.size());
+  for (const Vec3& x : rest) out.push_back(breathing_amplitude(p, x));
+  return out;
+}
+
+void breathing_vertices(const BreathingParams& p, std::span<const Vec3> rest, std::span<const double> amplitudes,
+                        double time, std::vector<Vec3>& out) {
+  const double phase = inspiration(p, time);
+  out.resize(rest.size());
+  for (std::size_t i = 0; i < rest.size(); ++i) out[i] = rest[i] + breathing_displacement(p, amplitudes[i], phase);
+}
+
 }  // namespace magvine::anatomy

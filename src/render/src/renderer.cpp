@@ -253,6 +253,7 @@ void AirwayRenderer::move(std::span<const Vec3> vertices) {
   for (const Vec3& x : vertices) {
     if (!x.allFinite()) throw InputError("render", 0, "vertices", "a moved vertex is not finite");
   }
+  std::vector<float> normals = vertex_normals(vertices, s.triangles);  // what may throw, before anything changes
   if (!s.refitting) {
     // From now on each commit refits the tree built on the first shape (Embree's refit keeps its topology).
     rtcSetGeometryBuildQuality(s.geometry, RTC_BUILD_QUALITY_REFIT);
@@ -261,7 +262,7 @@ void AirwayRenderer::move(std::span<const Vec3> vertices) {
   for (std::size_t i = 0; i < n; ++i) {
     for (int k = 0; k < 3; ++k) s.vertices[3 * i + static_cast<std::size_t>(k)] = static_cast<float>(vertices[i][k]);
   }
-  s.normals = vertex_normals(vertices, s.triangles);
+  s.normals = std::move(normals);
   rtcUpdateGeometryBuffer(s.geometry, RTC_BUFFER_TYPE_VERTEX, 0);
   rtcCommitGeometry(s.geometry);
   rtcCommitScene(s.scene);

@@ -130,19 +130,10 @@ std::string experiment_videos(const ExperimentScene& scene, const ExperimentResu
   std::vector<double> amplitudes;
   std::vector<Vec3> moved;
   double shape_time = 0.0;  // the time the renderer's shape is at (the rest shape: inspiration 1, t = 0)
-  if (scene.breathing) {
-    for (const Vec3& x : scene.anatomy->mesh().vertices) {
-      amplitudes.push_back(anatomy::breathing_amplitude(*scene.breathing, x));
-    }
-    moved.resize(amplitudes.size());
-  }
+  if (scene.breathing) amplitudes = anatomy::breathing_amplitudes(*scene.breathing, scene.anatomy->mesh().vertices);
   const auto shape_at = [&](double t) {
     if (!scene.breathing || t == shape_time) return;
-    const std::vector<Vec3>& rest = scene.anatomy->mesh().vertices;
-    const double phase = anatomy::inspiration(*scene.breathing, t);
-    for (std::size_t i = 0; i < rest.size(); ++i) {
-      moved[i] = rest[i] + anatomy::breathing_displacement(*scene.breathing, amplitudes[i], phase);
-    }
+    anatomy::breathing_vertices(*scene.breathing, scene.anatomy->mesh().vertices, amplitudes, t, moved);
     renderer.move(moved);
     shape_time = t;
   };

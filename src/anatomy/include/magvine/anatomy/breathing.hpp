@@ -21,6 +21,9 @@
 /// those sources: 80 mm below the carina is an assumption (the basal segmental bronchi of an adult lie 60–100 mm
 /// below the carina).
 
+#include <span>
+#include <vector>
+
 #include "magvine/core/eigen_types.hpp"
 
 namespace magvine::anatomy {
@@ -50,5 +53,11 @@ Vec3 breathing_displacement(const BreathingParams& params, const Vec3& x, double
 /// The same law from a point's amplitude A(x) (breathing_amplitude, time-independent: a moving mesh keeps its
 /// vertices') and the phase's inspiration(t): u = A·(1 − inspiration)·ŝ.
 Vec3 breathing_displacement(const BreathingParams& params, double amplitude, double inspiration);
+
+/// Each rest vertex's amplitude, for moving a mesh at every step or frame (breathing_vertices).
+std::vector<double> breathing_amplitudes(const BreathingParams& params, std::span<const Vec3> rest);
+/// The mesh's vertices at `time`: rest + u, from the amplitudes (the phase evaluated once); `out` resized.
+void breathing_vertices(const BreathingParams& params, std::span<const Vec3> rest, std::span<const double> amplitudes,
+                        double time, std::vector<Vec3>& out);
 
 }  // namespace magvine::anatomy
