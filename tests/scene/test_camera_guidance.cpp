@@ -81,8 +81,9 @@ TEST(CameraGuidance, APlacementDoesNotReadTheTipsPosition) {
   const Mat3 frame = scene.base_frame;
   const double nan = std::numeric_limits<double>::quiet_NaN();
   for (const double length : {0.03, 0.09}) {
-    a.place(1.0 + length, Vec3(nan, nan, nan), frame, length, events);
-    b.place(1.0 + length, Vec3(0.05, -0.02, 0.3), frame, length, events);
+    const double t = 10.0 * length;  // 0.3 and 0.9 s: a placement each (every 0.1 s)
+    a.place(t, Vec3(nan, nan, nan), frame, length, events);
+    b.place(t, Vec3(0.05, -0.02, 0.3), frame, length, events);
     EXPECT_TRUE(a.pose().position.allFinite());
     EXPECT_EQ(a.pose().position, b.pose().position);
     EXPECT_EQ(a.pose().axis, b.pose().axis);

@@ -85,9 +85,7 @@ ExperimentResult run_experiment(const ExperimentScene& scene, const std::functio
   // Camera guidance: the tip camera (the video plugin's) shows the navigator the lumens from where the tip is.
   std::unique_ptr<TipEye> eye;
   const robot::GrowthState* seen_state = nullptr;  // the state the eye looks from (set once the growth starts)
-  std::vector<Vec3> plan;                          // the planned path, for the report beside each placement
-  if (scene.navigator && scene.navigator->camera) plan = planned_path(*anatomy.graph, scene.navigator->target_branch);
-  std::vector<RunEvent> navigator_events;  // merged with the growth's at the end
+  std::vector<RunEvent> navigator_events;          // merged with the growth's at the end
   std::vector<magnetics::Pose> poses;
   const auto record_magnets = [&](double t) {
     for (std::size_t i = 0; i < poses.size(); ++i) {
@@ -212,8 +210,7 @@ ExperimentResult run_experiment(const ExperimentScene& scene, const std::functio
   if (scene.breathing) {
     breathing_world.emplace(anatomy.mesh(), anatomy.world.options());
     rest_vertices = anatomy.mesh().vertices;
-    for (const Vec3& x : rest_vertices) amplitudes.push_back(anatomy::breathing_amplitude(*scene.breathing, x));
-    moved_vertices.resize(rest_vertices.size());
+    amplitudes = anatomy::breathing_amplitudes(*scene.breathing, rest_vertices);
   }
   const auto displacement = [&](const Vec3& x, double t) {
     return scene.breathing ? anatomy::breathing_displacement(*scene.breathing, x, t) : Vec3::Zero();
@@ -306,7 +303,8 @@ ExperimentResult run_experiment(const ExperimentScene& scene, const std::functio
   for (long k = 1; k <= steps; ++k) {
     const double t = std::min(scene.duration, static_cast<double>(k) * scene.dt);
     const double dt = t - state.time;
-    // Gating (Navigator::Gate): outside the phase window the navigator holds the vine and its magnet.
+    // Gating (Navigator::Gate): outside the phase window the navigator neither places its magnet nor regulates, and
+    // the tether holds the vine.
     const bool open = !(scene.navigator && scene.navigator->gate) ||
                       scene.navigator->gate->open(anatomy::inspiration(*scene.breathing, t));
     if (navigator && !aim_until && open) {
@@ -318,8 +316,8 @@ ExperimentResult run_experiment(const ExperimentScene& scene, const std::functio
       if (navigator->guidance().size() > looked) {
         // The truth beside a camera-guided placement, for the report.
         GuidanceSample& g = navigator->guidance().back();
-        const Vec3 tip = state.body.tip();
-        g.true_arc = arc_length_of_nearest(plan, tip);
+        const Vec3 tip = at_rest(state.body.tip(), state.time);  // in the plan's (rest) frame, as the oracle reads it
+        g.true_arc = arc_length_of_nearest(navigator->path(), tip);
         const Vec3 oracle = navigator->oracle_line(tip, state.body.frames.back());
         g.line_error = std::acos(std::clamp(oracle.dot(g.line), -1.0, 1.0));
         if (scene.navigator->camera->frames && g.lumens > 1) g.picture = eye->picture(g.chosen);
@@ -363,18 +361,17 @@ ExperimentResult run_experiment(const ExperimentScene& scene, const std::functio
     control.pressure = scene.pressure.at(t);
     if (scene.tether) control.tether_length = scene.tether->at(t);
     if (!open) control.tether_length = std::min(control.tether_length, workspace.body.length);
-    if (navigator && !aim_until) {
+    if (navigator && !aim_until && open) {
       const int branch = out.samples.empty() ? -1 : out.samples.back().branch;
       navigator->regulate(t, workspace.body.length, branch, out.success, at_rest(state.body.tip(), state.time), control,
                           navigator_events);
+    } else if (navigator && !aim_until) {
+      navigator->pause(t, workspace.body.length);  // gated: no boost, deflation or recovery while the tether holds
     }
     if (breathing_world) {
       // The airway moves to its shape at t, and carries the body and the material laid on its wall with it (the
       // displacement's change where each point is; the clamp, at the fixed entry, stays).
-      const double phase = anatomy::inspiration(*scene.breathing, t);
-      for (std::size_t i = 0; i < rest_vertices.size(); ++i) {
-        moved_vertices[i] = rest_vertices[i] + anatomy::breathing_displacement(*scene.breathing, amplitudes[i], phase);
-      }
+      anatomy::breathing_vertices(*scene.breathing, rest_vertices, amplitudes, t, moved_vertices);
       breathing_world->refit(moved_vertices);
       const auto carry = [&](Vec3& x) {
         if (!x.allFinite()) return;

@@ -454,22 +454,21 @@ void NavigatorController::next_placement_after(double t) {
 void NavigatorController::place(double t, const Vec3& tip, const Mat3& tip_frame, double length,
                                 std::vector<RunEvent>& events) {
   if (t < m_next_placement - 1e-12) return;
+  bool clear = true;
   if (m_look) {
     // Camera-guided: the tip's position is not read (its estimate along the plan stands in for it).
     place_by_camera(t, tip_frame, length);
-    if (!keep_clear(point_at_arc_length(m_path, estimated_arc(length))) && !m_workspace_warned) {
-      m_workspace_warned = true;
-      events.push_back({t, length, EventKind::kWorkspace,
-                        "the navigator's magnet overlaps the anatomy even at max_distance; placed there anyway"});
+    clear = keep_clear(point_at_arc_length(m_path, estimated_arc(length)));
+  } else {
+    m_pose = navigate(m_nav, m_path, tip, tip_frame, m_skin, t, m_scene.navigator_offset, m_line);
+    if (m_platform != nullptr) {
+      for (HeldMagnet& h : m_held) place_with_arm(h, t, tip, tip_frame, length, events);
+      m_pose = m_held.front().placement;
+    } else {
+      clear = keep_clear(tip);
     }
-    next_placement_after(t);
-    return;
   }
-  m_pose = navigate(m_nav, m_path, tip, tip_frame, m_skin, t, m_scene.navigator_offset, m_line);
-  if (m_platform != nullptr) {
-    for (HeldMagnet& h : m_held) place_with_arm(h, t, tip, tip_frame, length, events);
-    m_pose = m_held.front().placement;
-  } else if (!keep_clear(tip) && !m_workspace_warned) {
+  if (!clear && !m_workspace_warned) {
     m_workspace_warned = true;
     events.push_back({t, length, EventKind::kWorkspace,
                       "the navigator's magnet overlaps the anatomy even at max_distance; placed there anyway"});
@@ -477,11 +476,20 @@ void NavigatorController::place(double t, const Vec3& tip, const Mat3& tip_frame
   next_placement_after(t);
 }
 
+void NavigatorController::pause(double t, double length) {
+  m_grown_length = length;
+  m_grown_at = t;
+}
+
 void NavigatorController::regulate(double t, double length, int branch, bool reached, const Vec3& tip_read,
                                    robot::GrowthControl& control, std::vector<RunEvent>& events) {
   const anatomy::AirwayGraph& graph = *m_scene.anatomy->graph;
-  // Camera-guided: the branch and the tip are the dead reckoning's (a wrong turn is not seen; a held tip is).
-  if (m_look) branch = estimated_branch(length);
+  // Camera-guided: the branch, the tip and whether the target is reached are the dead reckoning's (a wrong turn is
+  // not seen; a held tip is).
+  if (m_look) {
+    branch = estimated_branch(length);
+    reached = estimated_arc(length) >= m_branch_end.back();
+  }
   const Vec3 tip = m_look ? point_at_arc_length(m_path, estimated_arc(length)) : tip_read;
   // Held (the boost's and the recovery's test): the length has not changed since m_grown_at, and no tether or made
   // length caps it.

@@ -107,10 +107,10 @@ struct Navigator {
     bool frames = false;              ///< annotated frames of each choice between lumens (guidance/*.png)
   };
   std::optional<Camera> camera;
-  /// Gating to the breathing phase (control.navigator.gate; a scene with anatomy.breathing): the navigator lets the
-  /// vine grow and moves its magnet only while inspiration(t) lies in [from, to] (e.g. [0, 0.2]: near exhalation,
-  /// where Lujan's profile rests); outside, the tether holds the everted length and the magnet stays. A biopsy's
-  /// puncture starts inside the window.
+  /// Gating to the breathing phase (control.navigator.gate; a scene with anatomy.breathing): the navigator places
+  /// its magnet and regulates only while inspiration(t) lies in [from, to] (e.g. [0, 0.2]: near exhalation, where
+  /// Lujan's profile rests); outside, the tether holds the everted length and the magnet rides with the airway. A
+  /// biopsy's puncture starts inside the window (unless the duration ends first).
   struct Gate {
     double from = 0.0;
     double to = 1.0;

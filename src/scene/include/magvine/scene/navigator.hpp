@@ -69,6 +69,13 @@ class NavigatorController {
   void regulate(double t, double length, int branch, bool reached, const Vec3& tip, robot::GrowthControl& control,
                 std::vector<RunEvent>& events);
 
+  /// A gated step outside its window (Navigator::Gate): nothing is regulated, and the time held does not count
+  /// towards a boost or a recovery.
+  void pause(double t, double length);
+
+  /// The planned path (the plan's centrelines joined) [m].
+  const std::vector<Vec3>& path() const { return m_path; }
+
   /// Places its magnet through an arm of the platform from now on (when an arm holds it): each placement then
   /// chooses among the lines round its ideal one the best that the arm reaches clear of the patient (a feasible
   /// placement, docs/platform.md) and sets the arm's goal. Places it now, from the tip at time t.
