@@ -396,6 +396,8 @@ TEST(Lumen, BadFramesAndSettingsAreRefused) {
   LumenSettings s;
   s.levels = {1.5};
   EXPECT_THROW(detect_lumens(cv::Mat(8, 8, CV_8UC3, cv::Scalar(0, 0, 0)), cam, s), InputError);
+  s.levels = {0.3, 0.1};  // the lowest level wins ties: they must ascend
+  EXPECT_THROW(detect_lumens(cv::Mat(8, 8, CV_8UC3, cv::Scalar(0, 0, 0)), cam, s), InputError);
   // A black frame has no lumen to tell from the wall.
   EXPECT_TRUE(detect_lumens(cv::Mat(8, 8, CV_8UC3, cv::Scalar(0, 0, 0)), cam).empty());
 }

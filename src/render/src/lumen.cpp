@@ -18,8 +18,10 @@ void check(const cv::Mat& image, const LumenSettings& s) {
   }
   if (!(s.blur > 0.0 && s.blur <= 0.5)) throw InputError("lumen detection", 0, "blur", "must lie in (0, 0.5]");
   if (s.levels.empty()) throw InputError("lumen detection", 0, "levels", "needs at least one threshold");
-  for (const double f : s.levels) {
+  for (std::size_t k = 0; k < s.levels.size(); ++k) {
+    const double f = s.levels[k];
     if (!(f > 0.0 && f < 1.0)) throw InputError("lumen detection", 0, "levels", "each must lie in (0, 1)");
+    if (k > 0 && !(f > s.levels[k - 1])) throw InputError("lumen detection", 0, "levels", "must ascend");
   }
   if (!(s.min_area > 0.0 && s.min_area < 1.0)) {
     throw InputError("lumen detection", 0, "min_area", "must lie in (0, 1)");

@@ -1,8 +1,10 @@
 #include <algorithm>
+#include <array>
 #include <cmath>
 #include <nlohmann/json.hpp>
 #include <optional>
 #include <sstream>
+#include <system_error>
 
 #include "experiment_internal.hpp"
 #include "failed_run.hpp"
@@ -86,6 +88,18 @@ std::string failure_reason(const ExperimentResult& result, const RunFigures& fig
 }
 
 }  // namespace detail
+
+namespace {
+
+/// Every file and folder a run of an experiment may write besides metrics.json (docs/cli.md, magvine run).
+constexpr std::array<const char*, 18> kRunOutputs = {"tip_trajectory.csv", "shape.csv",       "shapes.csv",
+                                                     "events.json",        "puncture.csv",    "guidance.csv",
+                                                     "guidance",           "graph.json",      "magnet_trajectory.csv",
+                                                     "arms.csv",           "tip.mp4",         "tip.avi",
+                                                     "overview.mp4",       "overview.avi",    "tip_frames",
+                                                     "tip_depth",          "overview_frames", "overview_depth"};
+
+}  // namespace
 
 void write_experiment_outputs(const ExperimentScene& scene, const ExperimentResult& result,
                               const std::filesystem::path& dir) {
@@ -248,10 +262,7 @@ void write_experiment_outputs(const ExperimentScene& scene, const ExperimentResu
   if (!result.converged) {
     // A failed run (its last step has no equilibrium) leaves its metrics.json only (docs/cli.md: failed runs).
     if (!scene.videos.empty()) j["videos"] = nlohmann::json::array();
-    detail::write_failed_run(dir, j,
-                             {"tip_trajectory.csv", "shape.csv", "shapes.csv", "events.json", "puncture.csv",
-                              "guidance.csv", "guidance", "graph.json", "magnet_trajectory.csv", "arms.csv", "tip.mp4",
-                              "tip.avi", "overview.mp4", "overview.avi", "tip_frames", "tip_depth", "overview_frames"});
+    detail::write_failed_run(dir, j, kRunOutputs);
     return;
   }
   std::ostringstream tips;
@@ -287,6 +298,11 @@ void write_experiment_outputs(const ExperimentScene& scene, const ExperimentResu
   }
 
   create_output_directory(dir);
+  // What an earlier run left in this folder goes: every file here is this run's.
+  for (const char* name : kRunOutputs) {
+    std::error_code ec;
+    std::filesystem::remove_all(dir / name, ec);
+  }
   write_file_atomically(dir / "tip_trajectory.csv", tips.str());
   write_file_atomically(dir / "shape.csv", shape.str());
   if (scene.shape_interval > 0.0) {

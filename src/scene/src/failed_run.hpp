@@ -3,8 +3,8 @@
 // metrics.json (free space, experiments, MPM). Private to the scene module.
 
 #include <filesystem>
-#include <initializer_list>
 #include <nlohmann/json.hpp>
+#include <span>
 #include <system_error>
 
 #include "magvine/core/atomic_file.hpp"
@@ -16,7 +16,7 @@ namespace magvine::scene::detail {
 /// other files and folders a successful run of this kind writes, removed where an earlier run into `dir` left them
 /// (so that nothing in dir looks like this run's but its metrics).
 inline void write_failed_run(const std::filesystem::path& dir, const nlohmann::json& metrics,
-                             std::initializer_list<const char*> stale = {}) {
+                             std::span<const char* const> stale = {}) {
   create_output_directory(dir);
   for (const char* name : stale) {
     std::error_code ec;

@@ -25,7 +25,7 @@ namespace magvine::render {
 
 struct LumenSettings {
   double blur = 0.02;                                ///< Gaussian σ as a fraction of the image width
-  std::vector<double> levels{0.06, 0.12, 0.2, 0.3};  ///< threshold fractions of L95, tried in order
+  std::vector<double> levels{0.06, 0.12, 0.2, 0.3};  ///< threshold fractions of L95, ascending
   double min_area = 0.002;                           ///< smallest lumen, fraction of the image's pixels
 };
 
@@ -38,7 +38,7 @@ struct Lumen {
 
 /// The lumens of a frame (CV_8UC3 BGR, as render_endoscope gives it) taken by `camera`, largest first; empty when
 /// nothing is dark enough (the lens faces the wall). InputError for an empty or wrongly typed image, or settings out
-/// of range (blur in (0, 0.5], levels in (0, 1), min_area in (0, 1)).
+/// of range (blur in (0, 0.5], levels ascending in (0, 1), min_area in (0, 1)).
 std::vector<Lumen> detect_lumens(const cv::Mat& image, const Camera& camera,
                                  const LumenSettings& settings = LumenSettings{});
 
