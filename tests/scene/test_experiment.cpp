@@ -1280,24 +1280,17 @@ TEST(Experiment, ANavigatorTargetGivenAsAPointSnapsToTheNearestBranchAndTheMetri
 namespace magvine::scene {
 namespace {
 
-// anatomy.breathing: the vine rides the moving wall. The navigator steers the Ø5 mm fluid vine down the generated
-// tree's trachea (generation 1, meshed at 1.5 mm) into main bronchus 0-0, 35° off the vertical, the tether stopping
-// it 30 mm in; then the airway breathes (period 2 s, the carina 5 mm, the bronchus up to 7 mm): the bronchus moves
-// across its own axis and its wall pushes the body sideways. Every step converges and every node lies inside the
-// moved airway (a world built from scratch on the mesh at that time) at every recorded shape; tip_trajectory's phase
-// is Lujan's. (It passes without carrying the body by the displacement too, measured: the barrier shrinks a node's
-// contact radius to the room it finds, so a wall moving 0.2 mm in a step does not strand it; the carry keeps the
-// friction references on the material's wall point, so that breathing alone does not drag the wall along the body.)
-TEST(Experiment, BreathingCarriesTheVineWithTheWall) {
-  // The tree meshed coarser than a scene's phantom (1.5 mm, 40 k triangles) through its STL and graph files: the
-  // run refits it every step.
-  const std::filesystem::path dir = std::filesystem::temp_directory_path() / "magvine_breathing_test";
+/// The generated tree to generation 1 meshed coarser than a scene's phantom (1.5 mm, 40 k triangles), written to
+/// `dir` as tree.stl and tree.json (a run refits it every step), and the start of a scene on it: breathing with a
+/// 2 s period, the carina 5 mm; the Ø5 mm fluid vine down the trachea; the EPM. The caller adds control and
+/// simulation.
+std::string breathing_tree_scene(const std::filesystem::path& dir) {
   std::filesystem::create_directories(dir);
   const anatomy::Phantom tree =
       anatomy::make_bronchial_tree({.max_generation = 1, .clearance = 3e-3, .spacing = 1.5e-3});
   anatomy::write_stl(dir / "tree.stl", tree.mesh);
   anatomy::write_graph(dir / "tree.json", tree.graph);
-  const std::string text = R"(units: {length: mm, pressure: kPa}
+  return R"(units: {length: mm, pressure: kPa}
 anatomy:
   mesh: tree.stl
   graph: tree.json
@@ -1313,7 +1306,20 @@ robot:
 growth: {yield_pressure: 20}
 magnets:
   - {kind: cylinder, diameter: 101.6, length: 101.6, polarisation: 1.48, position: [0, -250, -100], axis: [0, 1, 0]}
-control:
+)";
+}
+
+// anatomy.breathing: the vine rides the moving wall. The navigator steers the Ø5 mm fluid vine down the generated
+// tree's trachea (generation 1, meshed at 1.5 mm) into main bronchus 0-0, 35° off the vertical, the tether stopping
+// it 30 mm in; then the airway breathes (period 2 s, the carina 5 mm, the bronchus up to 7 mm): the bronchus moves
+// across its own axis and its wall pushes the body sideways. Every step converges and every node lies inside the
+// moved airway (a world built from scratch on the mesh at that time) at every recorded shape; tip_trajectory's phase
+// is Lujan's. (It passes without carrying the body by the displacement too, measured: the barrier shrinks a node's
+// contact radius to the room it finds, so a wall moving 0.2 mm in a step does not strand it; the carry keeps the
+// friction references on the material's wall point, so that breathing alone does not drag the wall along the body.)
+TEST(Experiment, BreathingCarriesTheVineWithTheWall) {
+  const std::filesystem::path dir = std::filesystem::temp_directory_path() / "magvine_breathing_test";
+  const std::string text = breathing_tree_scene(dir) + R"(control:
   pressure: [[0, 35]]
   tether: [[0, 150]]
   navigator: {target: "0-0", magnet: 0, distance: 110}
@@ -1356,28 +1362,7 @@ TEST(Experiment, AGatedNavigatorGrowsTheVineOnlyNearExhalation) {
   // of the time (closed form), so the gated vine grows about that share of what the ungated one does. The same
   // coarse tree as above.
   const std::filesystem::path dir = std::filesystem::temp_directory_path() / "magvine_gate_test";
-  std::filesystem::create_directories(dir);
-  const anatomy::Phantom tree =
-      anatomy::make_bronchial_tree({.max_generation = 1, .clearance = 3e-3, .spacing = 1.5e-3});
-  anatomy::write_stl(dir / "tree.stl", tree.mesh);
-  anatomy::write_graph(dir / "tree.json", tree.graph);
-  const std::string text = R"(units: {length: mm, pressure: kPa}
-anatomy:
-  mesh: tree.stl
-  graph: tree.json
-  breathing: {period: 2, profile: 1, carina_amplitude: 5}
-robot:
-  kind: vine
-  length: 5
-  diameter: 5
-  pressure: 35
-  wall: {thickness: 0.038, youngs_modulus: 10000, density: 1100, strength: 2900}
-  fill: {kind: magnetic_fluid, volume_fraction: 0.23}
-  base: {position: [0, 0, -12], direction: [0, 0, -1], normal: [1, 0, 0]}
-growth: {yield_pressure: 20}
-magnets:
-  - {kind: cylinder, diameter: 101.6, length: 101.6, polarisation: 1.48, position: [0, -250, -100], axis: [0, 1, 0]}
-control:
+  const std::string text = breathing_tree_scene(dir) + R"(control:
   pressure: [[0, 35]]
   navigator: {target: "0-0", magnet: 0, distance: 110, gate: {from: 0, to: 0.2}}
 simulation: {duration: 4, dt: 0.02, gravity: [0, 9.81, 0]}
