@@ -90,6 +90,17 @@ TEST(CameraGuidance, APlacementDoesNotReadTheTipsPosition) {
   }
   ASSERT_EQ(a.guidance().size(), 2u);
   EXPECT_EQ(a.guidance().back().lumens, 2);
+
+  // Blind (no lumen) and past the plan's end by dead reckoning: the magnet pulls along the plan's last segment.
+  NavigatorController blind(scene);
+  blind.use_camera([] { return std::vector<SeenLumen>{}; });
+  blind.place(0.5, Vec3::Zero(), frame, 0.5, events);
+  const std::vector<Vec3>& path = blind.path();
+  const Vec3 last = (path.back() - path[path.size() - 2]).normalized();
+  ASSERT_EQ(blind.guidance().size(), 1u);
+  EXPECT_EQ(blind.guidance().back().chosen, -1);
+  EXPECT_NEAR((blind.guidance().back().line - last).norm(), 0.0, 1e-12);
+  EXPECT_TRUE(blind.pose().position.allFinite());
 }
 
 TEST(CameraGuidance, GuidanceKeysAreRefusedWhereTheyDoNotBelong) {

@@ -409,7 +409,10 @@ void NavigatorController::place_by_camera(double t, const Mat3& tip_frame, doubl
   const auto next = std::find_if(m_junctions.begin(), m_junctions.end(),
                                  [&](const Junction& j) { return j.arc > g.arc - 0.5 * cam.junction_window; });
   const bool at_junction = next != m_junctions.end() && next->arc - g.arc < cam.junction_window;
-  const Vec3 ahead = (point_at_arc_length(m_path, g.arc + m_nav.lead) - tip).normalized();
+  // The plan's direction ahead; past the plan's end (the dead reckoning beyond it), its last segment's.
+  Vec3 ahead = point_at_arc_length(m_path, g.arc + m_nav.lead) - tip;
+  if (ahead.norm() < 1e-9) ahead = m_path.back() - m_path[m_path.size() - 2];
+  ahead.normalize();
   const auto score = [&](const Vec3& d) {
     if (!at_junction) return d.dot(ahead);
     double other = -1.0;
