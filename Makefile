@@ -14,7 +14,7 @@ PYTHON   ?= /usr/bin/python3
 DEMO_OUT ?= $(BUILD)/demo
 CMAKE_FLAGS ?=
 
-.PHONY: deps build demo test minimal bench figures phantoms format lint clean
+.PHONY: deps build demo test minimal python python-path bench figures phantoms format lint clean
 
 deps:
 	@tools/install-deps.sh
@@ -30,9 +30,18 @@ test: build
 # kernels in their baseline x86-64 build only (the full build runs the AVX2 copies on machines that have AVX2).
 minimal: deps
 	cmake -S . -B $(MINIMAL) -DCMAKE_BUILD_TYPE=Release -DMAGVINE_WERROR=ON \
-	      -DMAGVINE_WITH_RENDER=OFF -DMAGVINE_WITH_MPM=OFF -DMAGVINE_WITH_CT=OFF -DMAGVINE_MULTIVERSION=OFF $(CMAKE_FLAGS)
+	      -DMAGVINE_WITH_RENDER=OFF -DMAGVINE_WITH_MPM=OFF -DMAGVINE_WITH_CT=OFF -DMAGVINE_MULTIVERSION=OFF \
+	      -DMAGVINE_WITH_PYTHON=OFF $(CMAKE_FLAGS)
 	cmake --build $(MINIMAL) -j $(JOBS)
 	cd $(MINIMAL) && ctest --output-on-failure -j $(JOBS)
+
+# The Python module (docs/python.md): `make python`, then PYTHONPATH=$$(make -s python-path) python3 -c 'import magvine'.
+python: deps
+	cmake -S . -B $(BUILD) -DCMAKE_BUILD_TYPE=Release -DMAGVINE_WERROR=ON $(CMAKE_FLAGS)
+	cmake --build $(BUILD) -j $(JOBS) --target magvine_python
+
+python-path:
+	@echo $(abspath $(BUILD))/python
 
 phantoms: build
 	phantoms/generate.sh $(BUILD)/src/cli/magvine phantoms

@@ -26,6 +26,7 @@ packages=(
   libgtest-dev libgmock-dev            # tests (BSD-3)
   libbenchmark-dev                     # benchmarks (Apache-2.0)
   python3 python3-numpy python3-matplotlib  # plots written by tools/*.py (PSF/BSD)
+  pybind11-dev python3-dev python3-pytest  # optional python module: import magvine (BSD-3, PSF, MIT)
 )
 
 check_only=0

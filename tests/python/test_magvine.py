@@ -1,0 +1,111 @@
+"""`import magvine` against the command line it mirrors (docs/python.md): the same metrics to the last bit for
+bundled scenes, the same mesh report, the same one-line error; the field against a point dipole's closed form.
+Run by ctest (tests/CMakeLists.txt) with PYTHONPATH at the built module and MAGVINE at the CLI."""
+import json
+import math
+import os
+import subprocess
+import threading
+
+import numpy as np
+import pytest
+
+magvine = pytest.importorskip("magvine", reason="the Python module is not built (MAGVINE_WITH_PYTHON)")
+
+CLI = os.environ.get("MAGVINE", "build/src/cli/magvine")
+SRC = os.environ.get("MAGVINE_SOURCE_DIR", ".")
+# What differs between two runs of one scene: the computing time.
+TIMING = {"runtime_s", "real_time_factor"}
+
+
+def cli_metrics(scene, out):
+    subprocess.run([CLI, "run", scene, "--out", str(out)], check=True, capture_output=True)
+    with open(os.path.join(out, "metrics.json")) as f:
+        return json.load(f)
+
+
+@pytest.mark.parametrize("scene", ["y_bifurcation_fluid_vine.yaml", "bronchial_tree_navigator.yaml",
+                                   "constriction_catheter.yaml"])
+def test_run_gives_the_command_lines_metrics(scene, tmp_path):
+    path = os.path.join(SRC, "assets", "scenes", scene)
+    ours = magvine.run(path, out=tmp_path / "py")
+    theirs = cli_metrics(path, tmp_path / "cli")
+    assert set(ours) == set(theirs)
+    for key in set(ours) - TIMING:
+        assert ours[key] == theirs[key], key  # to the last bit: the same doubles through the same JSON
+
+
+def test_a_scene_as_a_dict_runs_as_its_file(tmp_path):
+    # The dict with the scene file's keys (here the file's own content, through JSON) gives the file's metrics.
+    yaml = pytest.importorskip("yaml", reason="python3-yaml is not installed")
+    path = os.path.join(SRC, "assets", "scenes", "y_bifurcation_fluid_vine.yaml")
+    with open(path) as f:
+        scene = yaml.safe_load(f)
+    ours = magvine.run(scene)
+    theirs = magvine.run(path)
+    for key in set(theirs) - TIMING - {"scene"}:
+        assert ours[key] == theirs[key], key
+
+
+def test_a_bad_scene_raises_value_error_with_the_command_lines_line(tmp_path):
+    bad = tmp_path / "bad.yaml"
+    with open(os.path.join(SRC, "assets", "scenes", "y_bifurcation_fluid_vine.yaml")) as f:
+        bad.write_text(f.read().replace("pressure: 35", "pressure: -35", 1))
+    with pytest.raises(ValueError) as error:
+        magvine.run(bad)
+    cli = subprocess.run([CLI, "run", str(bad), "--out", str(tmp_path / "out")], capture_output=True, text=True)
+    assert cli.returncode == 2
+    assert str(error.value) in cli.stderr
+
+
+def test_mesh_check_is_the_command_lines_report(tmp_path):
+    stl = tmp_path / "tube.stl"
+    subprocess.run([CLI, "phantom", "tube", "--out", str(stl)], check=True, capture_output=True)
+    cli = subprocess.run([CLI, "mesh", "check", str(stl), "--json"], check=True, capture_output=True, text=True)
+    assert magvine.mesh_check(str(stl)) == json.loads(cli.stdout)
+
+
+def test_field_of_a_point_dipole_is_its_closed_form(tmp_path):
+    # B = μ0/(4π) (3 (m·r̂) r̂ − m) / r³ at points round a 970 A·m² dipole at the origin along z (the EPM's moment).
+    magnets = tmp_path / "dipole.yaml"
+    magnets.write_text("units: {length: mm}\nmagnets:\n  - {kind: dipole, position: [0, 0, 0], moment: [0, 0, 970]}\n")
+    rng = np.random.default_rng(3)
+    points = rng.normal(size=(50, 3))
+    points *= (0.1 + 0.1 * rng.random((50, 1))) / np.linalg.norm(points, axis=1, keepdims=True)
+    b, g = magvine.field(str(magnets), points)
+    assert b.shape == (50, 3) and g.shape == (50, 3, 3)
+    m = np.array([0.0, 0.0, 970.0])
+    for x, bx in zip(points, b):
+        r = np.linalg.norm(x)
+        u = x / r
+        expected = 1e-7 * (3 * np.dot(m, u) * u - m) / r**3
+        assert np.allclose(bx, expected, rtol=1e-12, atol=0.0)
+    # The gradient against central differences of B (step 1 µm; error ~ (h/r)² ≈ 1e-10 of G).
+    h = 1e-6
+    x = points[:1]
+    for k in range(3):
+        e = np.zeros(3)
+        e[k] = h
+        bp, _ = magvine.field(str(magnets), x + e)
+        bm, _ = magvine.field(str(magnets), x - e)
+        assert np.allclose(g[0][:, k], (bp[0] - bm[0]) / (2 * h), rtol=1e-6, atol=1e-12)
+    with pytest.raises(ValueError):
+        magvine.field(str(magnets), np.zeros((4, 2)))
+
+
+def test_runs_in_threads_give_the_same_metrics(tmp_path):
+    # Two runs at once in two Python threads (the GIL released while they compute): the same metrics as one alone.
+    path = os.path.join(SRC, "assets", "scenes", "y_bifurcation_fluid_vine.yaml")
+    alone = magvine.run(path)
+    results = [None, None]
+
+    def one(i):
+        results[i] = magvine.run(path)
+
+    threads = [threading.Thread(target=one, args=(i,)) for i in range(2)]
+    for t in threads:
+        t.start()
+    for t in threads:
+        t.join()
+    for r in results:
+        assert {k: v for k, v in r.items() if k not in TIMING} == {k: v for k, v in alone.items() if k not in TIMING}
