@@ -257,7 +257,7 @@ std::optional<robot::PushedRod> parse_robot(const YamlMap& robot, const FileUnit
     const double inset = base_map.quantity("entry", units.len, range::kSmallDistance);
     std::vector<Vec3> root;
     for (const std::uint32_t n : graph->branches.front().nodes) root.push_back(graph->nodes[n].position);
-    const double length = arc_length_of_nearest(root, root.back());
+    const double length = anatomy::branch_length(*graph, 0);
     if (inset >= length) {
       base_map.fail("entry", printf_string("must be shorter than the root branch, %.1f mm", length / units.len.si));
     }

@@ -353,19 +353,17 @@ void NavigatorController::use_camera(std::function<std::vector<SeenLumen>()> loo
   m_base_arc = arc_length_of_nearest(m_path, m_scene.base_position);
   // The plan's junctions, from the pre-operative graph: where each plan branch ends along the joined path, and the
   // directions from there into the planned child and into its siblings (to the point `lead` along each).
-  const auto node = [&](std::uint32_t n) { return graph.nodes[n].position; };
   const auto into = [&](int branch) {
     const anatomy::AirwayBranch& b = graph.branches[static_cast<std::size_t>(branch)];
     std::vector<Vec3> line;
-    for (const std::uint32_t n : b.nodes) line.push_back(node(n));
+    for (const std::uint32_t n : b.nodes) line.push_back(graph.nodes[n].position);
     return Vec3((point_at_arc_length(line, m_nav.lead) - line.front()).normalized());
   };
   m_junctions.clear();
   m_branch_end.clear();
-  double arc = 0.0;
   for (std::size_t i = 0; i < m_plan.size(); ++i) {
     const anatomy::AirwayBranch& b = graph.branches[static_cast<std::size_t>(m_plan[i])];
-    for (std::size_t k = 1; k < b.nodes.size(); ++k) arc += (node(b.nodes[k]) - node(b.nodes[k - 1])).norm();
+    const double arc = anatomy::path_length(graph, m_plan[i]);
     m_branch_end.push_back(arc);
     if (i + 1 == m_plan.size()) break;
     Junction j;
