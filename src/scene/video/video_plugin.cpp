@@ -106,16 +106,21 @@ class FrameFolder {
   bool m_done = false;
 };
 
-render::Camera tip_camera(const VideoOutput& v, const FrameSample& f) {
+/// The tip camera: at the lens, looking along the tip's tangent (directors' column 0), image up its column 1.
+render::Camera tip_camera(const Vec3& lens, const Mat3& tip_frame, bool fisheye, double fov, int width, int height) {
   render::Camera c;
-  c.position = f.nodes.back();
-  c.forward = f.tip_frame.col(0);
-  c.up = f.tip_frame.col(1);
-  c.lens = v.fisheye ? render::Lens::kFisheye : render::Lens::kPinhole;
-  c.fov = v.fov;
-  c.width = v.width;
-  c.height = v.height;
+  c.position = lens;
+  c.forward = tip_frame.col(0);
+  c.up = tip_frame.col(1);
+  c.lens = fisheye ? render::Lens::kFisheye : render::Lens::kPinhole;
+  c.fov = fov;
+  c.width = width;
+  c.height = height;
   return c;
+}
+
+render::Camera tip_camera(const VideoOutput& v, const FrameSample& f) {
+  return tip_camera(f.nodes.back(), f.tip_frame, v.fisheye, v.fov, v.width, v.height);
 }
 
 std::string experiment_videos(const ExperimentScene& scene, const ExperimentResult& result, const VideoInputs& in,
@@ -333,13 +338,7 @@ class LumenEye final : public TipEye {
     m_lumen.min_area = settings.min_area;
   }
   std::vector<SeenLumen> look(const Vec3& lens, const Mat3& tip_frame) override {
-    m_camera.position = lens;
-    m_camera.forward = tip_frame.col(0);
-    m_camera.up = tip_frame.col(1);
-    m_camera.lens = render::Lens::kFisheye;
-    m_camera.fov = m_settings.fov;
-    m_camera.width = m_settings.size;
-    m_camera.height = m_settings.size;
+    m_camera = tip_camera(lens, tip_frame, true, m_settings.fov, m_settings.size, m_settings.size);
     m_frame = m_renderer.render_endoscope(m_camera, m_look, m_count++, &m_exposure).color;
     m_lumens = render::detect_lumens(m_frame, m_camera, m_lumen);
     const Mat3 frame = render::camera_frame(m_camera);
