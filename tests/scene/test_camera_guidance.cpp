@@ -6,14 +6,13 @@
 
 #include <cmath>
 #include <filesystem>
-#include <fstream>
-#include <iterator>
 #include <limits>
 
 #include "magvine/core/error.hpp"
 #include "magvine/core/units.hpp"
 #include "magvine/scene/experiment.hpp"
 #include "magvine/scene/navigator.hpp"
+#include "support/text_file.hpp"
 
 namespace magvine::scene {
 namespace {
@@ -22,8 +21,7 @@ namespace fs = std::filesystem;
 const fs::path kScene = fs::path(MAGVINE_SOURCE_DIR) / "assets/scenes/bronchial_tree_camera_navigator.yaml";
 
 std::string scene_text() {
-  std::ifstream in(kScene);
-  return std::string(std::istreambuf_iterator<char>(in), {});
+  return test::text_of(kScene);
 }
 
 /// The bundled scene's text with `from` replaced by `to` (which must occur).
