@@ -49,9 +49,7 @@ RunFigures figures_of(const ExperimentScene& scene, const ExperimentResult& resu
   }
   if (scene.navigator && scene.target) {
     // Arc length along the planned path of the tip's and the target's nearest points on it.
-    const std::vector<Vec3> path = planned_path(*scene.anatomy->graph, scene.navigator->target_branch);
-    const double goal = arc_length_of_nearest(path, *scene.target);
-    f.progress = goal > 0.0 ? std::clamp(arc_length_of_nearest(path, tip) / goal, 0.0, 1.0) : 1.0;
+    f.progress = path_progress(target_path(scene), *scene.target, tip);
   }
   return f;
 }

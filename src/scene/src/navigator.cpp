@@ -42,6 +42,18 @@ std::vector<Vec3> planned_path(const anatomy::AirwayGraph& graph, int branch) {
   return path;
 }
 
+double path_progress(const std::vector<Vec3>& path, const Vec3& target, const Vec3& tip) {
+  const double goal = arc_length_of_nearest(path, target);
+  return goal > 0.0 ? std::clamp(arc_length_of_nearest(path, tip) / goal, 0.0, 1.0) : 1.0;
+}
+
+std::vector<Vec3> target_path(const ExperimentScene& scene) {
+  if (!scene.anatomy->graph || !scene.target) return {};
+  const int branch = scene.navigator ? scene.navigator->target_branch
+                                     : anatomy::nearest_centreline_point(*scene.anatomy->graph, *scene.target).branch;
+  return planned_path(*scene.anatomy->graph, branch);
+}
+
 Vec3 point_at_arc_length(const std::vector<Vec3>& path, double s) {
   double left = std::max(0.0, s);
   for (std::size_t k = 0; k + 1 < path.size(); ++k) {

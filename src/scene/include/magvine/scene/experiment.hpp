@@ -7,6 +7,7 @@
 #include <filesystem>
 #include <functional>
 #include <limits>
+#include <memory>
 #include <optional>
 #include <string>
 #include <vector>
@@ -97,8 +98,69 @@ struct ExperimentResult {
   double runtime_s = 0.0;
 };
 
-/// Runs the experiment from t = 0 to duration in steps of dt. `progress` (optional) is called with the fraction
-/// done after each step.
+/// What a driver (the Python API's Simulation.step, its NavigationEnv) sets in place of the scene's schedules. Each
+/// setting holds from the step that sets it on, until another replaces it; unset, the scene's schedule (or the
+/// navigator) decides.
+struct StepRequest {
+  /// The step [s]; unset: to the next multiple of the scene's dt (as `magvine run` steps; clipped at its duration).
+  std::optional<double> dt;
+  std::optional<double> pressure;  ///< P [Pa] (replaces control.pressure and the navigator's regulation)
+  std::optional<double> tether;    ///< the length the tether has released [m]
+  /// A magnet's pose (index into the scene's magnets; position [m], axis unit): replaces its keyframes (with a
+  /// platform it is asked of the arm that holds it). A magnet the navigator steers is refused.
+  struct Magnet {
+    int magnet = 0;
+    Vec3 position = Vec3::Zero();
+    Vec3 axis = Vec3::UnitZ();
+  };
+  std::vector<Magnet> magnets;
+};
+
+/// An experiment advanced one step at a time (what run_experiment does in a loop; the Python API's Simulation). The
+/// scene is borrowed and must outlive it. Not thread-safe; several experiments run in parallel in several threads
+/// (the core holds no global state).
+class Experiment {
+ public:
+  /// Starts the run at t = 0 (the body as the growth starts it, the navigator planned, the arms placed).
+  explicit Experiment(const ExperimentScene& scene);
+  ~Experiment();
+  Experiment(const Experiment&) = delete;
+  Experiment& operator=(const Experiment&) = delete;
+
+  /// One step under the scene's schedules and the driver's settings. Returns false when the step found no
+  /// equilibrium even in halves (result().failure names it; the run has ended). InputError for a bad request (a
+  /// non-positive or non-finite dt, a magnet out of range or steered by the navigator, a non-finite value).
+  /// std::logic_error once ended().
+  bool step(const StepRequest& request = {});
+  /// Whether `magvine run` would stop here: the duration reached, the target reached with stop_at_target, a failed
+  /// step, or a biopsy's aiming done (finish() then pushes the needle).
+  bool done() const;
+  /// Whether no step may follow: a failed step, a biopsy's aiming done, or finish() called.
+  bool ended() const;
+  /// Ends the run (a biopsy's puncture, if the vine reached its stop) and returns its result; the experiment is
+  /// spent.
+  ExperimentResult finish();
+
+  double time() const;                      ///< [s]
+  long steps() const;                       ///< steps taken
+  long scheduled_steps() const;             ///< `magvine run`'s: ceil(duration / dt)
+  const robot::GrowthState& state() const;  ///< the body, its contact history and its wall forces
+  double everted_length() const;            ///< [m]
+  const std::vector<magnetics::Pose>& magnet_poses() const;
+  /// The field the body reads now at x [T] and its gradient [T/m] (the magnets' at their poses and control.field).
+  magnetics::FieldSample field_at(const Vec3& x) const;
+  /// The result so far (samples, events, …; finish() completes it).
+  const ExperimentResult& result() const;
+  /// The airway's vertices as they are now (breathing moves them; otherwise the mesh's) [m].
+  const std::vector<Vec3>& airway_vertices() const;
+
+ private:
+  struct Impl;
+  std::unique_ptr<Impl> m_impl;
+};
+
+/// Runs the experiment from t = 0 to duration in steps of dt (Experiment, stepped until done()). `progress`
+/// (optional) is called with the fraction done after each step.
 ExperimentResult run_experiment(const ExperimentScene& scene, const std::function<void(double)>& progress = nullptr);
 
 /// Writes, atomically, into `dir` (created): metrics.json, tip_trajectory.csv, magnet_trajectory.csv (when the

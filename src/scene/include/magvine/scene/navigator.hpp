@@ -33,6 +33,12 @@ std::vector<Vec3> planned_path(const anatomy::AirwayGraph& graph, int branch);
 
 /// Arc length [m] along a polyline of its nearest point to x.
 double arc_length_of_nearest(const std::vector<Vec3>& path, const Vec3& x);
+/// How far along `path` the tip has got towards the target, 0–1: the arc lengths of their nearest points on it, in
+/// ratio (metrics.json's path_progress; 1 for a target at the path's start).
+double path_progress(const std::vector<Vec3>& path, const Vec3& target, const Vec3& tip);
+/// The path to a scene's target: the navigator's plan, or without a navigator the path to the graph's branch nearest
+/// the target; empty without a graph or a target.
+std::vector<Vec3> target_path(const ExperimentScene& scene);
 /// The point of a polyline at arc length s from its start [m] (its ends beyond [0, length]).
 Vec3 point_at_arc_length(const std::vector<Vec3>& path, double s);
 
