@@ -677,6 +677,7 @@ void Stepper::step(const GrowthControl& control, double dt) {
   if (!(control.pressure >= 0.0) || !std::isfinite(control.pressure)) {
     throw InputError("vine growth: pressure must be >= 0 and finite");
   }
+  state.time += dt;  // a burst vine's time runs on (a moving airway carries it by the time)
   if (state.burst) {
     status.stalled = true;
     status.burst = true;
@@ -685,7 +686,6 @@ void Stepper::step(const GrowthControl& control, double dt) {
   // The step depends on the state and its inputs only: the rod solver's Hessian kept from a step before (chord
   // steps) is dropped, and a step from a checkpoint repeats bit for bit in any workspace.
   ws.rod.forget_hessian();
-  state.time += dt;
   const double p = control.pressure;
   const VineParameters& vine = model.vine;
   if (!model.solid() && bursts(vine, p)) {
