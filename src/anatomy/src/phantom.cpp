@@ -226,6 +226,61 @@ PhantomParams default_params(PhantomKind kind) {
   return TubeParams{};
 }
 
+std::vector<PhantomOption> phantom_options(PhantomParams& params) {
+  const auto length = [](const char* name, double& f, const char* help) {
+    return PhantomOption{std::string(name) + "_mm", std::string(help) + " [mm]", &f, kMmToM};
+  };
+  const auto angle = [](const char* name, double& f, const char* help) {
+    return PhantomOption{std::string(name) + "_deg", std::string(help) + " [deg]", &f, kDegToRad};
+  };
+  const auto number = [](const char* name, double& f, const char* help) { return PhantomOption{name, help, &f, 1.0}; };
+  if (auto* p = std::get_if<BronchialTreeParams>(&params)) {
+    return {{"max_generation", "deepest generation (trachea = 0)", &p->max_generation, 1.0},
+            number("flow_ratio", p->flow_ratio, "Kitaoka flow-dividing ratio r in [0.2, 0.5]; 0.5 = symmetric"),
+            number("diameter_exponent", p->diameter_exponent, "Kitaoka diameter exponent n in [2, 4]"),
+            number("length_jitter", p->length_jitter, "relative half-range of the branch-length jitter, [0, 0.5)"),
+            angle("angle_jitter", p->angle_jitter, "half-range of the branching-angle jitter"),
+            angle("rotation_jitter", p->rotation_jitter, "half-range of the jitter on the 90 deg plane rotation"),
+            {"seed", "seed of the jitter", &p->seed, 1.0},
+            length("clearance", p->clearance, "minimum wall gap between non-adjacent branches"),
+            number("blend_factor", p->blend_factor, "junction blend radius / branch radius, [0, 1]"),
+            length("spacing", p->spacing, "meshing grid spacing")};
+  }
+  if (auto* p = std::get_if<TubeParams>(&params)) {
+    return {length("diameter", p->diameter, "inner diameter"),
+            length("length", p->length, "length along +x"),
+            {"segments", "vertices around the circumference", &p->segments, 1.0}};
+  }
+  if (auto* p = std::get_if<YBifurcationParams>(&params)) {
+    return {length("parent_diameter", p->parent_diameter, "parent tube diameter"),
+            length("parent_length", p->parent_length, "first graph node to the bifurcation"),
+            length("daughter_diameter", p->daughter_diameter, "daughter diameter"),
+            length("daughter_length", p->daughter_length, "bifurcation to the blind end"),
+            angle("branch_angle", p->branch_angle, "each daughter's angle to the parent axis"),
+            number("blend_factor", p->blend_factor, "junction blend radius / daughter radius"),
+            length("spacing", p->spacing, "meshing grid spacing")};
+  }
+  if (auto* p = std::get_if<SBendParams>(&params)) {
+    return {length("length", p->length, "channel length along x"),
+            length("width", p->width, "channel width along y"),
+            length("height", p->height, "channel height along z"),
+            length("obstacle_thickness", p->obstacle_thickness, "obstacle size along x"),
+            length("obstacle_reach", p->obstacle_reach, "how far each obstacle reaches from its side wall"),
+            length("first_obstacle_x", p->first_obstacle_x, "centre of the first obstacle (from the -y wall)"),
+            length("second_obstacle_x", p->second_obstacle_x, "centre of the second obstacle (from the +y wall)"),
+            length("edge_rounding", p->edge_rounding, "rounding radius of the channel's edges"),
+            length("spacing", p->spacing, "meshing grid spacing")};
+  }
+  auto& c = std::get<ConstrictionParams>(params);
+  return {length("diameter", c.diameter, "tube inner diameter"),
+          length("length", c.length, "tube length along x"),
+          length("gap", c.gap, "slot width at the constriction"),
+          length("constriction_length", c.constriction_length, "jaw length along x"),
+          length("constriction_x", c.constriction_x, "jaw centre along x"),
+          length("jaw_rounding", c.jaw_rounding, "rounding radius of the jaw edges"),
+          length("spacing", c.spacing, "meshing grid spacing")};
+}
+
 // ---------------------------------------------------------------------------------------------------------------
 // Airway tables (shared/reference/airways.md §1; Tu, Inthavong & Ahmadi 2013, Tables 3.2 and 3.3).
 

@@ -4,6 +4,7 @@
 
 #include "phantom_command.hpp"
 
+#include <algorithm>
 #include <chrono>
 #include <cstdio>
 #include <iostream>
@@ -27,74 +28,24 @@ std::string format_default(double value) {
   return text;
 }
 
-/// Adds `--name VALUE` [file unit] that stores VALUE·scale [SI] into `field`, showing the default in file units.
-void add_scaled(CLI::App* cmd, const std::string& name, double& field, double scale, const std::string& help) {
-  cmd->add_option_function<double>("--" + name, [&field, scale](double v) { field = v * scale; }, help)
-      ->default_str(format_default(field / scale));
-}
-
-/// Option names of the metadata (`gap_mm`) with dashes (`--gap-mm`).
-void add_length(CLI::App* cmd, const std::string& name, double& field, const std::string& help) {
-  add_scaled(cmd, name + "-mm", field, kMmToM, help + " [mm]");
-}
-void add_angle(CLI::App* cmd, const std::string& name, double& field, const std::string& help) {
-  add_scaled(cmd, name + "-deg", field, kDegToRad, help + " [deg]");
-}
-void add_number(CLI::App* cmd, const std::string& name, double& field, const std::string& help) {
-  add_scaled(cmd, name, field, 1.0, help);
-}
-
-void add_tree_options(CLI::App* cmd, anatomy::BronchialTreeParams& p, std::string& table) {
-  cmd->add_option("--table", table, "morphometric table: weibel_a | horsfield")->capture_default_str();
-  cmd->add_option("--max-generation", p.max_generation, "deepest generation (trachea = 0)")->capture_default_str();
-  add_number(cmd, "flow-ratio", p.flow_ratio, "Kitaoka flow-dividing ratio r in [0.2, 0.5]; 0.5 = symmetric");
-  add_number(cmd, "diameter-exponent", p.diameter_exponent, "Kitaoka diameter exponent n in [2, 4]");
-  add_number(cmd, "length-jitter", p.length_jitter, "relative half-range of the branch-length jitter, [0, 0.5)");
-  add_angle(cmd, "angle-jitter", p.angle_jitter, "half-range of the branching-angle jitter");
-  add_angle(cmd, "rotation-jitter", p.rotation_jitter, "half-range of the jitter on the 90 deg plane rotation");
-  cmd->add_option("--seed", p.seed, "seed of the jitter")->capture_default_str();
-  add_length(cmd, "clearance", p.clearance, "minimum wall gap between non-adjacent branches");
-  add_number(cmd, "blend-factor", p.blend_factor, "junction blend radius / branch radius, [0, 1]");
-  add_length(cmd, "spacing", p.spacing, "meshing grid spacing");
-}
-
-void add_tube_options(CLI::App* cmd, anatomy::TubeParams& p, bool& open) {
-  add_length(cmd, "diameter", p.diameter, "inner diameter");
-  add_length(cmd, "length", p.length, "length along +x");
-  cmd->add_option("--segments", p.segments, "vertices around the circumference")->capture_default_str();
-  cmd->add_flag("--open", open, "leave both ends open (not watertight)");
-}
-
-void add_y_options(CLI::App* cmd, anatomy::YBifurcationParams& p) {
-  add_length(cmd, "parent-diameter", p.parent_diameter, "parent tube diameter");
-  add_length(cmd, "parent-length", p.parent_length, "first graph node to the bifurcation");
-  add_length(cmd, "daughter-diameter", p.daughter_diameter, "daughter diameter");
-  add_length(cmd, "daughter-length", p.daughter_length, "bifurcation to the blind end");
-  add_angle(cmd, "branch-angle", p.branch_angle, "each daughter's angle to the parent axis");
-  add_number(cmd, "blend-factor", p.blend_factor, "junction blend radius / daughter radius");
-  add_length(cmd, "spacing", p.spacing, "meshing grid spacing");
-}
-
-void add_s_bend_options(CLI::App* cmd, anatomy::SBendParams& p) {
-  add_length(cmd, "length", p.length, "channel length along x");
-  add_length(cmd, "width", p.width, "channel width along y");
-  add_length(cmd, "height", p.height, "channel height along z");
-  add_length(cmd, "obstacle-thickness", p.obstacle_thickness, "obstacle size along x");
-  add_length(cmd, "obstacle-reach", p.obstacle_reach, "how far each obstacle reaches from its side wall");
-  add_length(cmd, "first-obstacle-x", p.first_obstacle_x, "centre of the first obstacle (from the -y wall)");
-  add_length(cmd, "second-obstacle-x", p.second_obstacle_x, "centre of the second obstacle (from the +y wall)");
-  add_length(cmd, "edge-rounding", p.edge_rounding, "rounding radius of the channel's edges");
-  add_length(cmd, "spacing", p.spacing, "meshing grid spacing");
-}
-
-void add_constriction_options(CLI::App* cmd, anatomy::ConstrictionParams& p) {
-  add_length(cmd, "diameter", p.diameter, "tube inner diameter");
-  add_length(cmd, "length", p.length, "tube length along x");
-  add_length(cmd, "gap", p.gap, "slot width at the constriction");
-  add_length(cmd, "constriction-length", p.constriction_length, "jaw length along x");
-  add_length(cmd, "constriction-x", p.constriction_x, "jaw centre along x");
-  add_length(cmd, "jaw-rounding", p.jaw_rounding, "rounding radius of the jaw edges");
-  add_length(cmd, "spacing", p.spacing, "meshing grid spacing");
+/// Adds the kind's options (anatomy::phantom_options: `gap_mm` as `--gap-mm VALUE` in mm, stored as SI), each showing
+/// its default in file units.
+void add_phantom_options(CLI::App* cmd, anatomy::PhantomParams& params) {
+  for (const anatomy::PhantomOption& o : anatomy::phantom_options(params)) {
+    std::string name = "--" + o.name;
+    std::replace(name.begin(), name.end(), '_', '-');
+    if (double* const* f = std::get_if<double*>(&o.field)) {
+      double& field = **f;
+      const double scale = o.scale;
+      cmd->add_option_function<double>(
+             name, [&field, scale](double v) { field = v * scale; }, o.help)
+          ->default_str(format_default(field / scale));
+    } else if (int* const* i = std::get_if<int*>(&o.field)) {
+      cmd->add_option(name, **i, o.help)->capture_default_str();
+    } else {
+      cmd->add_option(name, *std::get<std::uint64_t*>(o.field), o.help)->capture_default_str();
+    }
+  }
 }
 
 std::string volume_text(const anatomy::MeshReport& report) {
@@ -108,8 +59,8 @@ std::string volume_text(const anatomy::MeshReport& report) {
 }  // namespace
 
 void PhantomCommand::attach(CLI::App& app) {
-  m_cmd = app.add_subcommand(
-      "phantom", "generate a phantom: closed lumen STL (mm) + ground-truth airway graph + metadata (JSON)");
+  m_cmd = app.add_subcommand("phantom",
+                             "generate a phantom: closed lumen STL (mm) + ground-truth airway graph + metadata (JSON)");
   m_cmd->require_subcommand(1);
   // The options keep pointers into m_params: reserve so that emplace_back never moves them.
   m_params.reserve(anatomy::phantom_kinds().size());
@@ -119,28 +70,18 @@ void PhantomCommand::attach(CLI::App& app) {
         ->required();
     m_params.emplace_back(info.kind, anatomy::default_params(info.kind));
     anatomy::PhantomParams& params = m_params.back().second;
-    switch (info.kind) {
-      case PhantomKind::kBronchialTree:
-        add_tree_options(sub, std::get<anatomy::BronchialTreeParams>(params), m_table);
-        break;
-      case PhantomKind::kTube:
-        add_tube_options(sub, std::get<anatomy::TubeParams>(params), m_open);
-        break;
-      case PhantomKind::kYBifurcation:
-        add_y_options(sub, std::get<anatomy::YBifurcationParams>(params));
-        break;
-      case PhantomKind::kSBend:
-        add_s_bend_options(sub, std::get<anatomy::SBendParams>(params));
-        break;
-      case PhantomKind::kConstriction:
-        add_constriction_options(sub, std::get<anatomy::ConstrictionParams>(params));
-        break;
+    if (info.kind == PhantomKind::kBronchialTree) {
+      sub->add_option("--table", m_table, "morphometric table: weibel_a | horsfield")->capture_default_str();
     }
+    add_phantom_options(sub, params);
+    if (info.kind == PhantomKind::kTube) sub->add_flag("--open", m_open, "leave both ends open (not watertight)");
     m_kinds.push_back(sub);
   }
 }
 
-bool PhantomCommand::parsed() const { return m_cmd != nullptr && m_cmd->parsed(); }
+bool PhantomCommand::parsed() const {
+  return m_cmd != nullptr && m_cmd->parsed();
+}
 
 int PhantomCommand::run() {
   std::size_t index = 0;

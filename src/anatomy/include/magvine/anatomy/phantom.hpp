@@ -157,6 +157,19 @@ using PhantomParams =
 /// The default parameters of a kind.
 PhantomParams default_params(PhantomKind kind);
 
+/// One number of a kind's parameters under its file-facing name (`gap_mm`, `branch_angle_deg`, `max_generation`),
+/// bound to its field: the command line's options (`--gap-mm`) and the Python API's keywords (`gap_mm=3`) are made
+/// from these. A value in the name's unit becomes SI as value × scale.
+struct PhantomOption {
+  std::string name;
+  std::string help;
+  std::variant<double*, int*, std::uint64_t*> field;
+  double scale = 1.0;  ///< SI per file unit: kMmToM for `_mm`, kDegToRad for `_deg`, else 1
+};
+/// The numeric parameters of `params` (its kind's), in the command line's order. The bronchial tree's `table` and the
+/// tube's `open` are not numbers: parse_airway_table and TubeParams::capped.
+std::vector<PhantomOption> phantom_options(PhantomParams& params);
+
 /// One parameter as recorded in the metadata file (file-facing name with unit suffix).
 struct PhantomParameter {
   std::string name;                                                  ///< e.g. "gap_mm", "max_generation"
