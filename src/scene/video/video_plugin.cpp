@@ -8,9 +8,11 @@
 #include <algorithm>
 #include <cmath>
 #include <cstdio>
+#include <cstring>
 #include <nlohmann/json.hpp>
 #include <opencv2/core.hpp>
 #include <opencv2/imgcodecs.hpp>
+#include <opencv2/imgproc.hpp>
 #include <string>
 #include <system_error>
 #include <thread>
@@ -366,8 +368,46 @@ std::unique_ptr<TipEye> tip_eye(const ExperimentScene& scene) {
   return std::make_unique<LumenEye>(scene.anatomy->mesh(), *scene.navigator->camera, scene.seed);
 }
 
+/// Simulation.render's tip camera (TipView): the endoscope's picture, as the videos' tip camera takes it.
+class TipPictures final : public TipView {
+ public:
+  TipPictures(const anatomy::TriangleMesh& mesh, const TipViewSettings& settings)
+      : m_renderer(mesh, 1), m_settings(settings) {
+    m_look.noise = settings.noise;
+    m_look.seed = settings.seed;
+  }
+  Picture look(const Vec3& lens, const Mat3& tip_frame) override {
+    const render::Camera camera =
+        tip_camera(lens, tip_frame, m_settings.fisheye, m_settings.fov, m_settings.width, m_settings.height);
+    const cv::Mat bgr = m_renderer.render_endoscope(camera, m_look, m_count++, &m_exposure).color;
+    cv::Mat rgb;
+    cv::cvtColor(bgr, rgb, cv::COLOR_BGR2RGB);
+    Picture p;
+    p.width = rgb.cols;
+    p.height = rgb.rows;
+    p.rgb.resize(static_cast<std::size_t>(rgb.rows) * static_cast<std::size_t>(rgb.cols) * 3);
+    for (int r = 0; r < rgb.rows; ++r) {
+      std::memcpy(p.rgb.data() + static_cast<std::size_t>(r) * static_cast<std::size_t>(rgb.cols) * 3, rgb.ptr(r),
+                  static_cast<std::size_t>(rgb.cols) * 3);
+    }
+    return p;
+  }
+  void move(const std::vector<Vec3>& vertices) override { m_renderer.move(vertices); }
+
+ private:
+  render::AirwayRenderer m_renderer;
+  TipViewSettings m_settings;
+  render::EndoscopeLook m_look;
+  render::AutoExposure m_exposure;
+  std::uint64_t m_count = 0;
+};
+
+std::unique_ptr<TipView> tip_view(const anatomy::TriangleMesh& mesh, const TipViewSettings& settings) {
+  return std::make_unique<TipPictures>(mesh, settings);
+}
+
 const VideoPlugin kPlugin{VideoPlugin::kAbi, experiment_videos, particle_video, check_mesh_image,
-                          mesh_image,        graph_picture,     tip_eye};
+                          mesh_image,        graph_picture,     tip_eye,        tip_view};
 
 }  // namespace
 }  // namespace magvine::scene

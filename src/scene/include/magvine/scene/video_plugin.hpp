@@ -81,9 +81,37 @@ class TipEye {
   virtual std::string picture(int chosen) const = 0;
 };
 
+/// An RGB image: height rows of width pixels, 3 bytes each (red, green, blue), top row first.
+struct Picture {
+  int width = 0;
+  int height = 0;
+  std::vector<std::uint8_t> rgb;
+};
+
+/// What the tip camera of the Python API's Simulation.render is: the endoscope's lens and image.
+struct TipViewSettings {
+  bool fisheye = true;
+  double fov = 2.0;  ///< across the width [rad]
+  int width = 160;
+  int height = 160;
+  double noise = 0.0;      ///< sensor noise σ [grey levels]
+  std::uint64_t seed = 0;  ///< the noise's
+};
+
+/// The endoscope's view from the tip, its renderer (the airway's ray-casting BVH) and auto-exposure kept from picture
+/// to picture. Pictures are numbered from 0 in the order taken (the noise's seed).
+class TipView {
+ public:
+  virtual ~TipView() = default;
+  /// The picture from `lens` with the tip's directors `tip_frame` (column 0 the optical axis, column 1 image up).
+  virtual Picture look(const Vec3& lens, const Mat3& tip_frame) = 0;
+  /// Moves the airway's vertices (breathing; same count and order as the mesh's).
+  virtual void move(const std::vector<Vec3>& vertices) = 0;
+};
+
 /// The plugin's entry points (C++ types; the plugin is built from this tree with the same compiler).
 struct VideoPlugin {
-  static constexpr int kAbi = 3;
+  static constexpr int kAbi = 4;
   int abi = kAbi;
   /// Renders every video of scene.videos from result.frames into `dir` (each file, and each PNG folder, appears
   /// complete or not at all). Returns JSON text {"videos": [{camera, file, codec, frames, fps, size}, ...],
@@ -103,6 +131,8 @@ struct VideoPlugin {
   EncodedImages (*graph_picture)(const anatomy::TriangleMesh& mesh, const anatomy::AirwayGraph& graph) = nullptr;
   /// The tip camera of scene.navigator's camera guidance, on the scene's airway mesh.
   std::unique_ptr<TipEye> (*tip_eye)(const ExperimentScene& scene) = nullptr;
+  /// A tip camera on `mesh` (borrowed: it must outlive the view).
+  std::unique_ptr<TipView> (*tip_view)(const anatomy::TriangleMesh& mesh, const TipViewSettings& settings) = nullptr;
 };
 
 /// Whether this magvine was built with the render module (and so has the plugin).
