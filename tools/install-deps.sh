@@ -26,7 +26,7 @@ packages=(
   libgtest-dev libgmock-dev            # tests (BSD-3)
   libbenchmark-dev                     # benchmarks (Apache-2.0)
   python3 python3-numpy python3-matplotlib  # plots written by tools/*.py (PSF/BSD)
-  pybind11-dev python3-dev python3-pytest  # optional python module: import magvine (BSD-3, PSF, MIT)
+  pybind11-dev python3-dev python3-pytest python3-yaml  # optional python module: import magvine, its tests (BSD-3, PSF, MIT, MIT)
 )
 
 check_only=0

@@ -1,34 +1,53 @@
-// `import magvine` (docs/python.md): the simulator's verbs as Python functions returning what the command line writes.
-// A bad input raises ValueError with the command line's one line; a run whose step fails raises
-// magvine.SimulationError naming the step. The GIL is released while a run computes, so runs in several Python
-// threads run in parallel (the core holds no global state).
+// `import magvine` (docs/python.md): the compiled part of the package, magvine._magvine. The simulator's verbs as
+// Python functions returning what the command line writes, and Simulation, an experiment stepped from Python with
+// numpy copies of its state. A bad input raises ValueError with the command line's one line; a step that finds no
+// equilibrium raises magvine.SimulationError naming the step. The GIL is released while the core computes, so
+// simulations in several Python threads run in parallel (the core holds no global state).
 
 #include <pybind11/numpy.h>
 #include <pybind11/pybind11.h>
 #include <pybind11/stl.h>
 
+#include <algorithm>
+#include <cmath>
 #include <filesystem>
 #include <fstream>
 #include <iterator>
+#include <memory>
+#include <mutex>
 #include <nlohmann/json.hpp>
+#include <optional>
 #include <random>
 #include <stdexcept>
 #include <string>
+#include <thread>
+#include <vector>
 
+#include "magvine/anatomy/airway_graph.hpp"
+#include "magvine/anatomy/centerline.hpp"
 #include "magvine/anatomy/mesh_io.hpp"
 #include "magvine/anatomy/mesh_report.hpp"
+#include "magvine/anatomy/phantom.hpp"
 #include "magvine/core/error.hpp"
+#include "magvine/core/stopwatch.hpp"
 #include "magvine/core/units.hpp"
-#include "magvine/magnetics/field_function.hpp"
+#include "magvine/magnetics/field_model.hpp"
+#include "magvine/scene/design_scene.hpp"
 #include "magvine/scene/experiment.hpp"
 #include "magvine/scene/magnets_file.hpp"
+#include "magvine/scene/navigator.hpp"
+#include "magvine/scene/trials.hpp"
+#include "magvine/scene/video_plugin.hpp"
 
 namespace py = pybind11;
 namespace fs = std::filesystem;
+namespace sc = magvine::scene;
+using magvine::InputError;
+using magvine::Vec3;
 
 namespace {
 
-/// A run whose step found no equilibrium (magvine.SimulationError).
+/// A step that found no equilibrium (magvine.SimulationError).
 class SimulationFailure : public std::runtime_error {
  public:
   using std::runtime_error::runtime_error;
@@ -39,31 +58,280 @@ py::object from_json(const std::string& text) {
   return py::module_::import("json").attr("loads")(text);
 }
 
-std::string read_text(const fs::path& file) {
-  std::ifstream in(file);
-  return std::string(std::istreambuf_iterator<char>(in), {});
+std::string fspath(const py::object& path) {
+  return py::module_::import("os").attr("fspath")(path).cast<std::string>();
 }
 
 /// A scene: a path (str or os.PathLike), or a dict with the scene file's keys (read as JSON, which YAML contains;
-/// relative paths in it resolve against the working directory).
-magvine::scene::ExperimentScene experiment_scene(const py::object& scene) {
+/// relative paths in it resolve against the working directory). Read with the GIL released.
+sc::ExperimentScene experiment_scene(const py::object& scene) {
   if (py::isinstance<py::dict>(scene)) {
     const std::string text = py::module_::import("json").attr("dumps")(scene).cast<std::string>();
-    return magvine::scene::parse_experiment_scene(text, "<dict>", fs::current_path());
+    const fs::path here = fs::current_path();
+    const py::gil_scoped_release release;
+    return sc::parse_experiment_scene(text, "<dict>", here);
   }
-  const fs::path file = py::module_::import("os").attr("fspath")(scene).cast<std::string>();
-  return magvine::scene::load_experiment_scene(file);
+  const fs::path file = fspath(scene);
+  const py::gil_scoped_release release;
+  return sc::load_experiment_scene(file);
+}
+
+/// A scene loaded once (magvine.Scene), for many simulations: its anatomy (mesh, collision world, graph) is shared.
+struct SceneHandle {
+  std::shared_ptr<const sc::ExperimentScene> scene;
+};
+
+/// A scene given as a magvine.Scene, a path or a dict.
+sc::ExperimentScene scene_of(const py::object& scene) {
+  if (py::isinstance<SceneHandle>(scene)) return *scene.cast<const SceneHandle&>().scene;
+  return experiment_scene(scene);
+}
+
+/// The run's files written into `out` (a folder; None: a temporary one, removed) and its metrics.json as a dict, as
+/// `magvine run` writes them. Raises SimulationError after writing a failed run's metrics.json.
+py::object outputs_and_metrics(const sc::ExperimentScene& scene, const sc::ExperimentResult& result,
+                               const py::object& out) {
+  fs::path dir;
+  if (out.is_none()) {
+    std::random_device seed;
+    dir = fs::temp_directory_path() / ("magvine_python_run_" + std::to_string(seed()));
+  } else {
+    dir = fspath(out);
+  }
+  {
+    const py::gil_scoped_release release;
+    sc::write_experiment_outputs(scene, result, dir);
+  }
+  std::ifstream in(dir / "metrics.json");
+  const std::string metrics(std::istreambuf_iterator<char>(in), {});
+  in.close();
+  if (out.is_none()) fs::remove_all(dir);
+  if (!result.converged) throw SimulationFailure(result.failure);
+  return from_json(metrics);
+}
+
+/// An (N, 3) array of doubles from points.
+py::array_t<double> rows(const std::vector<Vec3>& v) {
+  py::array_t<double> a({static_cast<py::ssize_t>(v.size()), py::ssize_t{3}});
+  auto o = a.mutable_unchecked<2>();
+  for (std::size_t i = 0; i < v.size(); ++i) {
+    for (int c = 0; c < 3; ++c) o(static_cast<py::ssize_t>(i), c) = v[i][c];
+  }
+  return a;
+}
+
+py::array_t<double> vec(const Vec3& v) {
+  py::array_t<double> a(3);
+  auto o = a.mutable_unchecked<1>();
+  for (int c = 0; c < 3; ++c) o(c) = v[c];
+  return a;
+}
+
+/// Three finite numbers from a Python sequence, or ValueError naming `key`.
+Vec3 three(const py::handle& h, const std::string& key) {
+  const auto a = py::array_t<double, py::array::c_style | py::array::forcecast>::ensure(h);
+  if (!a || a.ndim() != 1 || a.shape(0) != 3) throw InputError("step", 0, key, "must be 3 numbers");
+  const Vec3 v(a.at(0), a.at(1), a.at(2));
+  if (!v.allFinite()) throw InputError("step", 0, key, "must be finite");
+  return v;
+}
+
+/// An experiment stepped from Python (magvine.Simulation). The scene is owned here (the experiment borrows it); one
+/// thread at a time may use it (a second one gets RuntimeError rather than a data race).
+class Simulation {
+ public:
+  Simulation(const py::object& scene, const py::object& seed) {
+    sc::ExperimentScene s = scene_of(scene);
+    if (!seed.is_none()) s = sc::perturbed(s, seed.cast<std::uint64_t>());
+    m_scene = std::make_unique<sc::ExperimentScene>(std::move(s));
+    const py::gil_scoped_release release;
+    m_path = sc::target_path(*m_scene);
+    m_run = std::make_unique<sc::Experiment>(*m_scene);
+  }
+
+  void step(const py::object& dt, const py::object& pressure, const py::object& tether, const py::object& magnets) {
+    if (m_run->ended()) {
+      throw std::runtime_error(m_finished ? "Simulation.step: finish() ended this run"
+                               : !m_run->result().converged
+                                   ? "Simulation.step: a step failed and ended this run: " + m_run->result().failure
+                                   : "Simulation.step: the biopsy's aiming is done; finish() pushes the needle");
+    }
+    sc::StepRequest r;
+    if (!dt.is_none()) r.dt = dt.cast<double>();
+    if (!pressure.is_none()) r.pressure = pressure.cast<double>();
+    if (!tether.is_none()) r.tether = tether.cast<double>();
+    if (!magnets.is_none()) {
+      // (position, axis) for magnet 0, or {index: (position, axis)}.
+      const auto pose = [&](int i, const py::handle& h) {
+        const std::string key = "magnet_pose[" + std::to_string(i) + "]";
+        const py::sequence p = py::reinterpret_borrow<py::sequence>(h);
+        if (!py::isinstance<py::sequence>(h) || py::len(p) != 2) {
+          throw InputError("step", 0, key, "must be (position, axis)");
+        }
+        r.magnets.push_back({i, three(p[0], key + ".position"), three(p[1], key + ".axis")});
+      };
+      if (py::isinstance<py::dict>(magnets)) {
+        for (const auto& [k, v] : magnets.cast<py::dict>()) pose(k.cast<int>(), v);
+      } else {
+        pose(0, magnets);
+      }
+    }
+    const std::unique_lock<std::mutex> lock(m_busy, std::try_to_lock);
+    if (!lock.owns_lock()) throw std::runtime_error("Simulation.step: this simulation is stepping in another thread");
+    bool converged = false;
+    {
+      const py::gil_scoped_release release;
+      const magvine::Stopwatch clock;
+      converged = m_run->step(r);
+      m_step_seconds += clock.seconds();
+    }
+    if (!converged) throw SimulationFailure(m_run->result().failure);
+  }
+
+  /// The state now, as numpy arrays (copies: the body gains nodes as it grows).
+  py::object state() const {
+    const magvine::robot::GrowthState& g = m_run->state();
+    const std::size_t n = g.body.x.size();
+    std::vector<Vec3> tangents(n);
+    std::vector<Vec3> b(n);
+    std::vector<Vec3> normal(n, Vec3::Zero());
+    std::vector<Vec3> shear(n, Vec3::Zero());
+    std::vector<double> pressure(n, 0.0);
+    for (std::size_t i = 0; i < n; ++i) {
+      // Frames are per edge: a node takes the edge towards the tip, the tip its last edge.
+      tangents[i] = g.body.frames[std::min(i, g.body.frames.size() - 1)].col(0);
+      b[i] = m_run->field_at(g.body.x[i]).b;
+      if (i < g.forces.normal_vector.size()) normal[i] = g.forces.normal_vector[i];
+      if (i < g.forces.shear_vector.size()) shear[i] = g.forces.shear_vector[i];
+      if (i < g.forces.pressure.size()) pressure[i] = g.forces.pressure[i];
+    }
+    std::vector<Vec3> positions;
+    std::vector<Vec3> axes;
+    for (const magvine::magnetics::Pose& p : m_run->magnet_poses()) {
+      positions.push_back(p.position);
+      axes.push_back(p.rotation.col(2));
+    }
+    py::array_t<double> frame({py::ssize_t{3}, py::ssize_t{3}});
+    auto f = frame.mutable_unchecked<2>();
+    for (int r = 0; r < 3; ++r) {
+      for (int c = 0; c < 3; ++c) f(r, c) = g.body.frames.back()(r, c);
+    }
+    const std::vector<sc::ExperimentSample>& samples = m_run->result().samples;
+    py::dict d;
+    d["time"] = m_run->time();
+    d["steps"] = m_run->steps();
+    d["everted_length"] = m_run->everted_length();
+    d["pressure"] = samples.empty() ? m_scene->pressure.at(0.0) : samples.back().pressure;
+    d["nodes"] = rows(g.body.x);
+    d["tangents"] = rows(tangents);
+    d["wall_normal"] = rows(normal);
+    d["wall_shear"] = rows(shear);
+    d["contact_pressure"] = py::array_t<double>(static_cast<py::ssize_t>(n), pressure.data());
+    d["max_wall_normal"] = g.forces.max_normal;
+    d["field"] = rows(b);
+    d["tip_position"] = vec(g.body.tip());
+    d["tip_frame"] = frame;
+    d["magnet_positions"] = rows(positions);
+    d["magnet_axes"] = rows(axes);
+    d["success"] = m_run->result().success;
+    d["burst"] = g.burst;
+    return py::module_::import("types").attr("SimpleNamespace")(**d);
+  }
+
+  /// How far along the path to the target the tip has got (path_progress), or None.
+  py::object progress() const {
+    if (m_path.empty()) return py::none();
+    return py::float_(sc::path_progress(m_path, *m_scene->target, m_run->state().body.tip()));
+  }
+
+  py::object path() const { return m_path.empty() ? py::none() : py::object(rows(m_path)); }
+
+  py::object finish(const py::object& out) {
+    if (m_finished) throw std::runtime_error("Simulation.finish: called twice");
+    m_finished = true;
+    sc::ExperimentResult result;
+    {
+      const py::gil_scoped_release release;
+      result = m_run->finish();
+    }
+    return outputs_and_metrics(*m_scene, result, out);
+  }
+
+  /// The tip camera's picture as an (height, width, 3) RGB array of bytes.
+  py::array_t<std::uint8_t> render(const std::string& camera, int width, int height, double fov_deg, bool fisheye,
+                                   double noise) {
+    if (camera != "tip") throw InputError("render", 0, "camera", "must be 'tip' (got '" + camera + "')");
+    if (width < 16 || height < 16 || width > 4096 || height > 4096) {
+      throw InputError("render", 0, "width", "width and height must be 16–4096 pixels");
+    }
+    if (!(fov_deg > 0.0 && fov_deg < (fisheye ? 360.0 : 180.0))) {
+      throw InputError("render", 0, "fov", "must be in (0, 180) degrees, (0, 360) with the fisheye lens");
+    }
+    const sc::TipViewSettings s{fisheye, fov_deg * magvine::kDegToRad, width, height, noise, m_scene->seed};
+    if (!m_view || s.fisheye != m_view_settings.fisheye || s.fov != m_view_settings.fov ||
+        s.width != m_view_settings.width || s.height != m_view_settings.height || s.noise != m_view_settings.noise) {
+      m_view = sc::video_plugin("Simulation.render").tip_view(m_scene->anatomy->mesh(), s);
+      m_view_settings = s;
+    }
+    sc::Picture p;
+    {
+      const py::gil_scoped_release release;
+      if (m_scene->breathing) m_view->move(m_run->airway_vertices());
+      const magvine::robot::GrowthState& g = m_run->state();
+      p = m_view->look(g.body.tip(), g.body.frames.back());
+    }
+    py::array_t<std::uint8_t> a(
+        {static_cast<py::ssize_t>(p.height), static_cast<py::ssize_t>(p.width), py::ssize_t{3}});
+    std::copy(p.rgb.begin(), p.rgb.end(), a.mutable_data());
+    return a;
+  }
+
+  const sc::ExperimentScene& scene() const { return *m_scene; }
+  const sc::Experiment& run() const { return *m_run; }
+  bool finished() const { return m_finished; }
+  double step_seconds() const { return m_step_seconds; }
+
+ private:
+  std::unique_ptr<sc::ExperimentScene> m_scene;
+  std::unique_ptr<sc::Experiment> m_run;
+  std::vector<Vec3> m_path;
+  bool m_finished = false;
+  double m_step_seconds = 0.0;
+  std::mutex m_busy;
+  std::unique_ptr<sc::TipView> m_view;
+  sc::TipViewSettings m_view_settings;
+};
+
+py::dict outcome_dict(const sc::TrialOutcome& o) {
+  const auto maybe = [](double v) { return std::isfinite(v) ? py::object(py::float_(v)) : py::object(py::none()); };
+  py::dict d;
+  d["target"] = o.target;
+  d["repeat"] = o.repeat;
+  d["seed"] = o.seed;
+  d["success"] = o.success;
+  d["burst"] = o.burst;
+  d["time_to_target_s"] = o.time_to_target >= 0.0 ? py::object(py::float_(o.time_to_target)) : py::none();
+  d["everted_length_m"] = o.everted_length;
+  d["final_error_m"] = o.final_error;
+  d["max_wall_normal_N"] = o.max_normal;
+  d["retractions"] = o.retractions;
+  d["biopsy"] = o.biopsy < 0 ? py::object(py::none()) : py::object(py::bool_(o.biopsy == 1));
+  d["needle_to_nodule_m"] = maybe(o.needle_to_nodule);
+  d["slide_back_m"] = maybe(o.slide_back);
+  d["runtime_s"] = o.runtime_s;
+  d["reason"] = o.reason;
+  return d;
 }
 
 }  // namespace
 
-PYBIND11_MODULE(magvine, m) {
-  m.doc() = "magvine: magnetically steered soft robots in anatomy (docs/python.md)";
+PYBIND11_MODULE(_magvine, m) {
+  m.doc() = "magvine's compiled core (docs/python.md); import magvine";
   py::register_exception<SimulationFailure>(m, "SimulationError", PyExc_RuntimeError);
   py::register_exception_translator([](std::exception_ptr p) {
     try {
       if (p) std::rethrow_exception(p);
-    } catch (const magvine::InputError& e) {
+    } catch (const InputError& e) {
       PyErr_SetString(PyExc_ValueError, e.what());
     }
   });
@@ -71,24 +339,13 @@ PYBIND11_MODULE(magvine, m) {
   m.def(
       "run",
       [](const py::object& scene, const py::object& out) -> py::object {
-        const magvine::scene::ExperimentScene sc = experiment_scene(scene);
-        fs::path dir;
-        if (out.is_none()) {
-          std::random_device seed;
-          dir = fs::temp_directory_path() / ("magvine_python_run_" + std::to_string(seed()));
-        } else {
-          dir = py::module_::import("os").attr("fspath")(out).cast<std::string>();
-        }
-        magvine::scene::ExperimentResult result;
+        const sc::ExperimentScene s = scene_of(scene);
+        sc::ExperimentResult result;
         {
           const py::gil_scoped_release release;
-          result = magvine::scene::run_experiment(sc);
-          magvine::scene::write_experiment_outputs(sc, result, dir);
+          result = sc::run_experiment(s);
         }
-        const std::string metrics = read_text(dir / "metrics.json");
-        if (out.is_none()) fs::remove_all(dir);
-        if (!result.converged) throw SimulationFailure(result.failure);
-        return from_json(metrics);
+        return outputs_and_metrics(s, result, out);
       },
       py::arg("scene"), py::arg("out") = py::none(),
       "Runs an experiment scene (a path, or a dict with the scene file's keys) as `magvine run` does, writing its "
@@ -96,40 +353,215 @@ PYBIND11_MODULE(magvine, m) {
       "ValueError for a bad scene and magvine.SimulationError when a step fails.");
 
   m.def(
+      "trials",
+      [](const py::object& scene, const std::vector<std::string>& targets, int repeats, int jobs,
+         const py::object& out) {
+        if (repeats < 1) throw InputError("trials", 0, "repeats", "must be at least 1");
+        const sc::ExperimentScene s = scene_of(scene);
+        for (const std::string& t : targets) (void)sc::with_target(s, t);  // bad names fail before any run
+        const int threads = jobs > 0 ? jobs : static_cast<int>(std::max(1u, std::thread::hardware_concurrency()));
+        std::vector<sc::TrialOutcome> outcomes;
+        const std::string dir = out.is_none() ? std::string() : fspath(out);
+        {
+          const py::gil_scoped_release release;
+          outcomes = sc::run_trials(s, targets, repeats, threads);
+          if (!dir.empty()) sc::write_trial_outputs(outcomes, dir);
+        }
+        py::list l;
+        for (const sc::TrialOutcome& o : outcomes) l.append(outcome_dict(o));
+        return l;
+      },
+      py::arg("scene"), py::arg("targets") = std::vector<std::string>{}, py::arg("repeats") = 4, py::arg("jobs") = 0,
+      py::arg("out") = py::none(),
+      "Runs `repeats` perturbed trials towards each target (branch names; empty: the scene's own) as `magvine trials` "
+      "does, on `jobs` threads (0: one per core), writing trials.csv and the summary into `out` when given; returns "
+      "one dict per trial in (target, repeat) order (SI units).");
+
+  m.def(
+      "design",
+      [](const py::object& scene, const py::object& out) -> py::object {
+        sc::DesignScene s;
+        if (py::isinstance<py::dict>(scene)) {
+          const std::string text = py::module_::import("json").attr("dumps")(scene).cast<std::string>();
+          const py::gil_scoped_release release;
+          s = sc::parse_design_scene(text, "<dict>");
+        } else {
+          const std::string file = fspath(scene);
+          const py::gil_scoped_release release;
+          s = sc::load_design_scene(file);
+        }
+        fs::path dir;
+        if (out.is_none()) {
+          std::random_device seed;
+          dir = fs::temp_directory_path() / ("magvine_python_design_" + std::to_string(seed()));
+        } else {
+          dir = fspath(out);
+        }
+        magvine::design::DesignResult r;
+        {
+          const py::gil_scoped_release release;
+          r = sc::run_design(s);
+          if (std::isfinite(r.rms)) sc::write_design_outputs(s, r, dir);
+        }
+        if (!std::isfinite(r.rms)) {
+          throw SimulationFailure("design: no design had a stable equilibrium (" + r.message + ")");
+        }
+        std::ifstream in(dir / "design.json");
+        const std::string json(std::istreambuf_iterator<char>(in), {});
+        in.close();
+        if (out.is_none()) fs::remove_all(dir);
+        return from_json(json);
+      },
+      py::arg("scene"), py::arg("out") = py::none(),
+      "Designs a rod's magnetisation as `magvine design SCENE --out OUT` does (without the MPM check) and returns "
+      "design.json as a dict, writing design.json, scene.yaml, shape.csv and target.csv into `out` (None: none "
+      "kept). Raises magvine.SimulationError when no design has a stable equilibrium.");
+
+  m.def(
+      "phantom",
+      [](const std::string& kind, const py::object& out, const py::kwargs& params) -> py::object {
+        namespace an = magvine::anatomy;
+        const std::optional<an::PhantomKind> k = an::parse_phantom_kind(kind);
+        if (!k) {
+          throw InputError("phantom", 0, "kind",
+                           "must be bronchial_tree, tube, y_bifurcation, s_bend or constriction (got '" + kind + "')");
+        }
+        const std::string where = "phantom " + kind;
+        an::PhantomParams p = an::default_params(*k);
+        const std::vector<an::PhantomOption> options = an::phantom_options(p);
+        for (const auto& [key, value] : params) {
+          const std::string name = key.cast<std::string>();
+          if (auto* tree = std::get_if<an::BronchialTreeParams>(&p); tree && name == "table") {
+            const std::string t = value.cast<std::string>();
+            const auto table = an::parse_airway_table(t);
+            if (!table) throw InputError(where, 0, "table", "must be weibel_a or horsfield (got '" + t + "')");
+            tree->table = *table;
+            continue;
+          }
+          if (auto* tube = std::get_if<an::TubeParams>(&p); tube && name == "open") {
+            tube->capped = !value.cast<bool>();
+            continue;
+          }
+          const auto o =
+              std::find_if(options.begin(), options.end(), [&](const an::PhantomOption& x) { return x.name == name; });
+          if (o == options.end()) {
+            std::string known;
+            for (const an::PhantomOption& x : options) known += (known.empty() ? "" : ", ") + x.name;
+            throw InputError(where, 0, name, "is not a parameter of this kind (it has " + known + ")");
+          }
+          if (double* const* f = std::get_if<double*>(&o->field)) {
+            const double v = value.cast<double>();
+            if (!std::isfinite(v)) throw InputError(where, 0, name, "must be finite");
+            **f = v * o->scale;
+          } else if (int* const* i = std::get_if<int*>(&o->field)) {
+            **i = value.cast<int>();
+          } else {
+            *std::get<std::uint64_t*>(o->field) = value.cast<std::uint64_t>();
+          }
+        }
+        const std::string file = out.is_none() ? std::string() : fspath(out);
+        if (!file.empty() && fs::path(file).extension() != ".stl" && fs::path(file).extension() != ".STL") {
+          throw InputError(where, 0, "out", "must name an .stl file (got '" + file + "')");
+        }
+        an::Phantom ph;
+        {
+          const py::gil_scoped_release release;
+          ph = an::make_phantom(p);
+          if (!file.empty()) an::write_phantom(ph, file);
+        }
+        py::array_t<std::uint32_t> triangles({static_cast<py::ssize_t>(ph.mesh.triangles.size()), py::ssize_t{3}});
+        auto t = triangles.mutable_unchecked<2>();
+        for (std::size_t i = 0; i < ph.mesh.triangles.size(); ++i) {
+          for (int c = 0; c < 3; ++c) t(static_cast<py::ssize_t>(i), c) = ph.mesh.triangles[i][c];
+        }
+        py::dict d;
+        d["vertices"] = rows(ph.mesh.vertices);
+        d["triangles"] = triangles;
+        d["graph"] = from_json(an::graph_to_json(ph.graph));
+        d["metadata"] = from_json(an::phantom_metadata_json(ph));
+        return d;
+      },
+      py::arg("kind"), py::arg("out") = py::none(),
+      "Generates a phantom as `magvine phantom KIND --out OUT` does, its parameters as keywords named as in the "
+      "metadata (gap_mm=3, branch_angle_deg=35, max_generation=4, table='horsfield', open=True); writes OUT (an .stl) "
+      "with its graph and metadata beside it when given, and returns a dict: vertices [m] (V, 3), triangles (T, 3), "
+      "graph, metadata.");
+
+  m.def(
       "mesh_check",
       [](const std::string& file, const std::string& units) -> py::object {
         const auto unit = magvine::parse_length_unit(units);
-        if (!unit) throw magvine::InputError("units", 0, "", "must be mm, cm or m (got '" + units + "')");
-        const magvine::anatomy::ImportedMesh imported = magvine::anatomy::import_mesh(file, {.units = *unit});
-        const magvine::anatomy::MeshReport report = magvine::anatomy::analyse_mesh(imported.mesh);
-        return from_json(magvine::anatomy::report_json(file, imported, report, *unit));
+        if (!unit) throw InputError("units", 0, "", "must be mm, cm or m (got '" + units + "')");
+        std::string json;
+        {
+          const py::gil_scoped_release release;
+          const magvine::anatomy::ImportedMesh imported = magvine::anatomy::import_mesh(file, {.units = *unit});
+          const magvine::anatomy::MeshReport report = magvine::anatomy::analyse_mesh(imported.mesh);
+          json = magvine::anatomy::report_json(file, imported, report, *unit);
+        }
+        return from_json(json);
       },
       py::arg("file"), py::arg("units") = "mm", "The report of `magvine mesh check --json FILE` as a dict.");
+
+  m.def(
+      "airway_graph",
+      [](const std::string& file, const std::string& units, double voxel, const py::object& root) -> py::object {
+        const auto unit = magvine::parse_length_unit(units);
+        if (!unit) throw InputError("units", 0, "", "must be mm, cm or m (got '" + units + "')");
+        if (!(voxel >= 0.0 && std::isfinite(voxel))) throw InputError("voxel", 0, "", "must be a length >= 0");
+        magvine::anatomy::CenterlineOptions options;
+        options.voxel = voxel * magvine::metres_per(*unit);
+        if (!root.is_none()) options.root = three(root, "root") * magvine::metres_per(*unit);
+        std::string json;
+        {
+          const py::gil_scoped_release release;
+          const magvine::anatomy::ImportedMesh imported = magvine::anatomy::import_mesh(file, {.units = *unit});
+          json = magvine::anatomy::graph_to_json(magvine::anatomy::extract_airway_graph(imported.mesh, options));
+        }
+        return from_json(json);
+      },
+      py::arg("file"), py::arg("units") = "mm", py::arg("voxel") = 0.0, py::arg("root") = py::none(),
+      "The airway graph of a mesh as `magvine mesh graph FILE --out graph.json` writes it, as a dict (voxel and root "
+      "in `units`; voxel 0: automatic).");
 
   m.def(
       "field",
       [](const std::string& magnets, const py::array_t<double, py::array::c_style | py::array::forcecast>& points) {
         if (points.ndim() != 2 || points.shape(1) != 3) {
-          throw magvine::InputError("points", 0, "", "must be an (N, 3) array of positions in metres");
+          throw InputError("points", 0, "", "must be an (N, 3) array of positions in metres");
         }
-        const magvine::magnetics::FieldModel model = magvine::scene::load_magnets_file(magnets);
-        const magvine::magnetics::FieldFunction f = magvine::magnetics::field_function(model, model.rest_poses);
-        const auto n = static_cast<std::size_t>(points.shape(0));
-        py::array_t<double> b({static_cast<py::ssize_t>(n), py::ssize_t{3}});
-        py::array_t<double> g({static_cast<py::ssize_t>(n), py::ssize_t{3}, py::ssize_t{3}});
-        const auto x = points.unchecked<2>();
-        auto bo = b.mutable_unchecked<2>();
-        auto go = g.mutable_unchecked<3>();
+        const magvine::magnetics::FieldModel model = sc::load_magnets_file(magnets);
+        const py::ssize_t n = points.shape(0);
+        py::array_t<double> b({n, py::ssize_t{3}});
+        py::array_t<double> g({n, py::ssize_t{3}, py::ssize_t{3}});
+        const double* x = points.data();
+        double* bo = b.mutable_data();
+        double* go = g.mutable_data();
         {
+          // The core's batch evaluation (field_gradient_batch), in blocks that stay in cache.
           const py::gil_scoped_release release;
-          for (std::size_t i = 0; i < n; ++i) {
-            const auto k = static_cast<py::ssize_t>(i);
-            const magvine::Vec3 p(x(k, 0), x(k, 1), x(k, 2));
-            if (!p.allFinite()) throw magvine::InputError("points", 0, "", "a position is not finite");
-            const magvine::magnetics::FieldSample s = f(p);
-            for (int r = 0; r < 3; ++r) {
-              bo(k, r) = s.b[r];
-              for (int c = 0; c < 3; ++c) go(k, r, c) = s.g(r, c);
+          constexpr py::ssize_t kBlock = 4096;
+          std::vector<Vec3> block;
+          std::vector<magvine::magnetics::FieldSample> samples;
+          for (py::ssize_t start = 0; start < n; start += kBlock) {
+            const py::ssize_t count = std::min(kBlock, n - start);
+            block.resize(static_cast<std::size_t>(count));
+            samples.resize(static_cast<std::size_t>(count));
+            for (py::ssize_t i = 0; i < count; ++i) {
+              const double* p = x + 3 * (start + i);
+              block[static_cast<std::size_t>(i)] = Vec3(p[0], p[1], p[2]);
+              if (!block[static_cast<std::size_t>(i)].allFinite()) {
+                throw InputError("points", 0, "", "a position is not finite");
+              }
+            }
+            magvine::magnetics::field_gradient_batch(model, model.rest_poses, block, samples);
+            for (py::ssize_t i = 0; i < count; ++i) {
+              const magvine::magnetics::FieldSample& f = samples[static_cast<std::size_t>(i)];
+              const py::ssize_t k = start + i;
+              for (int r = 0; r < 3; ++r) {
+                bo[3 * k + r] = f.b[r];
+                for (int c = 0; c < 3; ++c) go[9 * k + 3 * r + c] = f.g(r, c);
+              }
             }
           }
         }
@@ -138,4 +570,71 @@ PYBIND11_MODULE(magvine, m) {
       py::arg("magnets"), py::arg("points"),
       "The field B [T] (N, 3) and its gradient G = ∂B/∂x [T/m] (N, 3, 3) of a magnets file's magnets at their poses, "
       "at points [m] (N, 3).");
+
+  py::class_<SceneHandle>(m, "Scene",
+                          "An experiment scene loaded once (a path, or a dict with the scene file's keys): give it to "
+                          "Simulation, run or trials in place of the path to share its anatomy.")
+      .def(py::init([](const py::object& scene) {
+             return SceneHandle{std::make_shared<const sc::ExperimentScene>(experiment_scene(scene))};
+           }),
+           py::arg("scene"))
+      .def_property_readonly("file", [](const SceneHandle& h) { return h.scene->file; })
+      .def("__repr__", [](const SceneHandle& h) { return "magvine.Scene('" + h.scene->file + "')"; });
+
+  py::class_<Simulation>(m, "Simulation",
+                         "An experiment scene stepped from Python: step() advances it as `magvine run` does (or under "
+                         "your pressure, tether and magnet poses), state gives numpy copies of the body, finish() "
+                         "returns the metrics.")
+      .def(py::init<const py::object&, const py::object&>(), py::arg("scene"), py::arg("seed") = py::none(),
+           "scene: a path or a dict with the scene file's keys; seed: None for the scene as written, or an integer "
+           "for the perturbed trial `magvine trials` runs with that seed.")
+      .def("step", &Simulation::step, py::arg("dt") = py::none(), py::arg("pressure") = py::none(),
+           py::arg("tether") = py::none(), py::arg("magnet_pose") = py::none(),
+           "One step: dt [s] (None: to the next multiple of the scene's dt, as `magvine run`), pressure [Pa], tether "
+           "(released length [m]), magnet_pose ((position [m], axis) of magnet 0, or {index: (position, axis)}). "
+           "Each setting holds until replaced. Raises SimulationError when the step finds no equilibrium.")
+      .def_property_readonly(
+          "state", &Simulation::state,
+          "The state now (numpy copies, SI units): time, steps, everted_length, pressure, nodes, "
+          "tangents (each node's edge towards the tip), wall_normal and wall_shear (the force on the tissue per node), "
+          "contact_pressure, max_wall_normal, field (B at the nodes), tip_position, tip_frame "
+          "(columns: tangent, image up, their cross product), magnet_positions, magnet_axes, "
+          "success, burst (the film burst: the vine grows no more).")
+      .def_property_readonly("progress", &Simulation::progress,
+                             "How far along the path to the target the tip has got, 0–1 (metrics' path_progress); "
+                             "None without a target and a graph.")
+      .def_property_readonly("path", &Simulation::path, "The path to the target (K, 3) [m], or None.")
+      .def_property_readonly(
+          "done", [](const Simulation& s) { return s.run().done(); },
+          "Whether `magvine run` would stop here (duration, target with stop_at_target, a failed "
+          "step, a biopsy's aiming done).")
+      .def_property_readonly(
+          "ended", [](const Simulation& s) { return s.run().ended(); },
+          "Whether no step may follow (a failed step, a biopsy's aiming done, finish()).")
+      .def_property_readonly(
+          "time", [](const Simulation& s) { return s.run().time(); }, "[s]")
+      .def_property_readonly("steps", [](const Simulation& s) { return s.run().steps(); })
+      .def_property_readonly(
+          "dt", [](const Simulation& s) { return s.scene().dt; }, "the scene's step [s]")
+      .def_property_readonly(
+          "duration", [](const Simulation& s) { return s.scene().duration; }, "[s]")
+      .def_property_readonly("magnets", [](const Simulation& s) { return s.run().magnet_poses().size(); })
+      .def_property_readonly(
+          "target",
+          [](const Simulation& s) { return s.scene().target ? py::object(vec(*s.scene().target)) : py::none(); },
+          "[m], or None")
+      .def_property_readonly(
+          "target_tolerance", [](const Simulation& s) { return s.scene().target_tolerance; }, "[m]")
+      .def_property_readonly(
+          "steered", [](const Simulation& s) { return s.scene().navigator.has_value(); },
+          "whether the scene's navigator steers a magnet")
+      .def_property_readonly("step_seconds", &Simulation::step_seconds,
+                             "computing time spent inside the core's steps so far [s]")
+      .def("finish", &Simulation::finish, py::arg("out") = py::none(),
+           "Ends the run (a biopsy's puncture) and returns its metrics (metrics.json as a dict), writing its files "
+           "into `out` (None: none kept).")
+      .def("render", &Simulation::render, py::arg("camera") = "tip", py::arg("width") = 160, py::arg("height") = 160,
+           py::arg("fov") = 120.0, py::arg("fisheye") = true, py::arg("noise") = 0.0,
+           "The tip camera's picture now as a (height, width, 3) uint8 RGB array (fov in degrees across the width). "
+           "Needs the render module.");
 }

@@ -1,6 +1,7 @@
 """`import magvine` against the command line it mirrors (docs/python.md): the same metrics to the last bit for
 bundled scenes, the same mesh report, the same one-line error; the field against a point dipole's closed form.
 Run by ctest (tests/CMakeLists.txt) with PYTHONPATH at the built module and MAGVINE at the CLI."""
+import csv
 import json
 import math
 import os
@@ -109,3 +110,62 @@ def test_runs_in_threads_give_the_same_metrics(tmp_path):
         t.join()
     for r in results:
         assert {k: v for k, v in r.items() if k not in TIMING} == {k: v for k, v in alone.items() if k not in TIMING}
+
+
+def test_phantom_is_the_command_lines_phantom(tmp_path):
+    # The same parameters by keyword (metadata names) and by option (--gap-mm): the same mesh file, graph and metadata.
+    stl = tmp_path / "py.stl"
+    ours = magvine.phantom("constriction", out=stl, gap_mm=2.5, constriction_x_mm=40)
+    subprocess.run([CLI, "phantom", "constriction", "--gap-mm", "2.5", "--constriction-x-mm", "40", "--out",
+                    str(tmp_path / "cli.stl")], check=True, capture_output=True)
+    assert stl.read_bytes() == (tmp_path / "cli.stl").read_bytes()
+    with open(tmp_path / "cli.meta.json") as f:
+        assert ours["metadata"] == json.load(f)
+    assert ours["metadata"]["parameters"]["gap_mm"] == 2.5
+    assert ours["triangles"].shape[1] == 3 and ours["triangles"].max() < len(ours["vertices"])
+    # A Y phantom's daughters at 35°: its generated graph's child branches leave the parent at that angle.
+    y = magvine.phantom("y_bifurcation", branch_angle_deg=35)
+    assert len(y["graph"]["branches"]) == 3
+    with pytest.raises(ValueError, match="colour"):
+        magvine.phantom("tube", colour=3)
+    with pytest.raises(ValueError, match="kind"):
+        magvine.phantom("torus")
+
+
+def test_airway_graph_is_the_command_lines_graph(tmp_path):
+    stl = tmp_path / "y.stl"
+    magvine.phantom("y_bifurcation", out=stl)
+    subprocess.run([CLI, "mesh", "graph", str(stl), "--out", str(tmp_path / "graph.json")], check=True,
+                   capture_output=True)
+    with open(tmp_path / "graph.json") as f:
+        assert magvine.airway_graph(str(stl)) == json.load(f)
+
+
+def test_design_is_the_command_lines_design(tmp_path):
+    scene = os.path.join(SRC, "assets", "scenes", "design_catheter.yaml")
+    ours = magvine.design(scene, out=tmp_path / "py")
+    subprocess.run([CLI, "design", scene, "--out", str(tmp_path / "cli")], check=True, capture_output=True)
+    with open(tmp_path / "cli" / "design.json") as f:
+        theirs = json.load(f)
+    def untimed(x):  # the computing times (runtime_s, each iteration's time_s) differ between two runs
+        if isinstance(x, dict):
+            return {k: untimed(v) for k, v in x.items() if k not in ("runtime_s", "time_s")}
+        return [untimed(v) for v in x] if isinstance(x, list) else x
+    assert untimed(ours) == untimed(theirs)
+    assert (tmp_path / "py" / "scene.yaml").read_text() == (tmp_path / "cli" / "scene.yaml").read_text()
+
+
+def test_trials_are_the_command_lines_trials(tmp_path):
+    scene = os.path.join(SRC, "assets", "scenes", "y_bifurcation_fluid_vine.yaml")
+    ours = magvine.trials(scene, repeats=2, jobs=2, out=tmp_path / "py")
+    subprocess.run([CLI, "trials", scene, "--repeats", "2", "--jobs", "2", "--out", str(tmp_path / "cli")],
+                   check=True, capture_output=True)
+    assert len(ours) == 2 and [t["repeat"] for t in ours] == [0, 1]
+    # trials.csv without its runtime column: the same trials, the same outcomes.
+    def rows(path):
+        with open(path) as f:
+            table = list(csv.DictReader(f))
+        return [{k: v for k, v in r.items() if "runtime" not in k} for r in table]
+    assert rows(tmp_path / "py" / "trials.csv") == rows(tmp_path / "cli" / "trials.csv")
+    for t, row in zip(ours, rows(tmp_path / "cli" / "trials.csv")):
+        assert str(t["seed"]) == row["seed"]

@@ -1,0 +1,101 @@
+"""magvine.NavigationEnv (docs/python.md) on the Y phantom: deterministic per seed, one env per thread gives its own
+single-threaded result, 1000 random steps without an exception, the reward as documented, the spaces' samples inside
+them. Run by ctest with PYTHONPATH at the built module."""
+import os
+import threading
+
+import numpy as np
+import pytest
+
+magvine = pytest.importorskip("magvine", reason="the Python module is not built (MAGVINE_WITH_PYTHON)")
+
+SRC = os.environ.get("MAGVINE_SOURCE_DIR", ".")
+Y = os.path.join(SRC, "assets", "scenes", "y_bifurcation_fluid_vine.yaml")
+
+
+@pytest.fixture(scope="module")
+def scene():
+    return magvine.Scene(Y)  # loaded once, shared by the envs
+
+
+def episode(env, seed, steps):
+    """Observations and rewards of `steps` random actions after reset(seed)."""
+    obs, _ = env.reset(seed=seed)
+    out = [obs]
+    rewards = []
+    for _ in range(steps):
+        obs, reward, terminated, truncated, _ = env.step(env.action_space.sample())
+        out.append(obs)
+        rewards.append(reward)
+        if terminated or truncated:
+            break
+    return out, rewards
+
+
+def same(a, b):
+    for (oa, ob) in zip(a[0], b[0]):
+        assert oa.keys() == ob.keys()
+        for k in oa:
+            np.testing.assert_array_equal(oa[k], ob[k], err_msg=k)
+    assert a[1] == b[1]
+
+
+def test_the_same_seed_gives_the_same_observations(scene):
+    env = magvine.NavigationEnv(scene, frame_skip=2)
+    first = episode(env, 7, 15)
+    second = episode(env, 7, 15)
+    same(first, second)
+    other = episode(env, 8, 15)
+    assert not np.array_equal(first[0][-1]["tip_position"], other[0][-1]["tip_position"])
+
+
+def test_two_envs_in_two_threads_give_their_own_results(scene):
+    envs = [magvine.NavigationEnv(scene, frame_skip=2) for _ in range(2)]
+    alone = [episode(envs[i], 10 + i, 12) for i in range(2)]
+    together = [None, None]
+    threads = [threading.Thread(target=lambda i=i: together.__setitem__(i, episode(envs[i], 10 + i, 12)))
+               for i in range(2)]
+    for t in threads:
+        t.start()
+    for t in threads:
+        t.join()
+    for a, b in zip(alone, together):
+        same(a, b)
+
+
+def test_a_thousand_random_steps(scene):
+    env = magvine.NavigationEnv(scene, frame_skip=1, max_steps=150)
+    env.reset(seed=3)
+    episodes = 1
+    for _ in range(1000):
+        action = env.action_space.sample()
+        assert env.action_space.contains(action)
+        obs, reward, terminated, truncated, info = env.step(action)
+        assert np.isfinite(reward)
+        for k, space in env.observation_space.spaces.items():
+            assert obs[k].shape == space.shape, k
+            assert np.all(np.isfinite(obs[k])), k
+        if terminated or truncated:
+            env.reset()
+            episodes += 1
+    assert episodes >= 6  # 150 actions at most per episode
+
+
+def test_the_reward_is_progress_gained_less_the_wall_force(scene):
+    env = magvine.NavigationEnv(scene, frame_skip=3, progress_weight=10.0, force_weight=0.1, success_bonus=1.0)
+    obs, info = env.reset(seed=5)
+    progress = info["progress"]
+    for _ in range(20):
+        obs, reward, terminated, truncated, info = env.step(np.zeros(8))
+        expected = 10.0 * (info["progress"] - progress) - 0.1 * info["max_wall_normal_N"]
+        expected += 1.0 if info["success"] else 0.0
+        assert reward == pytest.approx(expected, rel=1e-12, abs=1e-15)
+        assert obs["progress"][0] == info["progress"]
+        progress = info["progress"]
+        if terminated or truncated:
+            break
+
+
+def test_a_scene_with_a_navigator_is_refused():
+    with pytest.raises(ValueError, match="navigator"):
+        magvine.NavigationEnv(os.path.join(SRC, "assets", "scenes", "bronchial_tree_navigator.yaml"))
