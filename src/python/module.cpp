@@ -87,27 +87,47 @@ sc::ExperimentScene scene_of(const py::object& scene) {
   return experiment_scene(scene);
 }
 
-/// The run's files written into `out` (a folder; None: a temporary one, removed) and its metrics.json as a dict, as
-/// `magvine run` writes them. Raises SimulationError after writing a failed run's metrics.json.
+/// Where a verb writes its files: `out` (a folder), or for None a fresh temporary folder removed when this goes (also
+/// when the verb throws).
+class OutputFolder {
+ public:
+  OutputFolder(const py::object& out, const char* what) : m_temporary(out.is_none()) {
+    if (m_temporary) {
+      std::random_device seed;
+      m_dir = fs::temp_directory_path() / ("magvine_python_" + std::string(what) + "_" + std::to_string(seed()));
+    } else {
+      m_dir = fspath(out);
+    }
+  }
+  ~OutputFolder() {
+    std::error_code ec;
+    if (m_temporary) fs::remove_all(m_dir, ec);
+  }
+  OutputFolder(const OutputFolder&) = delete;
+  OutputFolder& operator=(const OutputFolder&) = delete;
+  const fs::path& dir() const { return m_dir; }
+  /// One of the files written there, as a dict (JSON).
+  py::object json(const char* name) const {
+    std::ifstream in(m_dir / name);
+    return from_json(std::string(std::istreambuf_iterator<char>(in), {}));
+  }
+
+ private:
+  bool m_temporary;
+  fs::path m_dir;
+};
+
+/// The run's files written into `out` (a folder; None: none kept) and its metrics.json as a dict, as `magvine run`
+/// writes them. Raises SimulationError after writing a failed run's metrics.json.
 py::object outputs_and_metrics(const sc::ExperimentScene& scene, const sc::ExperimentResult& result,
                                const py::object& out) {
-  fs::path dir;
-  if (out.is_none()) {
-    std::random_device seed;
-    dir = fs::temp_directory_path() / ("magvine_python_run_" + std::to_string(seed()));
-  } else {
-    dir = fspath(out);
-  }
+  const OutputFolder folder(out, "run");
   {
     const py::gil_scoped_release release;
-    sc::write_experiment_outputs(scene, result, dir);
+    sc::write_experiment_outputs(scene, result, folder.dir());
   }
-  std::ifstream in(dir / "metrics.json");
-  const std::string metrics(std::istreambuf_iterator<char>(in), {});
-  in.close();
-  if (out.is_none()) fs::remove_all(dir);
   if (!result.converged) throw SimulationFailure(result.failure);
-  return from_json(metrics);
+  return folder.json("metrics.json");
 }
 
 /// An (N, 3) array of doubles from points.
@@ -390,27 +410,17 @@ PYBIND11_MODULE(_magvine, m) {
           const py::gil_scoped_release release;
           s = sc::load_design_scene(file);
         }
-        fs::path dir;
-        if (out.is_none()) {
-          std::random_device seed;
-          dir = fs::temp_directory_path() / ("magvine_python_design_" + std::to_string(seed()));
-        } else {
-          dir = fspath(out);
-        }
+        const OutputFolder folder(out, "design");
         magvine::design::DesignResult r;
         {
           const py::gil_scoped_release release;
           r = sc::run_design(s);
-          if (std::isfinite(r.rms)) sc::write_design_outputs(s, r, dir);
+          if (std::isfinite(r.rms)) sc::write_design_outputs(s, r, folder.dir());
         }
         if (!std::isfinite(r.rms)) {
           throw SimulationFailure("design: no design had a stable equilibrium (" + r.message + ")");
         }
-        std::ifstream in(dir / "design.json");
-        const std::string json(std::istreambuf_iterator<char>(in), {});
-        in.close();
-        if (out.is_none()) fs::remove_all(dir);
-        return from_json(json);
+        return folder.json("design.json");
       },
       py::arg("scene"), py::arg("out") = py::none(),
       "Designs a rod's magnetisation as `magvine design SCENE --out OUT` does (without the MPM check) and returns "
