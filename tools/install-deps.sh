@@ -27,6 +27,7 @@ packages=(
   libbenchmark-dev                     # benchmarks (Apache-2.0)
   python3 python3-numpy python3-matplotlib  # plots written by tools/*.py (PSF/BSD)
   pybind11-dev python3-dev python3-pytest python3-yaml  # optional python module: import magvine, its tests (BSD-3, PSF, MIT, MIT)
+  slurm-wlm munge                      # the one-node cluster test only: programs it starts, never linked (GPL-2.0+)
 )
 
 check_only=0

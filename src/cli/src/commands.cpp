@@ -6,6 +6,7 @@
 #include <fstream>
 #include <iostream>
 #include <sstream>
+#include <stdexcept>
 #include <thread>
 
 #include "magvine/anatomy/centerline.hpp"
@@ -275,6 +276,25 @@ int run_scene(const RunArgs& args) {
 }
 
 int run_trials(const TrialsArgs& args) {
+  if (!args.slurm.empty()) return write_slurm_jobs(args);
+  scene::Shard shard;
+  if (!args.shard.empty()) {
+    // "I/N", 0 <= I < N.
+    const std::size_t slash = args.shard.find('/');
+    try {
+      std::size_t a = 0;
+      std::size_t b = 0;
+      if (slash == std::string::npos) throw std::invalid_argument("no slash");
+      shard.index = std::stoi(args.shard.substr(0, slash), &a);
+      shard.count = std::stoi(args.shard.substr(slash + 1), &b);
+      if (a != slash || b != args.shard.size() - slash - 1) throw std::invalid_argument("trailing text");
+    } catch (const std::exception&) {
+      throw InputError("--shard", 0, "", "must be I/N, e.g. 0/4 (got '" + args.shard + "')");
+    }
+    if (shard.count < 1 || shard.index < 0 || shard.index >= shard.count) {
+      throw InputError("--shard", 0, "", "must be I/N with 0 <= I < N (got '" + args.shard + "')");
+    }
+  }
   const scene::ExperimentScene sc = scene::load_experiment_scene(args.scene);
   const std::filesystem::path out =
       args.out.empty() ? std::filesystem::path("runs") / (std::filesystem::path(args.scene).stem().string() + "-trials")
@@ -282,8 +302,12 @@ int run_trials(const TrialsArgs& args) {
   const int jobs = args.jobs > 0 ? args.jobs : static_cast<int>(std::max(1u, std::thread::hardware_concurrency()));
   for (const std::string& t : args.targets) (void)scene::with_target(sc, t);  // bad names fail before any output
   const std::size_t targets = args.targets.empty() ? 1 : args.targets.size();
-  std::cerr << "magvine trials: " << targets * static_cast<std::size_t>(args.repeats) << " runs (" << targets
-            << " target(s) x " << args.repeats << " repeats) on " << jobs << " thread(s)\n";
+  const std::size_t batch = targets * static_cast<std::size_t>(args.repeats);
+  const std::size_t runs = shard.count == 1 ? batch
+                                            : (batch + static_cast<std::size_t>(shard.count - shard.index) - 1) /
+                                                  static_cast<std::size_t>(shard.count);
+  std::cerr << "magvine trials: " << runs << " runs (" << targets << " target(s) x " << args.repeats << " repeats"
+            << (args.shard.empty() ? std::string() : ", shard " + args.shard) << ") on " << jobs << " thread(s)\n";
   const std::vector<scene::TrialOutcome> outcomes = scene::run_trials(
       sc, args.targets, args.repeats, jobs,
       [](int done, int total) {
@@ -291,8 +315,14 @@ int run_trials(const TrialsArgs& args) {
         std::cerr << "\r  [" << std::string(static_cast<std::size_t>(bar), '#')
                   << std::string(static_cast<std::size_t>(20 - bar), '.') << "] " << done << "/" << total << std::flush;
       },
-      args.keep_runs ? out / "runs" : std::filesystem::path());
+      args.keep_runs ? out / "runs" : std::filesystem::path(), shard);
   std::cerr << '\n';
+  if (!args.shard.empty()) {
+    scene::write_shard(scene::batch_identity(args.scene, args.targets, args.repeats, shard), outcomes, out);
+    std::cerr << "magvine trials: shard " << args.shard << ": " << (out / "shard.json").string() << ", "
+              << (out / "trials.csv").string() << " (magvine trials merge joins the shards)\n";
+    return 0;
+  }
   scene::write_trial_outputs(outcomes, out);
   std::ifstream md(out / "summary.md");
   std::cout << md.rdbuf();

@@ -75,9 +75,28 @@ struct TrialsArgs {
   int jobs = 0;            // 0: every core
   std::string out;         // empty: runs/<scene stem>-trials
   bool keep_runs = false;  // each trial's outputs in <out>/runs/<target>_r<repeat>
+  std::string shard;       // "I/N": only that shard's trials (docs/cluster.md); empty: all
+  // --slurm JOB.sh: write a Slurm array of `shards` shards and its merge job instead of running (docs/cluster.md).
+  std::string slurm;
+  int shards = 0;
+  bool submit = false;  // also submit both with sbatch
+  std::string partition;
+  std::string time;  // the array tasks' time limit, as sbatch takes it
+  std::string mem;   // memory per task, as sbatch takes it
 };
-/// `magvine trials`: seeded perturbed repeats of an experiment towards each target, in parallel (scene/experiment.hpp).
+/// `magvine trials`: seeded perturbed repeats of an experiment towards each target, in parallel (scene/experiment.hpp);
+/// with --shard one share of them, with --slurm the batch as Slurm jobs (cluster.cpp).
 int run_trials(const TrialsArgs& args);
+
+struct TrialsMergeArgs {
+  std::vector<std::string> dirs;
+  std::string out;
+};
+/// `magvine trials merge DIR... --out DIR`: the shards' batch as one machine writes it (docs/cluster.md).
+int run_trials_merge(const TrialsMergeArgs& args);
+/// Writes JOB.sh (the Slurm array, one shard per task) and JOB.merge.sh (the merge); with args.submit submits them
+/// (the merge after the array, --dependency=afterok).
+int write_slurm_jobs(const TrialsArgs& args);
 
 /// The one report of a failed run (docs/cli.md: failed runs; its metrics.json is written): the cause on stderr,
 /// exit 3.

@@ -121,8 +121,7 @@ int main(int argc, char** argv) {
       "trials",
       "repeated experiments with seeded perturbations (EPM placement, pressure, material), in parallel; a "
       "summary table like thesis table 5.2 (CSV + Markdown)");
-  trials_cmd->add_option("scene", trials.scene, "experiment scene (YAML, with control.navigator for --targets)")
-      ->required();
+  trials_cmd->add_option("scene", trials.scene, "experiment scene (YAML, with control.navigator for --targets)");
   trials_cmd->add_option("--targets", trials.targets, "branch names to aim the navigator at (default: the scene's)")
       ->delimiter(',');
   trials_cmd->add_option("--repeats", trials.repeats, "trials per target")
@@ -133,6 +132,23 @@ int main(int argc, char** argv) {
   trials_cmd->add_flag("--keep-runs", trials.keep_runs,
                        "also write each trial's outputs (metrics, events, trajectories; no videos) to "
                        "OUT/runs/<target>_r<repeat> (e.g. 0-1-0_r3)");
+  trials_cmd->add_option("--shard", trials.shard,
+                         "I/N: only the trials whose index is I mod N, each with its seed in the whole batch; writes "
+                         "OUT/shard.json for `trials merge` (docs/cluster.md)");
+  trials_cmd->add_option("--slurm", trials.slurm,
+                         "JOB.sh: write the batch as a Slurm array of --shards tasks (JOB.sh) and the merge job "
+                         "(JOB.merge.sh) instead of running it");
+  trials_cmd->add_option("--shards", trials.shards, "with --slurm: the array's tasks (shards)")
+      ->check(CLI::Range(1, 100000));
+  trials_cmd->add_flag("--submit", trials.submit, "with --slurm: submit both (sbatch, the merge afterok)");
+  trials_cmd->add_option("--partition", trials.partition, "with --slurm: #SBATCH --partition");
+  trials_cmd->add_option("--time", trials.time, "with --slurm: #SBATCH --time of each shard, e.g. 01:00:00");
+  trials_cmd->add_option("--mem", trials.mem, "with --slurm: #SBATCH --mem of each shard, e.g. 4G");
+  magvine::cli::TrialsMergeArgs merge;
+  auto* merge_cmd = trials_cmd->add_subcommand(
+      "merge", "join the shards of one batch (magvine trials --shard I/N) into trials.csv and the summary");
+  merge_cmd->add_option("dirs", merge.dirs, "the shards' folders")->required();
+  merge_cmd->add_option("--out", merge.out, "the merged batch's folder")->required();
 
   magvine::cli::DesignArgs design;
   auto* design_cmd = app.add_subcommand(
@@ -203,7 +219,11 @@ int main(int argc, char** argv) {
     if (ct_cmd.parsed()) return ct_cmd.run();
     if (run_cmd->parsed()) return magvine::cli::run_scene(run);
     if (validate_cmd->parsed()) return magvine::cli::run_validate(validate_out);
-    if (trials_cmd->parsed()) return magvine::cli::run_trials(trials);
+    if (merge_cmd->parsed()) return magvine::cli::run_trials_merge(merge);
+    if (trials_cmd->parsed()) {
+      if (trials.scene.empty()) throw magvine::InputError("trials", 0, "", "name the scene: magvine trials SCENE");
+      return magvine::cli::run_trials(trials);
+    }
     if (design_cmd->parsed()) return magvine::cli::run_design(design);
     if (calibrate_cmd->parsed()) return magvine::cli::run_calibrate(calibrate);
   } catch (const magvine::InputError& e) {

@@ -5,7 +5,11 @@
 #include <cmath>
 #include <cstdio>
 #include <exception>
+#include <fstream>
+#include <limits>
 #include <mutex>
+#include <nlohmann/json.hpp>
+#include <optional>
 #include <random>
 #include <sstream>
 #include <thread>
@@ -65,9 +69,12 @@ ExperimentScene perturbed(const ExperimentScene& scene, std::uint64_t seed) {
 
 std::vector<TrialOutcome> run_trials(const ExperimentScene& scene, const std::vector<std::string>& targets, int repeats,
                                      int jobs, const std::function<void(int, int)>& progress,
-                                     const std::filesystem::path& runs_dir) {
+                                     const std::filesystem::path& runs_dir, const Shard& shard) {
   if (repeats < 1) throw InputError("--repeats", 0, "", "must be >= 1");
   if (jobs < 1) throw InputError("--jobs", 0, "", "must be >= 1");
+  if (shard.count < 1 || shard.index < 0 || shard.index >= shard.count) {
+    throw InputError("--shard", 0, "", printf_string("%d/%d: must be I/N with 0 <= I < N", shard.index, shard.count));
+  }
   std::vector<ExperimentScene> aimed;
   std::vector<std::string> names;
   if (targets.empty()) {
@@ -80,7 +87,10 @@ std::vector<TrialOutcome> run_trials(const ExperimentScene& scene, const std::ve
     }
   }
   for (ExperimentScene& a : aimed) a.videos.clear();  // trials write no videos (nor record their frames)
-  const int total = static_cast<int>(aimed.size()) * repeats;
+  // The shard's trials: every index ≡ shard.index (mod shard.count) of the whole batch.
+  std::vector<int> mine;
+  for (int i = shard.index; i < static_cast<int>(aimed.size()) * repeats; i += shard.count) mine.push_back(i);
+  const int total = static_cast<int>(mine.size());
   if (!runs_dir.empty()) create_output_directory(runs_dir);  // before the threads create their folders in it
   std::vector<TrialOutcome> outcomes(static_cast<std::size_t>(total));
   std::atomic<int> next{0};
@@ -88,7 +98,8 @@ std::vector<TrialOutcome> run_trials(const ExperimentScene& scene, const std::ve
   std::mutex report;
   std::exception_ptr failure;
   const auto worker = [&] {
-    for (int i = next++; i < total; i = next++) {
+    for (int k = next++; k < total; k = next++) {
+      const int i = mine[static_cast<std::size_t>(k)];
       try {
         const std::size_t t = static_cast<std::size_t>(i / repeats);
         const int r = i % repeats;
@@ -97,7 +108,8 @@ std::vector<TrialOutcome> run_trials(const ExperimentScene& scene, const std::ve
         const std::uint64_t seed = scene.seed * 1000003ULL + t * 10007ULL + static_cast<std::uint64_t>(r);
         const ExperimentScene trial = perturbed(aimed[t], seed);
         const ExperimentResult res = run_experiment(trial);
-        TrialOutcome& o = outcomes[static_cast<std::size_t>(i)];
+        TrialOutcome& o = outcomes[static_cast<std::size_t>(k)];
+        o.index = i;
         o.target = names[t];
         o.repeat = r;
         o.seed = seed;
@@ -141,13 +153,15 @@ std::vector<TrialOutcome> run_trials(const ExperimentScene& scene, const std::ve
   return outcomes;
 }
 
-void write_trial_outputs(const std::vector<TrialOutcome>& outcomes, const std::filesystem::path& dir) {
+namespace {
+
+/// trials.csv: every trial, with the reason of each failure.
+void write_trials_csv(std::ostringstream& all, const std::vector<TrialOutcome>& outcomes) {
   const auto quoted = [](const std::string& text) {
     std::string q = "\"";
     for (const char c : text) q += c == '"' ? std::string("\"\"") : std::string(1, c);
     return q + "\"";
   };
-  std::ostringstream all;
   all.precision(10);
   all << "target,repeat,seed,success,burst,time_to_target_s,everted_length_m,final_error_m,max_normal_N,"
          "retractions,biopsy,needle_to_nodule_m,slide_back_m,runtime_s,reason\n";
@@ -159,6 +173,13 @@ void write_trial_outputs(const std::vector<TrialOutcome>& outcomes, const std::f
         << (o.biopsy >= 0 ? std::to_string(o.biopsy) : std::string()) << ',' << number(o.needle_to_nodule) << ','
         << number(o.slide_back) << ',' << o.runtime_s << ',' << quoted(o.reason) << '\n';
   }
+}
+
+}  // namespace
+
+void write_trial_outputs(const std::vector<TrialOutcome>& outcomes, const std::filesystem::path& dir) {
+  std::ostringstream all;
+  write_trials_csv(all, outcomes);
   std::ostringstream csv;
   std::ostringstream md;
   // A column for the navigator's retractions (Navigator::Recovery) where any trial had one.
@@ -218,6 +239,143 @@ void write_trial_outputs(const std::vector<TrialOutcome>& outcomes, const std::f
   write_file_atomically(dir / "trials.csv", all.str());
   write_file_atomically(dir / "summary.csv", csv.str());
   write_file_atomically(dir / "summary.md", md.str());
+}
+
+namespace {
+
+/// 64-bit FNV-1a (Fowler, Noll, Vo): a stable hash of the scene's bytes, the same on every machine and build.
+std::uint64_t fnv1a(const std::string& bytes) {
+  std::uint64_t h = 14695981039346656037ULL;
+  for (const char c : bytes) {
+    h ^= static_cast<unsigned char>(c);
+    h *= 1099511628211ULL;
+  }
+  return h;
+}
+
+nlohmann::json outcome_json(const TrialOutcome& o) {
+  const auto number = [](double v) { return std::isnan(v) ? nlohmann::json() : nlohmann::json(v); };
+  return {{"index", o.index},
+          {"target", o.target},
+          {"repeat", o.repeat},
+          {"seed", o.seed},
+          {"success", o.success},
+          {"burst", o.burst},
+          {"time_to_target_s", o.time_to_target},
+          {"everted_length_m", o.everted_length},
+          {"final_error_m", o.final_error},
+          {"max_normal_N", o.max_normal},
+          {"retractions", o.retractions},
+          {"biopsy", o.biopsy},
+          {"needle_to_nodule_m", number(o.needle_to_nodule)},
+          {"slide_back_m", number(o.slide_back)},
+          {"runtime_s", o.runtime_s},
+          {"reason", o.reason}};
+}
+
+TrialOutcome outcome_of(const nlohmann::json& j) {
+  const auto number = [](const nlohmann::json& v) {
+    return v.is_null() ? std::numeric_limits<double>::quiet_NaN() : v.get<double>();
+  };
+  TrialOutcome o;
+  o.index = j.at("index").get<int>();
+  o.target = j.at("target").get<std::string>();
+  o.repeat = j.at("repeat").get<int>();
+  o.seed = j.at("seed").get<std::uint64_t>();
+  o.success = j.at("success").get<bool>();
+  o.burst = j.at("burst").get<bool>();
+  o.time_to_target = j.at("time_to_target_s").get<double>();
+  o.everted_length = j.at("everted_length_m").get<double>();
+  o.final_error = j.at("final_error_m").get<double>();
+  o.max_normal = j.at("max_normal_N").get<double>();
+  o.retractions = j.at("retractions").get<int>();
+  o.biopsy = j.at("biopsy").get<int>();
+  o.needle_to_nodule = number(j.at("needle_to_nodule_m"));
+  o.slide_back = number(j.at("slide_back_m"));
+  o.runtime_s = j.at("runtime_s").get<double>();
+  o.reason = j.at("reason").get<std::string>();
+  return o;
+}
+
+}  // namespace
+
+BatchIdentity batch_identity(const std::filesystem::path& scene_file, const std::vector<std::string>& targets,
+                             int repeats, const Shard& shard) {
+  std::ifstream in(scene_file, std::ios::binary);
+  if (!in) throw InputError(scene_file.string(), 0, "", "cannot open the scene");
+  std::ostringstream bytes;
+  bytes << in.rdbuf();
+  return {scene_file.string(), fnv1a(bytes.str()), targets, repeats, shard};
+}
+
+void write_shard(const BatchIdentity& identity, const std::vector<TrialOutcome>& outcomes,
+                 const std::filesystem::path& dir) {
+  nlohmann::json j;
+  j["magvine_trials_shard"] = 1;
+  j["scene"] = identity.scene;
+  j["scene_fnv1a"] = printf_string("%016llx", static_cast<unsigned long long>(identity.scene_hash));
+  j["targets"] = identity.targets;
+  j["repeats"] = identity.repeats;
+  j["shard"] = identity.shard.index;
+  j["shards"] = identity.shard.count;
+  nlohmann::json rows = nlohmann::json::array();
+  for (const TrialOutcome& o : outcomes) rows.push_back(outcome_json(o));
+  j["trials"] = rows;
+  create_output_directory(dir);
+  write_file_atomically(dir / "shard.json", j.dump(1) + "\n");
+  std::ostringstream table;
+  write_trials_csv(table, outcomes);
+  write_file_atomically(dir / "trials.csv", table.str());
+}
+
+std::vector<TrialOutcome> merge_shards(const std::vector<std::filesystem::path>& dirs) {
+  if (dirs.empty()) throw InputError("trials merge", 0, "", "give the shards' folders");
+  std::optional<nlohmann::json> first;
+  std::string first_dir;
+  std::vector<std::string> seen;  // the folder each shard came from
+  std::vector<TrialOutcome> all;
+  for (const std::filesystem::path& dir : dirs) {
+    const std::filesystem::path file = dir / "shard.json";
+    std::ifstream in(file);
+    if (!in) throw InputError(file.string(), 0, "", "no shard here (magvine trials --shard I/N writes shard.json)");
+    nlohmann::json j;
+    try {
+      j = nlohmann::json::parse(in);
+      (void)j.at("magvine_trials_shard");
+    } catch (const nlohmann::json::exception& e) {
+      throw InputError(file.string(), 0, "", std::string("not a shard file: ") + e.what());
+    }
+    const int count = j.at("shards").get<int>();
+    const int index = j.at("shard").get<int>();
+    if (!first) {
+      first = j;
+      first_dir = dir.string();
+      seen.assign(static_cast<std::size_t>(count), std::string());
+    }
+    for (const char* key : {"scene_fnv1a", "targets", "repeats", "shards"}) {
+      if (j.at(key) != first->at(key)) {
+        const std::string what = std::string(key) == "scene_fnv1a" ? "the scene file's bytes"
+                                 : std::string(key) == "shards"    ? "the shard count"
+                                                                   : std::string("--") + key;
+        throw InputError(file.string(), 0, key, "another batch than " + first_dir + ": " + what + " differ");
+      }
+    }
+    if (index < 0 || index >= count) throw InputError(file.string(), 0, "shard", "out of range");
+    std::string& from = seen[static_cast<std::size_t>(index)];
+    if (!from.empty()) {
+      throw InputError(file.string(), 0, "shard",
+                       printf_string("shard %d/%d given twice (also in ", index, count) + from + ")");
+    }
+    from = dir.string();
+    for (const nlohmann::json& t : j.at("trials")) all.push_back(outcome_of(t));
+  }
+  for (std::size_t i = 0; i < seen.size(); ++i) {
+    if (seen[i].empty()) {
+      throw InputError("trials merge", 0, "", printf_string("shard %zu/%zu is missing", i, seen.size()));
+    }
+  }
+  std::sort(all.begin(), all.end(), [](const TrialOutcome& a, const TrialOutcome& b) { return a.index < b.index; });
+  return all;
 }
 
 }  // namespace magvine::scene

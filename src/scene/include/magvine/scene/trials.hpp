@@ -21,6 +21,7 @@ ExperimentScene with_target(const ExperimentScene& scene, const std::string& tar
 ExperimentScene perturbed(const ExperimentScene& scene, std::uint64_t seed);
 
 struct TrialOutcome {
+  int index = 0;  ///< the trial's place in the whole batch: target-major, repeat-minor (target × repeats + repeat)
   std::string target;
   int repeat = 0;
   std::uint64_t seed = 0;
@@ -43,13 +44,44 @@ struct TrialOutcome {
   std::string reason;
 };
 
+/// One machine's share of a batch (`magvine trials --shard I/N`, docs/cluster.md): the trials whose index ≡ index
+/// (mod count). Each keeps the seed it has in the whole batch, so shards are independent and any count gives the same
+/// trials.
+struct Shard {
+  int index = 0;
+  int count = 1;
+};
+
 /// Runs `repeats` perturbed trials towards each target (branch names; empty: the scene's own target) on `jobs`
-/// threads; outcomes in (target, repeat) order whatever the threads. `progress` gets (done, total). With `runs_dir`,
-/// each trial's own outputs (write_experiment_outputs, without videos) go to runs_dir/<target>_r<repeat>: its events,
-/// trajectories and metrics, to see why a trial failed.
+/// threads, only `shard`'s share of them; outcomes in index order whatever the threads. `progress` gets (done, total)
+/// of the shard's trials. With `runs_dir`, each trial's own outputs (write_experiment_outputs, without videos) go to
+/// runs_dir/<target>_r<repeat>: its events, trajectories and metrics, to see why a trial failed.
 std::vector<TrialOutcome> run_trials(const ExperimentScene& scene, const std::vector<std::string>& targets, int repeats,
                                      int jobs, const std::function<void(int, int)>& progress = nullptr,
-                                     const std::filesystem::path& runs_dir = {});
+                                     const std::filesystem::path& runs_dir = {}, const Shard& shard = {});
+
+/// What makes shards one batch: the scene file's bytes (their 64-bit FNV-1a hash), the targets, the repeats and the
+/// shard count.
+struct BatchIdentity {
+  std::string scene;             ///< the scene file, as given
+  std::uint64_t scene_hash = 0;  ///< FNV-1a of its bytes
+  std::vector<std::string> targets;
+  int repeats = 0;
+  Shard shard;
+};
+/// The identity of a batch of `scene_file` (its bytes read now). InputError when it cannot be read.
+BatchIdentity batch_identity(const std::filesystem::path& scene_file, const std::vector<std::string>& targets,
+                             int repeats, const Shard& shard);
+
+/// A shard's outputs, atomically into `dir`: shard.json (the identity and every outcome at full precision, for
+/// merge_shards) and trials.csv of its own trials.
+void write_shard(const BatchIdentity& identity, const std::vector<TrialOutcome>& outcomes,
+                 const std::filesystem::path& dir);
+
+/// The whole batch from its shards' folders (`magvine trials merge`): the outcomes in index order, exactly as one
+/// machine's run_trials gives them. InputError (one line) when a folder has no shard.json, the shards belong to
+/// different batches (scene bytes, targets, repeats or count), or a shard is missing or given twice.
+std::vector<TrialOutcome> merge_shards(const std::vector<std::filesystem::path>& dirs);
 
 /// trials.csv (every trial, with the reason of each failure) and summary.csv + summary.md in the form of thesis
 /// table 5.2 (target, path length = the everted length at the target [mm], success rate, mean time to target and its

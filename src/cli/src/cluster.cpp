@@ -1,0 +1,136 @@
+// Trial batches on a cluster (docs/cluster.md): `magvine trials merge` joins shards into the batch one machine
+// writes, and `magvine trials SCENE --slurm JOB.sh` writes the batch as a Slurm array of shards and a merge job that
+// waits for it (and with --submit submits both).
+
+#include <cstdio>
+#include <filesystem>
+#include <fstream>
+#include <iostream>
+#include <sstream>
+#include <string>
+#include <vector>
+
+#include "commands.hpp"
+#include "magvine/core/atomic_file.hpp"
+#include "magvine/core/error.hpp"
+#include "magvine/core/text.hpp"
+#include "magvine/scene/experiment_scene.hpp"
+#include "magvine/scene/trials.hpp"
+
+namespace magvine::cli {
+namespace fs = std::filesystem;
+
+int run_trials_merge(const TrialsMergeArgs& args) {
+  if (args.out.empty()) throw InputError("--out", 0, "", "name the folder for the merged batch");
+  std::vector<fs::path> dirs(args.dirs.begin(), args.dirs.end());
+  const std::vector<scene::TrialOutcome> outcomes = scene::merge_shards(dirs);
+  scene::write_trial_outputs(outcomes, args.out);
+  std::ifstream md(fs::path(args.out) / "summary.md");
+  std::cout << md.rdbuf();
+  std::cerr << "magvine trials merge: " << dirs.size() << " shards, " << outcomes.size() << " trials -> "
+            << (fs::path(args.out) / "trials.csv").string() << ", summary.csv, summary.md\n";
+  return 0;
+}
+
+namespace {
+
+/// A word for bash: single-quoted ('\'' for a quote inside).
+std::string shell_word(const std::string& text) {
+  std::string q = "'";
+  for (const char c : text) q += c == '\'' ? std::string("'\\''") : std::string(1, c);
+  return q + "'";
+}
+
+/// Runs `command` (sbatch) and returns what it printed; InputError when it cannot run or fails.
+std::string run_command(const std::string& command) {
+  FILE* pipe = popen((command + " 2>&1").c_str(), "r");
+  if (pipe == nullptr) throw InputError("--submit", 0, "", "cannot run " + command);
+  std::string text;
+  char buffer[512];
+  while (std::fgets(buffer, sizeof buffer, pipe) != nullptr) text += buffer;
+  const int status = pclose(pipe);
+  while (!text.empty() && (text.back() == '\n' || text.back() == '\r')) text.pop_back();
+  if (status != 0) throw InputError("--submit", 0, "", command + " failed: " + text);
+  return text;
+}
+
+}  // namespace
+
+int write_slurm_jobs(const TrialsArgs& args) {
+  if (args.shards < 1) throw InputError("--shards", 0, "", "--slurm needs --shards N (the array's tasks), N >= 1");
+  if (!args.shard.empty()) throw InputError("--shard", 0, "", "--slurm writes every shard's task: leave --shard out");
+  const fs::path job = fs::absolute(args.slurm);
+  if (job.extension() != ".sh") throw InputError("--slurm", 0, "", "must name a .sh file (got '" + args.slurm + "')");
+  // What a shard would trip over fails here, before anything is written or queued.
+  const scene::ExperimentScene sc = scene::load_experiment_scene(args.scene);
+  for (const std::string& t : args.targets) (void)scene::with_target(sc, t);
+  const fs::path exe = fs::read_symlink("/proc/self/exe");
+  const fs::path scene = fs::absolute(args.scene);
+  const fs::path out = fs::absolute(
+      args.out.empty() ? fs::path("runs") / (fs::path(args.scene).stem().string() + "-trials") : fs::path(args.out));
+  const int jobs = args.jobs > 0 ? args.jobs : 1;
+  const fs::path merge = fs::path(job).replace_extension(".merge.sh");
+  std::string targets;
+  for (const std::string& t : args.targets) targets += (targets.empty() ? "" : ",") + t;
+
+  const auto resources = [&](std::ostream& o) {
+    if (!args.partition.empty()) o << "#SBATCH --partition=" << args.partition << '\n';
+    if (!args.time.empty()) o << "#SBATCH --time=" << args.time << '\n';
+    if (!args.mem.empty()) o << "#SBATCH --mem=" << args.mem << '\n';
+  };
+  std::ostringstream array;
+  array << "#!/bin/bash\n"
+        << "# magvine trials " << args.scene << " as a Slurm array of " << args.shards
+        << " shards (docs/cluster.md), written by magvine.\n"
+        << "# Submit with the merge job that waits for it:\n"
+        << "#   jid=$(sbatch --parsable " << shell_word(job.string()) << ") && sbatch --dependency=afterok:$jid "
+        << shell_word(merge.string()) << "\n"
+        << "#SBATCH --job-name=magvine-trials\n"
+        << "#SBATCH --array=0-" << args.shards - 1 << '\n'
+        << "#SBATCH --ntasks=1\n"
+        << "#SBATCH --cpus-per-task=" << jobs << '\n'
+        << "#SBATCH --output=" << (out / "slurm" / "shard-%a.log").string() << '\n';
+  resources(array);
+  array << "set -euo pipefail\n"
+        << "exec " << shell_word(exe.string()) << " trials " << shell_word(scene.string())
+        << " --shard \"$SLURM_ARRAY_TASK_ID/" << args.shards << "\" --repeats " << args.repeats
+        << (targets.empty() ? "" : " --targets " + shell_word(targets)) << " --jobs " << jobs
+        << (args.keep_runs ? " --keep-runs" : "") << " --out " << shell_word((out / "shard-").string())
+        << "\"$SLURM_ARRAY_TASK_ID\"\n";
+  std::ostringstream joiner;
+  joiner << "#!/bin/bash\n"
+         << "# The merge of " << job.filename().string()
+         << "'s shards into the batch one machine writes (docs/cluster.md), written by magvine.\n"
+         << "#SBATCH --job-name=magvine-trials-merge\n"
+         << "#SBATCH --ntasks=1\n"
+         << "#SBATCH --cpus-per-task=1\n"
+         << "#SBATCH --output=" << (out / "slurm" / "merge.log").string() << '\n';
+  if (!args.partition.empty()) joiner << "#SBATCH --partition=" << args.partition << '\n';
+  joiner << "set -euo pipefail\n"
+         << "exec " << shell_word(exe.string()) << " trials merge";
+  for (int i = 0; i < args.shards; ++i) joiner << ' ' << shell_word((out / ("shard-" + std::to_string(i))).string());
+  joiner << " --out " << shell_word(out.string()) << '\n';
+
+  create_output_directory(out / "slurm");  // Slurm does not create the logs' folder
+  if (job.has_parent_path()) create_output_directory(job.parent_path());
+  write_file_atomically(job, array.str());
+  write_file_atomically(merge, joiner.str());
+  fs::permissions(job, fs::perms::owner_exec | fs::perms::group_exec, fs::perm_options::add);
+  fs::permissions(merge, fs::perms::owner_exec | fs::perms::group_exec, fs::perm_options::add);
+  std::cerr << "magvine trials: " << job.string() << " (" << args.shards << " shards as a Slurm array), "
+            << merge.string() << " (their merge into " << out.string() << ")\n";
+  if (!args.submit) {
+    std::cout << "jid=$(sbatch --parsable " << shell_word(job.string()) << ") && sbatch --dependency=afterok:$jid "
+              << shell_word(merge.string()) << '\n';
+    return 0;
+  }
+  std::string id = run_command("sbatch --parsable " + shell_word(job.string()));
+  id = id.substr(0, id.find(';'));  // "jobid;cluster" on a federation
+  const std::string merge_id =
+      run_command("sbatch --parsable --dependency=afterok:" + id + " " + shell_word(merge.string()));
+  std::cout << id << ' ' << merge_id.substr(0, merge_id.find(';')) << '\n';
+  std::cerr << "magvine trials: submitted the array as job " << id << " and its merge as job " << merge_id << '\n';
+  return 0;
+}
+
+}  // namespace magvine::cli
