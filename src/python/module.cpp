@@ -21,6 +21,7 @@
 #include <stdexcept>
 #include <string>
 #include <thread>
+#include <type_traits>
 #include <vector>
 
 #include "magvine/anatomy/airway_graph.hpp"
@@ -156,20 +157,48 @@ Vec3 three(const py::handle& h, const std::string& key) {
   return v;
 }
 
+/// `value` as a T, or ValueError naming `key` (pybind11's own cast error names neither).
+template <class T>
+T argument(const py::handle& value, const std::string& where, const std::string& key) {
+  try {
+    return value.cast<T>();
+  } catch (const py::cast_error&) {
+    throw InputError(where, 0, key,
+                     "must be " +
+                         std::string(std::is_same_v<T, std::string> ? "a string"
+                                     : std::is_same_v<T, bool>      ? "a bool"
+                                     : std::is_floating_point_v<T>  ? "a number"
+                                     : std::is_unsigned_v<T>        ? "an integer >= 0"
+                                                                    : "an integer") +
+                         " (got " + py::repr(value).cast<std::string>() + ")");
+  }
+}
+
 /// An experiment stepped from Python (magvine.Simulation). The scene is owned here (the experiment borrows it); one
-/// thread at a time may use it (a second one gets RuntimeError rather than a data race).
+/// thread at a time may use it: every member that reads or moves the run holds its lock, and a second thread gets
+/// RuntimeError rather than a data race.
 class Simulation {
  public:
   Simulation(const py::object& scene, const py::object& seed) {
     sc::ExperimentScene s = scene_of(scene);
-    if (!seed.is_none()) s = sc::perturbed(s, seed.cast<std::uint64_t>());
+    if (!seed.is_none()) s = sc::perturbed(s, argument<std::uint64_t>(seed, "Simulation", "seed"));
     m_scene = std::make_unique<sc::ExperimentScene>(std::move(s));
     const py::gil_scoped_release release;
     m_path = sc::target_path(*m_scene);
     m_run = std::make_unique<sc::Experiment>(*m_scene);
   }
 
+  /// The lock of a member that reads or moves the run.
+  std::unique_lock<std::mutex> use(const char* what) const {
+    std::unique_lock<std::mutex> lock(m_busy, std::try_to_lock);
+    if (!lock.owns_lock()) {
+      throw std::runtime_error(std::string("Simulation.") + what + ": this simulation is in use in another thread");
+    }
+    return lock;
+  }
+
   void step(const py::object& dt, const py::object& pressure, const py::object& tether, const py::object& magnets) {
+    const auto lock = use("step");
     if (m_run->ended()) {
       throw std::runtime_error(m_finished ? "Simulation.step: finish() ended this run"
                                : !m_run->result().converged
@@ -177,9 +206,9 @@ class Simulation {
                                    : "Simulation.step: the biopsy's aiming is done; finish() pushes the needle");
     }
     sc::StepRequest r;
-    if (!dt.is_none()) r.dt = dt.cast<double>();
-    if (!pressure.is_none()) r.pressure = pressure.cast<double>();
-    if (!tether.is_none()) r.tether = tether.cast<double>();
+    if (!dt.is_none()) r.dt = argument<double>(dt, "step", "dt");
+    if (!pressure.is_none()) r.pressure = argument<double>(pressure, "step", "pressure");
+    if (!tether.is_none()) r.tether = argument<double>(tether, "step", "tether");
     if (!magnets.is_none()) {
       // (position, axis) for magnet 0, or {index: (position, axis)}.
       const auto pose = [&](int i, const py::handle& h) {
@@ -191,13 +220,11 @@ class Simulation {
         r.magnets.push_back({i, three(p[0], key + ".position"), three(p[1], key + ".axis")});
       };
       if (py::isinstance<py::dict>(magnets)) {
-        for (const auto& [k, v] : magnets.cast<py::dict>()) pose(k.cast<int>(), v);
+        for (const auto& [k, v] : magnets.cast<py::dict>()) pose(argument<int>(k, "step", "magnet_pose"), v);
       } else {
         pose(0, magnets);
       }
     }
-    const std::unique_lock<std::mutex> lock(m_busy, std::try_to_lock);
-    if (!lock.owns_lock()) throw std::runtime_error("Simulation.step: this simulation is stepping in another thread");
     bool converged = false;
     {
       const py::gil_scoped_release release;
@@ -210,6 +237,7 @@ class Simulation {
 
   /// The state now, as numpy arrays (copies: the body gains nodes as it grows).
   py::object state() const {
+    const auto lock = use("state");
     const magvine::robot::GrowthState& g = m_run->state();
     const std::size_t n = g.body.x.size();
     std::vector<Vec3> tangents(n);
@@ -236,12 +264,11 @@ class Simulation {
     for (int r = 0; r < 3; ++r) {
       for (int c = 0; c < 3; ++c) f(r, c) = g.body.frames.back()(r, c);
     }
-    const std::vector<sc::ExperimentSample>& samples = m_run->result().samples;
     py::dict d;
     d["time"] = m_run->time();
     d["steps"] = m_run->steps();
     d["everted_length"] = m_run->everted_length();
-    d["pressure"] = samples.empty() ? m_scene->pressure.at(0.0) : samples.back().pressure;
+    d["pressure"] = m_run->pressure();
     d["nodes"] = rows(g.body.x);
     d["tangents"] = rows(tangents);
     d["wall_normal"] = rows(normal);
@@ -261,12 +288,14 @@ class Simulation {
   /// How far along the path to the target the tip has got (path_progress), or None.
   py::object progress() const {
     if (m_path.empty()) return py::none();
-    return py::float_(sc::path_progress(m_path, *m_scene->target, m_run->state().body.tip()));
+    const auto lock = use("progress");
+    return py::float_(sc::path_progress(m_path, *m_scene->target, m_run->tip_at_rest()));
   }
 
   py::object path() const { return m_path.empty() ? py::none() : py::object(rows(m_path)); }
 
   py::object finish(const py::object& out) {
+    const auto lock = use("finish");
     if (m_finished) throw std::runtime_error("Simulation.finish: called twice");
     m_finished = true;
     sc::ExperimentResult result;
@@ -287,18 +316,27 @@ class Simulation {
     if (!(fov_deg > 0.0 && fov_deg < (fisheye ? 360.0 : 180.0))) {
       throw InputError("render", 0, "fov", "must be in (0, 180) degrees, (0, 360) with the fisheye lens");
     }
+    if (!(noise >= 0.0 && std::isfinite(noise))) throw InputError("render", 0, "noise", "must be finite and >= 0");
+    const auto lock = use("render");
     const sc::TipViewSettings s{fisheye, fov_deg * magvine::kDegToRad, width, height, noise, m_scene->seed};
-    if (!m_view || s.fisheye != m_view_settings.fisheye || s.fov != m_view_settings.fov ||
-        s.width != m_view_settings.width || s.height != m_view_settings.height || s.noise != m_view_settings.noise) {
-      m_view = sc::video_plugin("Simulation.render").tip_view(m_scene->anatomy->mesh(), s);
-      m_view_settings = s;
-    }
+    // One view per camera asked for (an environment's observation and its render() differ): each keeps its
+    // renderer, auto-exposure and noise sequence.
+    const auto same = [&](const View& v) {
+      return v.settings.fisheye == s.fisheye && v.settings.fov == s.fov && v.settings.width == s.width &&
+             v.settings.height == s.height && v.settings.noise == s.noise;
+    };
+    auto view = std::find_if(m_views.begin(), m_views.end(), same);
+    const sc::VideoPlugin& plugin = sc::video_plugin("Simulation.render");
     sc::Picture p;
     {
       const py::gil_scoped_release release;
-      if (m_scene->breathing) m_view->move(m_run->airway_vertices());
+      if (view == m_views.end()) {
+        m_views.push_back({s, plugin.tip_view(m_scene->anatomy->mesh(), s)});
+        view = std::prev(m_views.end());
+      }
+      if (m_scene->breathing) view->view->move(m_run->airway_vertices());
       const magvine::robot::GrowthState& g = m_run->state();
-      p = m_view->look(g.body.tip(), g.body.frames.back());
+      p = view->view->look(g.body.tip(), g.body.frames.back());
     }
     py::array_t<std::uint8_t> a(
         {static_cast<py::ssize_t>(p.height), static_cast<py::ssize_t>(p.width), py::ssize_t{3}});
@@ -306,10 +344,33 @@ class Simulation {
     return a;
   }
 
+  bool done() const {
+    const auto lock = use("done");
+    return m_run->done();
+  }
+  bool ended() const {
+    const auto lock = use("ended");
+    return m_run->ended();
+  }
+  double time() const {
+    const auto lock = use("time");
+    return m_run->time();
+  }
+  long steps() const {
+    const auto lock = use("steps");
+    return m_run->steps();
+  }
+  std::size_t magnets() const {
+    const auto lock = use("magnets");
+    return m_run->magnet_poses().size();
+  }
+
   const sc::ExperimentScene& scene() const { return *m_scene; }
-  const sc::Experiment& run() const { return *m_run; }
   bool finished() const { return m_finished; }
-  double step_seconds() const { return m_step_seconds; }
+  double step_seconds() const {
+    const auto lock = use("step_seconds");
+    return m_step_seconds;
+  }
 
  private:
   std::unique_ptr<sc::ExperimentScene> m_scene;
@@ -317,9 +378,12 @@ class Simulation {
   std::vector<Vec3> m_path;
   bool m_finished = false;
   double m_step_seconds = 0.0;
-  std::mutex m_busy;
-  std::unique_ptr<sc::TipView> m_view;
-  sc::TipViewSettings m_view_settings;
+  mutable std::mutex m_busy;
+  struct View {
+    sc::TipViewSettings settings;
+    std::unique_ptr<sc::TipView> view;
+  };
+  std::vector<View> m_views;
 };
 
 py::dict outcome_dict(const sc::TrialOutcome& o) {
@@ -377,6 +441,7 @@ PYBIND11_MODULE(_magvine, m) {
       [](const py::object& scene, const std::vector<std::string>& targets, int repeats, int jobs,
          const py::object& out) {
         if (repeats < 1) throw InputError("trials", 0, "repeats", "must be at least 1");
+        if (jobs < 0) throw InputError("trials", 0, "jobs", "must be >= 0 (0: one thread per core)");
         const sc::ExperimentScene s = scene_of(scene);
         for (const std::string& t : targets) (void)sc::with_target(s, t);  // bad names fail before any run
         const int threads = jobs > 0 ? jobs : static_cast<int>(std::max(1u, std::thread::hardware_concurrency()));
@@ -442,31 +507,32 @@ PYBIND11_MODULE(_magvine, m) {
         for (const auto& [key, value] : params) {
           const std::string name = key.cast<std::string>();
           if (auto* tree = std::get_if<an::BronchialTreeParams>(&p); tree && name == "table") {
-            const std::string t = value.cast<std::string>();
+            const std::string t = argument<std::string>(value, where, "table");
             const auto table = an::parse_airway_table(t);
             if (!table) throw InputError(where, 0, "table", "must be weibel_a or horsfield (got '" + t + "')");
             tree->table = *table;
             continue;
           }
           if (auto* tube = std::get_if<an::TubeParams>(&p); tube && name == "open") {
-            tube->capped = !value.cast<bool>();
+            tube->capped = !argument<bool>(value, where, "open");
             continue;
           }
           const auto o =
               std::find_if(options.begin(), options.end(), [&](const an::PhantomOption& x) { return x.name == name; });
           if (o == options.end()) {
-            std::string known;
+            std::string known = std::holds_alternative<an::BronchialTreeParams>(p) ? "table" : "";
             for (const an::PhantomOption& x : options) known += (known.empty() ? "" : ", ") + x.name;
+            if (std::holds_alternative<an::TubeParams>(p)) known += ", open";
             throw InputError(where, 0, name, "is not a parameter of this kind (it has " + known + ")");
           }
           if (double* const* f = std::get_if<double*>(&o->field)) {
-            const double v = value.cast<double>();
+            const double v = argument<double>(value, where, name);
             if (!std::isfinite(v)) throw InputError(where, 0, name, "must be finite");
             **f = v * o->scale;
           } else if (int* const* i = std::get_if<int*>(&o->field)) {
-            **i = value.cast<int>();
+            **i = argument<int>(value, where, name);
           } else {
-            *std::get<std::uint64_t*>(o->field) = value.cast<std::uint64_t>();
+            *std::get<std::uint64_t*>(o->field) = argument<std::uint64_t>(value, where, name);
           }
         }
         const std::string file = out.is_none() ? std::string() : fspath(out);
@@ -540,7 +606,11 @@ PYBIND11_MODULE(_magvine, m) {
         if (points.ndim() != 2 || points.shape(1) != 3) {
           throw InputError("points", 0, "", "must be an (N, 3) array of positions in metres");
         }
-        const magvine::magnetics::FieldModel model = sc::load_magnets_file(magnets);
+        magvine::magnetics::FieldModel model;
+        {
+          const py::gil_scoped_release release;
+          model = sc::load_magnets_file(magnets);
+        }
         const py::ssize_t n = points.shape(0);
         py::array_t<double> b({n, py::ssize_t{3}});
         py::array_t<double> g({n, py::ssize_t{3}, py::ssize_t{3}});
@@ -614,21 +684,18 @@ PYBIND11_MODULE(_magvine, m) {
                              "How far along the path to the target the tip has got, 0–1 (metrics' path_progress); "
                              "None without a target and a graph.")
       .def_property_readonly("path", &Simulation::path, "The path to the target (K, 3) [m], or None.")
-      .def_property_readonly(
-          "done", [](const Simulation& s) { return s.run().done(); },
-          "Whether `magvine run` would stop here (duration, target with stop_at_target, a failed "
-          "step, a biopsy's aiming done).")
-      .def_property_readonly(
-          "ended", [](const Simulation& s) { return s.run().ended(); },
-          "Whether no step may follow (a failed step, a biopsy's aiming done, finish()).")
-      .def_property_readonly(
-          "time", [](const Simulation& s) { return s.run().time(); }, "[s]")
-      .def_property_readonly("steps", [](const Simulation& s) { return s.run().steps(); })
+      .def_property_readonly("done", &Simulation::done,
+                             "Whether `magvine run` would stop here (duration, target with stop_at_target, a failed "
+                             "step, a biopsy's aiming done).")
+      .def_property_readonly("ended", &Simulation::ended,
+                             "Whether no step may follow (a failed step, a biopsy's aiming done, finish()).")
+      .def_property_readonly("time", &Simulation::time, "[s]")
+      .def_property_readonly("steps", &Simulation::steps)
       .def_property_readonly(
           "dt", [](const Simulation& s) { return s.scene().dt; }, "the scene's step [s]")
       .def_property_readonly(
           "duration", [](const Simulation& s) { return s.scene().duration; }, "[s]")
-      .def_property_readonly("magnets", [](const Simulation& s) { return s.run().magnet_poses().size(); })
+      .def_property_readonly("magnets", &Simulation::magnets)
       .def_property_readonly(
           "target",
           [](const Simulation& s) { return s.scene().target ? py::object(vec(*s.scene().target)) : py::none(); },

@@ -11,7 +11,10 @@ import threading
 import numpy as np
 import pytest
 
-magvine = pytest.importorskip("magvine", reason="the Python module is not built (MAGVINE_WITH_PYTHON)")
+if os.environ.get("MAGVINE_REQUIRE_PYTHON"):  # ctest, where the module is built: a broken import fails
+    import magvine
+else:
+    magvine = pytest.importorskip("magvine", reason="the Python module is not built (MAGVINE_WITH_PYTHON)")
 
 CLI = os.environ.get("MAGVINE", "build/src/cli/magvine")
 SRC = os.environ.get("MAGVINE_SOURCE_DIR", ".")
@@ -170,7 +173,9 @@ def test_the_tip_camera_looks_down_the_lumen():
         sim.step()
     try:
         image = sim.render(width=96, height=96)
-    except ValueError as e:  # a build without the render module
+    except ValueError as e:  # a build without the render module, and only that
+        if "render module" not in str(e):
+            raise
         pytest.skip(str(e))
     assert image.shape == (96, 96, 3) and image.dtype == np.uint8
     # Straight down the parent tube: the lumen ahead is far and dark, the wall round it near and lit (the light is at
@@ -179,3 +184,60 @@ def test_the_tip_camera_looks_down_the_lumen():
     y, x = np.mgrid[0:96, 0:96]
     r = np.hypot(x - 47.5, y - 47.5)
     assert grey[r < 10].mean() < 0.5 * grey[(r > 30) & (r < 45)].mean()
+
+
+def test_a_driver_with_its_own_dt_runs_to_the_duration():
+    sim = magvine.Simulation(Y)
+    while not sim.done:
+        sim.step(dt=sim.dt / 2)
+        if sim.state.success:
+            break
+    assert sim.state.success or sim.time >= sim.duration - 1e-9
+    # done counts time, not steps: twice as many steps as `magvine run` takes for the same time
+    assert sim.steps == pytest.approx(2 * sim.time / sim.dt, abs=1)
+
+
+def test_a_burst_vine_keeps_the_time():
+    # Above the film's burst pressure (hoop stress P·R/t over its strength: 2.9 MPa · 38 µm / 2.5 mm = 44 kPa for this
+    # vine) the vine bursts: an outcome, not an error; its clock runs on with the steps.
+    sim = magvine.Simulation(Y)
+    sim.step()
+    sim.step(pressure=60e3)
+    assert sim.state.burst
+    length = sim.state.everted_length
+    for _ in range(5):
+        sim.step()
+    assert sim.time == pytest.approx(7 * sim.dt, abs=1e-12)
+    assert sim.state.everted_length == length
+
+
+def test_one_simulation_is_for_one_thread_at_a_time():
+    # A second thread reading a simulation while another steps it gets RuntimeError or a whole state, never a torn one.
+    sim = magvine.Simulation(Y)
+    stop = threading.Event()
+    seen = {"busy": 0, "whole": 0}
+
+    def read():
+        while not stop.is_set():
+            try:
+                s = sim.state
+            except RuntimeError:
+                seen["busy"] += 1
+                continue
+            assert len(s.nodes) == len(s.tangents) == len(s.field) == len(s.wall_normal)
+            seen["whole"] += 1
+
+    reader = threading.Thread(target=read)
+    reader.start()
+    try:
+        for _ in range(100):
+            while True:
+                try:
+                    sim.step()
+                    break
+                except RuntimeError as e:  # the reader holds it for a moment
+                    assert "another thread" in str(e)
+    finally:
+        stop.set()
+        reader.join()
+    assert seen["whole"] > 0

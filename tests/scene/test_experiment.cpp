@@ -64,6 +64,59 @@ std::string replaced(std::string text, const std::string& from, const std::strin
   return text;
 }
 
+// Experiment stepped by a driver (the Python API's Simulation; docs/python.md): a bad request changes nothing; the
+// driver's pressure below the yield holds the vine (the growth law: the tip advances only while P > Y, 20 kPa here)
+// and its magnet pose holds; above the film's burst pressure the vine bursts and its clock runs on; its own half
+// steps run to the duration.
+TEST(Experiment, ADriversRequestsDoWhatTheySayAndABadOneChangesNothing) {
+  const ExperimentScene scene = load_experiment_scene(kDemo);
+  Experiment e(scene);
+  ASSERT_TRUE(e.step());
+  const double t = e.time();
+  const Vec3 tip = e.state().body.tip();
+  StepRequest bad;
+  bad.dt = -0.01;
+  EXPECT_THROW(e.step(bad), InputError);
+  bad = {};
+  bad.magnets.push_back({3, Vec3::Zero(), Vec3::UnitZ()});
+  EXPECT_THROW(e.step(bad), InputError);
+  EXPECT_EQ(e.time(), t);
+  EXPECT_EQ(e.state().body.tip(), tip);
+  EXPECT_FALSE(e.ended());
+  StepRequest hold;
+  hold.pressure = 15e3;
+  hold.magnets.push_back({0, Vec3(0.08, 0.12, 0.01), Vec3(0, -2, 0)});
+  ASSERT_TRUE(e.step(hold));
+  const double length = e.everted_length();
+  for (int k = 0; k < 20; ++k) ASSERT_TRUE(e.step());
+  EXPECT_NEAR(e.everted_length(), length, 1e-4);  // held below yield: within 0.1 mm over 0.4 s
+  EXPECT_EQ(e.pressure(), 15e3);
+  EXPECT_TRUE(e.magnet_poses()[0].position.isApprox(Vec3(0.08, 0.12, 0.01), 1e-15));
+  EXPECT_TRUE(e.magnet_poses()[0].rotation.col(2).isApprox(Vec3(0, -1, 0), 1e-15));
+  StepRequest burst;
+  burst.pressure = 60e3;  // hoop stress P·R/t = 60 kPa · 2.5 mm / 38 µm = 3.9 MPa > the film's 2.9 MPa
+  ASSERT_TRUE(e.step(burst));
+  EXPECT_TRUE(e.state().burst);
+  const double burst_at = e.time();
+  for (int k = 0; k < 3; ++k) ASSERT_TRUE(e.step());
+  EXPECT_NEAR(e.time(), burst_at + 3 * scene.dt, 1e-12);
+
+  Experiment halves(scene);
+  StepRequest half;
+  half.dt = 0.5 * scene.dt;
+  long steps = 0;
+  while (!halves.done() && steps < 100) {
+    ASSERT_TRUE(halves.step(half));
+    ++steps;
+  }
+  EXPECT_EQ(steps, 100);  // 1 s of the 8 s in half steps: not done by the step count of `magvine run`
+  EXPECT_FALSE(halves.done());
+  const ExperimentResult r = halves.finish();
+  EXPECT_TRUE(halves.ended());
+  EXPECT_THROW(halves.step(), std::logic_error);
+  EXPECT_NEAR(r.samples.back().time, 100 * half.dt.value(), 1e-12);
+}
+
 TEST(Experiment, DemoSceneSteersIntoTheDaughterAndReachesTheTargetButNotWithoutTheMagnet) {
   // The Y phantom's daughters leave the junction at ±35°; the fluid vine on the table grows along the parent's
   // axis. With the EPM swept in beside daughter 0-0 it turns into that daughter and reaches the target near its

@@ -95,7 +95,7 @@ class NavigationEnv:
 
     Action (8 numbers in [-1, 1]): the magnet's move (3, times max_move [m]), its axis's turn (a rotation vector, 3,
     times max_turn [rad]), the pressure (−1 … 1 over pressure_range [Pa]; by default half the scene's starting
-    pressure to all of it, which the film holds) and the tether (the released length set to
+    pressure to all of it) and the tether (the released length set to
     the everted length plus the value times tether_step [m]; negative values pull the body back). One action holds
     for frame_skip steps of the scene's dt.
 
@@ -122,8 +122,8 @@ class NavigationEnv:
         probe = Simulation(self.scene)
         if probe.steered:
             raise ValueError("NavigationEnv moves the magnets itself: the scene must not have control.navigator")
-        if probe.magnets <= magnet:
-            raise ValueError(f"magnet: the scene has {probe.magnets} magnet(s), not magnet {magnet}")
+        if not (isinstance(magnet, int) and 0 <= magnet < probe.magnets):
+            raise ValueError(f"magnet: the scene has {probe.magnets} magnet(s), not magnet {magnet!r}")
         if probe.path is None:
             raise ValueError("NavigationEnv needs a target and an airway graph (a generated phantom's or anatomy.graph)")
         if render_mode not in (None, "rgb_array"):
@@ -200,7 +200,7 @@ class NavigationEnv:
         tether = max(0.0, self.sim.state.everted_length + self.tether_step * a[7])
         failure = None
         try:
-            self.sim.step(pressure=pressure, tether=tether, magnet_pose=(self._position, self._axis))
+            self.sim.step(pressure=pressure, tether=tether, magnet_pose={self.magnet: (self._position, self._axis)})
             for _ in range(self.frame_skip - 1):
                 if self.sim.done:
                     break

@@ -118,12 +118,15 @@ struct Experiment::Impl {
   // nodule (the vine grows on towards it until the wall ahead blocks it) until aim_until; then the needle is pushed
   // with the tether held and the run ends.
   std::optional<double> aim_until;
-  long scheduled = 0;    // ceil(duration / dt)
-  long taken = 0;        // steps taken
-  bool moving = false;   // the magnets move (keyframes, the navigator, the arms, a driver)
-  bool stopped = false;  // at the target with stop_at_target
-  bool aimed = false;    // a biopsy's aiming done: the puncture follows
+  long scheduled = 0;         // ceil(duration / dt)
+  long taken = 0;             // steps taken
+  long grid = 0;              // the grid index k of the last step to k·dt (a driver's own dt leaves it)
+  double pressure_now = 0.0;  // the pressure of the last step (at first the starting one) [Pa]
+  bool moving = false;        // the magnets move (keyframes, the navigator, the arms, a driver)
+  bool stopped = false;       // at the target with stop_at_target
+  bool aimed = false;         // a biopsy's aiming done: the puncture follows
   bool finished = false;
+  bool broken = false;  // a step threw midway (the state is half advanced: no step may follow)
   // A driver's settings (StepRequest), held from the step that set them.
   std::optional<double> held_pressure;
   std::optional<double> held_tether;
@@ -247,8 +250,9 @@ struct Experiment::Impl {
     const Vec3 nodule = b.nodule + displacement(b.nodule, state.time);
     const Vec3 to_nodule = (nodule - tip).normalized();
     out.aim_angle = std::acos(std::clamp(state.body.frames.back().col(0).dot(to_nodule), -1.0, 1.0));
-    out.puncture = robot::push_needle(model, field, b.needle, nodule, b.radius, scene.pressure.at(state.time), state,
-                                      workspace, [&](const robot::PunctureStep& p, const robot::GrowthState& st) {
+    out.puncture = robot::push_needle(model, field, b.needle, nodule, b.radius,
+                                      held_pressure.value_or(scene.pressure.at(state.time)), state, workspace,
+                                      [&](const robot::PunctureStep& p, const robot::GrowthState& st) {
                                         out.samples.push_back(sample_at(p.time, st.pressure));
                                         record_frame(p.time, &p);
                                       });
@@ -313,6 +317,7 @@ Experiment::Impl::Impl(const ExperimentScene& s) : scene(s), anatomy(*s.anatomy)
   const anatomy::CollisionWorld& world = breathing_world ? *breathing_world : anatomy.world;
   model = robot::make_growth_model(vine, scene.growth, &world, scene.base_position, scene.base_frame);
   growth_events = robot::start_growth(model, field, vine.length, vine.pressure, state, workspace).events;
+  pressure_now = vine.pressure;
   if (navigator && scene.navigator->camera) {
     eye = video_plugin("control.navigator.guidance").tip_eye(scene);
     navigator->use_camera([this]() { return eye->look(state.body.tip(), state.body.frames.back()); });
@@ -348,7 +353,6 @@ void Experiment::Impl::check(const StepRequest& r) const {
 }
 
 bool Experiment::Impl::step(const StepRequest& request) {
-  check(request);
   if (request.pressure) held_pressure = request.pressure;
   if (request.tether) held_tether = request.tether;
   for (const StepRequest::Magnet& m : request.magnets) {
@@ -361,7 +365,8 @@ bool Experiment::Impl::step(const StepRequest& request) {
   if (request.dt) {
     t = state.time + *request.dt;
   } else {
-    t = static_cast<double>(static_cast<long>(std::floor(state.time / scene.dt + 1e-6)) + 1) * scene.dt;
+    grid = static_cast<long>(std::floor(state.time / scene.dt + 1e-6)) + 1;
+    t = static_cast<double>(grid) * scene.dt;
     if (state.time < scene.duration) t = std::min(scene.duration, t);
   }
   const double dt = t - state.time;
@@ -438,6 +443,7 @@ bool Experiment::Impl::step(const StepRequest& request) {
   }
   if (held_pressure) control.pressure = *held_pressure;
   if (held_tether) control.tether_length = *held_tether;
+  if (!open) control.tether_length = std::min(control.tether_length, workspace.body.length);  // the gate holds
   if (breathing_world) {
     // The airway moves to its shape at t, and carries the body and the material laid on its wall with it (the
     // displacement's change where each point is; the clamp, at the fixed entry, stays).
@@ -455,6 +461,7 @@ bool Experiment::Impl::step(const StepRequest& request) {
     }
   }
   const robot::GrowthStatus r = robot::grow_step(model, field, control, state, workspace, dt);
+  pressure_now = control.pressure;
   growth_events.insert(growth_events.end(), r.events.begin(), r.events.end());
   out.converged = r.converged;
   if (!r.converged) {
@@ -490,17 +497,24 @@ Experiment::~Experiment() = default;
 
 bool Experiment::step(const StepRequest& request) {
   if (ended()) throw std::logic_error("Experiment::step: the run has ended");
-  return m_impl->step(request);
+  m_impl->check(request);  // a bad request changes nothing
+  try {
+    return m_impl->step(request);
+  } catch (...) {
+    m_impl->broken = true;  // thrown midway: the magnets, the airway or the body may have moved
+    throw;
+  }
 }
 
 bool Experiment::done() const {
   const Impl& e = *m_impl;
-  return ended() || e.stopped || e.taken >= e.scheduled || e.state.time >= e.scene.duration;
+  // The grid index as `magvine run` counts its steps (a driver's own dt leaves it), or the time.
+  return ended() || e.stopped || e.grid >= e.scheduled || e.state.time >= e.scene.duration;
 }
 
 bool Experiment::ended() const {
   const Impl& e = *m_impl;
-  return e.finished || !e.out.converged || e.aimed;
+  return e.finished || e.broken || !e.out.converged || e.aimed;
 }
 
 ExperimentResult Experiment::finish() {
@@ -541,6 +555,12 @@ long Experiment::scheduled_steps() const {
 const robot::GrowthState& Experiment::state() const {
   return m_impl->state;
 }
+double Experiment::pressure() const {
+  return m_impl->pressure_now;
+}
+Vec3 Experiment::tip_at_rest() const {
+  return m_impl->at_rest(m_impl->state.body.tip(), m_impl->state.time);
+}
 double Experiment::everted_length() const {
   return m_impl->workspace.body.length;
 }
@@ -559,12 +579,14 @@ const std::vector<Vec3>& Experiment::airway_vertices() const {
 
 ExperimentResult run_experiment(const ExperimentScene& scene, const std::function<void(double)>& progress) {
   Experiment e(scene);
+  double reported = 0.0;
   while (!e.done()) {
     if (!e.step()) break;
-    if (progress) progress(std::min(1.0, static_cast<double>(e.steps()) / static_cast<double>(e.scheduled_steps())));
+    reported = std::min(1.0, static_cast<double>(e.steps()) / static_cast<double>(e.scheduled_steps()));
+    if (progress) progress(reported);
   }
   ExperimentResult out = e.finish();
-  if (progress && out.converged) progress(1.0);
+  if (progress && out.converged && reported < 1.0) progress(1.0);
   return out;
 }
 

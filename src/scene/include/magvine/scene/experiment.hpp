@@ -135,7 +135,7 @@ class Experiment {
   /// Whether `magvine run` would stop here: the duration reached, the target reached with stop_at_target, a failed
   /// step, or a biopsy's aiming done (finish() then pushes the needle).
   bool done() const;
-  /// Whether no step may follow: a failed step, a biopsy's aiming done, or finish() called.
+  /// Whether no step may follow: a failed step, a step that threw, a biopsy's aiming done, or finish() called.
   bool ended() const;
   /// Ends the run (a biopsy's puncture, if the vine reached its stop) and returns its result; the experiment is
   /// spent.
@@ -146,6 +146,10 @@ class Experiment {
   long scheduled_steps() const;             ///< `magvine run`'s: ceil(duration / dt)
   const robot::GrowthState& state() const;  ///< the body, its contact history and its wall forces
   double everted_length() const;            ///< [m]
+  double pressure() const;  ///< of the last step (before the first: the starting pressure, halved above burst) [Pa]
+  /// The tip taken back to the rest shape of a breathing airway (where the graph, the plan and the target are) [m];
+  /// the tip itself without breathing.
+  Vec3 tip_at_rest() const;
   const std::vector<magnetics::Pose>& magnet_poses() const;
   /// The field the body reads now at x [T] and its gradient [T/m] (the magnets' at their poses and control.field).
   magnetics::FieldSample field_at(const Vec3& x) const;
