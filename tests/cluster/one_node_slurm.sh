@@ -1,7 +1,8 @@
 #!/bin/bash
 # The cluster test of issue 33 (docs/cluster.md): a one-node Slurm cluster started here (munged, slurmctld, slurmd
 # in a scratch folder, their own ports, no systemd, no cgroups), a 4-task array of trial shards and its merge
-# through sbatch --wait, the merged batch compared with the one-machine batch, the daemons stopped by their pids.
+# through sbatch --wait, and 3 shards submitted by magvine itself (--submit), the merged batches compared with the
+# one-machine batch, the daemons stopped by their pids.
 # Usage: one_node_slurm.sh MAGVINE SCENE WORK. Exit 77 (skipped) where Slurm or munge is not installed or not root.
 set -euo pipefail
 MAGVINE=$1
@@ -86,4 +87,16 @@ diff "$WORK/one.csv" "$WORK/cluster.csv"
 diff "$WORK/one/summary.csv" "$WORK/cluster/summary.csv"
 diff "$WORK/one/summary.md" "$WORK/cluster/summary.md"
 test "$(ls -d "$WORK"/cluster/shard-* | wc -l)" = 4
-echo "the cluster's merged batch of $(($(wc -l < "$WORK/one.csv") - 1)) trials equals the one-machine batch"
+
+# --submit: magvine submits both itself (the merge afterok on the array) and prints their ids; wait for the merge.
+read -r array merge < <("$MAGVINE" trials "$SCENE" --repeats 8 --jobs 1 --shards 3 --slurm "$WORK/again.sh" \
+  --submit --out "$WORK/submitted" 2> /dev/null)
+for _ in $(seq 240); do
+  if [ -z "$(squeue -h -j "$array,$merge" 2> /dev/null)" ]; then break; fi
+  sleep 0.5
+done
+cut -d, -f1-13,15- "$WORK/submitted/trials.csv" > "$WORK/submitted.csv"
+diff "$WORK/one.csv" "$WORK/submitted.csv"
+diff "$WORK/one/summary.md" "$WORK/submitted/summary.md"
+echo "the cluster's merged batches of $(($(wc -l < "$WORK/one.csv") - 1)) trials (4 shards by hand, 3 by --submit)" \
+  "equal the one-machine batch"
