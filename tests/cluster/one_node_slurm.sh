@@ -68,7 +68,7 @@ PartitionName=test Nodes=localhost Default=YES MaxTime=INFINITE State=UP
 CONF
 export SLURM_CONF=$WORK/slurm.conf
 slurmctld -f "$SLURM_CONF"
-slurmd -f "$SLURM_CONF"
+slurmd -f "$SLURM_CONF" -N localhost  # whatever the machine is called
 for _ in $(seq 60); do
   if sinfo -h -o %t 2> /dev/null | grep -q idle; then break; fi
   sleep 0.5
