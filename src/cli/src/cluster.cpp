@@ -2,7 +2,12 @@
 // writes, and `magvine trials SCENE --slurm JOB.sh` writes the batch as a Slurm array of shards and a merge job that
 // waits for it (and with --submit submits both).
 
+#include <sys/wait.h>
+
+#include <algorithm>
+#include <cctype>
 #include <cstdio>
+#include <cstdlib>
 #include <filesystem>
 #include <fstream>
 #include <iostream>
@@ -41,17 +46,37 @@ std::string shell_word(const std::string& text) {
   return q + "'";
 }
 
-/// Runs `command` (sbatch) and returns what it printed; InputError when it cannot run or fails.
-std::string run_command(const std::string& command) {
-  FILE* pipe = popen((command + " 2>&1").c_str(), "r");
-  if (pipe == nullptr) throw InputError("--submit", 0, "", "cannot run " + command);
+/// Submits `script` with sbatch (`options` before it) and returns the job id it printed (--parsable: "id" or
+/// "id;cluster", on the last line of its output). InputError, one line, when it cannot run, fails or prints no id.
+std::string submit(const std::string& options, const fs::path& script) {
+  const std::string command = "sbatch --parsable " + options + shell_word(script.string());
+  FILE* pipe = popen((command + " 2>/dev/null").c_str(), "r");
+  if (pipe == nullptr) throw InputError("--submit", 0, "", "cannot run sbatch");
   std::string text;
   char buffer[512];
   while (std::fgets(buffer, sizeof buffer, pipe) != nullptr) text += buffer;
   const int status = pclose(pipe);
-  while (!text.empty() && (text.back() == '\n' || text.back() == '\r')) text.pop_back();
-  if (status != 0) throw InputError("--submit", 0, "", command + " failed: " + text);
-  return text;
+  std::string last;
+  std::istringstream lines(text);
+  for (std::string line; std::getline(lines, line);) {
+    if (!line.empty()) last = line;
+  }
+  const std::string id = last.substr(0, last.find(';'));
+  const bool digits = !id.empty() && std::all_of(id.begin(), id.end(), [](char c) { return c >= '0' && c <= '9'; });
+  if (status != 0 || !digits) {
+    throw InputError("--submit", 0, "",
+                     "sbatch " + script.filename().string() + " failed (exit " + std::to_string(WEXITSTATUS(status)) +
+                         "); run it by hand to see why: " + command);
+  }
+  return id;
+}
+
+/// A value for an #SBATCH line: letters, digits and _.,:- only (no space, quote or newline to break the script).
+void check_resource(const char* option, const std::string& value) {
+  const bool plain = std::all_of(value.begin(), value.end(), [](char c) {
+    return std::isalnum(static_cast<unsigned char>(c)) || c == '_' || c == '.' || c == ',' || c == ':' || c == '-';
+  });
+  if (!plain) throw InputError(option, 0, "", "must be letters, digits and _.,:- only (got '" + value + "')");
 }
 
 }  // namespace
@@ -69,6 +94,17 @@ int write_slurm_jobs(const TrialsArgs& args) {
   const fs::path out = fs::absolute(
       args.out.empty() ? fs::path("runs") / (fs::path(args.scene).stem().string() + "-trials") : fs::path(args.out));
   const int jobs = args.jobs > 0 ? args.jobs : 1;
+  check_resource("--partition", args.partition);
+  check_resource("--time", args.time);
+  check_resource("--mem", args.mem);
+  // #SBATCH --output takes a bare path, with % as its pattern sign.
+  const std::string logs = out.string();
+  if (std::any_of(logs.begin(), logs.end(), [](char c) {
+        return std::isspace(static_cast<unsigned char>(c)) || c == '%' || c == '"' || c == '\'';
+      })) {
+    throw InputError("--out", 0, "",
+                     "a Slurm batch needs an output folder without spaces, quotes or % (got '" + logs + "')");
+  }
   const fs::path merge = fs::path(job).replace_extension(".merge.sh");
   std::string targets;
   for (const std::string& t : args.targets) targets += (targets.empty() ? "" : ",") + t;
@@ -124,11 +160,16 @@ int write_slurm_jobs(const TrialsArgs& args) {
               << shell_word(merge.string()) << '\n';
     return 0;
   }
-  std::string id = run_command("sbatch --parsable " + shell_word(job.string()));
-  id = id.substr(0, id.find(';'));  // "jobid;cluster" on a federation
-  const std::string merge_id =
-      run_command("sbatch --parsable --dependency=afterok:" + id + " " + shell_word(merge.string()));
-  std::cout << id << ' ' << merge_id.substr(0, merge_id.find(';')) << '\n';
+  const std::string id = submit("", job);
+  std::string merge_id;
+  try {
+    merge_id = submit("--dependency=afterok:" + id + " ", merge);
+  } catch (const InputError&) {
+    // The array without its merge would run for nothing: cancel it.
+    (void)std::system(("scancel " + id + " > /dev/null 2>&1").c_str());
+    throw;
+  }
+  std::cout << id << ' ' << merge_id << '\n';
   std::cerr << "magvine trials: submitted the array as job " << id << " and its merge as job " << merge_id << '\n';
   return 0;
 }

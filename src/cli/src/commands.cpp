@@ -1,12 +1,16 @@
 #include "commands.hpp"
 
 #include <algorithm>
+#include <cctype>
+#include <charconv>
 #include <cmath>
 #include <filesystem>
 #include <fstream>
 #include <iostream>
 #include <sstream>
 #include <stdexcept>
+#include <string_view>
+#include <system_error>
 #include <thread>
 
 #include "magvine/anatomy/centerline.hpp"
@@ -277,24 +281,29 @@ int run_scene(const RunArgs& args) {
 
 int run_trials(const TrialsArgs& args) {
   if (!args.slurm.empty()) return write_slurm_jobs(args);
+  if (args.shards > 0 || args.submit || !args.partition.empty() || !args.time.empty() || !args.mem.empty()) {
+    throw InputError("--shards", 0, "", "--shards, --submit, --partition, --time and --mem go with --slurm JOB.sh");
+  }
   scene::Shard shard;
   if (!args.shard.empty()) {
-    // "I/N", 0 <= I < N.
+    // "I/N": digits only, 0 <= I < N <= kMaxShards.
     const std::size_t slash = args.shard.find('/');
-    try {
-      std::size_t a = 0;
-      std::size_t b = 0;
-      if (slash == std::string::npos) throw std::invalid_argument("no slash");
-      shard.index = std::stoi(args.shard.substr(0, slash), &a);
-      shard.count = std::stoi(args.shard.substr(slash + 1), &b);
-      if (a != slash || b != args.shard.size() - slash - 1) throw std::invalid_argument("trailing text");
-    } catch (const std::exception&) {
-      throw InputError("--shard", 0, "", "must be I/N, e.g. 0/4 (got '" + args.shard + "')");
-    }
-    if (shard.count < 1 || shard.index < 0 || shard.index >= shard.count) {
-      throw InputError("--shard", 0, "", "must be I/N with 0 <= I < N (got '" + args.shard + "')");
+    const auto whole = [](std::string_view text, int& value) {
+      const auto [end, error] = std::from_chars(text.data(), text.data() + text.size(), value);
+      return !text.empty() && std::isdigit(static_cast<unsigned char>(text.front())) && error == std::errc() &&
+             end == text.data() + text.size();
+    };
+    const std::string_view text(args.shard);
+    if (slash == std::string::npos || !whole(text.substr(0, slash), shard.index) ||
+        !whole(text.substr(slash + 1), shard.count) || shard.count < 1 || shard.count > scene::kMaxShards ||
+        shard.index >= shard.count) {
+      throw InputError(
+          "--shard", 0, "",
+          printf_string("must be I/N with 0 <= I < N <= %d, e.g. 0/4 (got '", scene::kMaxShards) + args.shard + "')");
     }
   }
+  // The batch's identity from the scene's bytes as the shard starts (an edit during a long run is another batch).
+  const scene::BatchIdentity identity = scene::batch_identity(args.scene, args.targets, args.repeats, shard);
   const scene::ExperimentScene sc = scene::load_experiment_scene(args.scene);
   const std::filesystem::path out =
       args.out.empty() ? std::filesystem::path("runs") / (std::filesystem::path(args.scene).stem().string() + "-trials")
@@ -318,7 +327,7 @@ int run_trials(const TrialsArgs& args) {
       args.keep_runs ? out / "runs" : std::filesystem::path(), shard);
   std::cerr << '\n';
   if (!args.shard.empty()) {
-    scene::write_shard(scene::batch_identity(args.scene, args.targets, args.repeats, shard), outcomes, out);
+    scene::write_shard(identity, outcomes, out);
     std::cerr << "magvine trials: shard " << args.shard << ": " << (out / "shard.json").string() << ", "
               << (out / "trials.csv").string() << " (magvine trials merge joins the shards)\n";
     return 0;

@@ -138,8 +138,9 @@ int main(int argc, char** argv) {
   trials_cmd->add_option("--slurm", trials.slurm,
                          "JOB.sh: write the batch as a Slurm array of --shards tasks (JOB.sh) and the merge job "
                          "(JOB.merge.sh) instead of running it");
-  trials_cmd->add_option("--shards", trials.shards, "with --slurm: the array's tasks (shards)")
-      ->check(CLI::Range(1, 100000));
+  trials_cmd
+      ->add_option("--shards", trials.shards, "with --slurm: the array's tasks (shards; Slurm's default limit 1001)")
+      ->check(CLI::Range(1, 1001));
   trials_cmd->add_flag("--submit", trials.submit, "with --slurm: submit both (sbatch, the merge afterok)");
   trials_cmd->add_option("--partition", trials.partition, "with --slurm: #SBATCH --partition");
   trials_cmd->add_option("--time", trials.time, "with --slurm: #SBATCH --time of each shard, e.g. 01:00:00");
@@ -219,7 +220,16 @@ int main(int argc, char** argv) {
     if (ct_cmd.parsed()) return ct_cmd.run();
     if (run_cmd->parsed()) return magvine::cli::run_scene(run);
     if (validate_cmd->parsed()) return magvine::cli::run_validate(validate_out);
-    if (merge_cmd->parsed()) return magvine::cli::run_trials_merge(merge);
+    if (merge_cmd->parsed()) {
+      // `magvine trials merge` takes the shards' folders and --out only: anything given to trials itself is a slip.
+      const auto given = trials_cmd->get_options([](const CLI::Option* o) { return o->count() > 0; });
+      if (!given.empty()) {
+        throw magvine::InputError(
+            "trials merge", 0, "",
+            "takes the shards' folders and --out only (give the scene and options to the shards)");
+      }
+      return magvine::cli::run_trials_merge(merge);
+    }
     if (trials_cmd->parsed()) {
       if (trials.scene.empty()) throw magvine::InputError("trials", 0, "", "name the scene: magvine trials SCENE");
       return magvine::cli::run_trials(trials);

@@ -16,6 +16,7 @@
 
 #include "experiment_internal.hpp"
 #include "magvine/anatomy/airway_graph.hpp"
+#include "magvine/config.hpp"
 #include "magvine/core/atomic_file.hpp"
 #include "magvine/core/error.hpp"
 #include "magvine/core/text.hpp"
@@ -89,7 +90,8 @@ std::vector<TrialOutcome> run_trials(const ExperimentScene& scene, const std::ve
   for (ExperimentScene& a : aimed) a.videos.clear();  // trials write no videos (nor record their frames)
   // The shard's trials: every index ≡ shard.index (mod shard.count) of the whole batch.
   std::vector<int> mine;
-  for (int i = shard.index; i < static_cast<int>(aimed.size()) * repeats; i += shard.count) mine.push_back(i);
+  const long long batch = static_cast<long long>(aimed.size()) * repeats;
+  for (long long i = shard.index; i < batch; i += shard.count) mine.push_back(static_cast<int>(i));
   const int total = static_cast<int>(mine.size());
   if (!runs_dir.empty()) create_output_directory(runs_dir);  // before the threads create their folders in it
   std::vector<TrialOutcome> outcomes(static_cast<std::size_t>(total));
@@ -274,6 +276,7 @@ nlohmann::json outcome_json(const TrialOutcome& o) {
 }
 
 TrialOutcome outcome_of(const nlohmann::json& j) {
+  // JSON has no NaN: nlohmann writes NaN and ±inf as null, read back as NaN.
   const auto number = [](const nlohmann::json& v) {
     return v.is_null() ? std::numeric_limits<double>::quiet_NaN() : v.get<double>();
   };
@@ -284,15 +287,15 @@ TrialOutcome outcome_of(const nlohmann::json& j) {
   o.seed = j.at("seed").get<std::uint64_t>();
   o.success = j.at("success").get<bool>();
   o.burst = j.at("burst").get<bool>();
-  o.time_to_target = j.at("time_to_target_s").get<double>();
-  o.everted_length = j.at("everted_length_m").get<double>();
-  o.final_error = j.at("final_error_m").get<double>();
-  o.max_normal = j.at("max_normal_N").get<double>();
+  o.time_to_target = number(j.at("time_to_target_s"));
+  o.everted_length = number(j.at("everted_length_m"));
+  o.final_error = number(j.at("final_error_m"));
+  o.max_normal = number(j.at("max_normal_N"));
   o.retractions = j.at("retractions").get<int>();
   o.biopsy = j.at("biopsy").get<int>();
   o.needle_to_nodule = number(j.at("needle_to_nodule_m"));
   o.slide_back = number(j.at("slide_back_m"));
-  o.runtime_s = j.at("runtime_s").get<double>();
+  o.runtime_s = number(j.at("runtime_s"));
   o.reason = j.at("reason").get<std::string>();
   return o;
 }
@@ -305,7 +308,8 @@ BatchIdentity batch_identity(const std::filesystem::path& scene_file, const std:
   if (!in) throw InputError(scene_file.string(), 0, "", "cannot open the scene");
   std::ostringstream bytes;
   bytes << in.rdbuf();
-  return {scene_file.string(), fnv1a(bytes.str()), targets, repeats, shard};
+  // The scene's bytes and the magvine that runs it (another version may give other outcomes).
+  return {scene_file.string(), fnv1a(bytes.str() + "\n" + MAGVINE_VERSION), targets, repeats, shard};
 }
 
 void write_shard(const BatchIdentity& identity, const std::vector<TrialOutcome>& outcomes,
@@ -338,36 +342,45 @@ std::vector<TrialOutcome> merge_shards(const std::vector<std::filesystem::path>&
     const std::filesystem::path file = dir / "shard.json";
     std::ifstream in(file);
     if (!in) throw InputError(file.string(), 0, "", "no shard here (magvine trials --shard I/N writes shard.json)");
-    nlohmann::json j;
     try {
-      j = nlohmann::json::parse(in);
+      const nlohmann::json j = nlohmann::json::parse(in);
       (void)j.at("magvine_trials_shard");
+      const int count = j.at("shards").get<int>();
+      const int index = j.at("shard").get<int>();
+      if (count < 1 || count > kMaxShards || index < 0 || index >= count) {
+        throw InputError(file.string(), 0, "shard",
+                         printf_string("%d/%d is not a shard I/N, 0 <= I < N", index, count));
+      }
+      if (!first) {
+        first = j;
+        first_dir = dir.string();
+        seen.assign(static_cast<std::size_t>(count), std::string());
+      }
+      for (const char* key : {"scene_fnv1a", "targets", "repeats", "shards"}) {
+        if (j.at(key) != first->at(key)) {
+          const std::string what = std::string(key) == "scene_fnv1a" ? "the scene file's bytes or magvine's version"
+                                   : std::string(key) == "shards"    ? "the shard count"
+                                                                     : std::string("--") + key;
+          throw InputError(file.string(), 0, key, "another batch than " + first_dir + ": " + what + " differ");
+        }
+      }
+      std::string& from = seen[static_cast<std::size_t>(index)];
+      if (!from.empty()) {
+        throw InputError(file.string(), 0, "shard",
+                         printf_string("shard %d/%d given twice (also in ", index, count) + from + ")");
+      }
+      from = dir.string();
+      for (const nlohmann::json& t : j.at("trials")) {
+        TrialOutcome o = outcome_of(t);
+        if (o.index < 0 || o.index % count != index) {
+          throw InputError(file.string(), 0, "trials",
+                           printf_string("trial %d is not in shard %d/%d", o.index, index, count));
+        }
+        all.push_back(std::move(o));
+      }
     } catch (const nlohmann::json::exception& e) {
       throw InputError(file.string(), 0, "", std::string("not a shard file: ") + e.what());
     }
-    const int count = j.at("shards").get<int>();
-    const int index = j.at("shard").get<int>();
-    if (!first) {
-      first = j;
-      first_dir = dir.string();
-      seen.assign(static_cast<std::size_t>(count), std::string());
-    }
-    for (const char* key : {"scene_fnv1a", "targets", "repeats", "shards"}) {
-      if (j.at(key) != first->at(key)) {
-        const std::string what = std::string(key) == "scene_fnv1a" ? "the scene file's bytes"
-                                 : std::string(key) == "shards"    ? "the shard count"
-                                                                   : std::string("--") + key;
-        throw InputError(file.string(), 0, key, "another batch than " + first_dir + ": " + what + " differ");
-      }
-    }
-    if (index < 0 || index >= count) throw InputError(file.string(), 0, "shard", "out of range");
-    std::string& from = seen[static_cast<std::size_t>(index)];
-    if (!from.empty()) {
-      throw InputError(file.string(), 0, "shard",
-                       printf_string("shard %d/%d given twice (also in ", index, count) + from + ")");
-    }
-    from = dir.string();
-    for (const nlohmann::json& t : j.at("trials")) all.push_back(outcome_of(t));
   }
   for (std::size_t i = 0; i < seen.size(); ++i) {
     if (seen[i].empty()) {
@@ -375,6 +388,15 @@ std::vector<TrialOutcome> merge_shards(const std::vector<std::filesystem::path>&
     }
   }
   std::sort(all.begin(), all.end(), [](const TrialOutcome& a, const TrialOutcome& b) { return a.index < b.index; });
+  // The whole batch: every index of targets × repeats once.
+  const std::size_t targets = std::max<std::size_t>(1, first->at("targets").size());
+  const auto total = targets * first->at("repeats").get<std::size_t>();
+  bool whole = all.size() == total;
+  for (std::size_t i = 0; whole && i < all.size(); ++i) whole = all[i].index == static_cast<int>(i);
+  if (!whole) {
+    throw InputError("trials merge", 0, "",
+                     printf_string("the shards hold %zu trials, not the batch's %zu each once", all.size(), total));
+  }
   return all;
 }
 

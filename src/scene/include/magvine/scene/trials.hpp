@@ -51,6 +51,8 @@ struct Shard {
   int index = 0;
   int count = 1;
 };
+/// The most shards a batch may have.
+inline constexpr int kMaxShards = 100000;
 
 /// Runs `repeats` perturbed trials towards each target (branch names; empty: the scene's own target) on `jobs`
 /// threads, only `shard`'s share of them; outcomes in index order whatever the threads. `progress` gets (done, total)
@@ -60,8 +62,8 @@ std::vector<TrialOutcome> run_trials(const ExperimentScene& scene, const std::ve
                                      int jobs, const std::function<void(int, int)>& progress = nullptr,
                                      const std::filesystem::path& runs_dir = {}, const Shard& shard = {});
 
-/// What makes shards one batch: the scene file's bytes (their 64-bit FNV-1a hash), the targets, the repeats and the
-/// shard count.
+/// What makes shards one batch: the scene file's bytes and magvine's version (a 64-bit FNV-1a hash of them), the
+/// targets, the repeats and the shard count. Files the scene names (a mesh, a graph, a segmentation) are not hashed.
 struct BatchIdentity {
   std::string scene;             ///< the scene file, as given
   std::uint64_t scene_hash = 0;  ///< FNV-1a of its bytes
@@ -79,8 +81,9 @@ void write_shard(const BatchIdentity& identity, const std::vector<TrialOutcome>&
                  const std::filesystem::path& dir);
 
 /// The whole batch from its shards' folders (`magvine trials merge`): the outcomes in index order, exactly as one
-/// machine's run_trials gives them. InputError (one line) when a folder has no shard.json, the shards belong to
-/// different batches (scene bytes, targets, repeats or count), or a shard is missing or given twice.
+/// machine's run_trials gives them. InputError (one line) when a folder has no shard.json or a malformed one, the
+/// shards belong to different batches (scene bytes, version, targets, repeats or count), a shard is missing or given
+/// twice, or a trial is not in its shard or not of the batch.
 std::vector<TrialOutcome> merge_shards(const std::vector<std::filesystem::path>& dirs);
 
 /// trials.csv (every trial, with the reason of each failure) and summary.csv + summary.md in the form of thesis
