@@ -602,7 +602,8 @@ PYBIND11_MODULE(_magvine, m) {
 
   m.def(
       "field",
-      [](const std::string& magnets, const py::array_t<double, py::array::c_style | py::array::forcecast>& points) {
+      [](const std::string& magnets, const py::array_t<double, py::array::c_style | py::array::forcecast>& points,
+         const py::object& out) {
         if (points.ndim() != 2 || points.shape(1) != 3) {
           throw InputError("points", 0, "", "must be an (N, 3) array of positions in metres");
         }
@@ -612,8 +613,39 @@ PYBIND11_MODULE(_magvine, m) {
           model = sc::load_magnets_file(magnets);
         }
         const py::ssize_t n = points.shape(0);
-        py::array_t<double> b({n, py::ssize_t{3}});
-        py::array_t<double> g({n, py::ssize_t{3}, py::ssize_t{3}});
+        // The results in fresh arrays, or in the caller's (out=(B, G): C-contiguous float64 of the right shapes), which
+        // a loop over many calls reuses instead of having the kernel clear fresh memory each time.
+        py::array_t<double> b;
+        py::array_t<double> g;
+        if (out.is_none()) {
+          b = py::array_t<double>({n, py::ssize_t{3}});
+          g = py::array_t<double>({n, py::ssize_t{3}, py::ssize_t{3}});
+        } else {
+          if (!py::isinstance<py::tuple>(out) || py::len(out) != 2) {
+            throw InputError("out", 0, "", "must be a tuple (B, G) of float64 arrays");
+          }
+          const py::tuple pair = py::reinterpret_borrow<py::tuple>(out);
+          if (!py::isinstance<py::array_t<double>>(pair[0]) || !py::isinstance<py::array_t<double>>(pair[1])) {
+            throw InputError("out", 0, "", "must be a tuple (B, G) of float64 arrays");
+          }
+          b = pair[0].cast<py::array_t<double>>();
+          g = pair[1].cast<py::array_t<double>>();
+          const auto fits = [](const py::array_t<double>& a, std::initializer_list<py::ssize_t> shape) {
+            if (!(a.flags() & py::array::c_style) || !a.writeable() ||
+                a.ndim() != static_cast<py::ssize_t>(shape.size())) {
+              return false;
+            }
+            py::ssize_t k = 0;
+            for (const py::ssize_t d : shape) {
+              if (a.shape(k++) != d) return false;
+            }
+            return true;
+          };
+          if (!fits(b, {n, 3}) || !fits(g, {n, 3, 3})) {
+            throw InputError("out", 0, "",
+                             "must be writable C-contiguous float64 arrays of shapes (N, 3) and (N, 3, 3)");
+          }
+        }
         const double* x = points.data();
         double* bo = b.mutable_data();
         double* go = g.mutable_data();
@@ -647,9 +679,9 @@ PYBIND11_MODULE(_magvine, m) {
         }
         return py::make_tuple(b, g);
       },
-      py::arg("magnets"), py::arg("points"),
+      py::arg("magnets"), py::arg("points"), py::arg("out") = py::none(),
       "The field B [T] (N, 3) and its gradient G = ∂B/∂x [T/m] (N, 3, 3) of a magnets file's magnets at their poses, "
-      "at points [m] (N, 3).");
+      "at points [m] (N, 3); into `out` = (B, G) when given (float64, C-contiguous), which it returns.");
 
   py::class_<SceneHandle>(m, "Scene",
                           "An experiment scene loaded once (a path, or a dict with the scene file's keys): give it to "

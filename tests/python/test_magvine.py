@@ -95,6 +95,16 @@ def test_field_of_a_point_dipole_is_its_closed_form(tmp_path):
         assert np.allclose(g[0][:, k], (bp[0] - bm[0]) / (2 * h), rtol=1e-6, atol=1e-12)
     with pytest.raises(ValueError):
         magvine.field(str(magnets), np.zeros((4, 2)))
+    # Into the caller's arrays: the same numbers, the same objects back; arrays of the wrong kind refused.
+    out = (np.zeros((50, 3)), np.zeros((50, 3, 3)))
+    back = magvine.field(str(magnets), points, out=out)
+    assert back[0] is out[0] and back[1] is out[1]
+    np.testing.assert_array_equal(out[0], b)
+    np.testing.assert_array_equal(out[1], g)
+    for bad in [(out[0],), (out[0].astype(np.float32), out[1]), (np.zeros((49, 3)), out[1]),
+                (out[0], np.zeros((50, 3, 3))[:, ::-1])]:
+        with pytest.raises(ValueError, match="out"):
+            magvine.field(str(magnets), points, out=bad)
 
 
 def test_runs_in_threads_give_the_same_metrics(tmp_path):
