@@ -120,3 +120,29 @@ def test_the_env_moves_the_magnet_it_is_given(tmp_path, scene):
 def test_a_scene_with_a_navigator_is_refused():
     with pytest.raises(ValueError, match="navigator"):
         magvine.NavigationEnv(os.path.join(SRC, "assets", "scenes", "bronchial_tree_navigator.yaml"))
+
+
+def test_in_a_platform_scene_the_arm_carries_the_magnet_where_the_actions_move_it():
+    # The demo scene (an iiwa arm holds the EPM) without its navigator, aimed at the end of branch 0-0-1: the env's
+    # magnet moves are asked of the arm (end-effector requests); the arm tracks them (it lags: within 5 mm after a
+    # step of rest).
+    yaml = pytest.importorskip("yaml", reason="python3-yaml is not installed")
+    with open(os.path.join(SRC, "assets", "scenes", "bronchial_tree_platform.yaml")) as f:
+        scene = yaml.safe_load(f)
+    del scene["control"]["navigator"]
+    del scene["outputs"]
+    graph = magvine.phantom("bronchial_tree", max_generation=3)["graph"]
+    branch = next(b for b in graph["branches"] if b["name"] == "0-0-1")
+    end = graph["nodes"][branch["nodes"][-2]]["position"]  # mm, inside the branch's end
+    scene["target"] = {"position": end, "tolerance": 6}
+    env = magvine.NavigationEnv(scene, frame_skip=2, perturb=False)
+    obs, _ = env.reset(seed=0)
+    start = env.sim.state.magnet_positions[0].copy()
+    for _ in range(6):
+        obs, reward, terminated, truncated, info = env.step(np.array([0, 0, 1.0, 0, 0, 0, 1, 1]))
+        assert not terminated, info
+    for _ in range(3):
+        obs, *_ = env.step(np.array([0, 0, 0, 0, 0, 0, 1, 1.0]))
+    moved = env.sim.state.magnet_positions[0] - start
+    assert moved[2] == pytest.approx(6 * 0.005, abs=0.005)  # asked 30 mm along +z
+    assert abs(moved[0]) < 0.005 and abs(moved[1]) < 0.005
