@@ -44,6 +44,7 @@ namespace py = pybind11;
 namespace fs = std::filesystem;
 namespace sc = magvine::scene;
 using magvine::InputError;
+using magvine::Mat3;
 using magvine::Vec3;
 
 namespace {
@@ -198,13 +199,8 @@ class Simulation {
   }
 
   void step(const py::object& dt, const py::object& pressure, const py::object& tether, const py::object& magnets) {
-    const auto lock = use("step");
-    if (m_run->ended()) {
-      throw std::runtime_error(m_finished ? "Simulation.step: finish() ended this run"
-                               : !m_run->result().converged
-                                   ? "Simulation.step: a step failed and ended this run: " + m_run->result().failure
-                                   : "Simulation.step: the biopsy's aiming is done; finish() pushes the needle");
-    }
+    // The request read from Python first; the lock then held in plain C++ and with the GIL released only (see
+    // state()).
     sc::StepRequest r;
     if (!dt.is_none()) r.dt = argument<double>(dt, "step", "dt");
     if (!pressure.is_none()) r.pressure = argument<double>(pressure, "step", "pressure");
@@ -226,80 +222,112 @@ class Simulation {
       }
     }
     bool converged = false;
+    std::string failure;
     {
+      const auto lock = use("step");
+      if (m_run->ended()) {
+        throw std::runtime_error(m_finished ? "Simulation.step: finish() ended this run"
+                                 : !m_run->result().converged
+                                     ? "Simulation.step: a step failed and ended this run: " + m_run->result().failure
+                                     : "Simulation.step: the biopsy's aiming is done; finish() pushes the needle");
+      }
       const py::gil_scoped_release release;
       const magvine::Stopwatch clock;
       converged = m_run->step(r);
       m_step_seconds += clock.seconds();
+      if (!converged) failure = m_run->result().failure;
     }
-    if (!converged) throw SimulationFailure(m_run->result().failure);
+    if (!converged) throw SimulationFailure(failure);
   }
 
   /// The state now, as numpy arrays (copies: the body gains nodes as it grows).
   py::object state() const {
-    const auto lock = use("state");
-    const magvine::robot::GrowthState& g = m_run->state();
-    const std::size_t n = g.body.x.size();
-    std::vector<Vec3> tangents(n);
-    std::vector<Vec3> b(n);
-    std::vector<Vec3> normal(n, Vec3::Zero());
-    std::vector<Vec3> shear(n, Vec3::Zero());
-    std::vector<double> pressure(n, 0.0);
-    for (std::size_t i = 0; i < n; ++i) {
-      // Frames are per edge: a node takes the edge towards the tip, the tip its last edge.
-      tangents[i] = g.body.frames[std::min(i, g.body.frames.size() - 1)].col(0);
-      b[i] = m_run->field_at(g.body.x[i]).b;
-      if (i < g.forces.normal_vector.size()) normal[i] = g.forces.normal_vector[i];
-      if (i < g.forces.shear_vector.size()) shear[i] = g.forces.shear_vector[i];
-      if (i < g.forces.pressure.size()) pressure[i] = g.forces.pressure[i];
-    }
-    std::vector<Vec3> positions;
-    std::vector<Vec3> axes;
-    for (const magvine::magnetics::Pose& p : m_run->magnet_poses()) {
-      positions.push_back(p.position);
-      axes.push_back(p.rotation.col(2));
+    // A snapshot under the lock in plain C++ (no Python call there: Python may hand the GIL to another thread, which
+    // would then find the lock held for as long as this one waits), the arrays built after.
+    struct Snapshot {
+      double time = 0.0, length = 0.0, pressure = 0.0, max_normal = 0.0;
+      long steps = 0;
+      bool success = false, burst = false;
+      std::vector<Vec3> nodes, tangents, field, normal, shear, positions, axes;
+      std::vector<double> contact;
+      Mat3 frame = Mat3::Identity();
+    } s;
+    {
+      const auto lock = use("state");
+      const magvine::robot::GrowthState& g = m_run->state();
+      const std::size_t n = g.body.x.size();
+      s.nodes = g.body.x;
+      s.tangents.resize(n);
+      s.field.resize(n);
+      s.normal.assign(n, Vec3::Zero());
+      s.shear.assign(n, Vec3::Zero());
+      s.contact.assign(n, 0.0);
+      for (std::size_t i = 0; i < n; ++i) {
+        // Frames are per edge: a node takes the edge towards the tip, the tip its last edge.
+        s.tangents[i] = g.body.frames[std::min(i, g.body.frames.size() - 1)].col(0);
+        s.field[i] = m_run->field_at(g.body.x[i]).b;
+        if (i < g.forces.normal_vector.size()) s.normal[i] = g.forces.normal_vector[i];
+        if (i < g.forces.shear_vector.size()) s.shear[i] = g.forces.shear_vector[i];
+        if (i < g.forces.pressure.size()) s.contact[i] = g.forces.pressure[i];
+      }
+      for (const magvine::magnetics::Pose& p : m_run->magnet_poses()) {
+        s.positions.push_back(p.position);
+        s.axes.push_back(p.rotation.col(2));
+      }
+      s.frame = g.body.frames.back();
+      s.time = m_run->time();
+      s.steps = m_run->steps();
+      s.length = m_run->everted_length();
+      s.pressure = m_run->pressure();
+      s.max_normal = g.forces.max_normal;
+      s.success = m_run->result().success;
+      s.burst = g.burst;
     }
     py::array_t<double> frame({py::ssize_t{3}, py::ssize_t{3}});
     auto f = frame.mutable_unchecked<2>();
     for (int r = 0; r < 3; ++r) {
-      for (int c = 0; c < 3; ++c) f(r, c) = g.body.frames.back()(r, c);
+      for (int c = 0; c < 3; ++c) f(r, c) = s.frame(r, c);
     }
     py::dict d;
-    d["time"] = m_run->time();
-    d["steps"] = m_run->steps();
-    d["everted_length"] = m_run->everted_length();
-    d["pressure"] = m_run->pressure();
-    d["nodes"] = rows(g.body.x);
-    d["tangents"] = rows(tangents);
-    d["wall_normal"] = rows(normal);
-    d["wall_shear"] = rows(shear);
-    d["contact_pressure"] = py::array_t<double>(static_cast<py::ssize_t>(n), pressure.data());
-    d["max_wall_normal"] = g.forces.max_normal;
-    d["field"] = rows(b);
-    d["tip_position"] = vec(g.body.tip());
+    d["time"] = s.time;
+    d["steps"] = s.steps;
+    d["everted_length"] = s.length;
+    d["pressure"] = s.pressure;
+    d["nodes"] = rows(s.nodes);
+    d["tangents"] = rows(s.tangents);
+    d["wall_normal"] = rows(s.normal);
+    d["wall_shear"] = rows(s.shear);
+    d["contact_pressure"] = py::array_t<double>(static_cast<py::ssize_t>(s.contact.size()), s.contact.data());
+    d["max_wall_normal"] = s.max_normal;
+    d["field"] = rows(s.field);
+    d["tip_position"] = vec(s.nodes.back());
     d["tip_frame"] = frame;
-    d["magnet_positions"] = rows(positions);
-    d["magnet_axes"] = rows(axes);
-    d["success"] = m_run->result().success;
-    d["burst"] = g.burst;
+    d["magnet_positions"] = rows(s.positions);
+    d["magnet_axes"] = rows(s.axes);
+    d["success"] = s.success;
+    d["burst"] = s.burst;
     return py::module_::import("types").attr("SimpleNamespace")(**d);
   }
 
   /// How far along the path to the target the tip has got (path_progress), or None.
   py::object progress() const {
     if (m_path.empty()) return py::none();
-    const auto lock = use("progress");
-    return py::float_(sc::path_progress(m_path, *m_scene->target, m_run->tip_at_rest()));
+    double progress = 0.0;
+    {
+      const auto lock = use("progress");
+      progress = sc::path_progress(m_path, *m_scene->target, m_run->tip_at_rest());
+    }
+    return py::float_(progress);
   }
 
   py::object path() const { return m_path.empty() ? py::none() : py::object(rows(m_path)); }
 
   py::object finish(const py::object& out) {
-    const auto lock = use("finish");
-    if (m_finished) throw std::runtime_error("Simulation.finish: called twice");
-    m_finished = true;
     sc::ExperimentResult result;
     {
+      const auto lock = use("finish");  // held with the GIL released or in plain C++ only (see state())
+      if (m_finished) throw std::runtime_error("Simulation.finish: called twice");
+      m_finished = true;
       const py::gil_scoped_release release;
       result = m_run->finish();
     }
@@ -317,7 +345,7 @@ class Simulation {
       throw InputError("render", 0, "fov", "must be in (0, 180) degrees, (0, 360) with the fisheye lens");
     }
     if (!(noise >= 0.0 && std::isfinite(noise))) throw InputError("render", 0, "noise", "must be finite and >= 0");
-    const auto lock = use("render");
+    const sc::VideoPlugin& plugin = sc::video_plugin("Simulation.render");
     const sc::TipViewSettings s{fisheye, fov_deg * magvine::kDegToRad, width, height, noise, m_scene->seed};
     // One view per camera asked for (an environment's observation and its render() differ): each keeps its
     // renderer, auto-exposure and noise sequence.
@@ -325,11 +353,11 @@ class Simulation {
       return v.settings.fisheye == s.fisheye && v.settings.fov == s.fov && v.settings.width == s.width &&
              v.settings.height == s.height && v.settings.noise == s.noise;
     };
-    auto view = std::find_if(m_views.begin(), m_views.end(), same);
-    const sc::VideoPlugin& plugin = sc::video_plugin("Simulation.render");
     sc::Picture p;
     {
+      const auto lock = use("render");  // held with the GIL released only (see state())
       const py::gil_scoped_release release;
+      auto view = std::find_if(m_views.begin(), m_views.end(), same);
       if (view == m_views.end()) {
         m_views.push_back({s, plugin.tip_view(m_scene->anatomy->mesh(), s)});
         view = std::prev(m_views.end());
