@@ -20,6 +20,7 @@
 #include "magvine/core/atomic_file.hpp"
 #include "magvine/core/error.hpp"
 #include "magvine/core/text.hpp"
+#include "yaml_reader.hpp"
 
 namespace magvine::scene {
 
@@ -255,8 +256,8 @@ std::uint64_t fnv1a(const std::string& bytes) {
   return h;
 }
 
+/// A trial as JSON (nlohmann writes NaN as null; outcome_of reads null back as NaN).
 nlohmann::json outcome_json(const TrialOutcome& o) {
-  const auto number = [](double v) { return std::isnan(v) ? nlohmann::json() : nlohmann::json(v); };
   return {{"index", o.index},
           {"target", o.target},
           {"repeat", o.repeat},
@@ -269,8 +270,8 @@ nlohmann::json outcome_json(const TrialOutcome& o) {
           {"max_normal_N", o.max_normal},
           {"retractions", o.retractions},
           {"biopsy", o.biopsy},
-          {"needle_to_nodule_m", number(o.needle_to_nodule)},
-          {"slide_back_m", number(o.slide_back)},
+          {"needle_to_nodule_m", o.needle_to_nodule},
+          {"slide_back_m", o.slide_back},
           {"runtime_s", o.runtime_s},
           {"reason", o.reason}};
 }
@@ -304,12 +305,9 @@ TrialOutcome outcome_of(const nlohmann::json& j) {
 
 BatchIdentity batch_identity(const std::filesystem::path& scene_file, const std::vector<std::string>& targets,
                              int repeats, const Shard& shard) {
-  std::ifstream in(scene_file, std::ios::binary);
-  if (!in) throw InputError(scene_file.string(), 0, "", "cannot open the scene");
-  std::ostringstream bytes;
-  bytes << in.rdbuf();
+  const std::string bytes = read_text_file(scene_file.string(), "the scene");
   // The scene's bytes and the magvine that runs it (another version may give other outcomes).
-  return {scene_file.string(), fnv1a(bytes.str() + "\n" + MAGVINE_VERSION), targets, repeats, shard};
+  return {scene_file.string(), fnv1a(bytes + "\n" + MAGVINE_VERSION), targets, repeats, shard};
 }
 
 void write_shard(const BatchIdentity& identity, const std::vector<TrialOutcome>& outcomes,
