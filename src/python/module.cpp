@@ -64,18 +64,25 @@ std::string fspath(const py::object& path) {
   return py::module_::import("os").attr("fspath")(path).cast<std::string>();
 }
 
-/// A scene: a path (str or os.PathLike), or a dict with the scene file's keys (read as JSON, which YAML contains;
-/// relative paths in it resolve against the working directory). Read with the GIL released.
-sc::ExperimentScene experiment_scene(const py::object& scene) {
+/// A scene or design file from Python: a path (str or os.PathLike), or a dict with the file's keys (read as JSON, which
+/// YAML contains; relative paths in it resolve against the working directory); `parse` reads the dict's text, `load`
+/// the file, with the GIL released.
+template <class Parse, class Load>
+auto read_scene(const py::object& scene, Parse parse, Load load) {
   if (py::isinstance<py::dict>(scene)) {
     const std::string text = py::module_::import("json").attr("dumps")(scene).cast<std::string>();
-    const fs::path here = fs::current_path();
     const py::gil_scoped_release release;
-    return sc::parse_experiment_scene(text, "<dict>", here);
+    return parse(text);
   }
   const fs::path file = fspath(scene);
   const py::gil_scoped_release release;
-  return sc::load_experiment_scene(file);
+  return load(file);
+}
+
+sc::ExperimentScene experiment_scene(const py::object& scene) {
+  return read_scene(
+      scene, [](const std::string& text) { return sc::parse_experiment_scene(text, "<dict>", fs::current_path()); },
+      [](const fs::path& file) { return sc::load_experiment_scene(file); });
 }
 
 /// A scene loaded once (magvine.Scene), for many simulations: its anatomy (mesh, collision world, graph) is shared.
@@ -372,25 +379,11 @@ class Simulation {
     return a;
   }
 
-  bool done() const {
-    const auto lock = use("done");
-    return m_run->done();
-  }
-  bool ended() const {
-    const auto lock = use("ended");
-    return m_run->ended();
-  }
-  double time() const {
-    const auto lock = use("time");
-    return m_run->time();
-  }
-  long steps() const {
-    const auto lock = use("steps");
-    return m_run->steps();
-  }
-  std::size_t magnets() const {
-    const auto lock = use("magnets");
-    return m_run->magnet_poses().size();
+  /// A plain value read from the run under its lock (done, ended, time, steps, magnets).
+  template <class F>
+  auto read(const char* what, F f) const {
+    const auto lock = use(what);
+    return f(*m_run);
   }
 
   const sc::ExperimentScene& scene() const { return *m_scene; }
@@ -471,7 +464,6 @@ PYBIND11_MODULE(_magvine, m) {
         if (repeats < 1) throw InputError("trials", 0, "repeats", "must be at least 1");
         if (jobs < 0) throw InputError("trials", 0, "jobs", "must be >= 0 (0: one thread per core)");
         const sc::ExperimentScene s = scene_of(scene);
-        for (const std::string& t : targets) (void)sc::with_target(s, t);  // bad names fail before any run
         const int threads = jobs > 0 ? jobs : static_cast<int>(std::max(1u, std::thread::hardware_concurrency()));
         std::vector<sc::TrialOutcome> outcomes;
         const std::string dir = out.is_none() ? std::string() : fspath(out);
@@ -493,16 +485,9 @@ PYBIND11_MODULE(_magvine, m) {
   m.def(
       "design",
       [](const py::object& scene, const py::object& out) -> py::object {
-        sc::DesignScene s;
-        if (py::isinstance<py::dict>(scene)) {
-          const std::string text = py::module_::import("json").attr("dumps")(scene).cast<std::string>();
-          const py::gil_scoped_release release;
-          s = sc::parse_design_scene(text, "<dict>");
-        } else {
-          const std::string file = fspath(scene);
-          const py::gil_scoped_release release;
-          s = sc::load_design_scene(file);
-        }
+        const sc::DesignScene s = read_scene(
+            scene, [](const std::string& text) { return sc::parse_design_scene(text, "<dict>"); },
+            [](const fs::path& file) { return sc::load_design_scene(file); });
         const OutputFolder folder(out, "design");
         magvine::design::DesignResult r;
         {
@@ -744,18 +729,29 @@ PYBIND11_MODULE(_magvine, m) {
                              "How far along the path to the target the tip has got, 0–1 (metrics' path_progress); "
                              "None without a target and a graph.")
       .def_property_readonly("path", &Simulation::path, "The path to the target (K, 3) [m], or None.")
-      .def_property_readonly("done", &Simulation::done,
-                             "Whether `magvine run` would stop here (duration, target with stop_at_target, a failed "
-                             "step, a biopsy's aiming done).")
-      .def_property_readonly("ended", &Simulation::ended,
-                             "Whether no step may follow (a failed step, a biopsy's aiming done, finish()).")
-      .def_property_readonly("time", &Simulation::time, "[s]")
-      .def_property_readonly("steps", &Simulation::steps)
+      .def_property_readonly(
+          "done", [](const Simulation& s) { return s.read("done", [](const sc::Experiment& e) { return e.done(); }); },
+          "Whether `magvine run` would stop here (duration, target with stop_at_target, a failed "
+          "step, a biopsy's aiming done).")
+      .def_property_readonly(
+          "ended",
+          [](const Simulation& s) { return s.read("ended", [](const sc::Experiment& e) { return e.ended(); }); },
+          "Whether no step may follow (a failed step, a biopsy's aiming done, finish()).")
+      .def_property_readonly(
+          "time", [](const Simulation& s) { return s.read("time", [](const sc::Experiment& e) { return e.time(); }); },
+          "[s]")
+      .def_property_readonly(
+          "steps",
+          [](const Simulation& s) { return s.read("steps", [](const sc::Experiment& e) { return e.steps(); }); })
       .def_property_readonly(
           "dt", [](const Simulation& s) { return s.scene().dt; }, "the scene's step [s]")
       .def_property_readonly(
           "duration", [](const Simulation& s) { return s.scene().duration; }, "[s]")
-      .def_property_readonly("magnets", &Simulation::magnets)
+      .def_property_readonly("magnets",
+                             [](const Simulation& s) {
+                               return s.read("magnets",
+                                             [](const sc::Experiment& e) { return e.magnet_poses().size(); });
+                             })
       .def_property_readonly(
           "target",
           [](const Simulation& s) { return s.scene().target ? py::object(vec(*s.scene().target)) : py::none(); },
