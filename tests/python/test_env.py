@@ -7,13 +7,8 @@ import threading
 import numpy as np
 import pytest
 
-if os.environ.get("MAGVINE_REQUIRE_PYTHON"):  # ctest, where the module is built: a broken import fails
-    import magvine
-else:
-    magvine = pytest.importorskip("magvine", reason="the Python module is not built (MAGVINE_WITH_PYTHON)")
+from support import SRC, Y, magvine  # the module, or a skip
 
-SRC = os.environ.get("MAGVINE_SOURCE_DIR", ".")
-Y = os.path.join(SRC, "assets", "scenes", "y_bifurcation_fluid_vine.yaml")
 
 
 @pytest.fixture(scope="module")

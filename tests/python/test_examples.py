@@ -7,13 +7,9 @@ import sys
 
 import pytest
 
-if os.environ.get("MAGVINE_REQUIRE_PYTHON"):  # ctest, where the module is built: a broken import fails
-    import magvine
-else:
-    magvine = pytest.importorskip("magvine", reason="the Python module is not built (MAGVINE_WITH_PYTHON)")
+from support import SRC, magvine  # the module, or a skip
 pytest.importorskip("matplotlib", reason="python3-matplotlib is not installed")
 
-SRC = os.environ.get("MAGVINE_SOURCE_DIR", ".")
 EXAMPLES = os.path.join(SRC, "examples", "python")
 
 

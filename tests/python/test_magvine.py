@@ -11,21 +11,8 @@ import threading
 import numpy as np
 import pytest
 
-if os.environ.get("MAGVINE_REQUIRE_PYTHON"):  # ctest, where the module is built: a broken import fails
-    import magvine
-else:
-    magvine = pytest.importorskip("magvine", reason="the Python module is not built (MAGVINE_WITH_PYTHON)")
+from support import CLI, SRC, TIMING, cli_run, magvine  # the module, or a skip
 
-CLI = os.environ.get("MAGVINE", "build/src/cli/magvine")
-SRC = os.environ.get("MAGVINE_SOURCE_DIR", ".")
-# What differs between two runs of one scene: the computing time.
-TIMING = {"runtime_s", "real_time_factor"}
-
-
-def cli_metrics(scene, out):
-    subprocess.run([CLI, "run", scene, "--out", str(out)], check=True, capture_output=True)
-    with open(os.path.join(out, "metrics.json")) as f:
-        return json.load(f)
 
 
 @pytest.mark.parametrize("scene", ["y_bifurcation_fluid_vine.yaml", "bronchial_tree_navigator.yaml",
@@ -33,7 +20,7 @@ def cli_metrics(scene, out):
 def test_run_gives_the_command_lines_metrics(scene, tmp_path):
     path = os.path.join(SRC, "assets", "scenes", scene)
     ours = magvine.run(path, out=tmp_path / "py")
-    theirs = cli_metrics(path, tmp_path / "cli")
+    theirs, _ = cli_run(path, tmp_path / "cli")
     assert set(ours) == set(theirs)
     for key in set(ours) - TIMING:
         assert ours[key] == theirs[key], key  # to the last bit: the same doubles through the same JSON

@@ -1,38 +1,15 @@
 """magvine.Simulation (docs/python.md): stepping from Python gives `magvine run`'s trajectory and metrics; the state's
 arrays against independent evaluations; a driver's pressure and magnet poses act as the physics says; bad input raises
 ValueError naming it. Run by ctest with PYTHONPATH at the built module and MAGVINE at the CLI."""
-import csv
 import json
 import math
-import os
-import subprocess
 import threading
 
 import numpy as np
 import pytest
 
-if os.environ.get("MAGVINE_REQUIRE_PYTHON"):  # ctest, where the module is built: a broken import fails
-    import magvine
-else:
-    magvine = pytest.importorskip("magvine", reason="the Python module is not built (MAGVINE_WITH_PYTHON)")
+from support import TIMING, Y, cli_run, magvine, scene  # the module, or a skip
 
-CLI = os.environ.get("MAGVINE", "build/src/cli/magvine")
-SRC = os.environ.get("MAGVINE_SOURCE_DIR", ".")
-TIMING = {"runtime_s", "real_time_factor"}
-Y = os.path.join(SRC, "assets", "scenes", "y_bifurcation_fluid_vine.yaml")
-
-
-def scene(name):
-    return os.path.join(SRC, "assets", "scenes", name)
-
-
-def cli_run(path, out):
-    subprocess.run([CLI, "run", path, "--out", str(out)], check=True, capture_output=True)
-    with open(os.path.join(out, "metrics.json")) as f:
-        metrics = json.load(f)
-    with open(os.path.join(out, "tip_trajectory.csv")) as f:
-        rows = list(csv.DictReader(f))
-    return metrics, rows
 
 
 @pytest.mark.parametrize("name", ["y_bifurcation_fluid_vine.yaml", "bronchial_tree_navigator.yaml"])
