@@ -1,15 +1,16 @@
 #!/bin/bash
 # The cluster test of issue 33 (docs/cluster.md): a one-node Slurm cluster started here (munged, slurmctld, slurmd
 # in a scratch folder under /tmp, their own MUNGE key and random ports, no systemd, no cgroups), a 4-task array of
-# trial shards and its merge through sbatch --wait, and 3 shards submitted by magvine itself (--submit); the merged
-# batches compared with the one-machine batch; the daemons stopped by their pids (also those a killed earlier run
+# trial shards and its merge through sbatch --wait, and 3 shards submitted by magvine itself (--submit), and a design
+# sweep's starts as a 2-task array; the merged batches compared with the one-machine batch and design; the daemons stopped by their pids (also those a killed earlier run
 # left, recorded in WORK).
-# Usage: one_node_slurm.sh MAGVINE SCENE WORK. Exit 77 (skipped) when not root, and where Slurm or MUNGE is not
+# Usage: one_node_slurm.sh MAGVINE SCENE WORK DESIGN (a design file with several starts, also sharded). Exit 77 (skipped) when not root, and where Slurm or MUNGE is not
 # installed, unless MAGVINE_REQUIRE_SLURM is set (CI: tools/install-deps.sh installs them), where that is a failure.
 set -euo pipefail
 MAGVINE=$1
 SCENE=$2
 WORK=$3
+DESIGN=$4
 
 skip() {
   echo "SKIP: $1"
@@ -156,7 +157,18 @@ done
 cut -d, -f1-13,15- "$CLUSTER/submitted/trials.csv" > "$CLUSTER/submitted.csv"
 diff "$CLUSTER/one.csv" "$CLUSTER/submitted.csv"
 diff "$CLUSTER/one/summary.md" "$CLUSTER/submitted/summary.md"
+
+# A design sweep: its starts as a 2-task array and the merge; the design one machine finds, to the last digit.
+"$MAGVINE" design "$DESIGN" --out "$CLUSTER/design-one" > /dev/null 2>&1
+"$MAGVINE" design "$DESIGN" --shards 2 --slurm "$CLUSTER/design.sh" --out "$CLUSTER/design" > /dev/null 2>&1
+jid=$(sbatch --parsable "$CLUSTER/design.sh")
+JOBS+=("$jid")
+timeout 90 sbatch --wait --dependency=afterok:"$jid" "$CLUSTER/design.merge.sh"
+grep -v '"runtime_s"\|"time_s"' "$CLUSTER/design-one/design.json" > "$CLUSTER/design-one.json"
+grep -v '"runtime_s"\|"time_s"' "$CLUSTER/design/design.json" > "$CLUSTER/design-cluster.json"
+diff "$CLUSTER/design-one.json" "$CLUSTER/design-cluster.json"
+for f in shape.csv target.csv scene.yaml; do cmp "$CLUSTER/design-one/$f" "$CLUSTER/design/$f"; done
 echo "the cluster's merged batches of $(($(wc -l < "$CLUSTER/one.csv") - 1)) trials (4 shards by hand, 3 by --submit)" \
-  "equal the one-machine batch"
+  "equal the one-machine batch; the design sweep's 2 shards, the one-machine design"
 stop
 rm -rf "$CLUSTER"

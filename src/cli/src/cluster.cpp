@@ -37,14 +37,13 @@ int run_trials_merge(const TrialsMergeArgs& args) {
   return 0;
 }
 
-namespace {
-
-/// A word for bash: single-quoted ('\'' for a quote inside).
 std::string shell_word(const std::string& text) {
   std::string q = "'";
   for (const char c : text) q += c == '\'' ? std::string("'\\''") : std::string(1, c);
   return q + "'";
 }
+
+namespace {
 
 /// Submits `script` with sbatch (`options` before it) and returns the job id it printed (--parsable: "id" or
 /// "id;cluster", on the last line of its output). InputError, one line, when it cannot run, fails or prints no id.
@@ -81,22 +80,16 @@ void check_resource(const char* option, const std::string& value) {
 
 }  // namespace
 
-int write_slurm_jobs(const TrialsArgs& args) {
-  if (args.shards < 1) throw InputError("--shards", 0, "", "--slurm needs --shards N (the array's tasks), N >= 1");
-  if (!args.shard.empty()) throw InputError("--shard", 0, "", "--slurm writes every shard's task: leave --shard out");
-  const fs::path job = fs::absolute(args.slurm);
-  if (job.extension() != ".sh") throw InputError("--slurm", 0, "", "must name a .sh file (got '" + args.slurm + "')");
-  // What a shard would trip over fails here, before anything is written or queued.
-  const scene::ExperimentScene sc = scene::load_experiment_scene(args.scene);
-  for (const std::string& t : args.targets) (void)scene::with_target(sc, t);
+int write_slurm_jobs(const SlurmBatch& batch) {
+  if (batch.shards < 1) throw InputError("--shards", 0, "", "--slurm needs --shards N (the array's tasks), N >= 1");
+  const fs::path job = fs::absolute(batch.slurm);
+  if (job.extension() != ".sh") throw InputError("--slurm", 0, "", "must name a .sh file (got '" + batch.slurm + "')");
   const fs::path exe = fs::read_symlink("/proc/self/exe");
-  const fs::path scene = fs::absolute(args.scene);
-  const fs::path out = fs::absolute(
-      args.out.empty() ? fs::path("runs") / (fs::path(args.scene).stem().string() + "-trials") : fs::path(args.out));
-  const int jobs = args.jobs > 0 ? args.jobs : 1;
-  check_resource("--partition", args.partition);
-  check_resource("--time", args.time);
-  check_resource("--mem", args.mem);
+  const fs::path scene = fs::absolute(batch.scene);
+  const fs::path out = fs::absolute(batch.out);
+  check_resource("--partition", batch.partition);
+  check_resource("--time", batch.time);
+  check_resource("--mem", batch.mem);
   // #SBATCH --output takes a bare path, with % as its pattern sign.
   const std::string logs = out.string();
   if (std::any_of(logs.begin(), logs.end(), [](char c) {
@@ -106,46 +99,40 @@ int write_slurm_jobs(const TrialsArgs& args) {
                      "a Slurm batch needs an output folder without spaces, quotes or % (got '" + logs + "')");
   }
   const fs::path merge = fs::path(job).replace_extension(".merge.sh");
-  std::string targets;
-  for (const std::string& t : args.targets) targets += (targets.empty() ? "" : ",") + t;
+  const std::string name = "magvine-" + batch.verb;
 
-  const auto resources = [&](std::ostream& o) {
-    if (!args.partition.empty()) o << "#SBATCH --partition=" << args.partition << '\n';
-    if (!args.time.empty()) o << "#SBATCH --time=" << args.time << '\n';
-    if (!args.mem.empty()) o << "#SBATCH --mem=" << args.mem << '\n';
-  };
   std::ostringstream array;
   array << "#!/bin/bash\n"
-        << "# magvine trials " << args.scene << " as a Slurm array of " << args.shards
+        << "# magvine " << batch.verb << ' ' << batch.scene << " as a Slurm array of " << batch.shards
         << " shards (docs/cluster.md), written by magvine.\n"
         << "# Submit with the merge job that waits for it:\n"
         << "#   jid=$(sbatch --parsable " << shell_word(job.string()) << ") && sbatch --dependency=afterok:$jid "
         << shell_word(merge.string()) << "\n"
-        << "#SBATCH --job-name=magvine-trials\n"
-        << "#SBATCH --array=0-" << args.shards - 1 << '\n'
+        << "#SBATCH --job-name=" << name << '\n'
+        << "#SBATCH --array=0-" << batch.shards - 1 << '\n'
         << "#SBATCH --ntasks=1\n"
-        << "#SBATCH --cpus-per-task=" << jobs << '\n'
+        << "#SBATCH --cpus-per-task=" << batch.cpus << '\n'
         << "#SBATCH --output=" << (out / "slurm" / "shard-%a.log").string() << '\n';
-  resources(array);
+  if (!batch.partition.empty()) array << "#SBATCH --partition=" << batch.partition << '\n';
+  if (!batch.time.empty()) array << "#SBATCH --time=" << batch.time << '\n';
+  if (!batch.mem.empty()) array << "#SBATCH --mem=" << batch.mem << '\n';
   array << "set -euo pipefail\n"
-        << "exec " << shell_word(exe.string()) << " trials " << shell_word(scene.string())
-        << " --shard \"$SLURM_ARRAY_TASK_ID/" << args.shards << "\" --repeats " << args.repeats
-        << (targets.empty() ? "" : " --targets " + shell_word(targets)) << " --jobs " << jobs
-        << (args.keep_runs ? " --keep-runs" : "") << " --out " << shell_word((out / "shard-").string())
-        << "\"$SLURM_ARRAY_TASK_ID\"\n";
+        << "exec " << shell_word(exe.string()) << ' ' << batch.verb << ' ' << shell_word(scene.string())
+        << " --shard \"$SLURM_ARRAY_TASK_ID/" << batch.shards << '"' << batch.options << " --out "
+        << shell_word((out / "shard-").string()) << "\"$SLURM_ARRAY_TASK_ID\"\n";
   std::ostringstream joiner;
   joiner << "#!/bin/bash\n"
          << "# The merge of " << job.filename().string()
-         << "'s shards into the batch one machine writes (docs/cluster.md), written by magvine.\n"
-         << "#SBATCH --job-name=magvine-trials-merge\n"
+         << "'s shards into what one machine writes (docs/cluster.md), written by magvine.\n"
+         << "#SBATCH --job-name=" << name << "-merge\n"
          << "#SBATCH --ntasks=1\n"
          << "#SBATCH --cpus-per-task=1\n"
          << "#SBATCH --output=" << (out / "slurm" / "merge.log").string() << '\n';
-  if (!args.partition.empty()) joiner << "#SBATCH --partition=" << args.partition << '\n';
+  if (!batch.partition.empty()) joiner << "#SBATCH --partition=" << batch.partition << '\n';
   joiner << "set -euo pipefail\n"
-         << "exec " << shell_word(exe.string()) << " trials merge";
-  for (int i = 0; i < args.shards; ++i) joiner << ' ' << shell_word((out / ("shard-" + std::to_string(i))).string());
-  joiner << " --out " << shell_word(out.string()) << '\n';
+         << "exec " << shell_word(exe.string()) << ' ' << batch.verb << " merge";
+  for (int i = 0; i < batch.shards; ++i) joiner << ' ' << shell_word((out / ("shard-" + std::to_string(i))).string());
+  joiner << " --out " << shell_word(out.string()) << batch.merge_options << '\n';
 
   create_output_directory(out / "slurm");  // Slurm does not create the logs' folder
   if (job.has_parent_path()) create_output_directory(job.parent_path());
@@ -153,9 +140,9 @@ int write_slurm_jobs(const TrialsArgs& args) {
   write_file_atomically(merge, joiner.str());
   fs::permissions(job, fs::perms::owner_exec | fs::perms::group_exec, fs::perm_options::add);
   fs::permissions(merge, fs::perms::owner_exec | fs::perms::group_exec, fs::perm_options::add);
-  std::cerr << "magvine trials: " << job.string() << " (" << args.shards << " shards as a Slurm array), "
+  std::cerr << "magvine " << batch.verb << ": " << job.string() << " (" << batch.shards << " shards as a Slurm array), "
             << merge.string() << " (their merge into " << out.string() << ")\n";
-  if (!args.submit) {
+  if (!batch.submit) {
     std::cout << "jid=$(sbatch --parsable " << shell_word(job.string()) << ") && sbatch --dependency=afterok:$jid "
               << shell_word(merge.string()) << '\n';
     return 0;
@@ -170,7 +157,8 @@ int write_slurm_jobs(const TrialsArgs& args) {
     throw;
   }
   std::cout << id << ' ' << merge_id << '\n';
-  std::cerr << "magvine trials: submitted the array as job " << id << " and its merge as job " << merge_id << '\n';
+  std::cerr << "magvine " << batch.verb << ": submitted the array as job " << id << " and its merge as job " << merge_id
+            << '\n';
   return 0;
 }
 

@@ -279,42 +279,68 @@ int run_scene(const RunArgs& args) {
   return 0;
 }
 
-int run_trials(const TrialsArgs& args) {
-  if (!args.slurm.empty()) return write_slurm_jobs(args);
-  if (args.shards > 0 || args.submit || !args.partition.empty() || !args.time.empty() || !args.mem.empty()) {
+namespace {
+
+/// --shards, --submit, --partition, --time and --mem belong to --slurm.
+template <typename Args>
+void check_slurm_options(const Args& args) {
+  if (args.slurm.empty() &&
+      (args.shards > 0 || args.submit || !args.partition.empty() || !args.time.empty() || !args.mem.empty())) {
     throw InputError("--shards", 0, "", "--shards, --submit, --partition, --time and --mem go with --slurm JOB.sh");
   }
-  scene::Shard shard;
-  if (!args.shard.empty()) {
-    // "I/N": digits only, 0 <= I < N <= kMaxShards.
-    const std::size_t slash = args.shard.find('/');
-    const auto whole = [](std::string_view text, int& value) {
-      const auto [end, error] = std::from_chars(text.data(), text.data() + text.size(), value);
-      return !text.empty() && std::isdigit(static_cast<unsigned char>(text.front())) && error == std::errc() &&
-             end == text.data() + text.size();
-    };
-    const std::string_view text(args.shard);
-    if (slash == std::string::npos || !whole(text.substr(0, slash), shard.index) ||
-        !whole(text.substr(slash + 1), shard.count) || shard.count < 1 || shard.count > scene::kMaxShards ||
-        shard.index >= shard.count) {
-      throw InputError(
-          "--shard", 0, "",
-          printf_string("must be I/N with 0 <= I < N <= %d, e.g. 0/4 (got '", scene::kMaxShards) + args.shard + "')");
-    }
+  if (!args.slurm.empty() && !args.shard.empty()) {
+    throw InputError("--shard", 0, "", "--slurm writes every shard's task: leave --shard out");
   }
+}
+
+/// The batch as Slurm jobs with the resources of `args`.
+template <typename Args>
+SlurmBatch slurm_batch(const Args& args, const char* verb, const std::string& default_out) {
+  SlurmBatch b;
+  b.verb = verb;
+  b.scene = args.scene;
+  b.out = args.out.empty() ? default_out : args.out;
+  b.slurm = args.slurm;
+  b.shards = args.shards;
+  b.submit = args.submit;
+  b.partition = args.partition;
+  b.time = args.time;
+  b.mem = args.mem;
+  return b;
+}
+
+/// The default output folder: runs/<scene stem>-<suffix>.
+std::string default_out(const std::string& scene, const char* suffix) {
+  return (std::filesystem::path("runs") / (std::filesystem::path(scene).stem().string() + "-" + suffix)).string();
+}
+
+}  // namespace
+
+int run_trials(const TrialsArgs& args) {
+  check_slurm_options(args);
+  if (!args.slurm.empty()) {
+    // What a shard would trip over fails here, before anything is written or queued.
+    const scene::ExperimentScene sc = scene::load_experiment_scene(args.scene);
+    for (const std::string& t : args.targets) (void)scene::with_target(sc, t);
+    SlurmBatch b = slurm_batch(args, "trials", default_out(args.scene, "trials"));
+    std::string targets;
+    for (const std::string& t : args.targets) targets += (targets.empty() ? "" : ",") + t;
+    b.cpus = args.jobs > 0 ? args.jobs : 1;
+    b.options = " --repeats " + std::to_string(args.repeats) +
+                (targets.empty() ? "" : " --targets " + shell_word(targets)) + " --jobs " + std::to_string(b.cpus) +
+                (args.keep_runs ? " --keep-runs" : "");
+    return write_slurm_jobs(b);
+  }
+  const scene::Shard shard = args.shard.empty() ? scene::Shard{} : scene::parse_shard(args.shard);
   // The batch's identity from the scene's bytes as the shard starts (an edit during a long run is another batch).
   const scene::BatchIdentity identity = scene::batch_identity(args.scene, args.targets, args.repeats, shard);
   const scene::ExperimentScene sc = scene::load_experiment_scene(args.scene);
-  const std::filesystem::path out =
-      args.out.empty() ? std::filesystem::path("runs") / (std::filesystem::path(args.scene).stem().string() + "-trials")
-                       : std::filesystem::path(args.out);
+  const std::filesystem::path out = args.out.empty() ? default_out(args.scene, "trials") : args.out;
   const int jobs = args.jobs > 0 ? args.jobs : static_cast<int>(std::max(1u, std::thread::hardware_concurrency()));
   for (const std::string& t : args.targets) (void)scene::with_target(sc, t);  // bad names fail before any output
   const std::size_t targets = args.targets.empty() ? 1 : args.targets.size();
   const std::size_t batch = targets * static_cast<std::size_t>(args.repeats);
-  const std::size_t runs = shard.count == 1 ? batch
-                                            : (batch + static_cast<std::size_t>(shard.count - shard.index) - 1) /
-                                                  static_cast<std::size_t>(shard.count);
+  const std::size_t runs = scene::shard_items(batch, shard).size();
   std::cerr << "magvine trials: " << runs << " runs (" << targets << " target(s) x " << args.repeats << " repeats"
             << (args.shard.empty() ? std::string() : ", shard " + args.shard) << ") on " << jobs << " thread(s)\n";
   const std::vector<scene::TrialOutcome> outcomes = scene::run_trials(
@@ -342,40 +368,32 @@ int run_trials(const TrialsArgs& args) {
   return 0;
 }
 
-int run_design(const DesignArgs& args) {
-  const scene::DesignScene sc = scene::load_design_scene(args.scene);  // bad input fails before any output
-  if (args.mpm_check && !config::kWithMpm) {
+namespace {
+
+/// What --mpm-check refuses (no MPM module; an oblique base, a section that is not round, a gradient field), before any
+/// design is run.
+void check_mpm_check(const scene::DesignScene& sc, bool mpm_check, double cell_mm, int particles) {
+  if (!mpm_check) return;
+  if (!config::kWithMpm) {
     throw InputError(
         "--mpm-check: this magvine was built without the MPM module (configure with -DMAGVINE_WITH_MPM=ON)");
   }
-  if (args.mpm_check) {  // what the check refuses (an oblique base, a section that is not round, a gradient field),
-                         // first
-    (void)scene::design_mpm_scene_yaml(sc, design::random_design(sc.problem, sc.seed), args.mpm_cell_mm * 1e-3,
-                                       args.mpm_particles);
-  }
-  const std::filesystem::path out =
-      args.out.empty() ? std::filesystem::path("runs") / (std::filesystem::path(args.scene).stem().string() + "-design")
-                       : std::filesystem::path(args.out);
-  const char* method = sc.method == scene::DesignMethod::least_squares ? "Levenberg-Marquardt, exact Jacobian"
-                       : sc.method == scene::DesignMethod::lbfgsb      ? "L-BFGS-B, exact adjoint gradient"
-                                                                       : "Bayesian optimisation (derivative-free)";
-  std::cerr << "magvine design: " << sc.problem.spec.sections << " sections, " << sc.problem.spec.target.size()
-            << " target points, " << method << '\n';
-  const design::DesignResult r = scene::run_design(sc, [](int evaluations, double rms) {
-    std::cerr << "\r  evaluation " << evaluations << ": best RMS " << printf_string("%.3f", rms * 1e3) << " mm   "
-              << std::flush;
-  });
-  std::cerr << '\n';
+  (void)scene::design_mpm_scene_yaml(sc, design::random_design(sc.problem, sc.seed), cell_mm * 1e-3, particles);
+}
+
+/// A design's outputs (and its MPM check), and its report: what `magvine design` and `magvine design merge` end with.
+int finish_design(const scene::DesignScene& sc, const design::DesignResult& r, const std::filesystem::path& out,
+                  bool mpm_check, double cell_mm, int particles) {
   if (!std::isfinite(r.rms)) {
-    throw NumericalError("design " + args.scene + ": no design had a stable equilibrium (" + r.message + ")");
+    throw NumericalError("design " + sc.file + ": no design had a stable equilibrium (" + r.message + ")");
   }
-  if (args.mpm_check) scene::check_design_mpm_scene(sc, r.design, args.mpm_cell_mm * 1e-3, args.mpm_particles);
+  if (mpm_check) scene::check_design_mpm_scene(sc, r.design, cell_mm * 1e-3, particles);
   scene::write_design_outputs(sc, r, out);
-  if (args.mpm_check) {
+  if (mpm_check) {
     std::cerr << "magvine design: the MPM check\n";
-    const scene::DesignMpmCheck m = scene::run_design_mpm_check(
-        sc, r, out, args.mpm_cell_mm * 1e-3, args.mpm_particles,
-        [](double f) { std::cerr << "\r  " << static_cast<int>(100.0 * f) << " %   " << std::flush; });
+    const scene::DesignMpmCheck m = scene::run_design_mpm_check(sc, r, out, cell_mm * 1e-3, particles, [](double f) {
+      std::cerr << "\r  " << static_cast<int>(100.0 * f) << " %   " << std::flush;
+    });
     std::cerr << '\n';
     scene::add_mpm_check_to_design_json(m, out);
     std::cout << printf_string(
@@ -390,6 +408,68 @@ int run_design(const DesignArgs& args) {
   std::cerr << "magvine design: " << (out / "design.json").string() << ", " << (out / "scene.yaml").string()
             << " (magvine run reproduces the shape), shape.csv, target.csv\n";
   return 0;
+}
+
+}  // namespace
+
+int run_design(const DesignArgs& args) {
+  check_slurm_options(args);
+  const scene::DesignScene sc = scene::load_design_scene(args.scene);  // bad input fails before any output
+  check_mpm_check(sc, args.mpm_check, args.mpm_cell_mm, args.mpm_particles);
+  const std::filesystem::path out = args.out.empty() ? default_out(args.scene, "design") : args.out;
+  if (!args.slurm.empty() || !args.shard.empty()) {
+    if (sc.method == scene::DesignMethod::bayesian) {
+      throw InputError(args.scene, 0, "design.method",
+                       "the Bayesian baseline is one run with its own initial designs: it has no starts to shard");
+    }
+  }
+  if (!args.slurm.empty()) {
+    SlurmBatch b = slurm_batch(args, "design", out.string());
+    if (args.mpm_check) {
+      b.merge_options = printf_string(" --mpm-check --mpm-particles %d", args.mpm_particles) +
+                        (args.mpm_cell_mm > 0.0 ? printf_string(" --mpm-cell %.17g", args.mpm_cell_mm) : "");
+    }
+    return write_slurm_jobs(b);
+  }
+  const char* method = sc.method == scene::DesignMethod::least_squares ? "Levenberg-Marquardt, exact Jacobian"
+                       : sc.method == scene::DesignMethod::lbfgsb      ? "L-BFGS-B, exact adjoint gradient"
+                                                                       : "Bayesian optimisation (derivative-free)";
+  std::cerr << "magvine design: " << sc.problem.spec.sections << " sections, " << sc.problem.spec.target.size()
+            << " target points, " << method << '\n';
+  if (!args.shard.empty()) {
+    if (args.mpm_check) throw InputError("--mpm-check", 0, "", "give it to `magvine design merge`, not to a shard");
+    const scene::Shard shard = scene::parse_shard(args.shard);
+    const std::size_t mine = scene::shard_items(static_cast<std::size_t>(std::max(1, sc.starts)), shard).size();
+    std::cerr << "  shard " << args.shard << ": " << mine << " of " << std::max(1, sc.starts) << " starts\n";
+    const auto starts = scene::run_design_shard(sc, shard, [](int done, int total) {
+      std::cerr << "\r  start " << done << "/" << total << " done   " << std::flush;
+    });
+    std::cerr << '\n';
+    scene::write_design_shard(args.scene, sc, shard, starts, out);
+    for (const auto& [start, r] : starts) {
+      std::cout << printf_string("start %d: RMS %.3f mm after %d iterations (%d equilibria) in %.2f s\n", start,
+                                 r.rms * 1e3, r.iterations, r.evaluations, r.runtime_s);
+    }
+    std::cerr << "magvine design: shard " << args.shard << ": " << (out / "shard.json").string()
+              << " (magvine design merge joins the shards)\n";
+    return 0;
+  }
+  const design::DesignResult r = scene::run_design(sc, [](int evaluations, double rms) {
+    std::cerr << "\r  evaluation " << evaluations << ": best RMS " << printf_string("%.3f", rms * 1e3) << " mm   "
+              << std::flush;
+  });
+  std::cerr << '\n';
+  return finish_design(sc, r, out, args.mpm_check, args.mpm_cell_mm, args.mpm_particles);
+}
+
+int run_design_merge(const DesignMergeArgs& args) {
+  if (args.out.empty()) throw InputError("--out", 0, "", "name the folder for the merged design");
+  const std::vector<std::filesystem::path> dirs(args.dirs.begin(), args.dirs.end());
+  const scene::MergedDesign m = scene::merge_design_shards(dirs);
+  check_mpm_check(m.scene, args.mpm_check, args.mpm_cell_mm, args.mpm_particles);
+  std::cerr << "magvine design merge: " << dirs.size() << " shards, " << std::max(1, m.scene.starts) << " starts of "
+            << m.scene.file << '\n';
+  return finish_design(m.scene, m.result, args.out, args.mpm_check, args.mpm_cell_mm, args.mpm_particles);
 }
 
 int run_calibrate(const CalibrateArgs& args) {

@@ -94,9 +94,28 @@ struct TrialsMergeArgs {
 };
 /// `magvine trials merge DIR... --out DIR`: the shards' batch as one machine writes it (docs/cluster.md).
 int run_trials_merge(const TrialsMergeArgs& args);
-/// Writes JOB.sh (the Slurm array, one shard per task) and JOB.merge.sh (the merge); with args.submit submits them
-/// (the merge after the array, --dependency=afterok).
-int write_slurm_jobs(const TrialsArgs& args);
+
+/// A sharded batch as Slurm jobs (cluster.cpp): `magvine VERB SCENE --shard "$SLURM_ARRAY_TASK_ID/N" OPTIONS --out
+/// OUT/shard-<task>` as an array of `shards` tasks, and `magvine VERB merge OUT/shard-0 ... --out OUT MERGE_OPTIONS`.
+struct SlurmBatch {
+  std::string verb;           ///< "trials" or "design"
+  std::string scene;          ///< as given
+  std::string out;            ///< the merged batch's folder (the shards' go in it)
+  std::string options;        ///< the shards' other options, shell words
+  std::string merge_options;  ///< the merge's other options, shell words
+  int cpus = 1;               ///< per task
+  std::string slurm;          ///< JOB.sh
+  int shards = 0;
+  bool submit = false;
+  std::string partition;
+  std::string time;
+  std::string mem;
+};
+/// Writes JOB.sh (the Slurm array, one shard per task) and JOB.merge.sh (the merge); with `submit` submits them (the
+/// merge after the array, --dependency=afterok). The caller has checked the scene.
+int write_slurm_jobs(const SlurmBatch& batch);
+/// A word for bash: single-quoted ('\'' for a quote inside).
+std::string shell_word(const std::string& text);
 
 /// The one report of a failed run (docs/cli.md: failed runs; its metrics.json is written): the cause on stderr,
 /// exit 3.
@@ -116,8 +135,28 @@ struct DesignArgs {
   bool mpm_check = false;
   double mpm_cell_mm = 0.0;  ///< 0: a quarter of the diameter
   int mpm_particles = 4;     ///< particles per cell per axis
+  std::string shard;         ///< "I/N": only those starts (docs/cluster.md); empty: all
+  // --slurm JOB.sh: the starts as a Slurm array of `shards` shards and the merge job (docs/cluster.md).
+  std::string slurm;
+  int shards = 0;
+  bool submit = false;
+  std::string partition;
+  std::string time;
+  std::string mem;
 };
+/// `magvine design DESIGN.yaml` (docs/design.md); with --shard one share of its starts, with --slurm the starts as
+/// Slurm jobs (docs/cluster.md).
 int run_design(const DesignArgs& args);
+
+struct DesignMergeArgs {
+  std::vector<std::string> dirs;
+  std::string out;
+  bool mpm_check = false;
+  double mpm_cell_mm = 0.0;
+  int mpm_particles = 4;
+};
+/// `magvine design merge DIR... --out DIR`: the shards' starts as one machine's design (docs/cluster.md).
+int run_design_merge(const DesignMergeArgs& args);
 
 /// `magvine calibrate CALIBRATE.yaml [--out DIR]` (issue 29; docs/design.md#calibration).
 struct CalibrateArgs {

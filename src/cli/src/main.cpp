@@ -156,13 +156,37 @@ int main(int argc, char** argv) {
       "design",
       "computational design: the magnetisation sections (and a uniform field) that put a rod's equilibrium "
       "on a target shape (design.json, scene.yaml for magvine run; docs/design.md)");
-  design_cmd->add_option("scene", design.scene, "design file: a free-space rod scene plus design:")->required();
+  design_cmd->add_option("scene", design.scene, "design file: a free-space rod scene plus design:");
   design_cmd->add_option("--out", design.out, "output folder (default: runs/<file name>-design)");
   design_cmd->add_flag("--mpm-check", design.mpm_check,
                        "also simulate the design in 3D MPM (the thesis's method) and report the rod-MPM difference");
   design_cmd->add_option("--mpm-cell", design.mpm_cell_mm, "the MPM check's grid spacing [mm] (default: diameter/4)")
       ->check(CLI::Range(0.01, 100.0));
   design_cmd->add_option("--mpm-particles", design.mpm_particles, "the MPM check's particles per cell per axis")
+      ->capture_default_str()
+      ->check(CLI::Range(1, 8));
+  design_cmd->add_option("--shard", design.shard,
+                         "I/N: only the starts whose index is I mod N (each with its seed in the whole sweep); writes "
+                         "OUT/shard.json for `design merge` (docs/cluster.md)");
+  design_cmd->add_option("--slurm", design.slurm,
+                         "JOB.sh: write the starts as a Slurm array of --shards tasks (JOB.sh) and the merge job "
+                         "(JOB.merge.sh) instead of running them");
+  design_cmd
+      ->add_option("--shards", design.shards, "with --slurm: the array's tasks (shards; Slurm's default limit 1001)")
+      ->check(CLI::Range(1, 1001));
+  design_cmd->add_flag("--submit", design.submit, "with --slurm: submit both (sbatch, the merge afterok)");
+  design_cmd->add_option("--partition", design.partition, "with --slurm: #SBATCH --partition");
+  design_cmd->add_option("--time", design.time, "with --slurm: #SBATCH --time of each shard, e.g. 01:00:00");
+  design_cmd->add_option("--mem", design.mem, "with --slurm: #SBATCH --mem of each shard, e.g. 4G");
+  magvine::cli::DesignMergeArgs design_merge;
+  auto* design_merge_cmd = design_cmd->add_subcommand(
+      "merge", "join the shards of one design sweep (magvine design --shard I/N) into the design one machine finds");
+  design_merge_cmd->add_option("dirs", design_merge.dirs, "the shards' folders")->required();
+  design_merge_cmd->add_option("--out", design_merge.out, "the merged design's folder")->required();
+  design_merge_cmd->add_flag("--mpm-check", design_merge.mpm_check, "also simulate the design in 3D MPM");
+  design_merge_cmd->add_option("--mpm-cell", design_merge.mpm_cell_mm, "the MPM check's grid spacing [mm]")
+      ->check(CLI::Range(0.01, 100.0));
+  design_merge_cmd->add_option("--mpm-particles", design_merge.mpm_particles, "the MPM check's particles per cell")
       ->capture_default_str()
       ->check(CLI::Range(1, 8));
 
@@ -234,7 +258,19 @@ int main(int argc, char** argv) {
       if (trials.scene.empty()) throw magvine::InputError("trials", 0, "", "name the scene: magvine trials SCENE");
       return magvine::cli::run_trials(trials);
     }
-    if (design_cmd->parsed()) return magvine::cli::run_design(design);
+    if (design_merge_cmd->parsed()) {
+      const auto given = design_cmd->get_options([](const CLI::Option* o) { return o->count() > 0; });
+      if (!given.empty()) {
+        throw magvine::InputError("design merge", 0, "",
+                                  "takes the shards' folders, --out and the MPM check's options only (give the scene "
+                                  "and options to the shards)");
+      }
+      return magvine::cli::run_design_merge(design_merge);
+    }
+    if (design_cmd->parsed()) {
+      if (design.scene.empty()) throw magvine::InputError("design", 0, "", "name the design file: magvine design FILE");
+      return magvine::cli::run_design(design);
+    }
     if (calibrate_cmd->parsed()) return magvine::cli::run_calibrate(calibrate);
   } catch (const magvine::InputError& e) {
     std::cerr << "magvine: " << e.what() << '\n';

@@ -635,42 +635,67 @@ DesignResult continued_design(const DesignProblem& problem, DesignMethod method,
 
 }  // namespace
 
-DesignResult multi_start_design(const DesignProblem& problem, DesignMethod method, const DesignOptions& options) {
-  if (method == DesignMethod::bayesian) return bayesian_design(problem, options);
-  DesignResult best;
-  best.rms = std::numeric_limits<double>::infinity();  // (until the first start ends)
+DesignResult design_start(const DesignProblem& problem, DesignMethod method, const DesignOptions& options, int start) {
+  if (method == DesignMethod::bayesian) throw InputError("design: the Bayesian baseline runs once; it has no starts");
+  if (start < 0) throw InputError("design: a start's index must be >= 0");
+  DesignOptions one = options;
+  one.seed = options.seed + static_cast<std::uint64_t>(start);
+  return continued_design(problem, method, random_design(problem, one.seed), one);
+}
+
+DesignResult join_starts(std::vector<DesignResult> starts) {
+  if (starts.empty()) throw InputError("design: no start to join");
+  const std::size_t count = starts.size();
+  std::size_t best = 0;
+  double best_rms = std::numeric_limits<double>::infinity();  // of the starts before this one
   int iterations = 0;
   int evaluations = 0;
   double runtime = 0.0;
   std::vector<DesignResult::Step> history;
-  for (int start = 0; start < std::max(1, options.starts); ++start) {
-    DesignOptions one = options;
-    one.seed = options.seed + static_cast<std::uint64_t>(start);
-    if (options.progress) {
-      one.progress = [&, evaluations](int e, double rms) {
-        options.progress(evaluations + e, std::min(rms, best.rms));
-      };
-    }
-    DesignResult r = continued_design(problem, method, random_design(problem, one.seed), one);
+  for (std::size_t k = 0; k < count; ++k) {
+    const DesignResult& r = starts[k];
     const int iteration_offset = history.empty() ? 0 : history.back().iteration;
     for (DesignResult::Step s : r.history) {
       s.iteration += iteration_offset;
       s.evaluation += evaluations;
       s.time_s += runtime;
-      s.best_rms = std::min(s.best_rms, start == 0 ? s.best_rms : best.rms);
+      s.best_rms = std::min(s.best_rms, k == 0 ? s.best_rms : best_rms);
       history.push_back(s);
     }
     iterations += std::max(0, r.iterations);
     evaluations += r.evaluations;
     runtime += r.runtime_s;
-    if (start == 0 || r.rms < best.rms) best = std::move(r);
+    if (k == 0 || r.rms < best_rms) {  // the first of equal RMS
+      best = k;
+      best_rms = r.rms;
+    }
   }
-  best.iterations = iterations;
-  best.evaluations = evaluations;
-  best.runtime_s = runtime;
-  best.history = std::move(history);
-  if (options.starts > 1) best.message += " (the best of " + std::to_string(options.starts) + " starts)";
-  return best;
+  DesignResult out = std::move(starts[best]);
+  out.iterations = iterations;
+  out.evaluations = evaluations;
+  out.runtime_s = runtime;
+  out.history = std::move(history);
+  if (count > 1) out.message += " (the best of " + std::to_string(count) + " starts)";
+  return out;
+}
+
+DesignResult multi_start_design(const DesignProblem& problem, DesignMethod method, const DesignOptions& options) {
+  if (method == DesignMethod::bayesian) return bayesian_design(problem, options);
+  std::vector<DesignResult> starts;
+  int evaluations = 0;  // of the starts before this one
+  double best_rms = std::numeric_limits<double>::infinity();
+  for (int start = 0; start < std::max(1, options.starts); ++start) {
+    DesignOptions one = options;
+    if (options.progress) {
+      one.progress = [&, evaluations](int e, double rms) {
+        options.progress(evaluations + e, std::min(rms, best_rms));
+      };
+    }
+    starts.push_back(design_start(problem, method, one, start));
+    evaluations += starts.back().evaluations;
+    best_rms = std::min(best_rms, starts.back().rms);
+  }
+  return join_starts(std::move(starts));
 }
 
 namespace detail {

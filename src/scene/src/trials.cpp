@@ -20,6 +20,7 @@
 #include "magvine/core/atomic_file.hpp"
 #include "magvine/core/error.hpp"
 #include "magvine/core/text.hpp"
+#include "shard_files.hpp"
 #include "yaml_reader.hpp"
 
 namespace magvine::scene {
@@ -74,9 +75,7 @@ std::vector<TrialOutcome> run_trials(const ExperimentScene& scene, const std::ve
                                      const std::filesystem::path& runs_dir, const Shard& shard) {
   if (repeats < 1) throw InputError("--repeats", 0, "", "must be >= 1");
   if (jobs < 1) throw InputError("--jobs", 0, "", "must be >= 1");
-  if (shard.count < 1 || shard.index < 0 || shard.index >= shard.count) {
-    throw InputError("--shard", 0, "", printf_string("%d/%d: must be I/N with 0 <= I < N", shard.index, shard.count));
-  }
+  (void)shard_items(0, shard);  // a shard I/N, before any work
   std::vector<ExperimentScene> aimed;
   std::vector<std::string> names;
   if (targets.empty()) {
@@ -90,9 +89,7 @@ std::vector<TrialOutcome> run_trials(const ExperimentScene& scene, const std::ve
   }
   for (ExperimentScene& a : aimed) a.videos.clear();  // trials write no videos (nor record their frames)
   // The shard's trials: every index ≡ shard.index (mod shard.count) of the whole batch.
-  std::vector<int> mine;
-  const long long batch = static_cast<long long>(aimed.size()) * repeats;
-  for (long long i = shard.index; i < batch; i += shard.count) mine.push_back(static_cast<int>(i));
+  const std::vector<int> mine = shard_items(aimed.size() * static_cast<std::size_t>(repeats), shard);
   const int total = static_cast<int>(mine.size());
   if (!runs_dir.empty()) create_output_directory(runs_dir);  // before the threads create their folders in it
   std::vector<TrialOutcome> outcomes(static_cast<std::size_t>(total));
@@ -246,16 +243,6 @@ void write_trial_outputs(const std::vector<TrialOutcome>& outcomes, const std::f
 
 namespace {
 
-/// 64-bit FNV-1a (Fowler, Noll, Vo): a stable hash of the scene's bytes, the same on every machine and build.
-std::uint64_t fnv1a(const std::string& bytes) {
-  std::uint64_t h = 14695981039346656037ULL;
-  for (const char c : bytes) {
-    h ^= static_cast<unsigned char>(c);
-    h *= 1099511628211ULL;
-  }
-  return h;
-}
-
 /// A trial as JSON (nlohmann writes NaN as null; outcome_of reads null back as NaN).
 nlohmann::json outcome_json(const TrialOutcome& o) {
   return {{"index", o.index},
@@ -305,21 +292,28 @@ TrialOutcome outcome_of(const nlohmann::json& j) {
 
 BatchIdentity batch_identity(const std::filesystem::path& scene_file, const std::vector<std::string>& targets,
                              int repeats, const Shard& shard) {
-  const std::string bytes = read_text_file(scene_file.string(), "the scene");
-  // The scene's bytes and the magvine that runs it (another version may give other outcomes).
-  return {scene_file.string(), fnv1a(bytes + "\n" + MAGVINE_VERSION), targets, repeats, shard};
+  return {scene_file.string(), scene_fingerprint(scene_file), targets, repeats, shard};
 }
+
+namespace {
+
+const detail::ShardKind& trials_shards() {
+  static const detail::ShardKind kind{"magvine_trials_shard",
+                                      "trials merge",
+                                      "magvine trials --shard I/N",
+                                      "trials",
+                                      "trial",
+                                      {{"targets", "--targets"}, {"repeats", "--repeats"}}};
+  return kind;
+}
+
+}  // namespace
 
 void write_shard(const BatchIdentity& identity, const std::vector<TrialOutcome>& outcomes,
                  const std::filesystem::path& dir) {
-  nlohmann::json j;
-  j["magvine_trials_shard"] = 1;
-  j["scene"] = identity.scene;
-  j["scene_fnv1a"] = printf_string("%016llx", static_cast<unsigned long long>(identity.scene_hash));
+  nlohmann::json j = detail::shard_header(trials_shards(), identity.scene, identity.scene_hash, identity.shard);
   j["targets"] = identity.targets;
   j["repeats"] = identity.repeats;
-  j["shard"] = identity.shard.index;
-  j["shards"] = identity.shard.count;
   nlohmann::json rows = nlohmann::json::array();
   for (const TrialOutcome& o : outcomes) rows.push_back(outcome_json(o));
   j["trials"] = rows;
@@ -331,69 +325,21 @@ void write_shard(const BatchIdentity& identity, const std::vector<TrialOutcome>&
 }
 
 std::vector<TrialOutcome> merge_shards(const std::vector<std::filesystem::path>& dirs) {
-  if (dirs.empty()) throw InputError("trials merge", 0, "", "give the shards' folders");
-  std::optional<nlohmann::json> first;
-  std::string first_dir;
-  std::vector<std::string> seen;  // the folder each shard came from
+  nlohmann::json first;
+  const std::vector<detail::ShardItem> items = detail::read_shards(
+      dirs, trials_shards(),
+      [](const nlohmann::json& head) {
+        // targets × repeats (no targets: the scene's own one)
+        return std::max<std::size_t>(1, head.at("targets").size()) * head.at("repeats").get<std::size_t>();
+      },
+      first);
   std::vector<TrialOutcome> all;
-  for (const std::filesystem::path& dir : dirs) {
-    const std::filesystem::path file = dir / "shard.json";
-    std::ifstream in(file);
-    if (!in) throw InputError(file.string(), 0, "", "no shard here (magvine trials --shard I/N writes shard.json)");
+  for (const detail::ShardItem& item : items) {
     try {
-      const nlohmann::json j = nlohmann::json::parse(in);
-      (void)j.at("magvine_trials_shard");
-      const int count = j.at("shards").get<int>();
-      const int index = j.at("shard").get<int>();
-      if (count < 1 || count > kMaxShards || index < 0 || index >= count) {
-        throw InputError(file.string(), 0, "shard",
-                         printf_string("%d/%d is not a shard I/N, 0 <= I < N", index, count));
-      }
-      if (!first) {
-        first = j;
-        first_dir = dir.string();
-        seen.assign(static_cast<std::size_t>(count), std::string());
-      }
-      for (const char* key : {"scene_fnv1a", "targets", "repeats", "shards"}) {
-        if (j.at(key) != first->at(key)) {
-          const std::string what = std::string(key) == "scene_fnv1a" ? "the scene file's bytes or magvine's version"
-                                   : std::string(key) == "shards"    ? "the shard count"
-                                                                     : std::string("--") + key;
-          throw InputError(file.string(), 0, key, "another batch than " + first_dir + ": " + what + " differ");
-        }
-      }
-      std::string& from = seen[static_cast<std::size_t>(index)];
-      if (!from.empty()) {
-        throw InputError(file.string(), 0, "shard",
-                         printf_string("shard %d/%d given twice (also in ", index, count) + from + ")");
-      }
-      from = dir.string();
-      for (const nlohmann::json& t : j.at("trials")) {
-        TrialOutcome o = outcome_of(t);
-        if (o.index < 0 || o.index % count != index) {
-          throw InputError(file.string(), 0, "trials",
-                           printf_string("trial %d is not in shard %d/%d", o.index, index, count));
-        }
-        all.push_back(std::move(o));
-      }
+      all.push_back(outcome_of(item.json));
     } catch (const nlohmann::json::exception& e) {
-      throw InputError(file.string(), 0, "", std::string("not a shard file: ") + e.what());
+      throw InputError(item.file, 0, "trials", std::string("not a shard file: ") + e.what());
     }
-  }
-  for (std::size_t i = 0; i < seen.size(); ++i) {
-    if (seen[i].empty()) {
-      throw InputError("trials merge", 0, "", printf_string("shard %zu/%zu is missing", i, seen.size()));
-    }
-  }
-  std::sort(all.begin(), all.end(), [](const TrialOutcome& a, const TrialOutcome& b) { return a.index < b.index; });
-  // The whole batch: every index of targets × repeats once.
-  const std::size_t targets = std::max<std::size_t>(1, first->at("targets").size());
-  const auto total = targets * first->at("repeats").get<std::size_t>();
-  bool whole = all.size() == total;
-  for (std::size_t i = 0; whole && i < all.size(); ++i) whole = all[i].index == static_cast<int>(i);
-  if (!whole) {
-    throw InputError("trials merge", 0, "",
-                     printf_string("the shards hold %zu trials, not the batch's %zu each once", all.size(), total));
   }
   return all;
 }

@@ -243,6 +243,16 @@ enum class DesignMethod { least_squares, lbfgsb, bayesian };
 /// Bayesian baseline runs once (its own initial designs are its starts).
 DesignResult multi_start_design(const DesignProblem& problem, DesignMethod method, const DesignOptions& options);
 
+/// One of multi_start_design's starts: `method` (not the Bayesian baseline) from the random design of seed
+/// options.seed + start, with options.field_stages; its own counts and history, from 0. A sweep split over machines
+/// (`magvine design --shard I/N`, docs/cluster.md) runs its starts with this and joins them with join_starts.
+DesignResult design_start(const DesignProblem& problem, DesignMethod method, const DesignOptions& options, int start);
+
+/// The starts' results, in start order, as multi_start_design reports them: the best (the first of equal RMS) with
+/// every start's iterations, evaluations, time and history counted on across the starts, each history step's best RMS
+/// the best so far over the starts.
+DesignResult join_starts(std::vector<DesignResult> starts);
+
 /// The derivative-free baseline (the thesis's kind, appendix A.1.4): Bayesian optimisation, a Gaussian-process
 /// surrogate of log J (squared-exponential kernel, length scales fitted by marginal likelihood over a grid) and
 /// expected improvement maximised over random candidates, from `initial` random designs; one equilibrium per

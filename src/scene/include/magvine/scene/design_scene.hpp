@@ -5,12 +5,16 @@
 
 #include <cstdint>
 #include <filesystem>
+#include <functional>
 #include <optional>
 #include <string>
+#include <utility>
+#include <vector>
 
 #include "magvine/design/design.hpp"
 #include "magvine/scene/experiment_scene.hpp"
 #include "magvine/scene/free_space.hpp"
+#include "magvine/scene/shards.hpp"
 
 namespace magvine::scene {
 
@@ -55,6 +59,31 @@ DesignScene parse_design_scene(const std::string& text, const std::string& file_
 
 /// Runs the scene's method from its seeded random starts (design::multi_start_design).
 design::DesignResult run_design(const DesignScene& scene, const std::function<void(int, double)>& progress = {});
+
+/// One shard of the scene's starts (`magvine design --shard I/N`, docs/cluster.md): design::design_start for each
+/// start ≡ I (mod N) of design.starts, in order, with its index. `progress` gets (done, total) of the shard's starts.
+/// InputError for the Bayesian baseline (one run: no starts to share).
+std::vector<std::pair<int, design::DesignResult>> run_design_shard(const DesignScene& scene, const Shard& shard,
+                                                                   const std::function<void(int, int)>& progress = {});
+
+/// A design shard's outputs, atomically into `dir`: shard.json (magvine/scene/shards.hpp) with the scene file (as an
+/// absolute path, for the merge), its fingerprint, design.starts and every start's result at full precision (design,
+/// equilibria, counts, history).
+void write_design_shard(const std::filesystem::path& scene_file, const DesignScene& scene, const Shard& shard,
+                        const std::vector<std::pair<int, design::DesignResult>>& starts,
+                        const std::filesystem::path& dir);
+
+/// A design sweep joined from its shards (`magvine design merge`): the scene, read again from the file the shards
+/// name, and the result one machine's run_design gives (design::join_starts of the starts in order; its time the sum
+/// of the starts' times).
+struct MergedDesign {
+  DesignScene scene;
+  design::DesignResult result;
+};
+/// InputError (one line) when a folder has no design shard.json or a malformed one, the shards are of different
+/// sweeps (scene bytes, magvine version, count), a shard is missing or given twice, a start is not in its shard or
+/// missing, or the scene file no longer has the bytes the shards ran.
+MergedDesign merge_design_shards(const std::vector<std::filesystem::path>& dirs);
 
 /// The designed rod as a scene file: the design file without `design:`, its `robot.magnetisation` replaced by the
 /// design's sections (file units, 17 significant digits) and, with a free field, `magnets` by the designed uniform

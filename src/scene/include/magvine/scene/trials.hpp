@@ -10,6 +10,7 @@
 #include <vector>
 
 #include "magvine/scene/experiment.hpp"
+#include "magvine/scene/shards.hpp"
 
 namespace magvine::scene {
 
@@ -44,16 +45,6 @@ struct TrialOutcome {
   std::string reason;
 };
 
-/// One machine's share of a batch (`magvine trials --shard I/N`, docs/cluster.md): the trials whose index ≡ index
-/// (mod count). Each keeps the seed it has in the whole batch, so shards are independent and any count gives the same
-/// trials.
-struct Shard {
-  int index = 0;
-  int count = 1;
-};
-/// The most shards a batch may have.
-inline constexpr int kMaxShards = 100000;
-
 /// Runs `repeats` perturbed trials towards each target (branch names; empty: the scene's own target) on `jobs`
 /// threads, only `shard`'s share of them; outcomes in index order whatever the threads. `progress` gets (done, total)
 /// of the shard's trials. With `runs_dir`, each trial's own outputs (write_experiment_outputs, without videos) go to
@@ -62,8 +53,8 @@ std::vector<TrialOutcome> run_trials(const ExperimentScene& scene, const std::ve
                                      int jobs, const std::function<void(int, int)>& progress = nullptr,
                                      const std::filesystem::path& runs_dir = {}, const Shard& shard = {});
 
-/// What makes shards one batch: the scene file's bytes and magvine's version (a 64-bit FNV-1a hash of them), the
-/// targets, the repeats and the shard count. Files the scene names (a mesh, a graph, a segmentation) are not hashed.
+/// What makes shards one batch (magvine/scene/shards.hpp): the scene's fingerprint (its bytes and magvine's version),
+/// the targets, the repeats and the shard count.
 struct BatchIdentity {
   std::string scene;             ///< the scene file, as given
   std::uint64_t scene_hash = 0;  ///< FNV-1a of its bytes
