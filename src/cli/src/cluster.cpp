@@ -81,15 +81,17 @@ void check_resource(const char* option, const std::string& value) {
 }  // namespace
 
 int write_slurm_jobs(const SlurmBatch& batch) {
-  if (batch.shards < 1) throw InputError("--shards", 0, "", "--slurm needs --shards N (the array's tasks), N >= 1");
-  const fs::path job = fs::absolute(batch.slurm);
-  if (job.extension() != ".sh") throw InputError("--slurm", 0, "", "must name a .sh file (got '" + batch.slurm + "')");
+  if (batch.slurm.shards < 1)
+    throw InputError("--shards", 0, "", "--slurm needs --shards N (the array's tasks), N >= 1");
+  const fs::path job = fs::absolute(batch.slurm.job);
+  if (job.extension() != ".sh")
+    throw InputError("--slurm", 0, "", "must name a .sh file (got '" + batch.slurm.job + "')");
   const fs::path exe = fs::read_symlink("/proc/self/exe");
   const fs::path scene = fs::absolute(batch.scene);
   const fs::path out = fs::absolute(batch.out);
-  check_resource("--partition", batch.partition);
-  check_resource("--time", batch.time);
-  check_resource("--mem", batch.mem);
+  check_resource("--partition", batch.slurm.partition);
+  check_resource("--time", batch.slurm.time);
+  check_resource("--mem", batch.slurm.mem);
   // #SBATCH --output takes a bare path, with % as its pattern sign.
   const std::string logs = out.string();
   if (std::any_of(logs.begin(), logs.end(), [](char c) {
@@ -103,22 +105,22 @@ int write_slurm_jobs(const SlurmBatch& batch) {
 
   std::ostringstream array;
   array << "#!/bin/bash\n"
-        << "# magvine " << batch.verb << ' ' << batch.scene << " as a Slurm array of " << batch.shards
+        << "# magvine " << batch.verb << ' ' << batch.scene << " as a Slurm array of " << batch.slurm.shards
         << " shards (docs/cluster.md), written by magvine.\n"
         << "# Submit with the merge job that waits for it:\n"
         << "#   jid=$(sbatch --parsable " << shell_word(job.string()) << ") && sbatch --dependency=afterok:$jid "
         << shell_word(merge.string()) << "\n"
         << "#SBATCH --job-name=" << name << '\n'
-        << "#SBATCH --array=0-" << batch.shards - 1 << '\n'
+        << "#SBATCH --array=0-" << batch.slurm.shards - 1 << '\n'
         << "#SBATCH --ntasks=1\n"
         << "#SBATCH --cpus-per-task=" << batch.cpus << '\n'
         << "#SBATCH --output=" << (out / "slurm" / "shard-%a.log").string() << '\n';
-  if (!batch.partition.empty()) array << "#SBATCH --partition=" << batch.partition << '\n';
-  if (!batch.time.empty()) array << "#SBATCH --time=" << batch.time << '\n';
-  if (!batch.mem.empty()) array << "#SBATCH --mem=" << batch.mem << '\n';
+  if (!batch.slurm.partition.empty()) array << "#SBATCH --partition=" << batch.slurm.partition << '\n';
+  if (!batch.slurm.time.empty()) array << "#SBATCH --time=" << batch.slurm.time << '\n';
+  if (!batch.slurm.mem.empty()) array << "#SBATCH --mem=" << batch.slurm.mem << '\n';
   array << "set -euo pipefail\n"
         << "exec " << shell_word(exe.string()) << ' ' << batch.verb << ' ' << shell_word(scene.string())
-        << " --shard \"$SLURM_ARRAY_TASK_ID/" << batch.shards << '"' << batch.options << " --out "
+        << " --shard \"$SLURM_ARRAY_TASK_ID/" << batch.slurm.shards << '"' << batch.options << " --out "
         << shell_word((out / "shard-").string()) << "\"$SLURM_ARRAY_TASK_ID\"\n";
   std::ostringstream joiner;
   joiner << "#!/bin/bash\n"
@@ -128,10 +130,11 @@ int write_slurm_jobs(const SlurmBatch& batch) {
          << "#SBATCH --ntasks=1\n"
          << "#SBATCH --cpus-per-task=1\n"
          << "#SBATCH --output=" << (out / "slurm" / "merge.log").string() << '\n';
-  if (!batch.partition.empty()) joiner << "#SBATCH --partition=" << batch.partition << '\n';
+  if (!batch.slurm.partition.empty()) joiner << "#SBATCH --partition=" << batch.slurm.partition << '\n';
   joiner << "set -euo pipefail\n"
          << "exec " << shell_word(exe.string()) << ' ' << batch.verb << " merge";
-  for (int i = 0; i < batch.shards; ++i) joiner << ' ' << shell_word((out / ("shard-" + std::to_string(i))).string());
+  for (int i = 0; i < batch.slurm.shards; ++i)
+    joiner << ' ' << shell_word((out / ("shard-" + std::to_string(i))).string());
   joiner << " --out " << shell_word(out.string()) << batch.merge_options << '\n';
 
   create_output_directory(out / "slurm");  // Slurm does not create the logs' folder
@@ -140,9 +143,9 @@ int write_slurm_jobs(const SlurmBatch& batch) {
   write_file_atomically(merge, joiner.str());
   fs::permissions(job, fs::perms::owner_exec | fs::perms::group_exec, fs::perm_options::add);
   fs::permissions(merge, fs::perms::owner_exec | fs::perms::group_exec, fs::perm_options::add);
-  std::cerr << "magvine " << batch.verb << ": " << job.string() << " (" << batch.shards << " shards as a Slurm array), "
-            << merge.string() << " (their merge into " << out.string() << ")\n";
-  if (!batch.submit) {
+  std::cerr << "magvine " << batch.verb << ": " << job.string() << " (" << batch.slurm.shards
+            << " shards as a Slurm array), " << merge.string() << " (their merge into " << out.string() << ")\n";
+  if (!batch.slurm.submit) {
     std::cout << "jid=$(sbatch --parsable " << shell_word(job.string()) << ") && sbatch --dependency=afterok:$jid "
               << shell_word(merge.string()) << '\n';
     return 0;

@@ -281,32 +281,15 @@ int run_scene(const RunArgs& args) {
 
 namespace {
 
-/// --shards, --submit, --partition, --time and --mem belong to --slurm.
-template <typename Args>
-void check_slurm_options(const Args& args) {
-  if (args.slurm.empty() &&
-      (args.shards > 0 || args.submit || !args.partition.empty() || !args.time.empty() || !args.mem.empty())) {
+/// --shards, --submit, --partition, --time and --mem belong to --slurm, and --slurm writes every shard.
+void check_slurm_options(const SlurmOptions& slurm, const std::string& shard) {
+  if (slurm.job.empty() &&
+      (slurm.shards > 0 || slurm.submit || !slurm.partition.empty() || !slurm.time.empty() || !slurm.mem.empty())) {
     throw InputError("--shards", 0, "", "--shards, --submit, --partition, --time and --mem go with --slurm JOB.sh");
   }
-  if (!args.slurm.empty() && !args.shard.empty()) {
+  if (!slurm.job.empty() && !shard.empty()) {
     throw InputError("--shard", 0, "", "--slurm writes every shard's task: leave --shard out");
   }
-}
-
-/// The batch as Slurm jobs with the resources of `args`.
-template <typename Args>
-SlurmBatch slurm_batch(const Args& args, const char* verb, const std::string& default_out) {
-  SlurmBatch b;
-  b.verb = verb;
-  b.scene = args.scene;
-  b.out = args.out.empty() ? default_out : args.out;
-  b.slurm = args.slurm;
-  b.shards = args.shards;
-  b.submit = args.submit;
-  b.partition = args.partition;
-  b.time = args.time;
-  b.mem = args.mem;
-  return b;
 }
 
 /// The default output folder: runs/<scene stem>-<suffix>.
@@ -317,12 +300,16 @@ std::string default_out(const std::string& scene, const char* suffix) {
 }  // namespace
 
 int run_trials(const TrialsArgs& args) {
-  check_slurm_options(args);
-  if (!args.slurm.empty()) {
+  check_slurm_options(args.slurm, args.shard);
+  if (!args.slurm.job.empty()) {
     // What a shard would trip over fails here, before anything is written or queued.
     const scene::ExperimentScene sc = scene::load_experiment_scene(args.scene);
     for (const std::string& t : args.targets) (void)scene::with_target(sc, t);
-    SlurmBatch b = slurm_batch(args, "trials", default_out(args.scene, "trials"));
+    SlurmBatch b;
+    b.verb = "trials";
+    b.scene = args.scene;
+    b.out = args.out.empty() ? default_out(args.scene, "trials") : args.out;
+    b.slurm = args.slurm;
     std::string targets;
     for (const std::string& t : args.targets) targets += (targets.empty() ? "" : ",") + t;
     b.cpus = args.jobs > 0 ? args.jobs : 1;
@@ -413,18 +400,22 @@ int finish_design(const scene::DesignScene& sc, const design::DesignResult& r, c
 }  // namespace
 
 int run_design(const DesignArgs& args) {
-  check_slurm_options(args);
+  check_slurm_options(args.slurm, args.shard);
   const scene::DesignScene sc = scene::load_design_scene(args.scene);  // bad input fails before any output
   check_mpm_check(sc, args.mpm_check, args.mpm_cell_mm, args.mpm_particles);
   const std::filesystem::path out = args.out.empty() ? default_out(args.scene, "design") : args.out;
-  if (!args.slurm.empty() || !args.shard.empty()) {
+  if (!args.slurm.job.empty() || !args.shard.empty()) {
     if (sc.method == scene::DesignMethod::bayesian) {
       throw InputError(args.scene, 0, "design.method",
                        "the Bayesian baseline is one run with its own initial designs: it has no starts to shard");
     }
   }
-  if (!args.slurm.empty()) {
-    SlurmBatch b = slurm_batch(args, "design", out.string());
+  if (!args.slurm.job.empty()) {
+    SlurmBatch b;
+    b.verb = "design";
+    b.scene = args.scene;
+    b.out = out.string();
+    b.slurm = args.slurm;
     if (args.mpm_check) {
       b.merge_options = printf_string(" --mpm-check --mpm-particles %d", args.mpm_particles) +
                         (args.mpm_cell_mm > 0.0 ? printf_string(" --mpm-cell %.17g", args.mpm_cell_mm) : "");

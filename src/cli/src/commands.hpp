@@ -68,6 +68,17 @@ struct RunArgs {
 /// One free-space equilibrium (issue 4's scene): 0 converged, 3 not (outputs written with converged: false).
 int run_scene(const RunArgs& args);
 
+/// --slurm JOB.sh: write a batch as a Slurm array of `shards` shards and its merge job instead of running it
+/// (docs/cluster.md); --submit also submits both with sbatch. Resources as sbatch takes them.
+struct SlurmOptions {
+  std::string job;  ///< JOB.sh; empty: run here
+  int shards = 0;
+  bool submit = false;
+  std::string partition;
+  std::string time;  ///< each task's time limit
+  std::string mem;   ///< memory per task
+};
+
 struct TrialsArgs {
   std::string scene;
   std::vector<std::string> targets;  // branch names; empty: the scene's own target
@@ -76,13 +87,7 @@ struct TrialsArgs {
   std::string out;         // empty: runs/<scene stem>-trials
   bool keep_runs = false;  // each trial's outputs in <out>/runs/<target>_r<repeat>
   std::string shard;       // "I/N": only that shard's trials (docs/cluster.md); empty: all
-  // --slurm JOB.sh: write a Slurm array of `shards` shards and its merge job instead of running (docs/cluster.md).
-  std::string slurm;
-  int shards = 0;
-  bool submit = false;  // also submit both with sbatch
-  std::string partition;
-  std::string time;  // the array tasks' time limit, as sbatch takes it
-  std::string mem;   // memory per task, as sbatch takes it
+  SlurmOptions slurm;
 };
 /// `magvine trials`: seeded perturbed repeats of an experiment towards each target, in parallel (scene/experiment.hpp);
 /// with --shard one share of them, with --slurm the batch as Slurm jobs (cluster.cpp).
@@ -104,12 +109,7 @@ struct SlurmBatch {
   std::string options;        ///< the shards' other options, shell words
   std::string merge_options;  ///< the merge's other options, shell words
   int cpus = 1;               ///< per task
-  std::string slurm;          ///< JOB.sh
-  int shards = 0;
-  bool submit = false;
-  std::string partition;
-  std::string time;
-  std::string mem;
+  SlurmOptions slurm;
 };
 /// Writes JOB.sh (the Slurm array, one shard per task) and JOB.merge.sh (the merge); with `submit` submits them (the
 /// merge after the array, --dependency=afterok). The caller has checked the scene.
@@ -136,13 +136,7 @@ struct DesignArgs {
   double mpm_cell_mm = 0.0;  ///< 0: a quarter of the diameter
   int mpm_particles = 4;     ///< particles per cell per axis
   std::string shard;         ///< "I/N": only those starts (docs/cluster.md); empty: all
-  // --slurm JOB.sh: the starts as a Slurm array of `shards` shards and the merge job (docs/cluster.md).
-  std::string slurm;
-  int shards = 0;
-  bool submit = false;
-  std::string partition;
-  std::string time;
-  std::string mem;
+  SlurmOptions slurm;
 };
 /// `magvine design DESIGN.yaml` (docs/design.md); with --shard one share of its starts, with --slurm the starts as
 /// Slurm jobs (docs/cluster.md).

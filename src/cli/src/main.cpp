@@ -22,6 +22,20 @@ std::string build_info() {
   return s;
 }
 
+/// --slurm JOB.sh and its options (docs/cluster.md), for a verb whose `what` runs as shards.
+void add_slurm_options(CLI::App& command, magvine::cli::SlurmOptions& slurm, const std::string& what) {
+  command.add_option("--slurm", slurm.job,
+                     "JOB.sh: write " + what +
+                         " as a Slurm array of --shards tasks (JOB.sh) and the merge job (JOB.merge.sh) instead of "
+                         "running");
+  command.add_option("--shards", slurm.shards, "with --slurm: the array's tasks (shards; Slurm's default limit 1001)")
+      ->check(CLI::Range(1, 1001));
+  command.add_flag("--submit", slurm.submit, "with --slurm: submit both (sbatch, the merge afterok)");
+  command.add_option("--partition", slurm.partition, "with --slurm: #SBATCH --partition");
+  command.add_option("--time", slurm.time, "with --slurm: #SBATCH --time of each shard, e.g. 01:00:00");
+  command.add_option("--mem", slurm.mem, "with --slurm: #SBATCH --mem of each shard, e.g. 4G");
+}
+
 }  // namespace
 
 int main(int argc, char** argv) {
@@ -135,16 +149,7 @@ int main(int argc, char** argv) {
   trials_cmd->add_option("--shard", trials.shard,
                          "I/N: only the trials whose index is I mod N, each with its seed in the whole batch; writes "
                          "OUT/shard.json for `trials merge` (docs/cluster.md)");
-  trials_cmd->add_option("--slurm", trials.slurm,
-                         "JOB.sh: write the batch as a Slurm array of --shards tasks (JOB.sh) and the merge job "
-                         "(JOB.merge.sh) instead of running it");
-  trials_cmd
-      ->add_option("--shards", trials.shards, "with --slurm: the array's tasks (shards; Slurm's default limit 1001)")
-      ->check(CLI::Range(1, 1001));
-  trials_cmd->add_flag("--submit", trials.submit, "with --slurm: submit both (sbatch, the merge afterok)");
-  trials_cmd->add_option("--partition", trials.partition, "with --slurm: #SBATCH --partition");
-  trials_cmd->add_option("--time", trials.time, "with --slurm: #SBATCH --time of each shard, e.g. 01:00:00");
-  trials_cmd->add_option("--mem", trials.mem, "with --slurm: #SBATCH --mem of each shard, e.g. 4G");
+  add_slurm_options(*trials_cmd, trials.slurm, "the batch");
   magvine::cli::TrialsMergeArgs merge;
   auto* merge_cmd = trials_cmd->add_subcommand(
       "merge", "join the shards of one batch (magvine trials --shard I/N) into trials.csv and the summary");
@@ -168,16 +173,7 @@ int main(int argc, char** argv) {
   design_cmd->add_option("--shard", design.shard,
                          "I/N: only the starts whose index is I mod N (each with its seed in the whole sweep); writes "
                          "OUT/shard.json for `design merge` (docs/cluster.md)");
-  design_cmd->add_option("--slurm", design.slurm,
-                         "JOB.sh: write the starts as a Slurm array of --shards tasks (JOB.sh) and the merge job "
-                         "(JOB.merge.sh) instead of running them");
-  design_cmd
-      ->add_option("--shards", design.shards, "with --slurm: the array's tasks (shards; Slurm's default limit 1001)")
-      ->check(CLI::Range(1, 1001));
-  design_cmd->add_flag("--submit", design.submit, "with --slurm: submit both (sbatch, the merge afterok)");
-  design_cmd->add_option("--partition", design.partition, "with --slurm: #SBATCH --partition");
-  design_cmd->add_option("--time", design.time, "with --slurm: #SBATCH --time of each shard, e.g. 01:00:00");
-  design_cmd->add_option("--mem", design.mem, "with --slurm: #SBATCH --mem of each shard, e.g. 4G");
+  add_slurm_options(*design_cmd, design.slurm, "the starts");
   magvine::cli::DesignMergeArgs design_merge;
   auto* design_merge_cmd = design_cmd->add_subcommand(
       "merge", "join the shards of one design sweep (magvine design --shard I/N) into the design one machine finds");
