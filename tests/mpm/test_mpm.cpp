@@ -186,6 +186,64 @@ TEST(MpmStress, KirchhoffStressIsPTimesFTransposeFromStrongCompressionToStrongEx
   }
 }
 
+TEST(MpmStress, PlaneStressFreesTheFacesAndIsTheDerivativeOfItsEnergy) {
+  // Plane stress: the out-of-plane stretch λ makes the 3D law's τ33 vanish (checked on the 3D law itself at
+  // diag(F2, λ), to round-off relative to |τ|), the in-plane block of that 3D τ is the 2D plane-stress τ, P is the
+  // derivative of the reduced energy (central differences, 1e-6: their truncation), and the rest state is free.
+  const Material m = silicone(3e5);
+  Eigen::Matrix2d f2;
+  f2 << 1.1, 0.2, 0.03, 0.9;
+  for (const double scale : {0.7, 1.0, 1.3}) {
+    const Eigen::Matrix2d f = scale * f2;
+    const double lambda = plane_stress_stretch(m, f);
+    Eigen::Matrix3d f3 = Eigen::Matrix3d::Zero();
+    f3.topLeftCorner<2, 2>() = f;
+    f3(2, 2) = lambda;
+    const Eigen::Matrix3d tau3 = kirchhoff_stress<3>(m, f3);
+    EXPECT_LT(std::abs(tau3(2, 2)), 1e-12 * tau3.norm()) << "scale " << scale;
+    const Eigen::Matrix2d tau2 = kirchhoff_stress<2>(m, f, Plane::kStress);
+    EXPECT_LT((tau3.topLeftCorner<2, 2>() - tau2).norm(), 1e-11 * tau2.norm()) << "scale " << scale;
+    const Eigen::Matrix2d p = elastic_stress<2>(m, f, Plane::kStress);
+    EXPECT_LT((tau2 - p * f.transpose()).norm(), 1e-12 * tau2.norm());
+    Eigen::Matrix2d fd;
+    const double h = 1e-6;
+    for (int i = 0; i < 2; ++i)
+      for (int j = 0; j < 2; ++j) {
+        Eigen::Matrix2d a = f, b = f;
+        a(i, j) += h;
+        b(i, j) -= h;
+        fd(i, j) = (strain_energy_density<2>(m, a, Plane::kStress) - strain_energy_density<2>(m, b, Plane::kStress)) /
+                   (2 * h);
+      }
+    EXPECT_LT((p - fd).norm() / p.norm(), 1e-6) << "scale " << scale;
+  }
+  EXPECT_NEAR(plane_stress_stretch(m, Eigen::Matrix2d::Identity()), 1.0, 1e-15);
+  EXPECT_LT(elastic_stress<2>(m, Eigen::Matrix2d::Identity(), Plane::kStress).norm(), 1e-9);
+  EXPECT_TRUE(std::isnan(plane_stress_stretch(m, Eigen::Vector2d(-1.0, 1.0).asDiagonal())));  // inverted
+}
+
+TEST(MpmStress, SmallStrainModuliAreYoungsInPlaneStressAndThePlaneStrainModulusInPlaneStrain) {
+  // Uniaxial tension along x with y free (P_yy = 0, found by bisection): in plane stress (z free too) σ/ε tends to
+  // Young's modulus E = 9KG/(3K + G), in plane strain (z held) to E/(1 − ν²), ν = (3K − 2G)/(2(3K + G)): linear
+  // elasticity's constants of the same K and G. ε = 1e-6: the nonlinear terms are O(ε) relative.
+  const Material m = silicone(3e5);
+  const double k = m.bulk_modulus, g = m.shear_modulus;
+  const double e = 9.0 * k * g / (3.0 * k + g), nu = (3.0 * k - 2.0 * g) / (2.0 * (3.0 * k + g));
+  const double eps = 1e-6;
+  const auto modulus = [&](Plane plane) {
+    double lo = 1.0 - 2.0 * eps, hi = 1.0;  // F_yy: contraction of at most ν ε < 2ε
+    for (int i = 0; i < 200; ++i) {
+      const double mid = 0.5 * (lo + hi);
+      const Eigen::Matrix2d f = Eigen::Vector2d(1.0 + eps, mid).asDiagonal();
+      (elastic_stress<2>(m, f, plane)(1, 1) > 0.0 ? hi : lo) = mid;
+    }
+    const Eigen::Matrix2d f = Eigen::Vector2d(1.0 + eps, 0.5 * (lo + hi)).asDiagonal();
+    return elastic_stress<2>(m, f, plane)(0, 0) / eps;
+  };
+  EXPECT_NEAR(modulus(Plane::kStress) / e, 1.0, 1e-5);
+  EXPECT_NEAR(modulus(Plane::kStrain) / (e / (1.0 - nu * nu)), 1.0, 1e-5);
+}
+
 TEST(MpmTransfers, ResultsDoNotDependOnTheThreadCount) {
   // P2G writes each node from one slab at a time in a fixed order, so 1 and 2 threads give the same bits.
   auto run = [](int threads) {

@@ -25,6 +25,19 @@ void MpmCommand::attach(CLI::App& app, CLI::App& study) {
                                              "error against runtime (CSV)");
   m_study->add_option("--out", m_study_out, "output folder")->required();
   m_study->add_option("--jobs", m_jobs, "beams run at once (default: every core)")->check(CLI::Range(1, 1024));
+  m_study
+      ->add_option("--model", m_study_model,
+                   "plane-strain (2D, the reference code's), plane-stress (2D) or 3d (the real 5 mm wide beam)")
+      ->capture_default_str()
+      ->check(CLI::IsMember({"plane-strain", "plane-stress", "3d"}));
+  m_study
+      ->add_option("--fields", m_study_fields,
+                   "elastica: 7-25 mT, all past buckling; experiment: Zhao et al.'s 5, 7, 10, 15, 25, 40 mT")
+      ->capture_default_str()
+      ->check(CLI::IsMember({"elastica", "experiment"}));
+  m_study->add_option("--resolution", m_study_resolutions,
+                      "CxP: C cells through the thickness, P particles per cell per axis; repeat for several "
+                      "(default: 3x2 3x3 3x4 4x4 5x4)");
 }
 
 bool MpmCommand::parsed() const { return m_cmd->parsed() || m_study->parsed(); }
@@ -65,12 +78,29 @@ int MpmCommand::run_scene() {
 
 int MpmCommand::run_study() {
   const int jobs = m_jobs > 0 ? m_jobs : static_cast<int>(std::max(1u, std::thread::hardware_concurrency()));
-  std::cerr << "magvine study mpm-beam: " << 5 * studies::zhao_study_fields().size() << " beams on " << jobs
+  std::cerr << "magvine study mpm-beam: " << m_study_model << ", " << m_study_fields << " fields, on " << jobs
             << " threads\n";
-  studies::run_mpm_beam_study(m_study_out, jobs, [](const studies::ZhaoPoint& p) {
-    std::fprintf(stderr, "  %d cells x %d particles/cell, %4.1f mT: delta/L %.4f (elastica %.4f) in %.1f s%s\n",
-                 p.cells, p.particles_per_cell, p.field * 1e3, p.deflection, p.reference, p.seconds,
-                 p.ok ? (p.settled ? "" : " NOT at rest") : " FAILED");
+  studies::MpmBeamStudyOptions options;
+  options.model = m_study_model == "plane-stress" ? studies::ZhaoModel::kPlaneStress
+                  : m_study_model == "3d"         ? studies::ZhaoModel::k3D
+                                                  : studies::ZhaoModel::kPlaneStrain;
+  if (m_study_fields == "experiment") options.fields = studies::zhao_experiment_fields();
+  if (!m_study_resolutions.empty()) {
+    options.resolutions.clear();
+    for (const std::string& r : m_study_resolutions) {
+      int cells = 0, ppc = 0;
+      char x = 0, extra = 0;
+      if (std::sscanf(r.c_str(), "%d%c%d%c", &cells, &x, &ppc, &extra) != 3 || x != 'x' || cells < 1 || cells > 16 ||
+          ppc < 1 || ppc > 8) {
+        throw InputError("--resolution", 0, "", "must be CxP with 1 <= C <= 16 cells, 1 <= P <= 8 (got '" + r + "')");
+      }
+      options.resolutions.emplace_back(cells, ppc);
+    }
+  }
+  studies::run_mpm_beam_study(m_study_out, jobs, options, [](const studies::ZhaoPoint& p) {
+    std::fprintf(stderr, "  %s, %d cells x %d particles/cell, %4.1f mT: delta/L %.4f (elastica %.4f) in %.1f s%s\n",
+                 studies::zhao_model_name(p.model), p.cells, p.particles_per_cell, p.field * 1e3, p.deflection,
+                 p.reference, p.seconds, p.ok ? (p.settled ? "" : " NOT at rest") : " FAILED");
   });
   std::cerr << "magvine study mpm-beam: " << m_study_out << "/mpm_beam_study.csv, mpm_beam_summary.csv\n";
   return 0;

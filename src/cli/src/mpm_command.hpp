@@ -4,6 +4,7 @@
 #include <CLI/CLI.hpp>
 
 #include <string>
+#include <vector>
 
 namespace magvine::cli {
 
@@ -24,6 +25,9 @@ class MpmCommand {
   std::string m_out;
   std::string m_study_out;
   int m_jobs = 0;
+  std::string m_study_model = "plane-strain";
+  std::string m_study_fields = "elastica";
+  std::vector<std::string> m_study_resolutions;
 };
 
 }  // namespace magvine::cli

@@ -25,6 +25,7 @@ Cantilever<D> make_cantilever(const CantileverSpec& spec) {
   m.domain_max = VecD<D>::Constant(room);
   m.materials = {spec.material};
   m.damping = spec.damping;
+  m.plane = spec.plane;
   m.gravity = spec.gravity.template head<D>();
   // Clamp: the nodes at x ≤ 0 that the clamped material's stencils reach (1.5 cells around its cross-section), like
   // the jaws of a real clamp; a beam that curls back past x = 0 passes them freely.

@@ -238,30 +238,83 @@ MpmState<D> rest_state(const std::vector<VecD<D>>& positions) {
   return s;
 }
 
+double plane_stress_stretch(const Material& m, const MatD<2>& f2) {
+  // τ33(λ) = G J^(−2/3) (λ² − I1/3) + K J (J − 1) with J = j λ, I1 = i + λ²: r(λ) = g (2λ² − i)/3 + K J (J − 1),
+  // g = G J^(−2/3), dr/dλ = g (4λ/3 − 2(2λ² − i)/(9λ)) + K j (2J − 1). Newton from J = 1 (λ = 1/j), where the
+  // volumetric term vanishes; r rises steeply with λ (K ≫ G), so a handful of steps reach round-off.
+  const double j = f2.determinant();
+  if (!(j > 0.0)) return std::numeric_limits<double>::quiet_NaN();  // inverted: the step's checks name it
+  const double i = f2.squaredNorm();
+  double lambda = 1.0 / j;
+  for (int k = 0; k < 30; ++k) {
+    const double jj = j * lambda;
+    const double g = m.shear_modulus * inverse_cbrt(jj * jj);
+    const double q = 2.0 * lambda * lambda - i;
+    const double r = g * q / 3.0 + m.bulk_modulus * jj * (jj - 1.0);
+    const double dr = g * (4.0 * lambda / 3.0 - 2.0 * q / (9.0 * lambda)) + m.bulk_modulus * j * (2.0 * jj - 1.0);
+    double next = lambda - r / dr;
+    if (!(next > 0.0)) next = 0.5 * lambda;  // never through zero
+    const bool done = std::abs(next - lambda) <= 1e-14 * lambda;
+    lambda = next;
+    if (done) break;
+  }
+  return lambda;
+}
+
+namespace {
+
+/// The full 3D invariants of a 2D or 3D F: J = det F and I1 = tr FᵀF with F33 = 1 (plane strain) or λ (plane stress);
+/// λ² in `out_of_plane_sq` (1 in plane strain and 3D: unused).
 template <int D>
-MatD<D> elastic_stress(const Material& m, const MatD<D>& f) {
-  const double j = f.determinant();
+struct Invariants {
+  double j;
+  double i1;
+  double out_of_plane_sq;
+};
+
+template <int D>
+Invariants<D> invariants(const Material& m, const MatD<D>& f, Plane plane) {
+  if constexpr (D == 2) {
+    const double l = plane == Plane::kStress ? plane_stress_stretch(m, f) : 1.0;
+    return {f.determinant() * l, f.squaredNorm() + l * l, l * l};
+  } else {
+    (void)m;
+    (void)plane;
+    return {f.determinant(), f.squaredNorm(), 1.0};
+  }
+}
+
+}  // namespace
+
+template <int D>
+MatD<D> elastic_stress(const Material& m, const MatD<D>& f, Plane plane) {
+  // P = G J^(−2/3) (F − (I1/3) F⁻ᵀ) + K J (J − 1) F⁻ᵀ (eq 3.10); in plane stress G J^(−2/3) (F − λ² F⁻ᵀ) (τ33 = 0).
+  const Invariants<D> v = invariants<D>(m, f, plane);
   const MatD<D> f_inv_t = f.inverse().transpose();
-  const double i1 = f.squaredNorm() + (D == 2 ? 1.0 : 0.0);  // plane strain: F33 = 1
-  const double t = inverse_cbrt(j * j);                      // J^(−2/3)
-  return m.shear_modulus * t * (f - (i1 / 3.0) * f_inv_t) + m.bulk_modulus * j * (j - 1.0) * f_inv_t;
+  const double t = inverse_cbrt(v.j * v.j);  // J^(−2/3)
+  if (D == 2 && plane == Plane::kStress) return m.shear_modulus * t * (f - v.out_of_plane_sq * f_inv_t);
+  return m.shear_modulus * t * (f - (v.i1 / 3.0) * f_inv_t) + m.bulk_modulus * v.j * (v.j - 1.0) * f_inv_t;
 }
 
 template <int D>
-MatD<D> kirchhoff_stress(const Material& m, const MatD<D>& f) {
-  const double j = f.determinant();
-  const double i1 = f.squaredNorm() + (D == 2 ? 1.0 : 0.0);
-  const double g = m.shear_modulus * inverse_cbrt(j * j);  // G J^(−2/3)
+MatD<D> kirchhoff_stress(const Material& m, const MatD<D>& f, Plane plane) {
+  // τ = G J^(−2/3) (F Fᵀ − (I1/3) I) + K J (J − 1) I (eq 3.10 times Fᵀ). In plane stress τ33 = 0 gives
+  // K J (J − 1) = −G J^(−2/3) (λ² − I1/3), so the in-plane part is G J^(−2/3) (F Fᵀ − λ² I).
+  const Invariants<D> v = invariants<D>(m, f, plane);
+  const double g = m.shear_modulus * inverse_cbrt(v.j * v.j);  // G J^(−2/3)
   MatD<D> tau = g * (f * f.transpose());
-  tau.diagonal().array() += m.bulk_modulus * j * (j - 1.0) - g * i1 / 3.0;
+  if (D == 2 && plane == Plane::kStress) {
+    tau.diagonal().array() -= g * v.out_of_plane_sq;
+  } else {
+    tau.diagonal().array() += m.bulk_modulus * v.j * (v.j - 1.0) - g * v.i1 / 3.0;
+  }
   return tau;
 }
 
 template <int D>
-double strain_energy_density(const Material& m, const MatD<D>& f) {
-  const double j = f.determinant();
-  const double i1 = f.squaredNorm() + (D == 2 ? 1.0 : 0.0);
-  return 0.5 * m.shear_modulus * (i1 / std::cbrt(j * j) - 3.0) + 0.5 * m.bulk_modulus * (j - 1.0) * (j - 1.0);
+double strain_energy_density(const Material& m, const MatD<D>& f, Plane plane) {
+  const Invariants<D> v = invariants<D>(m, f, plane);
+  return 0.5 * m.shear_modulus * (v.i1 / std::cbrt(v.j * v.j) - 3.0) + 0.5 * m.bulk_modulus * (v.j - 1.0) * (v.j - 1.0);
 }
 
 template <int D>
@@ -334,7 +387,7 @@ inline void scatter_particle(const StepContext<D>& c, std::size_t p) {
   const double dx = c.dx;
   const Stencil<D> st(state.x[p], c.inv_dx);
   const MatD<D>& f = state.f[p];
-  MatD<D> tau = kirchhoff_stress<D>(model.materials[model.material[p]], f);
+  MatD<D> tau = kirchhoff_stress<D>(model.materials[model.material[p]], f, model.plane);
   const VecD<D>& br = model.remanence[p];
   const bool magnetic = (c.uniform || c.general) && br.squaredNorm() > 0.0;
   VecD<D> f_br = VecD<D>::Zero();
@@ -664,12 +717,12 @@ template struct MpmModel<2>;
 template struct MpmModel<3>;
 template MpmState<2> rest_state<2>(const std::vector<VecD<2>>&);
 template MpmState<3> rest_state<3>(const std::vector<VecD<3>>&);
-template MatD<2> elastic_stress<2>(const Material&, const MatD<2>&);
-template MatD<3> elastic_stress<3>(const Material&, const MatD<3>&);
-template MatD<2> kirchhoff_stress<2>(const Material&, const MatD<2>&);
-template MatD<3> kirchhoff_stress<3>(const Material&, const MatD<3>&);
-template double strain_energy_density<2>(const Material&, const MatD<2>&);
-template double strain_energy_density<3>(const Material&, const MatD<3>&);
+template MatD<2> elastic_stress<2>(const Material&, const MatD<2>&, Plane);
+template MatD<3> elastic_stress<3>(const Material&, const MatD<3>&, Plane);
+template MatD<2> kirchhoff_stress<2>(const Material&, const MatD<2>&, Plane);
+template MatD<3> kirchhoff_stress<3>(const Material&, const MatD<3>&, Plane);
+template double strain_energy_density<2>(const Material&, const MatD<2>&, Plane);
+template double strain_energy_density<3>(const Material&, const MatD<3>&, Plane);
 template double kinetic_energy<2>(const MpmModel<2>&, const MpmState<2>&);
 template double kinetic_energy<3>(const MpmModel<3>&, const MpmState<3>&);
 template StepStatus step<2>(const MpmModel<2>&, const AppliedField&, MpmState<2>&, MpmWorkspace<2>&, double);

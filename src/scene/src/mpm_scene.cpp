@@ -255,10 +255,14 @@ MpmScene parse_mpm_scene(const std::string& text, const std::string& label, cons
   MpmScene sc;
   sc.file = label;
   const YamlMap m = top.map("mpm");
-  m.allow_only({"dimension", "cell", "particles_per_cell", "jitter", "courant", "time_step", "duration", "damping",
-                "gravity", "domain", "settle", "snapshots", "video"});
+  m.allow_only({"dimension", "plane", "cell", "particles_per_cell", "jitter", "courant", "time_step", "duration",
+                "damping", "gravity", "domain", "settle", "snapshots", "video"});
   const long dim = m.has("dimension") ? m.whole("dimension", 2, 3) : 3;
   sc.dimension = static_cast<int>(dim);
+  if (m.has("plane") && dim != 2) m.fail("plane", "is for dimension: 2 only (a 3D body has its real depth)");
+  const mpm::Plane plane = m.has("plane") ? m.choice<mpm::Plane>("plane", {"strain", mpm::Plane::kStrain},
+                                                                 {"stress", mpm::Plane::kStress})
+                                          : mpm::Plane::kStrain;
   const double cell = m.quantity("cell", unit, range::kSectionSize);
   const double ppc =
       m.has("particles_per_cell") ? static_cast<double>(m.whole("particles_per_cell", 1, 8)) : kDefaultParticlesPerCell;
@@ -337,6 +341,7 @@ MpmScene parse_mpm_scene(const std::string& text, const std::string& label, cons
     model.domain_max = dmax.head<D>();
     model.walls = walls;
     model.wall_friction = wall_mu;
+    model.plane = plane;
     model.gravity = gravity.head<D>();
     model.damping = damping;
     fill_model<D>(model, bodies, v0);

@@ -28,8 +28,6 @@ constexpr double kKick = 3e-3;         // transverse field for the first millise
 constexpr double kKickTime = 1e-3;
 constexpr double kRestTolerance = 1e-4;  // of L over a 20 ms window
 
-/// The study's resolutions: (cells through the thickness, particles per cell per axis).
-constexpr std::pair<int, int> kResolutions[] = {{3, 2}, {3, 3}, {3, 4}, {4, 4}, {5, 4}};
 
 }  // namespace
 
@@ -54,32 +52,39 @@ double antiparallel_elastica_deflection(double bbar) {
 
 std::vector<double> zhao_study_fields() { return {7e-3, 10e-3, 12.5e-3, 15e-3, 20e-3, 25e-3}; }
 
-ZhaoPoint run_zhao_beam(int cells, int ppc, double field) {
-  mpm::CantileverSpec spec;
-  spec.length = kLength;
-  spec.thickness = kThickness;
-  spec.cells_through_thickness = cells;
-  spec.particles_per_cell = ppc;
-  spec.material = {kShear, 20.0 * kShear, kDensity};
-  spec.remanence = Vec3(kRemanence, 0.0, 0.0);
-  spec.damping = kDamping;
-  mpm::Cantilever<2> beam = mpm::make_cantilever<2>(spec);
-  ZhaoPoint p;
-  p.cells = cells;
-  p.particles_per_cell = ppc;
+std::vector<double> zhao_experiment_fields() { return {5e-3, 7e-3, 10e-3, 15e-3, 25e-3, 40e-3}; }
+
+const char* zhao_model_name(ZhaoModel model) {
+  switch (model) {
+    case ZhaoModel::kPlaneStrain:
+      return "plane-strain";
+    case ZhaoModel::kPlaneStress:
+      return "plane-stress";
+    case ZhaoModel::k3D:
+      return "3d";
+  }
+  return "?";
+}
+
+double zhao_reference_modulus(ZhaoModel model, const mpm::Material& m) {
+  if (model == ZhaoModel::kPlaneStrain) return plane_strain_modulus(m);
+  return 9.0 * m.bulk_modulus * m.shear_modulus / (3.0 * m.bulk_modulus + m.shear_modulus);
+}
+
+namespace {
+
+template <int D>
+ZhaoPoint settle_zhao_beam(const mpm::CantileverSpec& spec, double field, ZhaoPoint p) {
+  mpm::Cantilever<D> beam = mpm::make_cantilever<D>(spec);
   p.particles = beam.model.size();
-  p.field = field;
-  p.bbar = 12.0 * (kLength / kThickness) * (kLength / kThickness) * kRemanence * field /
-           (kMu0 * plane_strain_modulus(spec.material));
-  p.reference = antiparallel_elastica_deflection(p.bbar);
   mpm::SettleOptions o;
   o.min_time = 0.05;
   o.max_time = 1.5;
   o.window = 0.02;
   o.tolerance = kRestTolerance * kLength;
-  mpm::MpmWorkspace<2> ws;
+  mpm::MpmWorkspace<D> ws;
   const Stopwatch clock;
-  const mpm::SettleResult r = mpm::settle<2>(
+  const mpm::SettleResult r = mpm::settle<D>(
       beam.model, beam.state, ws,
       [field](double t) {
         mpm::AppliedField f;
@@ -96,22 +101,47 @@ ZhaoPoint run_zhao_beam(int cells, int ppc, double field) {
   return p;
 }
 
-void run_mpm_beam_study(const std::filesystem::path& dir, int jobs, const std::function<void(const ZhaoPoint&)>& progress) {
+}  // namespace
+
+ZhaoPoint run_zhao_beam(int cells, int ppc, double field, ZhaoModel model) {
+  mpm::CantileverSpec spec;
+  spec.length = kLength;
+  spec.thickness = kThickness;
+  spec.width = kZhaoWidth;
+  spec.cells_through_thickness = cells;
+  spec.particles_per_cell = ppc;
+  spec.material = {kShear, 20.0 * kShear, kDensity};
+  spec.remanence = Vec3(kRemanence, 0.0, 0.0);
+  spec.damping = kDamping;
+  spec.plane = model == ZhaoModel::kPlaneStress ? mpm::Plane::kStress : mpm::Plane::kStrain;
+  ZhaoPoint p;
+  p.model = model;
+  p.cells = cells;
+  p.particles_per_cell = ppc;
+  p.field = field;
+  p.bbar = 12.0 * (kLength / kThickness) * (kLength / kThickness) * kRemanence * field /
+           (kMu0 * zhao_reference_modulus(model, spec.material));
+  p.reference = antiparallel_elastica_deflection(p.bbar);
+  return model == ZhaoModel::k3D ? settle_zhao_beam<3>(spec, field, p) : settle_zhao_beam<2>(spec, field, p);
+}
+
+void run_mpm_beam_study(const std::filesystem::path& dir, int jobs, const MpmBeamStudyOptions& options,
+                        const std::function<void(const ZhaoPoint&)>& progress) {
   create_output_directory(dir);
   struct Job {
     int cells, ppc;
     double field;
   };
   std::vector<Job> todo;
-  for (const auto& [cells, ppc] : kResolutions) {
-    for (double b : zhao_study_fields()) todo.push_back({cells, ppc, b});
+  for (const auto& [cells, ppc] : options.resolutions) {
+    for (double b : options.fields) todo.push_back({cells, ppc, b});
   }
   std::vector<ZhaoPoint> points(todo.size());
   std::atomic<std::size_t> next{0};
   std::mutex report;
   auto worker = [&] {
     for (std::size_t i = next++; i < todo.size(); i = next++) {
-      points[i] = run_zhao_beam(todo[i].cells, todo[i].ppc, todo[i].field);
+      points[i] = run_zhao_beam(todo[i].cells, todo[i].ppc, todo[i].field, options.model);
       if (progress) {
         const std::lock_guard lock(report);
         progress(points[i]);
@@ -123,26 +153,38 @@ void run_mpm_beam_study(const std::filesystem::path& dir, int jobs, const std::f
   for (std::thread& t : pool) t.join();
 
   std::ostringstream csv, summary;
-  csv << "cells,particles_per_cell,particles,field_mT,bbar,reference,deflection,abs_error_pct,settled,ok,steps,seconds\n";
-  summary << "cells,particles_per_cell,particles,mape_pct,seconds,all_settled\n";
-  for (const auto& [cells, ppc] : kResolutions) {
+  csv.precision(8);
+  summary.precision(8);
+  csv << "model,cells,particles_per_cell,particles,field_mT,bbar,reference,deflection,abs_error_pct,experiment,settled,"
+         "ok,steps,seconds\n";
+  summary << "model,cells,particles_per_cell,particles,mape_pct,seconds,all_settled\n";
+  for (const auto& [cells, ppc] : options.resolutions) {
     double sum = 0.0, seconds = 0.0;
-    int n = 0;
+    int n = 0, buckled = 0;
     bool settled = true;
     std::size_t particles = 0;
     for (const ZhaoPoint& p : points) {
       if (p.cells != cells || p.particles_per_cell != ppc) continue;
-      const double err = 100.0 * std::abs(p.deflection - p.reference) / p.reference;
-      csv << p.cells << ',' << p.particles_per_cell << ',' << p.particles << ',' << p.field * 1e3 << ',' << p.bbar
-          << ',' << p.reference << ',' << p.deflection << ',' << err << ',' << p.settled << ',' << p.ok << ','
-          << p.steps << ',' << p.seconds << '\n';
-      sum += err;
+      const bool has_reference = p.reference > 0.0;  // below the buckling field the elastica is straight
+      const double err = has_reference ? 100.0 * std::abs(p.deflection - p.reference) / p.reference : 0.0;
+      const bool at_5mt = std::abs(p.field - 5e-3) < 1e-9;
+      csv << zhao_model_name(p.model) << ',' << p.cells << ',' << p.particles_per_cell << ',' << p.particles << ','
+          << p.field * 1e3 << ',' << p.bbar << ',' << p.reference << ',' << p.deflection << ',';
+      if (has_reference) csv << err;
+      csv << ',';
+      if (at_5mt) csv << kZhaoExperiment5mT;
+      csv << ',' << p.settled << ',' << p.ok << ',' << p.steps << ',' << p.seconds << '\n';
+      if (has_reference) {
+        sum += err;
+        ++buckled;
+      }
       seconds += p.seconds;
       settled = settled && p.settled && p.ok;
       particles = p.particles;
       ++n;
     }
-    summary << cells << ',' << ppc << ',' << particles << ',' << sum / n << ',' << seconds << ',' << settled << '\n';
+    summary << zhao_model_name(options.model) << ',' << cells << ',' << ppc << ',' << particles << ','
+            << (buckled > 0 ? sum / buckled : 0.0) << ',' << seconds << ',' << settled << '\n';
   }
   write_file_atomically(dir / "mpm_beam_study.csv", csv.str());
   write_file_atomically(dir / "mpm_beam_summary.csv", summary.str());

@@ -25,6 +25,7 @@ struct CantileverSpec {
   Vec3 remanence = Vec3::Zero();  ///< B̃r, world frame [T] (uniform along the beam)
   Vec3 gravity = Vec3::Zero();    ///< [m/s²]
   double damping = 0.0;           ///< [1/s]
+  Plane plane = Plane::kStrain;   ///< 2D only: what the slice is (mpm.hpp)
 };
 
 template <int D>

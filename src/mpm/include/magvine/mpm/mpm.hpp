@@ -1,6 +1,6 @@
 #pragma once
-/// Magnetic MLS-MPM for hard-magnetic soft bodies (thesis chapter 3; PHYSICS.md §5), in 2D (plane strain, per metre
-/// of depth) and 3D.
+/// Magnetic MLS-MPM for hard-magnetic soft bodies (thesis chapter 3; PHYSICS.md §5), in 2D (plane strain or plane
+/// stress, per metre of depth) and 3D.
 ///
 /// One explicit step, after Hu et al. 2018 (MLS-MPM, quadratic B-splines, D⁻¹ = 4/δx²):
 ///  - P2G: per particle, P = P_el(F) + P_mag and the affine momentum  A = m C − Δt V0 D⁻¹ P Fᵀ  (eq 3.1–3.9);
@@ -13,7 +13,8 @@
 /// Stress: compressible Neo-Hookean with the isochoric split (eq 3.10),
 ///   P_el = G J^(−2/3) (F − (I1/3) F⁻ᵀ) + K J (J − 1) F⁻ᵀ,  K = 20 G by default;
 /// in 2D the same law for the plane-strain F = diag(F2, 1) (I1 = tr F2ᵀF2 + 1, J = det F2), so that the rest state
-/// is stress free (the public reference code applies the 3D formula to a 2×2 F, which leaves a stress G/3 at rest).
+/// is stress free (the public reference code applies the 3D formula to a 2×2 F, which leaves a stress G/3 at rest),
+/// or for the plane-stress F = diag(F2, λ), λ such that τ33 = 0 (plane_stress_stretch).
 /// Hard-magnetic stress (Zhao et al. 2019, eq 3.13): P_mag = −(1/μ0) B ⊗ B̃r, B̃r the referential remanence.
 ///
 /// The grid is a dense box around the particles, rebuilt each step (never the whole domain), so memory follows the
@@ -47,6 +48,10 @@ struct Material {
 /// Longitudinal (P-wave) speed sqrt((K + 4G/3)/ρ) [m/s]: the fastest signal the explicit step must resolve.
 double wave_speed(const Material& m);
 
+/// What a 2D model is a slice of: a body long along z (plane strain, ε_zz = 0: the reference code's and the default) or a
+/// thin sheet in the x–y plane (plane stress, σ_zz = 0). Per metre of depth either way.
+enum class Plane { kStrain, kStress };
+
 /// What happens at a wall or obstacle to grid velocity that points into it (eq 3.21 is `kSticky`).
 enum class Boundary {
   kSticky,    ///< the whole velocity is zeroed
@@ -79,6 +84,7 @@ struct MpmModel {
   double wall_friction = 0.0;          ///< μ for kFriction walls
   VecD<D> gravity = VecD<D>::Zero();   ///< g [m/s²]
   double damping = 0.0;                ///< c [1/s] (eq 3.17)
+  Plane plane = Plane::kStrain;        ///< 2D only
   std::vector<Material> materials;
   std::vector<Obstacle> obstacles;
   /// Clamps: grid nodes inside any of these boxes [min, max] are held at rest (the body is fixed there).
@@ -157,17 +163,23 @@ StepStatus step(const MpmModel<D>& model, const AppliedField& field, MpmState<D>
 template <int D>
 double kinetic_energy(const MpmModel<D>& model, const MpmState<D>& state);
 
-/// First Piola–Kirchhoff stress of the elastic part (exposed for tests) [Pa].
+/// Plane stress: the out-of-plane stretch λ of F = diag(F2, λ) at which the Neo-Hookean's τ33 vanishes (a thin sheet in
+/// the x–y plane, free on its faces), by Newton from J = 1 to round-off. NaN when det F2 ≤ 0.
+double plane_stress_stretch(const Material& m, const MatD<2>& f2);
+
+/// First Piola–Kirchhoff stress of the elastic part (exposed for tests) [Pa]. `plane` says what a 2D F means (3D
+/// ignores it): F = diag(F2, 1) (plane strain) or diag(F2, λ) with λ = plane_stress_stretch (plane stress).
 template <int D>
-MatD<D> elastic_stress(const Material& m, const MatD<D>& f);
+MatD<D> elastic_stress(const Material& m, const MatD<D>& f, Plane plane = Plane::kStrain);
 
 /// Kirchhoff stress τ = P Fᵀ of the elastic part, formed without inverting F (what P2G uses) [Pa].
 template <int D>
-MatD<D> kirchhoff_stress(const Material& m, const MatD<D>& f);
+MatD<D> kirchhoff_stress(const Material& m, const MatD<D>& f, Plane plane = Plane::kStrain);
 
-/// Strain energy density of the elastic part [J/m³] (its derivative is elastic_stress).
+/// Strain energy density of the elastic part [J/m³ of the reference] (its derivative is elastic_stress: in plane
+/// stress ∂ψ/∂λ = τ33/λ = 0, so λ's dependence on F2 adds nothing).
 template <int D>
-double strain_energy_density(const Material& m, const MatD<D>& f);
+double strain_energy_density(const Material& m, const MatD<D>& f, Plane plane = Plane::kStrain);
 
 extern template struct MpmModel<2>;
 extern template struct MpmModel<3>;
