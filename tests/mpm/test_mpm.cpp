@@ -249,7 +249,7 @@ TEST(MpmTransfers, ResultsDoNotDependOnTheThreadCount) {
   auto run = [](int threads) {
     omp_set_num_threads(threads);
     auto [model, state] = block<3>(Vec3(0, 0, 0), Vec3(0.02, 0.003, 0.003), 5e-4, 2, silicone());
-    model.clamps.push_back({Vec3(-1, -1, -1), Vec3(0.001, 1, 1)});
+    model.clamps.push_back({Vec3(-1, -1, -1), Vec3(0.001, 1, 1), Vec3::Zero()});
     model.gravity = Vec3(0, -9.81, 0);
     for (auto& br : model.remanence) br = Vec3(0.1, 0, 0);
     AppliedField f;

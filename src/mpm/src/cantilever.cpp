@@ -37,7 +37,7 @@ Cantilever<D> make_cantilever(const CantileverSpec& spec) {
     cmin[2] = -0.5 * spec.width - 1.5 * m.cell;
     cmax[2] = 0.5 * spec.width + 1.5 * m.cell;
   }
-  m.clamps.push_back({cmin, cmax});
+  m.clamps.push_back({cmin, cmax, VecD<D>::Zero()});
 
   LatticeOptions lattice;
   lattice.spacing = m.cell / spec.particles_per_cell;

@@ -161,6 +161,63 @@ void refresh_field(const AppliedField& field, double dx, MpmWorkspace<D>& ws) {
   ws.field_valid = true;
 }
 
+/// Ensures each sampled obstacle's samples cover the grid box (with a margin, so that a moving body does not sample
+/// every step); samples the new box in parallel. The obstacles are fixed: samples stay valid for the model's life.
+template <int D>
+void refresh_obstacles(const MpmModel<D>& model, double dx, MpmWorkspace<D>& ws) {
+  ws.obstacle_samples.resize(model.obstacles.size());
+  for (std::size_t o = 0; o < model.obstacles.size(); ++o) {
+    const Obstacle& ob = model.obstacles[o];
+    if (ob.shape != Obstacle::Shape::kSampled) continue;
+    auto& cache = ws.obstacle_samples[o];
+    bool covers = cache.valid;
+    for (int a = 0; covers && a < D; ++a) {
+      covers = ws.lo[a] >= cache.lo[a] && ws.lo[a] + ws.n[a] <= cache.lo[a] + cache.n[a];
+    }
+    if (covers) continue;
+    // The new box: the grid box with a margin, joined with the old one when they are near (a body moving on keeps
+    // what it sampled); only the nodes the old box lacks are sampled.
+    constexpr std::int64_t kMargin = 8;
+    Index<D> lo = ws.lo.array() - kMargin;
+    Index<D> hi = (ws.lo + ws.n).array() + kMargin;
+    if (cache.valid) {
+      const Index<D> old_hi = cache.lo + cache.n;
+      const Index<D> joined_lo = lo.cwiseMin(cache.lo), joined_hi = hi.cwiseMax(old_hi);
+      if ((joined_hi - joined_lo).prod() <= 4 * (hi - lo).prod()) {
+        lo = joined_lo;
+        hi = joined_hi;
+      }
+    }
+    const auto old = std::move(cache);
+    cache.lo = lo;
+    cache.n = hi - lo;
+    const std::int64_t total = cache.n.prod();
+    cache.distance.resize(static_cast<std::size_t>(total));
+    cache.normal.resize(static_cast<std::size_t>(total));
+#pragma omp parallel for schedule(dynamic, 256) if (total > kParallelMin)
+    for (std::int64_t k = 0; k < total; ++k) {
+      Index<D> i;
+      std::int64_t r = k;
+      for (int a = D - 1; a >= 0; --a) {
+        i[a] = cache.lo[a] + r % cache.n[a];
+        r /= cache.n[a];
+      }
+      const bool kept =
+          old.valid && (i.array() >= old.lo.array()).all() && (i.array() < (old.lo + old.n).array()).all();
+      if (kept) {
+        const auto from = static_cast<std::size_t>(linear<D>(i, old.lo, old.n));
+        cache.distance[static_cast<std::size_t>(k)] = old.distance[from];
+        cache.normal[static_cast<std::size_t>(k)] = old.normal[from];
+        continue;
+      }
+      Vec3 n3 = Vec3::UnitZ();
+      cache.distance[static_cast<std::size_t>(k)] = ob.sampled->at(to3<D>(VecD<D>(i.template cast<double>() * dx)), &n3);
+      cache.normal[static_cast<std::size_t>(k)] = from3<D>(n3);
+    }
+    cache.valid = true;
+  }
+}
+
 }  // namespace
 
 double wave_speed(const Material& m) {
@@ -169,6 +226,8 @@ double wave_speed(const Material& m) {
 
 double Obstacle::distance(const Vec3& x, Vec3* normal) const {
   switch (shape) {
+    case Shape::kSampled:
+      return sampled->at(x, normal);
     case Shape::kHalfSpace: {
       *normal = b;
       return (x - a).dot(b);
@@ -562,11 +621,12 @@ void update_plane(const StepContext<D>& c, std::int64_t i0, double damp) {
       i[2] = ws.lo[2] + r % ws.n[2];
     }
     const VecD<D> xi = i.template cast<double>() * dx;
-    const bool clamped = std::any_of(model.clamps.begin(), model.clamps.end(), [&](const auto& box) {
-      return (xi.array() >= box.first.array()).all() && (xi.array() <= box.second.array()).all();
+    const auto clamp = std::find_if(model.clamps.begin(), model.clamps.end(), [&](const auto& box) {
+      const VecD<D> shift = c.state.time * box.velocity;
+      return (xi.array() >= (box.min + shift).array()).all() && (xi.array() <= (box.max + shift).array()).all();
     });
-    if (clamped) {
-      std::fill(rec, rec + D, 0.0);
+    if (clamp != model.clamps.end()) {
+      std::copy(clamp->velocity.data(), clamp->velocity.data() + D, rec);
       continue;
     }
     VecD<D> v = Eigen::Map<const VecD<D>>(rec) / m;
@@ -580,7 +640,14 @@ void update_plane(const StepContext<D>& c, std::int64_t i0, double damp) {
       if (xi[a] <= model.domain_min[a] + dx) apply_boundary<D>(v, VecD<D>::Unit(a), model.walls, model.wall_friction);
       if (xi[a] >= model.domain_max[a] - dx) apply_boundary<D>(v, -VecD<D>::Unit(a), model.walls, model.wall_friction);
     }
-    for (const Obstacle& ob : model.obstacles) {
+    for (std::size_t o = 0; o < model.obstacles.size(); ++o) {
+      const Obstacle& ob = model.obstacles[o];
+      if (ob.shape == Obstacle::Shape::kSampled) {
+        const auto& cache = ws.obstacle_samples[o];
+        const auto s = static_cast<std::size_t>(linear<D>(i, cache.lo, cache.n));
+        if (cache.distance[s] <= 0.0) apply_boundary<D>(v, cache.normal[s], ob.boundary, ob.friction);
+        continue;
+      }
       Vec3 n3;
       if (ob.distance(to3<D>(xi), &n3) <= 0.0) apply_boundary<D>(v, from3<D>(n3), ob.boundary, ob.friction);
     }
@@ -640,6 +707,7 @@ StepStatus step(const MpmModel<D>& model, const AppliedField& field, MpmState<D>
 #pragma omp parallel for schedule(static) if (n_nodes > kParallelMin)
   for (std::int64_t k = 0; k < n_nodes; ++k) ws.node[static_cast<std::size_t>(k)] = NodeRecord{};
   c.stride = strides<D>(ws.n);
+  refresh_obstacles(model, c.dx, ws);
   if (c.general) {
     ws.node_moment.assign(nodes, VecD<D>::Zero());
     refresh_field(field, c.dx, ws);

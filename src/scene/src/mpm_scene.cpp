@@ -4,11 +4,13 @@
 #include <cmath>
 #include <cstdio>
 #include <fstream>
+#include <memory>
 #include <nlohmann/json.hpp>
 #include <sstream>
 
 #include "failed_run.hpp"
 #include "magnet_entries.hpp"
+#include "magvine/anatomy/collision_world.hpp"
 #include "magvine/anatomy/mesh_io.hpp"
 #include "magvine/core/atomic_file.hpp"
 #include "magvine/core/error.hpp"
@@ -105,9 +107,74 @@ MpmFieldSchedule field_of(const YamlMap& f) {
   return s;
 }
 
-mpm::Obstacle obstacle_of(const YamlMap& o, const Unit& unit) {
-  o.allow_only(
-      {"name", "shape", "min", "max", "centre", "radius", "point", "normal", "from", "to", "boundary", "friction"});
+/// A mesh's signed distance for an MPM obstacle (docs/mpm.md#meshes-as-boundaries): the unsigned distance to the
+/// nearest triangle (CollisionWorld::triangles_within, exact), signed by which side of the surface the point lies
+/// on: for a closed mesh by ray parity (CollisionWorld::contains), for an open one (a floor, a wall) by the nearest
+/// triangle's outward normal. `container`: the body lives inside the closed mesh (an airway's lumen) and the solid is
+/// outside; otherwise the mesh is the solid. Points farther than `band` from the surface get ±band (their distance
+/// does not matter, only the side), except in the solid, where the search widens until it finds the surface (the
+/// normal that pushes a node back out).
+class MeshDistance final : public mpm::SignedDistance {
+ public:
+  MeshDistance(const anatomy::TriangleMesh& mesh, bool container, double band)
+      : m_world(mesh), m_container(container), m_band(band) {
+    m_closed = m_world.stats().boundary_edges == 0;
+    anatomy::Aabb box{mesh.vertices.front(), mesh.vertices.front()};
+    for (const Vec3& v : mesh.vertices) {
+      box.min = box.min.cwiseMin(v);
+      box.max = box.max.cwiseMax(v);
+    }
+    m_reach = 2.0 * (box.max - box.min).norm() + band;
+  }
+
+  bool closed() const { return m_closed; }
+
+  double at(const Vec3& x, Vec3* normal) const override {
+    anatomy::NearTriangle near[1];
+    std::size_t found = m_world.triangles_within(x, m_band, near);
+    const bool in_volume = m_closed ? m_world.contains(x) : false;
+    if (found == 0) {
+      const bool free = m_closed ? (in_volume == m_container) : true;  // an open mesh: nothing near, nothing to meet
+      if (free) {
+        *normal = Vec3::UnitZ();
+        return m_band;
+      }
+      for (double r = 4.0 * m_band; found == 0 && r < 4.0 * m_reach; r *= 4.0) found = m_world.triangles_within(x, r, near);
+      if (found == 0) {
+        *normal = Vec3::UnitZ();
+        return -m_reach;
+      }
+    }
+    const anatomy::TriangleMesh& mesh = m_world.mesh();
+    const std::size_t t = near[0].triangle;
+    const Vec3 outward = (anatomy::corner(mesh, t, 1) - anatomy::corner(mesh, t, 0))
+                             .cross(anatomy::corner(mesh, t, 2) - anatomy::corner(mesh, t, 0))
+                             .normalized();
+    const Vec3 off = x - near[0].point;
+    const bool inside = m_closed ? in_volume : off.dot(outward) < 0.0;
+    const bool free = inside == m_container;
+    const double d = near[0].distance;
+    // Out of the solid: away from the wall on the free side, back toward it in the solid; on the surface, the face's.
+    if (d > 1e-12 * m_reach) {
+      *normal = (free ? 1.0 : -1.0) * off / d;
+    } else {
+      *normal = m_container ? Vec3(-outward) : outward;
+    }
+    return free ? std::min(d, m_band) : -d;
+  }
+
+ private:
+  anatomy::CollisionWorld m_world;
+  bool m_container;
+  double m_band;
+  double m_reach = 0.0;
+  bool m_closed = false;
+};
+
+mpm::Obstacle obstacle_of(const YamlMap& o, const Unit& unit, int dim, double cell,
+                          const std::filesystem::path& base_dir) {
+  o.allow_only({"name", "shape", "min", "max", "centre", "radius", "point", "normal", "from", "to", "file", "side",
+                "boundary", "friction"});
   mpm::Obstacle ob;
   ob.name = o.has("name") ? o.text("name") : o.path();
   const std::string shape = o.text("shape");
@@ -130,8 +197,28 @@ mpm::Obstacle obstacle_of(const YamlMap& o, const Unit& unit) {
     ob.b = o.vec3_quantity("to", unit, range::kCoordinate);
     ob.radius = o.quantity("radius", unit, range::kDistance);
     if ((ob.b - ob.a).norm() <= 0.0) o.fail("to", "must differ from from");
+  } else if (shape == "mesh") {
+    if (dim == 2) o.fail("shape", "a mesh obstacle needs dimension: 3");
+    std::filesystem::path file = o.text("file");
+    if (file.is_relative()) file = base_dir / file;
+    anatomy::MeshImportOptions options;
+    options.scale = unit.si;
+    options.units = LengthUnit::kM;
+    const bool container =
+        o.has("side") ? o.choice<bool>("side", {"inside", true}, {"outside", false}) : false;  // the mesh is the solid
+    auto distance = std::shared_ptr<const MeshDistance>();
+    try {
+      distance = std::make_shared<const MeshDistance>(anatomy::import_mesh(file, options).mesh, container, 2.0 * cell);
+    } catch (const InputError& e) {
+      o.fail("file", e.what());
+    }
+    if (container && !distance->closed()) {
+      o.fail("side", "inside needs a closed mesh (" + file.string() + " has open edges): the inside of what?");
+    }
+    ob.shape = mpm::Obstacle::Shape::kSampled;
+    ob.sampled = distance;
   } else {
-    o.fail("shape", "must be box, sphere, plane or cylinder (got '" + shape + "')");
+    o.fail("shape", "must be box, sphere, plane, cylinder or mesh (got '" + shape + "')");
   }
   ob.boundary = o.has("boundary") ? boundary_of(o, "boundary") : mpm::Boundary::kSticky;
   ob.friction = friction_of(o, ob.boundary);
@@ -347,21 +434,25 @@ MpmScene parse_mpm_scene(const std::string& text, const std::string& label, cons
     fill_model<D>(model, bodies, v0);
     if (top.has("clamps")) {
       const YAML::Node list = top.node("clamps");
-      if (!list.IsSequence()) top.fail("clamps", "must be a list of {min, max} boxes");
+      if (!list.IsSequence()) top.fail("clamps", "must be a list of {min, max[, velocity]} boxes");
       for (std::size_t i = 0; i < list.size(); ++i) {
         const YamlMap c(list[i], label, "clamps[" + std::to_string(i) + "]");
-        c.allow_only({"min", "max"});
+        c.allow_only({"min", "max", "velocity"});
         const Vec3 lo = c.vec3_quantity("min", unit, range::kCoordinate);
         const Vec3 hi = c.vec3_quantity("max", unit, range::kCoordinate);
         if ((hi.head<D>().array() < lo.head<D>().array()).any()) c.fail("max", "must not be below min");
-        model.clamps.push_back({lo.head<D>(), hi.head<D>()});
+        const Vec3 velocity = c.has("velocity") ? c.vec3_quantity("velocity", Unit{unit.si, unit.name + "/s"},
+                                                                  Range{-range::kSpeed.max, range::kSpeed.max})
+                                                : Vec3::Zero();
+        model.clamps.push_back({lo.head<D>(), hi.head<D>(), velocity.head<D>()});
       }
     }
     if (top.has("obstacles")) {
       const YAML::Node list = top.node("obstacles");
       if (!list.IsSequence()) top.fail("obstacles", "must be a list of obstacles");
       for (std::size_t i = 0; i < list.size(); ++i) {
-        model.obstacles.push_back(obstacle_of(YamlMap(list[i], label, "obstacles[" + std::to_string(i) + "]"), unit));
+        model.obstacles.push_back(obstacle_of(YamlMap(list[i], label, "obstacles[" + std::to_string(i) + "]"), unit,
+                                              sc.dimension, cell, base_dir));
       }
     }
     sc.stable_step = model.stable_step(courant);

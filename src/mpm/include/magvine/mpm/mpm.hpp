@@ -24,6 +24,7 @@
 
 #include <cstdint>
 #include <functional>
+#include <memory>
 #include <string>
 #include <utility>
 #include <vector>
@@ -59,9 +60,19 @@ enum class Boundary {
   kFriction,  ///< the normal part is removed and the tangential part reduced by μ |v_n| (Coulomb), to zero at most
 };
 
+/// A signed distance the solver does not compute itself (a mesh's: the scene layer builds it from a CollisionWorld)
+/// [m], negative inside the solid, with the unit normal pointing out of the solid (into the free side). The solver
+/// calls it once per grid node it needs and keeps the values (MpmWorkspace); calls may come from several threads at
+/// once.
+class SignedDistance {
+ public:
+  virtual ~SignedDistance() = default;
+  virtual double at(const Vec3& x, Vec3* normal) const = 0;
+};
+
 /// A rigid, fixed obstacle given by a signed distance (negative inside) [m].
 struct Obstacle {
-  enum class Shape { kBox, kSphere, kHalfSpace, kCylinder };
+  enum class Shape { kBox, kSphere, kHalfSpace, kCylinder, kSampled };
   Shape shape = Shape::kBox;
   Vec3 a = Vec3::Zero();  ///< box: min corner; sphere: centre; half-space: a point on the plane; cylinder: axis start
   Vec3 b = Vec3::Zero();  ///< box: max corner; half-space: outward normal (unit); cylinder: axis end
@@ -69,6 +80,8 @@ struct Obstacle {
   Boundary boundary = Boundary::kSticky;
   double friction = 0.0;  ///< μ for kFriction
   std::string name;
+  /// kSampled: the distance (3D only); the solver samples it at the grid nodes once and keeps the samples.
+  std::shared_ptr<const SignedDistance> sampled;
 
   /// Signed distance [m] and outward normal at x (x in 3D; a 2D solver passes z = 0).
   double distance(const Vec3& x, Vec3* normal) const;
@@ -87,8 +100,14 @@ struct MpmModel {
   Plane plane = Plane::kStrain;        ///< 2D only
   std::vector<Material> materials;
   std::vector<Obstacle> obstacles;
-  /// Clamps: grid nodes inside any of these boxes [min, max] are held at rest (the body is fixed there).
-  std::vector<std::pair<VecD<D>, VecD<D>>> clamps;
+  /// A clamp: the grid nodes inside the box [min, max] + velocity·t move at `velocity` (at rest: the body is fixed
+  /// there; moving: its base is pushed or pulled, a catheter fed at a speed).
+  struct Clamp {
+    VecD<D> min;
+    VecD<D> max;
+    VecD<D> velocity;  ///< [m/s]
+  };
+  std::vector<Clamp> clamps;
 
   // Per particle (all the same length N).
   std::vector<double> volume;           ///< V0 [m³; m² per metre of depth in 2D]
@@ -145,6 +164,15 @@ struct MpmWorkspace {
   std::uint64_t field_version = ~std::uint64_t{0};
   bool field_valid = false;
   std::vector<std::uint32_t> slab_start, slab_order, slab_count, slab_key;
+  /// A sampled obstacle's distance and normal at the nodes of a box that only grows (one per obstacle; unused for the
+  /// analytic shapes).
+  struct ObstacleSamples {
+    Eigen::Matrix<std::int64_t, D, 1> lo, n;
+    std::vector<double> distance;
+    std::vector<VecD<D>> normal;
+    bool valid = false;
+  };
+  std::vector<ObstacleSamples> obstacle_samples;
 };
 
 /// What a step found. `ok` is false when the state must not be used (the cause says why).
