@@ -133,8 +133,8 @@ magnets:
 }
 
 /// The relative error of a settled cantilever's tip under gravity against Timoshenko's beam: L/t = 10, K = 20 G,
-/// small deflection (δ/L ≈ 2–3 %), δ = qL⁴/(8E'I) + qL²/(2κGt), κ = 5/6, E' the bending modulus of the slice: E/(1 − ν²)
-/// in plane strain, E in plane stress.
+/// small deflection (δ/L ≈ 2–3 %), δ = qL⁴/(8E'I) + qL²/(2κGt), κ = 5/6, E' the bending modulus of the slice: E/(1 −
+/// ν²) in plane strain, E in plane stress.
 double cantilever_tip_error(int cells, mpm::Plane plane) {
   mpm::CantileverSpec s;
   s.length = 10e-3;
@@ -158,8 +158,8 @@ double cantilever_tip_error(int cells, mpm::Plane plane) {
   o.max_time = 0.5;
   o.window = 0.01;
   o.tolerance = 1e-3 * expect;
-  const mpm::SettleResult r =
-      mpm::settle<2>(beam.model, beam.state, ws, [](double) { return mpm::AppliedField{}; }, beam.tip, o);
+  const mpm::SettleResult r = mpm::settle<2>(
+      beam.model, beam.state, ws, [](double) { return mpm::AppliedField{}; }, beam.tip, o);
   EXPECT_TRUE(r.status.ok) << r.status.cause;
   EXPECT_TRUE(r.settled);
   const double tip = -mpm::mean_position(beam.state, beam.tip).y();
@@ -403,12 +403,12 @@ probes:
     }
   }
   const Vec3 tip = r.samples.back().probes[0];
-  std::printf("rod pushed into the Y phantom: tip at (%.1f, %.1f, %.1f) mm after %.2f s; %zu of %zu particle "
-              "positions outside the lumen, the deepest %.3f mm; %ld steps, %.1f s\n",
-              tip.x() * 1e3, tip.y() * 1e3, tip.z() * 1e3, r.time, outside, checked, deepest * 1e3, r.steps,
-              r.runtime_s);
+  std::printf(
+      "rod pushed into the Y phantom: tip at (%.1f, %.1f, %.1f) mm after %.2f s; %zu of %zu particle "
+      "positions outside the lumen, the deepest %.3f mm; %ld steps, %.1f s\n",
+      tip.x() * 1e3, tip.y() * 1e3, tip.z() * 1e3, r.time, outside, checked, deepest * 1e3, r.steps, r.runtime_s);
   EXPECT_LT(deepest, 0.5e-3);
-  EXPECT_GT(tip.x(), 0.070);  // past the bifurcation
+  EXPECT_GT(tip.x(), 0.070);   // past the bifurcation
   EXPECT_LT(tip.y(), -0.004);  // in the −y daughter (its axis at y = −0.70 (x − 66 mm))
 }
 

@@ -211,7 +211,8 @@ void refresh_obstacles(const MpmModel<D>& model, double dx, MpmWorkspace<D>& ws)
         continue;
       }
       Vec3 n3 = Vec3::UnitZ();
-      cache.distance[static_cast<std::size_t>(k)] = ob.sampled->at(to3<D>(VecD<D>(i.template cast<double>() * dx)), &n3);
+      cache.distance[static_cast<std::size_t>(k)] =
+          ob.sampled->at(to3<D>(VecD<D>(i.template cast<double>() * dx)), &n3);
       cache.normal[static_cast<std::size_t>(k)] = from3<D>(n3);
     }
     cache.valid = true;

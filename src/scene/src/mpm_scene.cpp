@@ -139,7 +139,8 @@ class MeshDistance final : public mpm::SignedDistance {
         *normal = Vec3::UnitZ();
         return m_band;
       }
-      for (double r = 4.0 * m_band; found == 0 && r < 4.0 * m_reach; r *= 4.0) found = m_world.triangles_within(x, r, near);
+      for (double r = 4.0 * m_band; found == 0 && r < 4.0 * m_reach; r *= 4.0)
+        found = m_world.triangles_within(x, r, near);
       if (found == 0) {
         *normal = Vec3::UnitZ();
         return -m_reach;
@@ -347,9 +348,9 @@ MpmScene parse_mpm_scene(const std::string& text, const std::string& label, cons
   const long dim = m.has("dimension") ? m.whole("dimension", 2, 3) : 3;
   sc.dimension = static_cast<int>(dim);
   if (m.has("plane") && dim != 2) m.fail("plane", "is for dimension: 2 only (a 3D body has its real depth)");
-  const mpm::Plane plane = m.has("plane") ? m.choice<mpm::Plane>("plane", {"strain", mpm::Plane::kStrain},
-                                                                 {"stress", mpm::Plane::kStress})
-                                          : mpm::Plane::kStrain;
+  const mpm::Plane plane =
+      m.has("plane") ? m.choice<mpm::Plane>("plane", {"strain", mpm::Plane::kStrain}, {"stress", mpm::Plane::kStress})
+                     : mpm::Plane::kStrain;
   const double cell = m.quantity("cell", unit, range::kSectionSize);
   const double ppc =
       m.has("particles_per_cell") ? static_cast<double>(m.whole("particles_per_cell", 1, 8)) : kDefaultParticlesPerCell;

@@ -49,8 +49,8 @@ struct Material {
 /// Longitudinal (P-wave) speed sqrt((K + 4G/3)/ρ) [m/s]: the fastest signal the explicit step must resolve.
 double wave_speed(const Material& m);
 
-/// What a 2D model is a slice of: a body long along z (plane strain, ε_zz = 0: the reference code's and the default) or a
-/// thin sheet in the x–y plane (plane stress, σ_zz = 0). Per metre of depth either way.
+/// What a 2D model is a slice of: a body long along z (plane strain, ε_zz = 0: the reference code's and the default) or
+/// a thin sheet in the x–y plane (plane stress, σ_zz = 0). Per metre of depth either way.
 enum class Plane { kStrain, kStress };
 
 /// What happens at a wall or obstacle to grid velocity that points into it (eq 3.21 is `kSticky`).
