@@ -96,6 +96,17 @@ std::int64_t linear(const Index<D>& i, const Index<D>& lo, const Index<D>& n) {
   return k;
 }
 
+/// The node at linear index k of a box (first node lo, counts n; the inverse of linear).
+template <int D>
+Index<D> box_node(std::int64_t k, const Index<D>& lo, const Index<D>& n) {
+  Index<D> i;
+  for (int a = D - 1; a >= 0; --a) {
+    i[a] = lo[a] + k % n[a];
+    k /= n[a];
+  }
+  return i;
+}
+
 template <int D>
 Vec3 to3(const VecD<D>& x) {
   if constexpr (D == 2)
@@ -146,12 +157,7 @@ void refresh_field(const AppliedField& field, double dx, MpmWorkspace<D>& ws) {
   ws.field_g.resize(static_cast<std::size_t>(total));
 #pragma omp parallel for schedule(static) if (total > kParallelMin)
   for (std::int64_t k = 0; k < total; ++k) {
-    Index<D> i;
-    std::int64_t r = k;
-    for (int a = D - 1; a >= 0; --a) {
-      i[a] = ws.field_lo[a] + r % ws.field_n[a];
-      r /= ws.field_n[a];
-    }
+    const Index<D> i = box_node<D>(k, ws.field_lo, ws.field_n);
     const VecD<D> x = i.template cast<double>() * dx;
     const magnetics::FieldSample s = field.sample(to3<D>(x));
     ws.field_b[static_cast<std::size_t>(k)] = from3<D>(s.b);
@@ -196,12 +202,7 @@ void refresh_obstacles(const MpmModel<D>& model, double dx, MpmWorkspace<D>& ws)
     cache.normal.resize(static_cast<std::size_t>(total));
 #pragma omp parallel for schedule(dynamic, 256) if (total > kParallelMin)
     for (std::int64_t k = 0; k < total; ++k) {
-      Index<D> i;
-      std::int64_t r = k;
-      for (int a = D - 1; a >= 0; --a) {
-        i[a] = cache.lo[a] + r % cache.n[a];
-        r /= cache.n[a];
-      }
+      const Index<D> i = box_node<D>(k, cache.lo, cache.n);
       const bool kept =
           old.valid && (i.array() >= old.lo.array()).all() && (i.array() < (old.lo + old.n).array()).all();
       if (kept) {

@@ -107,6 +107,22 @@ MpmFieldSchedule field_of(const YamlMap& f) {
   return s;
 }
 
+/// The mesh a body or obstacle names in `file` (relative to the scene's folder, in the file's length unit) [m] and
+/// its path; one that cannot be read fails at the entry's `file`.
+std::pair<anatomy::TriangleMesh, std::filesystem::path> entry_mesh(const YamlMap& m, const Unit& unit,
+                                                                   const std::filesystem::path& base_dir) {
+  std::filesystem::path file = m.text("file");
+  if (file.is_relative()) file = base_dir / file;
+  anatomy::MeshImportOptions options;
+  options.scale = unit.si;
+  options.units = LengthUnit::kM;
+  try {
+    return {anatomy::import_mesh(file, options).mesh, file};
+  } catch (const InputError& e) {
+    m.fail("file", e.what());
+  }
+}
+
 /// A mesh's signed distance for an MPM obstacle (docs/mpm.md#meshes-as-boundaries): the unsigned distance to the
 /// nearest triangle (CollisionWorld::triangles_within, exact), signed by which side of the surface the point lies
 /// on: for a closed mesh by ray parity (CollisionWorld::contains), for an open one (a floor, a wall) by the nearest
@@ -200,19 +216,10 @@ mpm::Obstacle obstacle_of(const YamlMap& o, const Unit& unit, int dim, double ce
     if ((ob.b - ob.a).norm() <= 0.0) o.fail("to", "must differ from from");
   } else if (shape == "mesh") {
     if (dim == 2) o.fail("shape", "a mesh obstacle needs dimension: 3");
-    std::filesystem::path file = o.text("file");
-    if (file.is_relative()) file = base_dir / file;
-    anatomy::MeshImportOptions options;
-    options.scale = unit.si;
-    options.units = LengthUnit::kM;
     const bool container =
         o.has("side") ? o.choice<bool>("side", {"inside", true}, {"outside", false}) : false;  // the mesh is the solid
-    auto distance = std::shared_ptr<const MeshDistance>();
-    try {
-      distance = std::make_shared<const MeshDistance>(anatomy::import_mesh(file, options).mesh, container, 2.0 * cell);
-    } catch (const InputError& e) {
-      o.fail("file", e.what());
-    }
+    const auto [mesh, file] = entry_mesh(o, unit, base_dir);
+    auto distance = std::make_shared<const MeshDistance>(mesh, container, 2.0 * cell);
     if (container && !distance->closed()) {
       o.fail("side", "inside needs a closed mesh (" + file.string() + " has open edges): the inside of what?");
     }
@@ -257,13 +264,9 @@ BodyParticles body_of(const YamlMap& b, const FileUnits& units, const mpm::Latti
                                  b.quantity("radius", unit, range::kDistance), lattice);
   } else if (shape == "mesh") {
     if (dim == 2) b.fail("shape", "a mesh needs dimension: 3");
-    std::filesystem::path file = b.text("file");
-    if (file.is_relative()) file = base_dir / file;
-    anatomy::MeshImportOptions options;
-    options.scale = unit.si;
-    options.units = LengthUnit::kM;
+    const auto [mesh, file] = entry_mesh(b, unit, base_dir);
     try {
-      out.x = mpm::sample_mesh(anatomy::import_mesh(file, options).mesh, lattice, file.string());
+      out.x = mpm::sample_mesh(mesh, lattice, file.string());
     } catch (const InputError& e) {
       b.fail("file", e.what());
     }
