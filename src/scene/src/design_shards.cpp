@@ -163,7 +163,9 @@ MergedDesign merge_design_shards(const std::vector<std::filesystem::path>& dirs)
       throw InputError(item.file, 0, "results", std::string("not a design shard: ") + e.what());
     }
   }
-  const std::string scene_file = first.at("scene").get<std::string>();
+  const bool named = first.contains("scene") && first.at("scene").is_string();
+  const std::string scene_file = named ? first.at("scene").get<std::string>() : std::string();
+  if (scene_file.empty()) throw InputError("design merge", 0, "", "the shards do not name their design file (scene)");
   if (printf_string("%016llx", static_cast<unsigned long long>(scene_fingerprint(scene_file))) !=
       first.at("scene_fnv1a").get<std::string>()) {
     throw InputError(scene_file, 0, "",
