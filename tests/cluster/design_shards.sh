@@ -3,7 +3,7 @@
 # 3 shards, merged, give the design one machine finds, in every file and every value but the runtimes; a missing
 # shard, a shard given twice, a trials shard and shards of a scene edited since are refused with one line and exit 2,
 # writing nothing; the Bayesian baseline (one run, no starts) refuses --shard.
-# Usage: design_shards.sh MAGVINE DESIGN_SCENE WORK
+# Usage: design_shards.sh MAGVINE DESIGN_SCENE WORK (a design file with 4 starts)
 set -euo pipefail
 MAGVINE=$1
 SCENE=$2
@@ -34,14 +34,20 @@ refused() {  # `magvine $1` with the other arguments exits 2 with one line namin
   test ! -e refused || { echo "refused $verb wrote refused/"; exit 1; }
 }
 
-"$MAGVINE" design "$SCENE" --out one > /dev/null 2>&1
+# The design file by a relative path, as a user gives it (scene.yaml's header quotes it).
+cp "$SCENE" ins.yaml
+"$MAGVINE" design ins.yaml --out one > /dev/null 2>&1
 grep -q '"message": ".*(the best of 4 starts)"' one/design.json
-for i in 0 1; do "$MAGVINE" design "$SCENE" --shard $i/2 --out a$i > /dev/null 2>&1; done
+for i in 0 1; do "$MAGVINE" design ins.yaml --shard $i/2 --out a$i > /dev/null 2>&1; done
 "$MAGVINE" design merge a1 a0 --out merged2 > /dev/null 2>&1  # in any order
 same one merged2
-for i in 0 1 2; do "$MAGVINE" design "$SCENE" --shard $i/3 --out b$i > /dev/null 2>&1; done
-"$MAGVINE" design merge b0 b1 b2 --out merged3 > /dev/null 2>&1
+for i in 0 1 2; do "$MAGVINE" design ins.yaml --shard $i/3 --out b$i > /dev/null 2>&1; done
+(cd / && "$MAGVINE" design merge "$WORK/b0" "$WORK/b1" "$WORK/b2" --out "$WORK/merged3" > /dev/null 2>&1)  # elsewhere
 same one merged3
+# Shards copied away from their design file: --scene names it, checked against the shards' hash.
+cp ins.yaml moved.yaml
+"$MAGVINE" design merge a0 a1 --scene moved.yaml --out merged_moved > /dev/null 2>&1
+same one merged_moved
 
 refused "design merge" "shard 2/3 is missing" b0 b1
 refused "design merge" "given twice" b0 b1 b1 b2
@@ -49,6 +55,9 @@ refused "design merge" "shard count" b0 b1 a0
 mkdir -p trials_shard
 printf '{"magvine_trials_shard": 1, "shard": 0, "shards": 1, "trials": []}\n' > trials_shard/shard.json
 refused "design merge" "not a shard of magvine design" trials_shard
+echo "# another file" > other.yaml
+refused "design merge" "has changed since the shards ran" a0 a1 --scene other.yaml
+refused design "would leave tasks idle" ins.yaml --shards 5 --slurm idle.sh
 # A scene edited after its shards ran: the merge would write another scene's design.
 cp "$SCENE" edited.yaml
 for i in 0 1; do "$MAGVINE" design edited.yaml --shard $i/2 --out e$i > /dev/null 2>&1; done

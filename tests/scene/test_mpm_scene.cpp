@@ -277,6 +277,13 @@ TEST(MpmScene, BadScenesNameTheKey) {
   EXPECT_NE(error_of(with("dimension: 3", "dimension: 4")).find("mpm.dimension"), std::string::npos);
   EXPECT_NE(error_of(with("dimension: 3", "dimension: 3\n  plane: stress")).find("mpm.plane: is for dimension: 2"),
             std::string::npos);
+  // A moving clamp cannot be watched for rest; `side` and `file` belong to mesh obstacles.
+  EXPECT_NE(error_of(with("138], max: [12, 12, 150]}", "138], max: [12, 12, 150], velocity: [0, 0, -10]}"))
+                .find("mpm.settle: cannot stop a run whose clamp moves"),
+            std::string::npos);
+  EXPECT_NE(error_of(ok + "obstacles:\n  - {shape: sphere, centre: [0, 0, 0], radius: 5, side: inside}\n")
+                .find("obstacles[0].side: is for shape: mesh only"),
+            std::string::npos);
 }
 
 /// A folder of its own under the system's temporary folder for one test's files.
@@ -399,7 +406,7 @@ probes:
       if (lumen.contains(p)) continue;
       ++outside;
       anatomy::NearTriangle near[1];
-      if (lumen.triangles_within(p, 0.01, near) > 0) deepest = std::max(deepest, near[0].distance);
+      deepest = std::max(deepest, lumen.triangles_within(p, 1.0, near) > 0 ? near[0].distance : 1.0);
     }
   }
   const Vec3 tip = r.samples.back().probes[0];

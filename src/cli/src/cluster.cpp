@@ -130,7 +130,10 @@ int write_slurm_jobs(const SlurmBatch& batch) {
          << "#SBATCH --ntasks=1\n"
          << "#SBATCH --cpus-per-task=1\n"
          << "#SBATCH --output=" << (out / "slurm" / "merge.log").string() << '\n';
+  // The merge gets the shards' resources (a design's merge may run its MPM check).
   if (!batch.slurm.partition.empty()) joiner << "#SBATCH --partition=" << batch.slurm.partition << '\n';
+  if (!batch.slurm.time.empty()) joiner << "#SBATCH --time=" << batch.slurm.time << '\n';
+  if (!batch.slurm.mem.empty()) joiner << "#SBATCH --mem=" << batch.slurm.mem << '\n';
   joiner << "set -euo pipefail\n"
          << "exec " << shell_word(exe.string()) << ' ' << batch.verb << " merge";
   for (int i = 0; i < batch.slurm.shards; ++i)

@@ -401,6 +401,12 @@ int finish_design(const scene::DesignScene& sc, const design::DesignResult& r, c
 
 int run_design(const DesignArgs& args) {
   check_slurm_options(args.slurm, args.shard);
+  const scene::Shard shard = args.shard.empty() ? scene::Shard{} : scene::parse_shard(args.shard);
+  if (!args.shard.empty() && args.mpm_check) {
+    throw InputError("--mpm-check", 0, "", "give it to `magvine design merge`, not to a shard");
+  }
+  // The sweep's identity from the file's bytes as the shard starts (an edit during a long run is another sweep).
+  const std::uint64_t fingerprint = args.shard.empty() ? 0 : scene::scene_fingerprint(args.scene);
   const scene::DesignScene sc = scene::load_design_scene(args.scene);  // bad input fails before any output
   check_mpm_check(sc, args.mpm_check, args.mpm_cell_mm, args.mpm_particles);
   const std::filesystem::path out = args.out.empty() ? default_out(args.scene, "design") : args.out;
@@ -411,6 +417,11 @@ int run_design(const DesignArgs& args) {
     }
   }
   if (!args.slurm.job.empty()) {
+    if (args.slurm.shards > std::max(1, sc.starts)) {
+      throw InputError("--shards", 0, "",
+                       printf_string("%d shards for %d starts (design.starts) would leave tasks idle",
+                                     args.slurm.shards, std::max(1, sc.starts)));
+    }
     SlurmBatch b;
     b.verb = "design";
     b.scene = args.scene;
@@ -428,15 +439,13 @@ int run_design(const DesignArgs& args) {
   std::cerr << "magvine design: " << sc.problem.spec.sections << " sections, " << sc.problem.spec.target.size()
             << " target points, " << method << '\n';
   if (!args.shard.empty()) {
-    if (args.mpm_check) throw InputError("--mpm-check", 0, "", "give it to `magvine design merge`, not to a shard");
-    const scene::Shard shard = scene::parse_shard(args.shard);
     const std::size_t mine = scene::shard_items(static_cast<std::size_t>(std::max(1, sc.starts)), shard).size();
     std::cerr << "  shard " << args.shard << ": " << mine << " of " << std::max(1, sc.starts) << " starts\n";
     const auto starts = scene::run_design_shard(sc, shard, [](int done, int total) {
       std::cerr << "\r  start " << done << "/" << total << " done   " << std::flush;
     });
     std::cerr << '\n';
-    scene::write_design_shard(args.scene, sc, shard, starts, out);
+    scene::write_design_shard(args.scene, fingerprint, sc, shard, starts, out);
     for (const auto& [start, r] : starts) {
       std::cout << printf_string("start %d: RMS %.3f mm after %d iterations (%d equilibria) in %.2f s\n", start,
                                  r.rms * 1e3, r.iterations, r.evaluations, r.runtime_s);
@@ -456,7 +465,7 @@ int run_design(const DesignArgs& args) {
 int run_design_merge(const DesignMergeArgs& args) {
   if (args.out.empty()) throw InputError("--out", 0, "", "name the folder for the merged design");
   const std::vector<std::filesystem::path> dirs(args.dirs.begin(), args.dirs.end());
-  const scene::MergedDesign m = scene::merge_design_shards(dirs);
+  const scene::MergedDesign m = scene::merge_design_shards(dirs, args.scene);
   check_mpm_check(m.scene, args.mpm_check, args.mpm_cell_mm, args.mpm_particles);
   std::cerr << "magvine design merge: " << dirs.size() << " shards, " << std::max(1, m.scene.starts) << " starts of "
             << m.scene.file << '\n';

@@ -145,6 +145,7 @@ int run_design(const DesignArgs& args);
 struct DesignMergeArgs {
   std::vector<std::string> dirs;
   std::string out;
+  std::string scene;  ///< the design file, when not at the path the shards recorded
   bool mpm_check = false;
   double mpm_cell_mm = 0.0;
   int mpm_particles = 4;

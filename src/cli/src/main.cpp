@@ -179,6 +179,8 @@ int main(int argc, char** argv) {
       "merge", "join the shards of one design sweep (magvine design --shard I/N) into the design one machine finds");
   design_merge_cmd->add_option("dirs", design_merge.dirs, "the shards' folders")->required();
   design_merge_cmd->add_option("--out", design_merge.out, "the merged design's folder")->required();
+  design_merge_cmd->add_option("--scene", design_merge.scene,
+                               "the design file, when not where the shards ran it (its bytes must be theirs)");
   design_merge_cmd->add_flag("--mpm-check", design_merge.mpm_check, "also simulate the design in 3D MPM");
   design_merge_cmd->add_option("--mpm-cell", design_merge.mpm_cell_mm, "the MPM check's grid spacing [mm]")
       ->check(CLI::Range(0.01, 100.0));

@@ -176,6 +176,7 @@ void refresh_obstacles(const MpmModel<D>& model, double dx, MpmWorkspace<D>& ws)
     const Obstacle& ob = model.obstacles[o];
     if (ob.shape != Obstacle::Shape::kSampled) continue;
     auto& cache = ws.obstacle_samples[o];
+    if (cache.source != ob.sampled.get() || cache.cell != dx) cache.valid = false;
     bool covers = cache.valid;
     for (int a = 0; covers && a < D; ++a) {
       covers = ws.lo[a] >= cache.lo[a] && ws.lo[a] + ws.n[a] <= cache.lo[a] + cache.n[a];
@@ -217,6 +218,8 @@ void refresh_obstacles(const MpmModel<D>& model, double dx, MpmWorkspace<D>& ws)
       cache.normal[static_cast<std::size_t>(k)] = from3<D>(n3);
     }
     cache.valid = true;
+    cache.source = ob.sampled.get();
+    cache.cell = dx;
   }
 }
 
@@ -307,19 +310,19 @@ double plane_stress_stretch(const Material& m, const MatD<2>& f2) {
   if (!(j > 0.0)) return std::numeric_limits<double>::quiet_NaN();  // inverted: the step's checks name it
   const double i = f2.squaredNorm();
   double lambda = 1.0 / j;
-  for (int k = 0; k < 30; ++k) {
+  for (int k = 0; k < 40; ++k) {
     const double jj = j * lambda;
     const double g = m.shear_modulus * inverse_cbrt(jj * jj);
     const double q = 2.0 * lambda * lambda - i;
     const double r = g * q / 3.0 + m.bulk_modulus * jj * (jj - 1.0);
     const double dr = g * (4.0 * lambda / 3.0 - 2.0 * q / (9.0 * lambda)) + m.bulk_modulus * j * (2.0 * jj - 1.0);
-    double next = lambda - r / dr;
-    if (!(next > 0.0)) next = 0.5 * lambda;  // never through zero
-    const bool done = std::abs(next - lambda) <= 1e-14 * lambda;
+    // r rises with λ wherever J > 1/2; below, or where Newton would cross zero, step halfway towards it instead.
+    double next = dr > 0.0 ? lambda - r / dr : (r > 0.0 ? 0.5 * lambda : 2.0 * lambda);
+    if (!(next > 0.0)) next = 0.5 * lambda;
+    if (std::abs(next - lambda) <= 1e-14 * lambda) return next;
     lambda = next;
-    if (done) break;
   }
-  return lambda;
+  return std::numeric_limits<double>::quiet_NaN();  // no root: the step's checks stop the run and name the particle
 }
 
 namespace {

@@ -136,11 +136,11 @@ design::DesignResult result_of(const nlohmann::json& j) {
 
 }  // namespace
 
-void write_design_shard(const std::filesystem::path& scene_file, const DesignScene& scene, const Shard& shard,
-                        const std::vector<std::pair<int, design::DesignResult>>& starts,
+void write_design_shard(const std::filesystem::path& scene_file, std::uint64_t fingerprint, const DesignScene& scene,
+                        const Shard& shard, const std::vector<std::pair<int, design::DesignResult>>& starts,
                         const std::filesystem::path& dir) {
-  nlohmann::json j = detail::shard_header(design_shards(), std::filesystem::absolute(scene_file).string(),
-                                          scene_fingerprint(scene_file), shard);
+  nlohmann::json j = detail::shard_header(design_shards(), scene_file.string(), fingerprint, shard);
+  j["scene_path"] = std::filesystem::absolute(scene_file).string();
   j["starts"] = std::max(1, scene.starts);
   nlohmann::json items = nlohmann::json::array();
   for (const auto& [start, result] : starts) items.push_back(result_json(start, result));
@@ -149,7 +149,8 @@ void write_design_shard(const std::filesystem::path& scene_file, const DesignSce
   write_file_atomically(dir / "shard.json", j.dump(1) + "\n");
 }
 
-MergedDesign merge_design_shards(const std::vector<std::filesystem::path>& dirs) {
+MergedDesign merge_design_shards(const std::vector<std::filesystem::path>& dirs,
+                                 const std::filesystem::path& scene_file) {
   nlohmann::json first;
   const std::vector<detail::ShardItem> items = detail::read_shards(
       dirs, design_shards(), [](const nlohmann::json& head) { return head.at("starts").get<std::size_t>(); }, first);
@@ -163,16 +164,22 @@ MergedDesign merge_design_shards(const std::vector<std::filesystem::path>& dirs)
       throw InputError(item.file, 0, "results", std::string("not a design shard: ") + e.what());
     }
   }
-  const bool named = first.contains("scene") && first.at("scene").is_string();
-  const std::string scene_file = named ? first.at("scene").get<std::string>() : std::string();
-  if (scene_file.empty()) throw InputError("design merge", 0, "", "the shards do not name their design file (scene)");
-  if (printf_string("%016llx", static_cast<unsigned long long>(scene_fingerprint(scene_file))) !=
-      first.at("scene_fnv1a").get<std::string>()) {
-    throw InputError(scene_file, 0, "",
+  const auto text = [&](const char* key) {
+    return first.contains(key) && first.at(key).is_string() ? first.at(key).get<std::string>() : std::string();
+  };
+  const std::string given = text("scene");
+  const std::filesystem::path file = scene_file.empty() ? std::filesystem::path(text("scene_path")) : scene_file;
+  if (given.empty() || file.empty()) {
+    throw InputError("design merge", 0, "", "the shards do not name their design file (scene, scene_path)");
+  }
+  if (printf_string("%016llx", static_cast<unsigned long long>(scene_fingerprint(file))) != text("scene_fnv1a")) {
+    throw InputError(file.string(), 0, "",
                      "has changed since the shards ran it (or this magvine is another version): its bytes are not "
                      "theirs");
   }
-  return {load_design_scene(scene_file), design::join_starts(std::move(starts))};
+  MergedDesign merged{load_design_scene(file), design::join_starts(std::move(starts))};
+  merged.scene.file = given;
+  return merged;
 }
 
 }  // namespace magvine::scene

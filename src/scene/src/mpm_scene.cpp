@@ -216,6 +216,7 @@ mpm::Obstacle obstacle_of(const YamlMap& o, const Unit& unit, int dim, double ce
     if ((ob.b - ob.a).norm() <= 0.0) o.fail("to", "must differ from from");
   } else if (shape == "mesh") {
     if (dim == 2) o.fail("shape", "a mesh obstacle needs dimension: 3");
+    if (!o.has("file")) o.fail("file", "missing required key (a mesh obstacle names its mesh)");
     const bool container =
         o.has("side") ? o.choice<bool>("side", {"inside", true}, {"outside", false}) : false;  // the mesh is the solid
     const auto [mesh, file] = entry_mesh(o, unit, base_dir);
@@ -227,6 +228,11 @@ mpm::Obstacle obstacle_of(const YamlMap& o, const Unit& unit, int dim, double ce
     ob.sampled = distance;
   } else {
     o.fail("shape", "must be box, sphere, plane, cylinder or mesh (got '" + shape + "')");
+  }
+  if (shape != "mesh") {
+    for (const char* key : {"file", "side"}) {
+      if (o.has(key)) o.fail(key, "is for shape: mesh only");
+    }
   }
   ob.boundary = o.has("boundary") ? boundary_of(o, "boundary") : mpm::Boundary::kSticky;
   ob.friction = friction_of(o, ob.boundary);
@@ -503,6 +509,12 @@ MpmScene parse_mpm_scene(const std::string& text, const std::string& label, cons
     }
   }
   if (sc.settle_window > 0.0 && sc.probes.empty()) m.fail("settle", "needs at least one probe to watch");
+  const auto moving = [](const auto& clamps) {
+    return std::any_of(clamps.begin(), clamps.end(), [](const auto& c) { return !c.velocity.isZero(); });
+  };
+  if (sc.settle_window > 0.0 && (moving(sc.model2.clamps) || moving(sc.model3.clamps))) {
+    m.fail("settle", "cannot stop a run whose clamp moves (a slow stage would read as rest): leave it out");
+  }
   return sc;
 }
 

@@ -171,6 +171,8 @@ struct MpmWorkspace {
     std::vector<double> distance;
     std::vector<VecD<D>> normal;
     bool valid = false;
+    const SignedDistance* source = nullptr;  ///< what was sampled, at which spacing: another model starts afresh
+    double cell = 0.0;
   };
   std::vector<ObstacleSamples> obstacle_samples;
 };

@@ -66,11 +66,12 @@ design::DesignResult run_design(const DesignScene& scene, const std::function<vo
 std::vector<std::pair<int, design::DesignResult>> run_design_shard(const DesignScene& scene, const Shard& shard,
                                                                    const std::function<void(int, int)>& progress = {});
 
-/// A design shard's outputs, atomically into `dir`: shard.json (magvine/scene/shards.hpp) with the scene file (as an
-/// absolute path, for the merge), its fingerprint, design.starts and every start's result at full precision (design,
-/// equilibria, counts, history).
-void write_design_shard(const std::filesystem::path& scene_file, const DesignScene& scene, const Shard& shard,
-                        const std::vector<std::pair<int, design::DesignResult>>& starts,
+/// A design shard's outputs, atomically into `dir`: shard.json (magvine/scene/shards.hpp) with the scene file (as given
+/// and as an absolute path, for the merge), its fingerprint (scene_fingerprint, taken before the run: an edit during
+/// it is another sweep), design.starts and every start's result at full precision (design, equilibria, counts,
+/// history).
+void write_design_shard(const std::filesystem::path& scene_file, std::uint64_t fingerprint, const DesignScene& scene,
+                        const Shard& shard, const std::vector<std::pair<int, design::DesignResult>>& starts,
                         const std::filesystem::path& dir);
 
 /// A design sweep joined from its shards (`magvine design merge`): the scene, read again from the file the shards
@@ -80,10 +81,13 @@ struct MergedDesign {
   DesignScene scene;
   design::DesignResult result;
 };
+/// The scene is read from `scene_file` when given (shards copied off the cluster), else from the absolute path the
+/// shards recorded; it keeps the name the shards were given (the outputs' headers quote it, as one machine's do).
 /// InputError (one line) when a folder has no design shard.json or a malformed one, the shards are of different
 /// sweeps (scene bytes, magvine version, count), a shard is missing or given twice, a start is not in its shard or
-/// missing, or the scene file no longer has the bytes the shards ran.
-MergedDesign merge_design_shards(const std::vector<std::filesystem::path>& dirs);
+/// missing, or the scene file does not have the bytes the shards ran.
+MergedDesign merge_design_shards(const std::vector<std::filesystem::path>& dirs,
+                                 const std::filesystem::path& scene_file = {});
 
 /// The designed rod as a scene file: the design file without `design:`, its `robot.magnetisation` replaced by the
 /// design's sections (file units, 17 significant digits) and, with a free field, `magnets` by the designed uniform
