@@ -1,15 +1,12 @@
 #!/usr/bin/python3
-"""Plot the MPM sweeps of thesis figs 3.5 and 3.7 from `magvine mpm` runs of the bundled sweep scenes.
+"""Plot the MPM sweep of thesis fig 3.7 from `magvine mpm` runs of the bundled sweep scenes.
 
-Left: the gradient-extension robot lowered towards the magnet (assets/scenes/mpm_gradient_sweep.yaml): its extension
-(how far the tip has fallen behind the clamp, which moves down at --speed) against the tip's distance to the magnet's
-face (z = 0). Right: the obstacle beam (mpm_obstacle_sweep.yaml, and mpm_obstacle_sweep_free.yaml without the block)
-under an upward field ramped from 0 at --ramp-start to --ramp-top mT at the run's end: the tip's height over the
-beam's length, δ/L, against the field. A missing or malformed input gives one line on stderr, exit status 2 and no
-PNG.
+The obstacle beam (assets/scenes/mpm_obstacle_sweep.yaml, and mpm_obstacle_sweep_free.yaml without the block) under an
+upward field ramped from 0 at --ramp-start to --ramp-top mT at the run's end: the tip's height over the beam's
+length, δ/L, against the field. A missing or malformed input gives one line on stderr, exit status 2 and no PNG.
 
-    /usr/bin/python3 tools/plot_mpm_sweeps.py --gradient runs/gradient_sweep --obstacle runs/obstacle_sweep \\
-        --free runs/obstacle_sweep_free --out docs/figures/mpm_sweeps.png
+    /usr/bin/python3 tools/plot_mpm_sweeps.py --obstacle runs/obstacle_sweep --free runs/obstacle_sweep_free \\
+        --out docs/figures/mpm_obstacle_sweep.png
 """
 import argparse
 import csv
@@ -44,25 +41,15 @@ def tip_track(run):
 
 def main():
     ap = argparse.ArgumentParser(description=__doc__.splitlines()[0])
-    ap.add_argument("--gradient", required=True, help="output folder of mpm_gradient_sweep.yaml")
     ap.add_argument("--obstacle", required=True, help="output folder of mpm_obstacle_sweep.yaml")
     ap.add_argument("--free", help="output folder of mpm_obstacle_sweep_free.yaml")
-    ap.add_argument("--speed", type=float, default=50.0, help="the clamp's speed [mm/s]")
     ap.add_argument("--ramp-start", type=float, default=0.3, help="when the field ramp starts [s]")
     ap.add_argument("--ramp-top", type=float, default=15.0, help="the field at the run's end [mT]")
     ap.add_argument("--length", type=float, default=60.0, help="the beam's free length [mm]")
     ap.add_argument("--out", required=True)
     a = ap.parse_args()
 
-    fig, (ax, ax2) = plt.subplots(1, 2, figsize=(11, 4.2))
-    t, z = tip_track(a.gradient)
-    extension = [(z[0] - zi) - a.speed * ti for ti, zi in zip(t, z)]
-    ax.plot(z, extension, "-", color="C0", label="MPM (clamp lowered at %g mm/s)" % a.speed)
-    ax.invert_xaxis()
-    ax.set_xlabel("tip distance to the magnet's face [mm]")
-    ax.set_ylabel("extension [mm]")
-    ax.set_title("Gradient extension (thesis fig 3.5)")
-    ax.legend(fontsize=8)
+    fig, ax2 = plt.subplots(1, 1, figsize=(6, 4.2))
 
     for run, label, colour in ((a.obstacle, "with the block", "C1"), (a.free, "without the block", "C2")):
         if not run:
