@@ -405,7 +405,6 @@ struct StepContext {
   VecD<D> b_uniform = VecD<D>::Zero();
   Index<D> stride = Index<D>::Zero();        // of the grid box
   Index<D> field_stride = Index<D>::Zero();  // of the field box (general fields)
-  std::vector<typename MpmModel<D>::Clamp> clamps = {};  // the model's, moved to this step's time
 };
 
 // The lane helpers return 32-byte vectors by value, which GCC flags in baseline code (-Wpsabi: the ABI differs with
@@ -627,10 +626,10 @@ void update_plane(const StepContext<D>& c, std::int64_t i0, double damp) {
       i[2] = ws.lo[2] + r % ws.n[2];
     }
     const VecD<D> xi = i.template cast<double>() * dx;
-    const auto clamp = std::find_if(c.clamps.begin(), c.clamps.end(), [&](const auto& box) {
+    const auto clamp = std::find_if(ws.clamps.begin(), ws.clamps.end(), [&](const auto& box) {
       return (xi.array() >= box.min.array()).all() && (xi.array() <= box.max.array()).all();
     });
-    if (clamp != c.clamps.end()) {
+    if (clamp != ws.clamps.end()) {
       std::copy(clamp->velocity.data(), clamp->velocity.data() + D, rec);
       continue;
     }
@@ -674,8 +673,8 @@ StepStatus step(const MpmModel<D>& model, const AppliedField& field, MpmState<D>
   c.general = field.kind == AppliedField::Kind::kGeneral;
   c.uniform = field.kind == AppliedField::Kind::kUniform;
   c.b_uniform = from3<D>(field.uniform);
-  c.clamps = model.clamps;
-  for (auto& box : c.clamps) {  // a moving clamp's box at this step's start
+  ws.clamps.assign(model.clamps.begin(), model.clamps.end());  // reuses the workspace's storage
+  for (auto& box : ws.clamps) {  // a moving clamp's box at this step's start
     box.min += state.time * box.velocity;
     box.max += state.time * box.velocity;
   }

@@ -175,6 +175,8 @@ struct MpmWorkspace {
     double cell = 0.0;
   };
   std::vector<ObstacleSamples> obstacle_samples;
+  /// The model's clamps moved to the current step's time (a moving clamp's box), set once per step.
+  std::vector<typename MpmModel<D>::Clamp> clamps;
 };
 
 /// What a step found. `ok` is false when the state must not be used (the cause says why).
