@@ -284,6 +284,15 @@ TEST(MpmScene, BadScenesNameTheKey) {
   EXPECT_NE(error_of(ok + "obstacles:\n  - {shape: sphere, centre: [0, 0, 0], radius: 5, side: inside}\n")
                 .find("obstacles[0].side: is for shape: mesh only"),
             std::string::npos);
+  // Implicit steps: any time_step, a Newton tolerance only with them, and the step's default 10 explicit ones.
+  EXPECT_EQ(error_of(with("  damping: 400", "  damping: 400\n  time_step: 0.01\n  step: implicit")), "");
+  EXPECT_NE(error_of(with("  damping: 400", "  damping: 400\n  step: semi")).find("mpm.step"), std::string::npos);
+  EXPECT_NE(error_of(with("  damping: 400", "  damping: 400\n  newton_tolerance: 1e-6"))
+                .find("mpm.newton_tolerance: is for step: implicit only"),
+            std::string::npos);
+  const MpmScene implicit = parse_mpm_scene(with("  damping: 400", "  damping: 400\n  step: implicit"), "s.yaml");
+  EXPECT_TRUE(implicit.implicit);
+  EXPECT_DOUBLE_EQ(implicit.time_step, 10.0 * implicit.stable_step);
 }
 
 /// A folder of its own under the system's temporary folder for one test's files.

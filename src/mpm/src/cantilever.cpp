@@ -90,7 +90,14 @@ SettleResult settle(const MpmModel<D>& model, MpmState<D>& state, MpmWorkspace<D
   double next_sample = state.time;
   const double start = state.time;
   while (state.time - start < o.max_time) {
-    r.status = step(model, field(state.time), state, ws, r.time_step);
+    if (o.implicit) {
+      ImplicitStats counted;
+      r.status = implicit_step(model, field(state.time), state, ws, r.time_step, o.newton, &counted);
+      r.cg += counted.cg;
+      r.newton += counted.newton;
+    } else {
+      r.status = step(model, field(state.time), state, ws, r.time_step);
+    }
     ++r.steps;
     if (!r.status.ok) break;
     if (state.time >= next_sample) {

@@ -13,17 +13,11 @@
 
 #include "magvine/core/multiversion.hpp"
 #include "magvine/core/units.hpp"
+#include "grid.hpp"
 
 namespace magvine::mpm {
+using namespace detail;  // NOLINT(google-build-using-namespace): the module's own internals (grid.hpp)
 namespace {
-
-constexpr int kSlabCells = 4;           // a particle writes 3 nodes along an axis: slabs 4 cells apart never share one
-constexpr double kMaxJ = 100.0;         // |det F| beyond this is an explosion, not a deformation
-constexpr double kMaxCellsPerStep = 1;  // a particle moving a whole cell in one step has broken the CFL bound
-constexpr std::int64_t kParallelMin = 4096;  // below this many items a loop runs on one thread (fork cost)
-
-template <int D>
-using Index = Eigen::Matrix<std::int64_t, D, 1>;
 
 /// x^(−1/3) for normal x > 0 to a few ulp, without libm's cbrt (which took a tenth of a 3D step): a first guess
 /// from the bit pattern (the exponent divided by −3; within 3.5 % over 1e−8..1e8), then four Newton steps
@@ -35,92 +29,6 @@ inline double inverse_cbrt(double x) {
   double t = std::bit_cast<double>(kMagic - std::bit_cast<std::uint64_t>(x) / 3);
   for (int i = 0; i < 4; ++i) t *= (4.0 - x * t * t * t) * (1.0 / 3.0);
   return t;
-}
-
-/// Quadratic B-spline weights and the base node of a particle (eq 3.2).
-template <int D>
-struct Stencil {
-  Index<D> base;
-  VecD<D> fx;  // x/δx − base, in [0.5, 1.5)
-  std::array<std::array<double, 3>, D> w;
-
-  Stencil(const VecD<D>& x, double inv_dx) {
-    for (int a = 0; a < D; ++a) {
-      const double s = x[a] * inv_dx;
-      base[a] = static_cast<std::int64_t>(std::floor(s - 0.5));
-      fx[a] = s - static_cast<double>(base[a]);
-      w[a][0] = 0.5 * (1.5 - fx[a]) * (1.5 - fx[a]);
-      w[a][1] = 0.75 - (fx[a] - 1.0) * (fx[a] - 1.0);
-      w[a][2] = 0.5 * (fx[a] - 0.5) * (fx[a] - 0.5);
-    }
-  }
-};
-
-/// Strides of a box's linear index (the last axis fastest).
-template <int D>
-Index<D> strides(const Index<D>& n) {
-  Index<D> s;
-  s[D - 1] = 1;
-  for (int a = D - 2; a >= 0; --a) s[a] = s[a + 1] * n[a + 1];
-  return s;
-}
-
-/// The nine (i, j) rows of a 3D stencil: fn(i, j, row index of node (i, j, 0), w_i w_j); the kernels below walk the
-/// three nodes along k of each row themselves.
-template <class Fn>
-void for_rows(const Stencil<3>& s, std::int64_t first, const Index<3>& st, Fn&& fn) {
-  for (int i = 0; i < 3; ++i)
-    for (int j = 0; j < 3; ++j) fn(i, j, static_cast<std::size_t>(first + i * st[0] + j * st[1]), s.w[0][i] * s.w[1][j]);
-}
-
-/// Visits the 3^D stencil nodes as (linear index, weight, offset per axis 0..2) for a box with strides `st` whose
-/// first node is the stencil's base at linear index `first`; the last axis fastest.
-template <int D, typename Fn>
-void for_nodes(const Stencil<D>& s, std::int64_t first, const Index<D>& st, Fn&& fn) {
-  if constexpr (D == 2) {
-    for (int i = 0; i < 3; ++i) {
-      const std::int64_t ki = first + i * st[0];
-      for (int j = 0; j < 3; ++j) fn(ki + j, s.w[0][i] * s.w[1][j], i, j, 0);
-    }
-  } else {
-    for_rows(s, first, st, [&](int i, int j, std::size_t row, double wij) {
-      for (int k = 0; k < 3; ++k) fn(static_cast<std::int64_t>(row) + k, wij * s.w[2][k], i, j, k);
-    });
-  }
-}
-
-template <int D>
-std::int64_t linear(const Index<D>& i, const Index<D>& lo, const Index<D>& n) {
-  std::int64_t k = 0;
-  for (int a = 0; a < D; ++a) k = k * n[a] + (i[a] - lo[a]);
-  return k;
-}
-
-/// The node at linear index k of a box (first node lo, counts n; the inverse of linear).
-template <int D>
-Index<D> box_node(std::int64_t k, const Index<D>& lo, const Index<D>& n) {
-  Index<D> i;
-  for (int a = D - 1; a >= 0; --a) {
-    i[a] = lo[a] + k % n[a];
-    k /= n[a];
-  }
-  return i;
-}
-
-template <int D>
-Vec3 to3(const VecD<D>& x) {
-  if constexpr (D == 2)
-    return Vec3(x[0], x[1], 0.0);
-  else
-    return x;
-}
-
-template <int D>
-VecD<D> from3(const Vec3& x) {
-  if constexpr (D == 2)
-    return VecD<D>(x[0], x[1]);
-  else
-    return x;
 }
 
 /// Applies a wall/obstacle condition to v for an outward normal n (pointing away from the solid, into the body).
@@ -361,6 +269,28 @@ MatD<D> elastic_stress(const Material& m, const MatD<D>& f, Plane plane) {
 }
 
 template <int D>
+MatD<D> elastic_stress_differential(const Material& m, const MatD<D>& f, const MatD<D>& df, Plane plane) {
+  if (D == 2 && plane == Plane::kStress) {
+    // λ(F) makes the closed form long; the stress is smooth, so a central difference at a step of 1e-6 relative to F
+    // is exact to ~1e-10 relative, far below what the Newton solve asks of its Hessian.
+    const double h = 1e-6 * std::max(1.0, f.norm()) / std::max(df.norm(), std::numeric_limits<double>::min());
+    return (elastic_stress<D>(m, f + h * df, plane) - elastic_stress<D>(m, f - h * df, plane)) / (2.0 * h);
+  }
+  // dP of eq 3.10, with dJ = J F⁻ᵀ:dF, d(J^(−2/3)) = −(2/3) J^(−2/3) F⁻ᵀ:dF, dI1 = 2 F:dF, dF⁻ᵀ = −F⁻ᵀ dFᵀ F⁻ᵀ
+  // (in plane strain the 2×2 blocks of the 3D forms, F33 = 1 fixed).
+  const Invariants<D> v = invariants<D>(m, f, plane);
+  const MatD<D> f_inv_t = f.inverse().transpose();
+  const MatD<D> d_f_inv_t = -f_inv_t * df.transpose() * f_inv_t;
+  const double a = inverse_cbrt(v.j * v.j);  // J^(−2/3)
+  const double tr_inv = (f_inv_t.array() * df.array()).sum();
+  const double tr_f = (f.array() * df.array()).sum();
+  const MatD<D> dev = f - (v.i1 / 3.0) * f_inv_t;
+  return m.shear_modulus * a *
+             (-(2.0 / 3.0) * tr_inv * dev + df - (2.0 / 3.0) * tr_f * f_inv_t - (v.i1 / 3.0) * d_f_inv_t) +
+         m.bulk_modulus * (v.j * (2.0 * v.j - 1.0) * tr_inv * f_inv_t + v.j * (v.j - 1.0) * d_f_inv_t);
+}
+
+template <int D>
 MatD<D> kirchhoff_stress(const Material& m, const MatD<D>& f, Plane plane) {
   // τ = G J^(−2/3) (F Fᵀ − (I1/3) I) + K J (J − 1) I (eq 3.10 times Fᵀ). In plane stress τ33 = 0 gives
   // K J (J − 1) = −G J^(−2/3) (λ² − I1/3), so the in-plane part is G J^(−2/3) (F Fᵀ − λ² I).
@@ -389,23 +319,6 @@ double kinetic_energy(const MpmModel<D>& model, const MpmState<D>& state) {
 }
 
 namespace {
-
-/// The constants of one step and the arrays its particle kernels read and write.
-template <int D>
-struct StepContext {
-  const MpmModel<D>& model;
-  MpmState<D>& state;
-  MpmWorkspace<D>& ws;
-  double dt = 0.0;
-  double dx = 0.0;
-  double inv_dx = 0.0;
-  double d_inv = 0.0;  // D⁻¹ of the quadratic B-spline, 4/δx²
-  bool uniform = false;
-  bool general = false;
-  VecD<D> b_uniform = VecD<D>::Zero();
-  Index<D> stride = Index<D>::Zero();        // of the grid box
-  Index<D> field_stride = Index<D>::Zero();  // of the field box (general fields)
-};
 
 // The lane helpers return 32-byte vectors by value, which GCC flags in baseline code (-Wpsabi: the ABI differs with
 // AVX). They are inlined into the kernels and never cross a call, so no ABI is involved.
@@ -451,7 +364,7 @@ inline void scatter_particle(const StepContext<D>& c, std::size_t p) {
   const double dx = c.dx;
   const Stencil<D> st(state.x[p], c.inv_dx);
   const MatD<D>& f = state.f[p];
-  MatD<D> tau = kirchhoff_stress<D>(model.materials[model.material[p]], f, model.plane);
+  MatD<D> tau = c.stress ? kirchhoff_stress<D>(model.materials[model.material[p]], f, model.plane) : MatD<D>::Zero();
   const VecD<D>& br = model.remanence[p];
   const bool magnetic = (c.uniform || c.general) && br.squaredNorm() > 0.0;
   VecD<D> f_br = VecD<D>::Zero();
@@ -463,7 +376,7 @@ inline void scatter_particle(const StepContext<D>& c, std::size_t p) {
                    [&](std::int64_t k, double w, int, int, int) { b += w * ws.field_b[static_cast<std::size_t>(k)]; });
     }
     f_br = f * br;
-    tau += magnetics::hard_magnetic_kirchhoff_stress<D>(b, f_br);  // eq 3.13 times Fᵀ: −B (F B̃r)ᵀ/μ0
+    if (c.stress) tau += magnetics::hard_magnetic_kirchhoff_stress<D>(b, f_br);  // eq 3.13 times Fᵀ: −B (F B̃r)ᵀ/μ0
   }
   const double m = model.mass[p];
   const MatD<D> affine = (-c.dt * model.volume[p] * c.d_inv) * tau + m * state.c[p];
@@ -567,7 +480,6 @@ MAGVINE_HOT_KERNEL void scatter_3d(const StepContext<3>& c, const std::uint32_t*
 
 /// G2P over the listed particles; returns the smallest index among those that failed a check (kNoFailure if none).
 /// Every particle is updated either way.
-constexpr std::int64_t kNoFailure = std::numeric_limits<std::int64_t>::max();
 
 MAGVINE_HOT_KERNEL std::int64_t gather_2d(const StepContext<2>& c, const std::uint32_t* p, const std::uint32_t* end) {
   std::int64_t bad = kNoFailure;
@@ -609,7 +521,6 @@ template <int D>
 void update_plane(const StepContext<D>& c, std::int64_t i0, double damp) {
   const MpmModel<D>& model = c.model;
   MpmWorkspace<D>& ws = c.ws;
-  const double dx = c.dx;
   const double dt = c.dt;
   const std::int64_t per_plane = c.stride[0];
   for (std::int64_t r = 0; r < per_plane; ++r) {
@@ -617,20 +528,10 @@ void update_plane(const StepContext<D>& c, std::int64_t i0, double damp) {
     double* rec = ws.node[k].value;
     const double m = rec[D];
     if (m <= 0.0) continue;
-    Index<D> i;
-    i[0] = ws.lo[0] + i0;
-    if constexpr (D == 2) {
-      i[1] = ws.lo[1] + r;
-    } else {
-      i[1] = ws.lo[1] + r / ws.n[2];
-      i[2] = ws.lo[2] + r % ws.n[2];
-    }
-    const VecD<D> xi = i.template cast<double>() * dx;
-    const auto clamp = std::find_if(ws.clamps.begin(), ws.clamps.end(), [&](const auto& box) {
-      return (xi.array() >= box.min.array()).all() && (xi.array() <= box.max.array()).all();
-    });
-    if (clamp != ws.clamps.end()) {
-      std::copy(clamp->velocity.data(), clamp->velocity.data() + D, rec);
+    const Index<D> i = box_node<D>(i0 * per_plane + r, ws.lo, ws.n);
+    const VecD<D> xi = i.template cast<double>() * c.dx;
+    if (const VecD<D>* held = clamp_velocity<D>(c, xi)) {
+      std::copy(held->data(), held->data() + D, rec);
       continue;
     }
     VecD<D> v = Eigen::Map<const VecD<D>>(rec) / m;
@@ -640,33 +541,50 @@ void update_plane(const StepContext<D>& c, std::int64_t i0, double damp) {
     }
     v += dt * model.gravity;
     v *= damp;
-    for (int a = 0; a < D; ++a) {  // domain walls: the nodes within a cell of a wall
-      if (xi[a] <= model.domain_min[a] + dx) apply_boundary<D>(v, VecD<D>::Unit(a), model.walls, model.wall_friction);
-      if (xi[a] >= model.domain_max[a] - dx) apply_boundary<D>(v, -VecD<D>::Unit(a), model.walls, model.wall_friction);
-    }
-    for (std::size_t o = 0; o < model.obstacles.size(); ++o) {
-      const Obstacle& ob = model.obstacles[o];
-      if (ob.shape == Obstacle::Shape::kSampled) {
-        const auto& cache = ws.obstacle_samples[o];
-        const auto s = static_cast<std::size_t>(linear<D>(i, cache.lo, cache.n));
-        if (cache.distance[s] <= 0.0) apply_boundary<D>(v, cache.normal[s], ob.boundary, ob.friction);
-        continue;
-      }
-      Vec3 n3;
-      if (ob.distance(to3<D>(xi), &n3) <= 0.0) apply_boundary<D>(v, from3<D>(n3), ob.boundary, ob.friction);
-    }
+    apply_walls_and_obstacles<D>(c, i, xi, v);
     std::copy(v.data(), v.data() + D, rec);  // now the velocity
   }
 }
 
 }  // namespace
 
+namespace detail {
+
 template <int D>
-StepStatus step(const MpmModel<D>& model, const AppliedField& field, MpmState<D>& state, MpmWorkspace<D>& ws,
-                double dt) {
+const VecD<D>* clamp_velocity(const StepContext<D>& c, const VecD<D>& xi) {
+  for (const auto& box : c.ws.clamps) {
+    if ((xi.array() >= box.min.array()).all() && (xi.array() <= box.max.array()).all()) return &box.velocity;
+  }
+  return nullptr;
+}
+
+template <int D>
+void apply_walls_and_obstacles(const StepContext<D>& c, const Index<D>& i, const VecD<D>& xi, VecD<D>& v) {
+  const MpmModel<D>& model = c.model;
+  const double dx = c.dx;
+  for (int a = 0; a < D; ++a) {  // domain walls: the nodes within a cell of a wall
+    if (xi[a] <= model.domain_min[a] + dx) apply_boundary<D>(v, VecD<D>::Unit(a), model.walls, model.wall_friction);
+    if (xi[a] >= model.domain_max[a] - dx) apply_boundary<D>(v, -VecD<D>::Unit(a), model.walls, model.wall_friction);
+  }
+  for (std::size_t o = 0; o < model.obstacles.size(); ++o) {
+    const Obstacle& ob = model.obstacles[o];
+    if (ob.shape == Obstacle::Shape::kSampled) {
+      const auto& cache = c.ws.obstacle_samples[o];
+      const auto s = static_cast<std::size_t>(linear<D>(i, cache.lo, cache.n));
+      if (cache.distance[s] <= 0.0) apply_boundary<D>(v, cache.normal[s], ob.boundary, ob.friction);
+      continue;
+    }
+    Vec3 n3;
+    if (ob.distance(to3<D>(xi), &n3) <= 0.0) apply_boundary<D>(v, from3<D>(n3), ob.boundary, ob.friction);
+  }
+}
+
+template <int D>
+StepStatus prepare_grid(StepContext<D>& c, const AppliedField& field) {
+  const MpmModel<D>& model = c.model;
+  const MpmState<D>& state = c.state;
+  MpmWorkspace<D>& ws = c.ws;
   const std::size_t np = model.size();
-  StepContext<D> c{model, state, ws};
-  c.dt = dt;
   c.dx = model.cell;
   c.inv_dx = 1.0 / model.cell;
   c.d_inv = 4.0 * c.inv_dx * c.inv_dx;
@@ -739,11 +657,85 @@ StepStatus step(const MpmModel<D>& model, const AppliedField& field, MpmState<D>
   for (std::size_t s = 0; s < slabs; ++s) ws.slab_count[s + 1] += ws.slab_count[s];
   ws.slab_start.assign(ws.slab_count.begin(), ws.slab_count.end());
   for (std::size_t p = 0; p < np; ++p) ws.slab_order[ws.slab_start[ws.slab_key[p]]++] = static_cast<std::uint32_t>(p);
+  return {};
+}
+
+template <int D>
+void scatter_all(const StepContext<D>& c) {
+  const std::uint32_t* order = c.ws.slab_order.data();
+  const auto slabs = static_cast<std::int64_t>(c.ws.slab_count.size() - 1);
+  for (std::int64_t colour = 0; colour < 2; ++colour) {
+#pragma omp parallel for schedule(dynamic, 1) if (c.model.size() > static_cast<std::size_t>(kParallelMin))
+    for (std::int64_t s = colour; s < slabs; s += 2) {
+      const auto u = static_cast<std::size_t>(s);
+      scatter<D>(c, order + c.ws.slab_count[u], order + c.ws.slab_count[u + 1]);
+    }
+  }
+}
+
+template <int D>
+std::int64_t gather_all(const StepContext<D>& c) {
+  const std::uint32_t* order = c.ws.slab_order.data();
+  const auto slabs = static_cast<std::int64_t>(c.ws.slab_count.size() - 1);
+  std::int64_t bad = kNoFailure;
+#pragma omp parallel for schedule(dynamic, 1) reduction(min : bad) if (c.model.size() > static_cast<std::size_t>(kParallelMin))
+  for (std::int64_t s = 0; s < slabs; ++s) {
+    const auto u = static_cast<std::size_t>(s);
+    bad = std::min(bad, gather<D>(c, order + c.ws.slab_count[u], order + c.ws.slab_count[u + 1]));
+  }
+  return bad;
+}
+
+template <int D>
+StepStatus failure_of(const StepContext<D>& c, std::int64_t bad) {
+  if (bad == kNoFailure) return {};
+  const MpmState<D>& state = c.state;
+  const auto p = static_cast<std::size_t>(bad);
+  const double j = state.f[p].determinant();
+  std::string what;
+  if (!state.x[p].allFinite() || !state.v[p].allFinite())
+    what = "non-finite position or velocity";
+  else if (!(j > 0.0))
+    what = "inverted (det F = " + std::to_string(j) + ")";
+  else if (!(j < kMaxJ))
+    what = "exploded (det F = " + std::to_string(j) + ")";
+  else if (state.v[p].norm() * c.dt > kMaxCellsPerStep * c.dx) {
+    what = "moves more than a cell per step (|v| = " + std::to_string(state.v[p].norm()) + " m/s)";
+  } else {
+    what = "left the domain";
+  }
+  return {false, "particle " + std::to_string(p) + " " + what + " at t = " + std::to_string(state.time) + " s"};
+}
+
+template StepStatus prepare_grid<2>(StepContext<2>&, const AppliedField&);
+template StepStatus prepare_grid<3>(StepContext<3>&, const AppliedField&);
+template void scatter_all<2>(const StepContext<2>&);
+template void scatter_all<3>(const StepContext<3>&);
+template std::int64_t gather_all<2>(const StepContext<2>&);
+template std::int64_t gather_all<3>(const StepContext<3>&);
+template const VecD<2>* clamp_velocity<2>(const StepContext<2>&, const VecD<2>&);
+template const VecD<3>* clamp_velocity<3>(const StepContext<3>&, const VecD<3>&);
+template void apply_walls_and_obstacles<2>(const StepContext<2>&, const Index<2>&, const VecD<2>&, VecD<2>&);
+template void apply_walls_and_obstacles<3>(const StepContext<3>&, const Index<3>&, const VecD<3>&, VecD<3>&);
+template StepStatus failure_of<2>(const StepContext<2>&, std::int64_t);
+template StepStatus failure_of<3>(const StepContext<3>&, std::int64_t);
+
+}  // namespace detail
+
+template <int D>
+StepStatus step(const MpmModel<D>& model, const AppliedField& field, MpmState<D>& state, MpmWorkspace<D>& ws,
+                double dt) {
+  const std::size_t np = model.size();
+  StepContext<D> c{model, state, ws};
+  c.dt = dt;
+  if (StepStatus ready = prepare_grid<D>(c, field); !ready.ok) return ready;
+  const auto n_points = static_cast<std::int64_t>(np);
 
   // P2G, grid and G2P in one parallel region. Each thread owns a run of whole slabs holding about an equal share of
   // the particles, and treats the same particles in P2G and G2P, so their state stays in its core's cache. P2G does
   // the even slabs, then (after a barrier) the odd ones: slabs of one colour never share a node, and every node's
   // sum runs in the same order for any thread count.
+  const std::size_t slabs = ws.slab_count.size() - 1;
   const double damp = 1.0 / (1.0 + model.damping * dt);
   const std::uint32_t* order = ws.slab_order.data();
   std::int64_t bad = kNoFailure;
@@ -770,24 +762,7 @@ StepStatus step(const MpmModel<D>& model, const AppliedField& field, MpmState<D>
     }
   }
   state.time += dt;
-  if (bad == kNoFailure) return {};
-
-  // Name the first failing particle's cause.
-  const auto p = static_cast<std::size_t>(bad);
-  const double j = state.f[p].determinant();
-  std::string what;
-  if (!state.x[p].allFinite() || !state.v[p].allFinite())
-    what = "non-finite position or velocity";
-  else if (!(j > 0.0))
-    what = "inverted (det F = " + std::to_string(j) + ")";
-  else if (!(j < kMaxJ))
-    what = "exploded (det F = " + std::to_string(j) + ")";
-  else if (state.v[p].norm() * dt > kMaxCellsPerStep * c.dx) {
-    what = "moves more than a cell per step (|v| = " + std::to_string(state.v[p].norm()) + " m/s)";
-  } else {
-    what = "left the domain";
-  }
-  return {false, "particle " + std::to_string(p) + " " + what + " at t = " + std::to_string(state.time) + " s"};
+  return failure_of<D>(c, bad);
 }
 
 template struct MpmModel<2>;
@@ -796,6 +771,8 @@ template MpmState<2> rest_state<2>(const std::vector<VecD<2>>&);
 template MpmState<3> rest_state<3>(const std::vector<VecD<3>>&);
 template MatD<2> elastic_stress<2>(const Material&, const MatD<2>&, Plane);
 template MatD<3> elastic_stress<3>(const Material&, const MatD<3>&, Plane);
+template MatD<2> elastic_stress_differential<2>(const Material&, const MatD<2>&, const MatD<2>&, Plane);
+template MatD<3> elastic_stress_differential<3>(const Material&, const MatD<3>&, const MatD<3>&, Plane);
 template MatD<2> kirchhoff_stress<2>(const Material&, const MatD<2>&, Plane);
 template MatD<3> kirchhoff_stress<3>(const Material&, const MatD<3>&, Plane);
 template double strain_energy_density<2>(const Material&, const MatD<2>&, Plane);

@@ -28,6 +28,7 @@
 namespace magvine::scene {
 namespace {
 
+constexpr double kDefaultImplicitRatio = 10.0;  // the implicit step's default: 10 explicit steps (docs/mpm.md)
 constexpr double kDefaultCourant = 0.4;  // of the P-wave CFL step; stable in every test and scene (docs/mpm.md)
 constexpr int kDefaultParticlesPerCell = 2;
 constexpr double kDefaultBulkRatio = 20.0;  // K = 20 G (thesis eq 3.10)
@@ -353,7 +354,12 @@ MpmScene parse_mpm_scene(const std::string& text, const std::string& label, cons
   sc.file = label;
   const YamlMap m = top.map("mpm");
   m.allow_only({"dimension", "plane", "cell", "particles_per_cell", "jitter", "courant", "time_step", "duration",
-                "damping", "gravity", "domain", "settle", "snapshots", "video"});
+                "damping", "gravity", "domain", "settle", "snapshots", "video", "step", "newton_tolerance"});
+  sc.implicit = m.has("step") && m.choice<bool>("step", {"explicit", false}, {"implicit", true});
+  if (m.has("newton_tolerance")) {
+    if (!sc.implicit) m.fail("newton_tolerance", "is for step: implicit only");
+    sc.newton.tolerance = m.quantity("newton_tolerance", Unit{1.0, "cells"}, Range{1e-12, 0.1});
+  }
   const long dim = m.has("dimension") ? m.whole("dimension", 2, 3) : 3;
   sc.dimension = static_cast<int>(dim);
   if (m.has("plane") && dim != 2) m.fail("plane", "is for dimension: 2 only (a 3D body has its real depth)");
@@ -471,12 +477,13 @@ MpmScene parse_mpm_scene(const std::string& text, const std::string& label, cons
     common(sc.model2);
   else
     common(sc.model3);
-  sc.time_step = sc.stable_step;
+  sc.time_step = sc.implicit ? kDefaultImplicitRatio * sc.stable_step : sc.stable_step;
   if (m.has("time_step")) {
     const double dt = m.quantity("time_step", kSeconds, range::kDuration);
-    if (dt > sc.stable_step) {
+    if (!sc.implicit && dt > sc.stable_step) {
       m.fail("time_step", "is above the stable step " + std::to_string(sc.stable_step) +
-                              " s (courant · cell / P-wave speed); leave it out to use that step");
+                              " s (courant · cell / P-wave speed); leave it out to use that step, or take step: "
+                              "implicit");
     }
     sc.time_step = dt;
   }
@@ -585,15 +592,39 @@ MpmResult run_dim(const MpmScene& sc, const std::function<void(double)>& progres
   double next_sample = sample_every, next_snapshot = sc.snapshot_interval, next_progress = 0.0;
   double next_frame = frame_every;
   const Stopwatch clock;
-  const long steps = static_cast<long>(std::ceil(sc.duration / sc.time_step - 1e-9));
-  for (long k = 0; k < steps; ++k) {
-    const double dt = std::min(sc.time_step, sc.duration - state.time);
+  // Implicit steps: one that fails (Newton unconverged, a particle over a cell) is taken again from the saved state
+  // at half the step, down to 1/2^kMaxHalvings of it; after kRegrowAfter good steps the step doubles back.
+  constexpr int kMaxHalvings = 8, kRegrowAfter = 8;
+  int halvings = 0, good = 0;
+  mpm::MpmState<D> saved;
+  while (state.time < sc.duration * (1.0 - 1e-12)) {
+    const double dt = std::min(sc.time_step / std::ldexp(1.0, halvings), sc.duration - state.time);
     if (!(dt > 0.0)) break;
-    const mpm::StepStatus st = mpm::step(model, field_at(state.time), state, ws, dt);
+    mpm::StepStatus st;
+    if (sc.implicit) {
+      saved = state;
+      mpm::ImplicitStats counted;
+      st = mpm::implicit_step(model, field_at(state.time), state, ws, dt, sc.newton, &counted);
+      r.newton += counted.newton;
+      r.cg += counted.cg;
+      if (!st.ok && halvings < kMaxHalvings) {
+        state = saved;
+        ++halvings;
+        ++r.retries;
+        good = 0;
+        continue;
+      }
+      if (st.ok && halvings > 0 && ++good >= kRegrowAfter) {
+        --halvings;
+        good = 0;
+      }
+    } else {
+      st = mpm::step(model, field_at(state.time), state, ws, dt);
+    }
     ++r.steps;
     if (!st.ok) {
       r.ok = false;
-      r.failure = st.cause;
+      r.failure = st.cause + (sc.implicit ? " (after " + std::to_string(kMaxHalvings) + " halvings of the step)" : "");
       break;
     }
     if (state.time >= next_sample - 1e-12) {
@@ -656,6 +687,12 @@ void write_mpm_outputs(const MpmScene& sc, const MpmResult& r, const std::filesy
   j["time_step_s"] = sc.time_step;
   j["stable_step_s"] = sc.stable_step;
   j["steps"] = r.steps;
+  j["step"] = sc.implicit ? "implicit" : "explicit";
+  if (sc.implicit) {
+    j["newton_iterations"] = r.newton;
+    j["cg_iterations"] = r.cg;
+    j["retried_steps"] = r.retries;
+  }
   j["simulated_time_s"] = r.time;
   j["runtime_s"] = r.runtime_s;
   j["particle_steps_per_s"] =

@@ -60,6 +60,13 @@ Eigen::Matrix<double, D, D> hard_magnetic_kirchhoff_stress(const Eigen::Matrix<d
   return (-1.0 / kMu0) * b * f_br.transpose();
 }
 
+/// The hard-magnetic energy density whose derivative in F is that stress (Zhao et al. 2019; thesis 3.3),
+/// ψ_mag = −(F B̃r) · B / μ0 [J/m³ of the reference] (`f_br` = F B̃r): linear in F.
+template <int D>
+double hard_magnetic_energy_density(const Eigen::Matrix<double, D, 1>& b, const Eigen::Matrix<double, D, 1>& f_br) {
+  return -f_br.dot(b) / kMu0;
+}
+
 /// Rigid permanent magnet at the tip (thesis table 5.1): cylinder of given size, J along `direction_body`. (No robot
 /// carries one yet; a rod's magnetised tip section is the same law.)
 struct MagnetTip {

@@ -51,6 +51,8 @@ struct SettleOptions {
   double max_time = 1.0;         ///< stop here even if still moving [s]
   double window = 0.02;          ///< rest: the probe moved less than `tolerance` over this long [s]
   double tolerance = 0.0;        ///< [m]
+  bool implicit = false;         ///< implicit steps (implicit_step) of `time_step`, which must then be set
+  ImplicitSettings newton;       ///< for implicit steps
 };
 
 /// Rest detection from probe samples taken every window/10: at rest once the last 11 samples all lie within
@@ -70,6 +72,8 @@ struct SettleResult {
   StepStatus status;
   bool settled = false;  ///< came to rest before max_time
   long steps = 0;
+  long cg = 0;           ///< implicit steps: conjugate-gradient iterations (Hessian products) over the run
+  int newton = 0;        ///< implicit steps: Newton iterations over the run
   double time = 0.0;     ///< simulated [s]
   double time_step = 0.0;
 };

@@ -177,6 +177,15 @@ struct MpmWorkspace {
   std::vector<ObstacleSamples> obstacle_samples;
   /// The model's clamps moved to the current step's time (a moving clamp's box), set once per step.
   std::vector<typename MpmModel<D>::Clamp> clamps;
+  /// The implicit step's vectors: per grid node (Newton's target and iterate, gradient, direction, CG's vectors, the
+  /// preconditioner, which nodes are unknowns) and per particle (the trial F, a stress-like matrix per pass).
+  struct ImplicitScratch {
+    std::vector<VecD<D>> target, v, trial, grad, dir, res, pre, conj, hconj, diag;
+    std::vector<unsigned char> unknown;
+    std::vector<MatD<D>> f_trial, stress, magnetic;
+    std::vector<VecD<D>> field;                                // B at each particle [T]
+    std::vector<Eigen::Matrix<double, D * D, D * D>> tangent;  // ∂P/∂F at F̂, per particle
+  } implicit;
 };
 
 /// What a step found. `ok` is false when the state must not be used (the cause says why).
@@ -191,6 +200,37 @@ template <int D>
 StepStatus step(const MpmModel<D>& model, const AppliedField& field, MpmState<D>& state, MpmWorkspace<D>& ws,
                 double dt);
 
+/// How hard the implicit step works.
+struct ImplicitSettings {
+  double tolerance = 1e-6;  ///< Newton stops when its last correction moves every node by less than this [cells]
+  int max_newton = 40;      ///< Newton iterations before the step fails
+  int max_cg = 2000;        ///< conjugate-gradient iterations per Newton iteration (the inexact solve ends there)
+};
+
+/// What an implicit step did.
+struct ImplicitStats {
+  int newton = 0;          ///< Newton iterations
+  long cg = 0;             ///< conjugate-gradient iterations over all of them (each one Hessian product)
+  int factorizations = 0;  ///< Newton iterations solved by the sparse LDLᵀ (the others by CG)
+  double correction = 0;   ///< the last Newton correction's largest node displacement [cells]
+};
+
+/// One implicit (backward Euler) MLS-MPM step of length dt [s], stable at any dt for the elastic stress (thesis 3.8:
+/// "replace the semi-implicit Euler method with a fully implicit solver"; Gast et al. 2015's optimisation form):
+/// the grid velocities v minimise the incremental potential
+///   E(v) = Σ_i m_i (½ (1 + cΔt) |v_i|² − v_i · v*_i) + Σ_p V0_p ψ(F̂_p(v)),  F̂_p = (I + Δt Σ_i v_i ∇w_ipᵀ) F_p,
+/// whose stationarity is m_i ((1 + cΔt) v_i − v*_i) = −Δt Σ_p V0 P(F̂_p) F_pᵀ ∇w_ip: the explicit step's momentum
+/// balance with the stress at the end of the step. ψ holds the elastic and the hard-magnetic energy (linear in F, so
+/// its stress is the explicit step's); v*_i what does not depend on v: the transferred momentum, the gradient force and
+/// gravity. ∇w_ip = w_ip D⁻¹ (x_i − x_p) is MLS-MPM's gradient, so F̂ is what G2P will form. Newton's method with a
+/// Jacobi-preconditioned conjugate-gradient solve (matrix-free Hessian products through elastic_stress_differential)
+/// and a backtracking line search on E (which keeps every F̂ uninverted). Clamped nodes are held; the walls and
+/// obstacles act on the solved velocities, as in the explicit step. The particles must still move less than a cell
+/// per step. On failure (Newton not converged, a particle check) the state holds the failed step, as `step`.
+template <int D>
+StepStatus implicit_step(const MpmModel<D>& model, const AppliedField& field, MpmState<D>& state, MpmWorkspace<D>& ws,
+                         double dt, const ImplicitSettings& settings = {}, ImplicitStats* stats = nullptr);
+
 /// Kinetic energy Σ ½ m v² [J; J per metre of depth in 2D].
 template <int D>
 double kinetic_energy(const MpmModel<D>& model, const MpmState<D>& state);
@@ -203,6 +243,12 @@ double plane_stress_stretch(const Material& m, const MatD<2>& f2);
 /// ignores it): F = diag(F2, 1) (plane strain) or diag(F2, λ) with λ = plane_stress_stretch (plane stress).
 template <int D>
 MatD<D> elastic_stress(const Material& m, const MatD<D>& f, Plane plane = Plane::kStrain);
+
+/// The differential dP = (∂P/∂F) : dF of elastic_stress at F [Pa] (the implicit step's Hessian): closed form in 3D and
+/// plane strain, a central difference of elastic_stress in plane stress (whose λ depends on F).
+template <int D>
+MatD<D> elastic_stress_differential(const Material& m, const MatD<D>& f, const MatD<D>& df,
+                                    Plane plane = Plane::kStrain);
 
 /// Kirchhoff stress τ = P Fᵀ of the elastic part, formed without inverting F (what P2G uses) [Pa].
 template <int D>

@@ -45,7 +45,9 @@ struct MpmScene {
   std::vector<Vec3> positions;          ///< initial particle positions [m] (z = 0 in 2D)
   std::vector<std::string> body_names;  ///< per body; model.section holds the body index
   double time_step = 0.0;               ///< [s]
-  double stable_step = 0.0;             ///< the automatic step's bound courant·δx/c_P [s]
+  double stable_step = 0.0;             ///< the explicit step's bound courant·δx/c_P [s]
+  bool implicit = false;                ///< implicit steps (mpm::implicit_step), halved where one fails
+  mpm::ImplicitSettings newton;         ///< for implicit steps
   double duration = 0.0;                ///< [s]
   double settle_window = 0.0;           ///< > 0: stop once every probe moved less than settle_tolerance over this [s]
   double settle_tolerance = 0.0;        ///< [m]
@@ -75,6 +77,9 @@ struct MpmResult {
   std::string failure;  ///< the step's cause when !ok
   bool settled = false;
   long steps = 0;
+  long newton = 0;    ///< implicit steps: Newton iterations over the run
+  long cg = 0;        ///< implicit steps: conjugate-gradient iterations (Hessian products) over the run
+  long retries = 0;   ///< implicit steps: steps taken again at half the step after a failure
   double time = 0.0;  ///< simulated [s]
   double runtime_s = 0.0;
   std::vector<MpmSample> samples;

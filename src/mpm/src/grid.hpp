@@ -1,0 +1,170 @@
+#pragma once
+// Internal to the MPM module: the grid machinery the explicit step (mpm.cpp) and the implicit step (implicit.cpp)
+// share — stencils, the grid box and its slabs, the particle transfers, the grid nodes' boundary conditions.
+
+#include <cstdint>
+#include <limits>
+
+#include "magvine/mpm/mpm.hpp"
+
+namespace magvine::mpm::detail {
+
+constexpr int kSlabCells = 4;           // a particle writes 3 nodes along an axis: slabs 4 cells apart never share one
+constexpr double kMaxJ = 100.0;         // |det F| beyond this is an explosion, not a deformation
+constexpr double kMaxCellsPerStep = 1;  // a particle moving a whole cell in one step has broken the CFL bound
+constexpr std::int64_t kParallelMin = 4096;  // below this many items a loop runs on one thread (fork cost)
+
+template <int D>
+using Index = Eigen::Matrix<std::int64_t, D, 1>;
+/// Quadratic B-spline weights and the base node of a particle (eq 3.2).
+template <int D>
+struct Stencil {
+  Index<D> base;
+  VecD<D> fx;  // x/δx − base, in [0.5, 1.5)
+  std::array<std::array<double, 3>, D> w;
+
+  Stencil(const VecD<D>& x, double inv_dx) {
+    for (int a = 0; a < D; ++a) {
+      const double s = x[a] * inv_dx;
+      base[a] = static_cast<std::int64_t>(std::floor(s - 0.5));
+      fx[a] = s - static_cast<double>(base[a]);
+      w[a][0] = 0.5 * (1.5 - fx[a]) * (1.5 - fx[a]);
+      w[a][1] = 0.75 - (fx[a] - 1.0) * (fx[a] - 1.0);
+      w[a][2] = 0.5 * (fx[a] - 0.5) * (fx[a] - 0.5);
+    }
+  }
+};
+
+/// Strides of a box's linear index (the last axis fastest).
+template <int D>
+Index<D> strides(const Index<D>& n) {
+  Index<D> s;
+  s[D - 1] = 1;
+  for (int a = D - 2; a >= 0; --a) s[a] = s[a + 1] * n[a + 1];
+  return s;
+}
+
+/// The nine (i, j) rows of a 3D stencil: fn(i, j, row index of node (i, j, 0), w_i w_j); the kernels below walk the
+/// three nodes along k of each row themselves.
+template <class Fn>
+void for_rows(const Stencil<3>& s, std::int64_t first, const Index<3>& st, Fn&& fn) {
+  for (int i = 0; i < 3; ++i)
+    for (int j = 0; j < 3; ++j)
+      fn(i, j, static_cast<std::size_t>(first + i * st[0] + j * st[1]), s.w[0][i] * s.w[1][j]);
+}
+
+/// Visits the 3^D stencil nodes as (linear index, weight, offset per axis 0..2) for a box with strides `st` whose
+/// first node is the stencil's base at linear index `first`; the last axis fastest.
+template <int D, typename Fn>
+void for_nodes(const Stencil<D>& s, std::int64_t first, const Index<D>& st, Fn&& fn) {
+  if constexpr (D == 2) {
+    for (int i = 0; i < 3; ++i) {
+      const std::int64_t ki = first + i * st[0];
+      for (int j = 0; j < 3; ++j) fn(ki + j, s.w[0][i] * s.w[1][j], i, j, 0);
+    }
+  } else {
+    for_rows(s, first, st, [&](int i, int j, std::size_t row, double wij) {
+      for (int k = 0; k < 3; ++k) fn(static_cast<std::int64_t>(row) + k, wij * s.w[2][k], i, j, k);
+    });
+  }
+}
+
+template <int D>
+std::int64_t linear(const Index<D>& i, const Index<D>& lo, const Index<D>& n) {
+  std::int64_t k = 0;
+  for (int a = 0; a < D; ++a) k = k * n[a] + (i[a] - lo[a]);
+  return k;
+}
+
+/// The node at linear index k of a box (first node lo, counts n; the inverse of linear).
+template <int D>
+Index<D> box_node(std::int64_t k, const Index<D>& lo, const Index<D>& n) {
+  Index<D> i;
+  for (int a = D - 1; a >= 0; --a) {
+    i[a] = lo[a] + k % n[a];
+    k /= n[a];
+  }
+  return i;
+}
+
+template <int D>
+Vec3 to3(const VecD<D>& x) {
+  if constexpr (D == 2)
+    return Vec3(x[0], x[1], 0.0);
+  else
+    return x;
+}
+
+template <int D>
+VecD<D> from3(const Vec3& x) {
+  if constexpr (D == 2)
+    return VecD<D>(x[0], x[1]);
+  else
+    return x;
+}
+
+/// The constants of one step and the arrays its particle kernels read and write.
+template <int D>
+struct StepContext {
+  const MpmModel<D>& model;
+  MpmState<D>& state;
+  MpmWorkspace<D>& ws;
+  double dt = 0.0;
+  double dx = 0.0;
+  double inv_dx = 0.0;
+  double d_inv = 0.0;  // D⁻¹ of the quadratic B-spline, 4/δx²
+  bool uniform = false;
+  bool general = false;
+  VecD<D> b_uniform = VecD<D>::Zero();
+  Index<D> stride = Index<D>::Zero();        // of the grid box
+  Index<D> field_stride = Index<D>::Zero();  // of the field box (general fields)
+  bool stress = true;  // P2G adds the elastic and magnetic stresses (the implicit step leaves them to its Newton solve)
+};
+
+/// Sets up a step's grid: the context's constants, the moving clamps' boxes at the state's time, the grid box (every
+/// node some particle's stencil touches) cleared, the sampled obstacles and the field at its nodes, and the particles
+/// bucketed into slabs along the box's longest axis. Fails on a non-finite position.
+template <int D>
+StepStatus prepare_grid(StepContext<D>& c, const AppliedField& field);
+
+/// P2G of every particle (mass, momentum with the affine part, the stresses unless `c.stress` is false, the node
+/// moments in a non-uniform field), in parallel: the even slabs, then the odd ones, so no two threads write one node.
+template <int D>
+void scatter_all(const StepContext<D>& c);
+
+/// G2P of every particle from the node velocities (the nodes' first D entries); the smallest failing particle's
+/// index, or kNoFailure.
+constexpr std::int64_t kNoFailure = std::numeric_limits<std::int64_t>::max();
+template <int D>
+std::int64_t gather_all(const StepContext<D>& c);
+
+/// Runs fn(p) for every particle in two colours of slabs (even, then odd) spread over the threads: fn may add to the
+/// nodes of p's stencil without a race, and each node's sum runs in the same order for any thread count.
+template <int D, class Fn>
+void for_particles_coloured(const MpmWorkspace<D>& ws, std::size_t np, Fn&& fn) {
+  const std::size_t slabs = ws.slab_count.size() - 1;
+  const auto n = static_cast<std::int64_t>(slabs);
+  for (std::size_t colour = 0; colour < 2; ++colour) {
+#pragma omp parallel for schedule(dynamic, 1) if (np > static_cast <std::size_t>(kParallelMin))
+    for (std::int64_t s = static_cast<std::int64_t>(colour); s < n; s += 2) {
+      for (std::uint32_t k = ws.slab_count[static_cast<std::size_t>(s)];
+           k < ws.slab_count[static_cast<std::size_t>(s) + 1]; ++k) {
+        fn(static_cast<std::size_t>(ws.slab_order[k]));
+      }
+    }
+  }
+}
+
+/// The velocity a clamp gives the node at xi, or null where no clamp holds it.
+template <int D>
+const VecD<D>* clamp_velocity(const StepContext<D>& c, const VecD<D>& xi);
+
+/// The domain walls' and the obstacles' conditions on the velocity v of node i (at xi = i δx).
+template <int D>
+void apply_walls_and_obstacles(const StepContext<D>& c, const Index<D>& i, const VecD<D>& xi, VecD<D>& v);
+
+/// The status of a step whose G2P found particle `bad` failing (kNoFailure: ok), naming the cause.
+template <int D>
+StepStatus failure_of(const StepContext<D>& c, std::int64_t bad);
+
+}  // namespace magvine::mpm::detail
