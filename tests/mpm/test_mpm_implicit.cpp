@@ -2,7 +2,6 @@
 // settled shape against the explicit step's at far fewer steps.
 
 #include <gtest/gtest.h>
-#include <omp.h>
 
 #include <chrono>
 #include <cmath>
@@ -32,7 +31,18 @@ TEST(MpmImplicit, TheStressDifferentialIsTheDerivativeOfTheStress) {
     const double h = 1e-6;
     const M numeric = (elastic_stress<D>(m, f + h * df, plane) - elastic_stress<D>(m, f - h * df, plane)) / (2.0 * h);
     const M closed = elastic_stress_differential<D>(m, f, df, plane);
-    EXPECT_LT((closed - numeric).norm(), 1e-6 * numeric.norm()) << "plane " << static_cast<int>(plane);
+    if (plane != Plane::kStress) {  // plane stress's differential is itself this difference: checked below
+      EXPECT_LT((closed - numeric).norm(), 1e-6 * numeric.norm()) << "plane " << static_cast<int>(plane);
+    }
+    // Against the energy (independent of the stress code): dF : dP[dF] = d²ψ/dε² along F + ε dF, by a second
+    // difference at ε = 1e-4 (truncation ~1e-8 relative, round-off ~1e-8): to 1e-5 relative.
+    const double e = 1e-4;
+    const double second =
+        (strain_energy_density<D>(m, f + e * df, plane) - 2.0 * strain_energy_density<D>(m, f, plane) +
+         strain_energy_density<D>(m, f - e * df, plane)) /
+        (e * e);
+    EXPECT_NEAR((closed.array() * df.array()).sum(), second, 1e-5 * std::abs(second))
+        << "plane " << static_cast<int>(plane);
   };
   for (int trial = 0; trial < 20; ++trial) {
     MatD<3> f3 = MatD<3>::Identity();
@@ -51,7 +61,8 @@ TEST(MpmImplicit, TheStressDifferentialIsTheDerivativeOfTheStress) {
 
 TEST(MpmImplicit, FreeFallIsExactIn2DAnd3D) {
   // No stress: the solve's answer is v* itself (F̂ = F = I), the explicit step's symplectic Euler: v_n = n g Δt,
-  // x_n = x0 + g Δt² n(n+1)/2, to round-off, at 100 times the explicit step (the direct solve in 3D and 2D).
+  // x_n = x0 + g Δt² n(n+1)/2, to round-off, at 100 times the explicit step: the transfers, the target and the
+  // update are the explicit step's.
   auto run = [](auto dim) {
     constexpr int D = decltype(dim)::value;
     CantileverSpec s;
@@ -72,7 +83,6 @@ TEST(MpmImplicit, FreeFallIsExactIn2DAnd3D) {
       const StepStatus st = implicit_step<D>(c.model, AppliedField{}, c.state, ws, dt, {}, &stats);
       EXPECT_TRUE(st.ok) << st.cause;
     }
-    EXPECT_EQ(stats.factorizations, 1);
     double worst = 0.0;
     for (std::size_t p = 0; p < x0.size(); ++p) {
       const VecD<D> expect = x0[p] + c.model.gravity * dt * dt * n * (n + 1) / 2.0;
@@ -164,7 +174,7 @@ TEST(MpmImplicit, AStiffCatheterRunsAtAHundredTimesTheExplicitStep) {
   const VecD<2> tip_ex = mean_position<2>(ex.state, ex.tip) - start,
                 tip_im = mean_position<2>(im.state, im.tip) - start;
   std::printf(
-      "explicit: %ld steps, %.2f s, tip moved (%.4f, %.4f) mm; implicit: %ld steps (%d Newton, %ld CG), "
+      "explicit: %ld steps, %.2f s, tip moved (%.4f, %.4f) mm; implicit: %ld steps (%ld Newton, %ld CG), "
       "%.2f s, tip moved (%.4f, %.4f) mm\n",
       r_ex.steps, std::chrono::duration<double>(t1 - t0).count(), tip_ex.x() * 1e3, tip_ex.y() * 1e3, r_im.steps,
       r_im.newton, r_im.cg, std::chrono::duration<double>(t2 - t1).count(), tip_im.x() * 1e3, tip_im.y() * 1e3);

@@ -255,6 +255,42 @@ TEST(MpmScene, AStepAboveTheBoundIsCaughtAndNamed) {
   std::printf("6x the CFL step: %s\n", st.cause.c_str());
 }
 
+TEST(MpmScene, ImplicitStepsHalveWhereOneFailsAndEndAtTheDuration) {
+  // A block falling freely for 0.1 s in steps of 50 ms: the first step would move it ~25 cells (g Δt² = 24.5 mm, cells
+  // of 1 mm), so the runner halves it until a step moves less than a cell, and grows it back. Free fall under the
+  // explicit step's symplectic Euler with steps h_k falls Σ_k h_k t_k (t_k the time at each step's end); the runner's
+  // steps are not known in advance, so the check is the exact free fall ½ g t² within the first-order error of the
+  // largest step it kept, g h t / 2 ≤ 2.5 mm, and the run's end at the duration.
+  const std::string scene = R"(
+units: {length: mm}
+mpm:
+  dimension: 2
+  cell: 1.0
+  duration: 0.1
+  step: implicit
+  time_step: 0.05
+  gravity: [0, -9.81, 0]
+  domain: {min: [-10, -100, 0], max: [10, 10, 0]}
+bodies:
+  - name: block
+    shape: box
+    min: [-2, -2, 0]
+    max: [2, 2, 0]
+    material: {shear_modulus: 10000, density: 1000}
+probes:
+  - {name: centre, at: [0, 0, 0], radius: 1}
+)";
+  const MpmScene sc = parse_mpm_scene(scene, "fall.yaml");
+  const MpmResult r = run_mpm_scene(sc);
+  ASSERT_TRUE(r.ok) << r.failure;
+  EXPECT_GT(r.retries, 0);
+  EXPECT_NEAR(r.time, 0.1, 1e-12);  // the summed steps, to round-off
+  const double fell = r.samples.front().probes[0].y() - r.samples.back().probes[0].y();
+  std::printf("implicit free fall: %ld steps, %ld retried, fell %.3f mm (1/2 g t^2 = %.3f mm)\n", r.steps, r.retries,
+              fell * 1e3, 0.5 * 9.81 * 0.01 * 1e3);
+  EXPECT_NEAR(fell, 0.5 * 9.81 * 0.1 * 0.1, 0.5 * 9.81 * 0.05 * 0.1);
+}
+
 TEST(MpmScene, BadScenesNameTheKey) {
   const std::string ok = kBarScene;
   auto with = [&](const std::string& from, const std::string& to) {

@@ -132,27 +132,52 @@ StepStatus prepare_grid(StepContext<D>& c, const AppliedField& field);
 template <int D>
 void scatter_all(const StepContext<D>& c);
 
+/// No particle failed a check.
+constexpr std::int64_t kNoFailure = std::numeric_limits<std::int64_t>::max();
+
 /// G2P of every particle from the node velocities (the nodes' first D entries); the smallest failing particle's
 /// index, or kNoFailure.
-constexpr std::int64_t kNoFailure = std::numeric_limits<std::int64_t>::max();
 template <int D>
 std::int64_t gather_all(const StepContext<D>& c);
 
-/// Runs fn(p) for every particle in two colours of slabs (even, then odd) spread over the threads: fn may add to the
-/// nodes of p's stencil without a race, and each node's sum runs in the same order for any thread count.
+/// Runs fn(first, last) over each slab's run of particle indices, in two colours of slabs (even, then odd) spread over
+/// the threads: fn may add to the nodes of its particles' stencils without a race, and each node's sum runs in the
+/// same order for any thread count.
 template <int D, class Fn>
-void for_particles_coloured(const MpmWorkspace<D>& ws, std::size_t np, Fn&& fn) {
-  const std::size_t slabs = ws.slab_count.size() - 1;
-  const auto n = static_cast<std::int64_t>(slabs);
-  for (std::size_t colour = 0; colour < 2; ++colour) {
+void for_slabs_coloured(const MpmWorkspace<D>& ws, std::size_t np, Fn&& fn) {
+  const std::uint32_t* order = ws.slab_order.data();
+  const auto slabs = static_cast<std::int64_t>(ws.slab_count.size() - 1);
+  for (std::int64_t colour = 0; colour < 2; ++colour) {
 #pragma omp parallel for schedule(dynamic, 1) if (np > static_cast <std::size_t>(kParallelMin))
-    for (std::int64_t s = static_cast<std::int64_t>(colour); s < n; s += 2) {
-      for (std::uint32_t k = ws.slab_count[static_cast<std::size_t>(s)];
-           k < ws.slab_count[static_cast<std::size_t>(s) + 1]; ++k) {
-        fn(static_cast<std::size_t>(ws.slab_order[k]));
-      }
+    for (std::int64_t s = colour; s < slabs; s += 2) {
+      const auto u = static_cast<std::size_t>(s);
+      fn(order + ws.slab_count[u], order + ws.slab_count[u + 1]);
     }
   }
+}
+
+/// The same for fn(p), one particle at a time.
+template <int D, class Fn>
+void for_particles_coloured(const MpmWorkspace<D>& ws, std::size_t np, Fn&& fn) {
+  for_slabs_coloured<D>(ws, np, [&](const std::uint32_t* p, const std::uint32_t* end) {
+    for (; p != end; ++p) fn(static_cast<std::size_t>(*p));
+  });
+}
+
+/// A free node's velocity before the damping and the boundaries: momentum over mass, plus Δt times the gradient force
+/// over mass (eq 3.16: f_i = ∇B_iᵀ m_i, non-uniform fields) and gravity (eq 3.18). k is the node's index in the box,
+/// i its grid index; its mass must be positive.
+template <int D>
+VecD<D> node_velocity(const StepContext<D>& c, std::size_t k, const Index<D>& i);
+
+/// B at a particle (its stencil st): the uniform field, or the node field interpolated (non-uniform fields) [T].
+template <int D>
+inline VecD<D> field_at(const StepContext<D>& c, const Stencil<D>& st) {
+  if (!c.general) return c.b_uniform;
+  VecD<D> b = VecD<D>::Zero();
+  for_nodes<D>(st, linear<D>(st.base, c.ws.field_lo, c.ws.field_n), c.field_stride,
+               [&](std::int64_t k, double w, int, int, int) { b += w * c.ws.field_b[static_cast<std::size_t>(k)]; });
+  return b;
 }
 
 /// The velocity a clamp gives the node at xi, or null where no clamp holds it.

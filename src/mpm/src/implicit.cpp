@@ -1,5 +1,4 @@
 // The implicit MLS-MPM step (mpm.hpp: implicit_step): Newton on the incremental potential of the grid velocities.
-#include <omp.h>
 
 #include <Eigen/SparseCholesky>
 #include <algorithm>
@@ -18,8 +17,10 @@ namespace {
 constexpr std::int64_t kBlock = 4096;  // sums run over fixed blocks, then in order: the same for any thread count
 constexpr double kArmijo = 1e-4;       // sufficient decrease of the line search
 constexpr int kMaxHalvings = 30;       // line-search halvings before Newton gives up
-// Unknowns up to which the Hessian is assembled and factored (a sparse LDLᵀ); beyond, matrix-free CG. The assembly
-// keeps a D×D block per node and neighbour within two nodes (125 in 3D: 9 KB a node), so this bounds it near 100 MB.
+// Scalar unknowns (D per free node) up to which the Hessian is assembled and factored (a sparse LDLᵀ); beyond,
+// matrix-free CG. The assembly keeps a D×D block per node and neighbour within two nodes (125 in 3D: 9 KB a node),
+// ~120 MB at the bound, and the factor's fill-in comes on top (11 907 unknowns in 3D: 6.1 M entries, 1.3–1.45 s a
+// factorization on one thread).
 constexpr std::int64_t kMaxDirectUnknowns = 40000;
 
 /// Σ_k f(k) over [0, n) as per-block partial sums added in block order (deterministic for any thread count).
@@ -70,7 +71,7 @@ class Solver {
   StepStatus solve(ImplicitStats& stats) {
     setup();
     // Start from the transferred velocities with the gradient force and gravity; where that inverts an element, from
-    // rest (F̂ = F).
+    // rest at the free nodes.
     double energy = energy_at(m_s.v);
     if (!std::isfinite(energy)) {
       for (std::int64_t k = 0; k < m_nodes; ++k) {
@@ -162,14 +163,7 @@ class Solver {
         const auto p = static_cast<std::size_t>(pp);
         const VecD<D>& br = c.model.remanence[p];
         if (!(br.squaredNorm() > 0.0)) continue;
-        VecD<D> b = c.b_uniform;
-        if (c.general) {
-          b.setZero();
-          const Stencil<D> st(c.state.x[p], c.inv_dx);
-          for_nodes<D>(
-              st, linear<D>(st.base, c.ws.field_lo, c.ws.field_n), c.field_stride,
-              [&](std::int64_t k, double w, int, int, int) { b += w * c.ws.field_b[static_cast<std::size_t>(k)]; });
-        }
+        const VecD<D> b = field_at<D>(c, Stencil<D>(c.state.x[p], c.inv_dx));
         m_s.field[p] = b;
         m_s.magnetic[p] = (c.dt * c.model.volume[p]) *
                           magnetics::hard_magnetic_kirchhoff_stress<D>(b, VecD<D>(c.state.f[p] * br));  // eq 3.13
@@ -187,18 +181,13 @@ class Solver {
         m_s.v[u] = *held;
         continue;
       }
-      VecD<D> t = Eigen::Map<const VecD<D>>(rec) / m;
-      if (c.general) {
-        const auto fk = static_cast<std::size_t>(linear<D>(i, c.ws.field_lo, c.ws.field_n));
-        t += c.dt / m * magnetics::gradient_force<D>(c.ws.field_g[fk], c.ws.node_moment[u]);  // eq 3.16
-      }
-      t += c.dt * c.model.gravity;
+      const VecD<D> t = node_velocity<D>(c, u, i);
       m_s.target[u] = t;
       m_s.v[u] = t / m_scale;
       m_s.unknown[u] = 1;
     }
     // Jacobi preconditioner: m (1 + cΔt) + Δt² Σ_p V0 w² (G |b|² + (K + G/3) b_a²), b = Fᵀ D⁻¹ (x_i − x_p): the
-    // diagonal of an isotropic linear material's stiffness at the particle, a bound on the Neo-Hookean's near rest.
+    // diagonal of an isotropic linear material's stiffness at the particle, the Neo-Hookean's at rest.
     for_particles_coloured<D>(c.ws, m_np, [&](std::size_t p) {
       const Material& mat = c.model.materials[c.model.material[p]];
       const double vol = c.model.volume[p] * c.dt * c.dt;
@@ -321,7 +310,7 @@ class Solver {
   /// (dir untouched) where there are too many unknowns or H is not positive definite, which leaves it to CG.
   bool direct_solve() {
     const StepContext<D>& c = m_c;
-    constexpr int kReach = 5;  // nodes two either side: the stencils of two particles that share a node
+    constexpr int kReach = 5;  // two nodes of one particle's stencil lie at most two apart on each axis
     constexpr int kOffsets = D == 2 ? 25 : 125;
     auto& index = m_index;
     index.assign(static_cast<std::size_t>(m_nodes), -1);
@@ -329,7 +318,7 @@ class Solver {
     for (std::int64_t k = 0; k < m_nodes; ++k) {
       if (m_s.unknown[static_cast<std::size_t>(k)]) index[static_cast<std::size_t>(k)] = unknowns++;
     }
-    if (unknowns == 0 || unknowns * D > kMaxDirectUnknowns) return false;
+    if (unknowns == 0 || unknowns * D > kMaxDirectUnknowns) return false;  // `unknowns` counts nodes here
     auto& blocks = m_blocks;
     blocks.assign(static_cast<std::size_t>(unknowns * kOffsets), MatD<D>::Zero());
     // The offset slot of node j seen from node i (both in one stencil, so within two nodes on every axis).

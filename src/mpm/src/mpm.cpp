@@ -369,12 +369,7 @@ inline void scatter_particle(const StepContext<D>& c, std::size_t p) {
   const bool magnetic = (c.uniform || c.general) && br.squaredNorm() > 0.0;
   VecD<D> f_br = VecD<D>::Zero();
   if (magnetic) {
-    VecD<D> b = c.b_uniform;
-    if (c.general) {
-      b.setZero();
-      for_nodes<D>(st, linear<D>(st.base, ws.field_lo, ws.field_n), c.field_stride,
-                   [&](std::int64_t k, double w, int, int, int) { b += w * ws.field_b[static_cast<std::size_t>(k)]; });
-    }
+    const VecD<D> b = field_at<D>(c, st);
     f_br = f * br;
     if (c.stress) tau += magnetics::hard_magnetic_kirchhoff_stress<D>(b, f_br);  // eq 3.13 times Fᵀ: −B (F B̃r)ᵀ/μ0
   }
@@ -480,7 +475,6 @@ MAGVINE_HOT_KERNEL void scatter_3d(const StepContext<3>& c, const std::uint32_t*
 
 /// G2P over the listed particles; returns the smallest index among those that failed a check (kNoFailure if none).
 /// Every particle is updated either way.
-
 MAGVINE_HOT_KERNEL std::int64_t gather_2d(const StepContext<2>& c, const std::uint32_t* p, const std::uint32_t* end) {
   std::int64_t bad = kNoFailure;
   for (; p != end; ++p) {
@@ -519,9 +513,7 @@ std::int64_t gather(const StepContext<D>& c, const std::uint32_t* p, const std::
 /// gradient force (eq 3.16: f_i = ∇B_iᵀ m_i), gravity, damping, then clamps, domain walls and obstacles.
 template <int D>
 void update_plane(const StepContext<D>& c, std::int64_t i0, double damp) {
-  const MpmModel<D>& model = c.model;
   MpmWorkspace<D>& ws = c.ws;
-  const double dt = c.dt;
   const std::int64_t per_plane = c.stride[0];
   for (std::int64_t r = 0; r < per_plane; ++r) {
     const auto k = static_cast<std::size_t>(i0 * per_plane + r);
@@ -534,13 +526,7 @@ void update_plane(const StepContext<D>& c, std::int64_t i0, double damp) {
       std::copy(held->data(), held->data() + D, rec);
       continue;
     }
-    VecD<D> v = Eigen::Map<const VecD<D>>(rec) / m;
-    if (c.general) {
-      const auto fk = static_cast<std::size_t>(linear<D>(i, ws.field_lo, ws.field_n));
-      v += dt / m * magnetics::gradient_force<D>(ws.field_g[fk], ws.node_moment[k]);  // eq 3.16
-    }
-    v += dt * model.gravity;
-    v *= damp;
+    VecD<D> v = node_velocity<D>(c, k, i) * damp;
     apply_walls_and_obstacles<D>(c, i, xi, v);
     std::copy(v.data(), v.data() + D, rec);  // now the velocity
   }
@@ -549,6 +535,18 @@ void update_plane(const StepContext<D>& c, std::int64_t i0, double damp) {
 }  // namespace
 
 namespace detail {
+
+template <int D>
+VecD<D> node_velocity(const StepContext<D>& c, std::size_t k, const Index<D>& i) {
+  const double* rec = c.ws.node[k].value;
+  const double m = rec[D];
+  VecD<D> v = Eigen::Map<const VecD<D>>(rec) / m;
+  if (c.general) {
+    const auto fk = static_cast<std::size_t>(linear<D>(i, c.ws.field_lo, c.ws.field_n));
+    v += c.dt / m * magnetics::gradient_force<D>(c.ws.field_g[fk], c.ws.node_moment[k]);  // eq 3.16
+  }
+  return v + c.dt * c.model.gravity;
+}
 
 template <int D>
 const VecD<D>* clamp_velocity(const StepContext<D>& c, const VecD<D>& xi) {
@@ -662,15 +660,8 @@ StepStatus prepare_grid(StepContext<D>& c, const AppliedField& field) {
 
 template <int D>
 void scatter_all(const StepContext<D>& c) {
-  const std::uint32_t* order = c.ws.slab_order.data();
-  const auto slabs = static_cast<std::int64_t>(c.ws.slab_count.size() - 1);
-  for (std::int64_t colour = 0; colour < 2; ++colour) {
-#pragma omp parallel for schedule(dynamic, 1) if (c.model.size() > static_cast<std::size_t>(kParallelMin))
-    for (std::int64_t s = colour; s < slabs; s += 2) {
-      const auto u = static_cast<std::size_t>(s);
-      scatter<D>(c, order + c.ws.slab_count[u], order + c.ws.slab_count[u + 1]);
-    }
-  }
+  for_slabs_coloured<D>(c.ws, c.model.size(),
+                        [&](const std::uint32_t* p, const std::uint32_t* end) { scatter<D>(c, p, end); });
 }
 
 template <int D>
@@ -713,6 +704,8 @@ template void scatter_all<2>(const StepContext<2>&);
 template void scatter_all<3>(const StepContext<3>&);
 template std::int64_t gather_all<2>(const StepContext<2>&);
 template std::int64_t gather_all<3>(const StepContext<3>&);
+template VecD<2> node_velocity<2>(const StepContext<2>&, std::size_t, const Index<2>&);
+template VecD<3> node_velocity<3>(const StepContext<3>&, std::size_t, const Index<3>&);
 template const VecD<2>* clamp_velocity<2>(const StepContext<2>&, const VecD<2>&);
 template const VecD<3>* clamp_velocity<3>(const StepContext<3>&, const VecD<3>&);
 template void apply_walls_and_obstacles<2>(const StepContext<2>&, const Index<2>&, const VecD<2>&, VecD<2>&);

@@ -28,7 +28,7 @@
 namespace magvine::scene {
 namespace {
 
-constexpr double kDefaultImplicitRatio = 10.0;  // the implicit step's default: 10 explicit steps (docs/mpm.md)
+constexpr double kDefaultImplicitRatio = 10.0;  // the implicit step's default: 10 explicit steps (docs/scenes.md)
 constexpr double kDefaultCourant = 0.4;  // of the P-wave CFL step; stable in every test and scene (docs/mpm.md)
 constexpr int kDefaultParticlesPerCell = 2;
 constexpr double kDefaultBulkRatio = 20.0;  // K = 20 G (thesis eq 3.10)
@@ -592,16 +592,20 @@ MpmResult run_dim(const MpmScene& sc, const std::function<void(double)>& progres
   double next_sample = sample_every, next_snapshot = sc.snapshot_interval, next_progress = 0.0;
   double next_frame = frame_every;
   const Stopwatch clock;
-  // Implicit steps: one that fails (Newton unconverged, a particle over a cell) is taken again from the saved state
-  // at half the step, down to 1/2^kMaxHalvings of it; after kRegrowAfter good steps the step doubles back.
+  // Explicit steps: a counted loop (summed step lengths would leave a round-off sliver for one more step). Implicit
+  // steps: one that fails (Newton unconverged, a particle over a cell) is taken again from the saved state at half the
+  // step tried, down to time_step/2^kMaxHalvings; after kRegrowAfter good steps the step doubles back.
+  const long planned = static_cast<long>(std::ceil(sc.duration / sc.time_step - 1e-9));
   constexpr int kMaxHalvings = 8, kRegrowAfter = 8;
   int halvings = 0, good = 0;
   mpm::MpmState<D> saved;
-  while (state.time < sc.duration * (1.0 - 1e-12)) {
-    const double dt = std::min(sc.time_step / std::ldexp(1.0, halvings), sc.duration - state.time);
+  double tried = sc.time_step;  // the implicit step last tried (the duration's rest may cut it)
+  while (sc.implicit ? state.time < sc.duration - 1e-9 * sc.time_step : r.steps < planned) {
+    double dt = std::min(sc.time_step / std::ldexp(1.0, halvings), sc.duration - state.time);
     if (!(dt > 0.0)) break;
     mpm::StepStatus st;
     if (sc.implicit) {
+      dt = std::min(dt, tried);
       saved = state;
       mpm::ImplicitStats counted;
       st = mpm::implicit_step(model, field_at(state.time), state, ws, dt, sc.newton, &counted);
@@ -612,8 +616,10 @@ MpmResult run_dim(const MpmScene& sc, const std::function<void(double)>& progres
         ++halvings;
         ++r.retries;
         good = 0;
+        tried = 0.5 * dt;
         continue;
       }
+      tried = sc.time_step;
       if (st.ok && halvings > 0 && ++good >= kRegrowAfter) {
         --halvings;
         good = 0;

@@ -51,7 +51,7 @@ struct SettleOptions {
   double max_time = 1.0;         ///< stop here even if still moving [s]
   double window = 0.02;          ///< rest: the probe moved less than `tolerance` over this long [s]
   double tolerance = 0.0;        ///< [m]
-  bool implicit = false;         ///< implicit steps (implicit_step) of `time_step`, which must then be set
+  bool implicit = false;         ///< implicit steps (implicit_step) of `time_step` (0: the explicit bound, as above)
   ImplicitSettings newton;       ///< for implicit steps
 };
 
@@ -73,7 +73,7 @@ struct SettleResult {
   bool settled = false;  ///< came to rest before max_time
   long steps = 0;
   long cg = 0;           ///< implicit steps: conjugate-gradient iterations (Hessian products) over the run
-  int newton = 0;        ///< implicit steps: Newton iterations over the run
+  long newton = 0;       ///< implicit steps: Newton iterations over the run
   double time = 0.0;     ///< simulated [s]
   double time_step = 0.0;
 };

@@ -222,11 +222,13 @@ struct ImplicitStats {
 /// whose stationarity is m_i ((1 + cΔt) v_i − v*_i) = −Δt Σ_p V0 P(F̂_p) F_pᵀ ∇w_ip: the explicit step's momentum
 /// balance with the stress at the end of the step. ψ holds the elastic and the hard-magnetic energy (linear in F, so
 /// its stress is the explicit step's); v*_i what does not depend on v: the transferred momentum, the gradient force and
-/// gravity. ∇w_ip = w_ip D⁻¹ (x_i − x_p) is MLS-MPM's gradient, so F̂ is what G2P will form. Newton's method with a
-/// Jacobi-preconditioned conjugate-gradient solve (matrix-free Hessian products through elastic_stress_differential)
-/// and a backtracking line search on E (which keeps every F̂ uninverted). Clamped nodes are held; the walls and
-/// obstacles act on the solved velocities, as in the explicit step. The particles must still move less than a cell
-/// per step. On failure (Newton not converged, a particle check) the state holds the failed step, as `step`.
+/// gravity. ∇w_ip = w_ip D⁻¹ (x_i − x_p) is MLS-MPM's gradient, so F̂ is what G2P will form. Newton's method: the first
+/// iteration assembles the Hessian (per-particle tangents from elastic_stress_differential) and solves with its sparse
+/// LDLᵀ; the later ones run conjugate gradients preconditioned by that factor (Jacobi where there is none: too many
+/// unknowns, or an indefinite Hessian); a backtracking line search on E keeps every F̂ uninverted. Clamped nodes are
+/// held; the walls and obstacles act on the solved velocities, as in the explicit step. The particles must still move
+/// less than a cell per step. On a particle check's failure the state holds the failed step, as `step`; when Newton
+/// fails the state is untouched.
 template <int D>
 StepStatus implicit_step(const MpmModel<D>& model, const AppliedField& field, MpmState<D>& state, MpmWorkspace<D>& ws,
                          double dt, const ImplicitSettings& settings = {}, ImplicitStats* stats = nullptr);
