@@ -1,5 +1,6 @@
 // The implicit MLS-MPM step (mpm.hpp: implicit_step): Newton on the incremental potential of the grid velocities.
 
+#include <Eigen/Eigenvalues>
 #include <Eigen/SparseCholesky>
 #include <algorithm>
 #include <cmath>
@@ -87,7 +88,13 @@ class Solver {
       ++stats.newton;
       // The first iteration factors the Hessian and solves with it; the later ones (whose Hessians differ little) run
       // CG preconditioned by that factor, a few products each. Too many unknowns, or no positive factor: Jacobi CG.
-      if (it == 0 && direct_solve()) {
+      bool factored = it == 0 && direct_solve();
+      if (it == 0 && !factored && m_indefinite) {  // project the tangents and factor again
+        m_project = true;
+        gradient(m_s.v, m_s.grad);
+        factored = direct_solve();
+      }
+      if (factored) {
         ++stats.factorizations;
       } else {
         stats.cg += conjugate_gradient(std::min(0.5, std::sqrt(rhs / std::max(rhs0, 1e-300))) * 1e-2);
@@ -265,12 +272,21 @@ class Solver {
       const MatD<D>& f = m_s.f_trial[p];
       m_s.stress[p] = (c.dt * c.model.volume[p]) * elastic_stress<D>(mat, f, c.model.plane) * c.state.f[p].transpose() +
                       m_s.magnetic[p];
-      // ∂P/∂F at F̂, column by column (the Hessian products of the coming CG solve reuse it).
+      // ∂P/∂F at F̂, column by column (the Hessian products and the factor reuse it). Once a step's Hessian proved
+      // indefinite (a compressed Neo-Hookean's tangent is), each tangent's negative eigenvalues are set to zero: the
+      // Hessian stays positive definite and the factor gives a descent direction (projected Newton; the gradient is
+      // exact either way).
+      auto& t = m_s.tangent[p];
       for (int col = 0; col < D * D; ++col) {
         MatD<D> unit = MatD<D>::Zero();
         unit.data()[col] = 1.0;
         const MatD<D> dp = elastic_stress_differential<D>(mat, f, unit, c.model.plane);
-        m_s.tangent[p].col(col) = Eigen::Map<const Eigen::Matrix<double, D * D, 1>>(dp.data());
+        t.col(col) = Eigen::Map<const Eigen::Matrix<double, D * D, 1>>(dp.data());
+      }
+      if (!m_project) continue;
+      const Eigen::SelfAdjointEigenSolver<Eigen::Matrix<double, D * D, D * D>> eig(0.5 * (t + t.transpose()));
+      if (eig.eigenvalues().minCoeff() < 0.0) {
+        t = eig.eigenvectors() * eig.eigenvalues().cwiseMax(0.0).asDiagonal() * eig.eigenvectors().transpose();
       }
     }
     scatter_stress(g);
@@ -393,7 +409,8 @@ class Solver {
     }
     a.makeCompressed();
     m_ldlt.compute(a);
-    if (m_ldlt.info() != Eigen::Success || !(m_ldlt.vectorD().minCoeff() > 0.0)) return false;
+    m_indefinite = m_ldlt.info() == Eigen::Success && !(m_ldlt.vectorD().minCoeff() > 0.0);
+    if (m_ldlt.info() != Eigen::Success || m_indefinite) return false;
     Eigen::VectorXd rhs(n_dof);
     for (std::int64_t k = 0; k < m_nodes; ++k) {
       const std::int64_t u = index[static_cast<std::size_t>(k)];
@@ -491,6 +508,8 @@ class Solver {
   double m_scale;                     // 1 + cΔt
   double m_magnitude = 0.0;           // Σ |terms| of the last energy_at: its round-off scale
   bool m_factored = false;            // m_ldlt holds this step's factored Hessian
+  bool m_indefinite = false;          // the last factorization found the Hessian indefinite
+  bool m_project = false;             // the tangents' negative eigenvalues are set to zero (after an indefinite one)
   std::vector<std::int64_t> m_index;  // direct solve: each node's unknown number (−1: fixed or empty)
   std::vector<MatD<D>> m_blocks;      // direct solve: the Hessian's D×D blocks, per unknown and neighbour slot
   Eigen::SimplicialLDLT<Eigen::SparseMatrix<double>, Eigen::Lower> m_ldlt;
