@@ -2,6 +2,11 @@
 // NdFeB–Dragon Skin beam of thesis 3.6.4 (G 120 kPa, Br 0.125 T), clamped, under gravity and a 10 mT field across
 // it, sampled at 2 particles per cell per axis; the beam is first bent for 2000 steps so the particles are no longer
 // on the lattice. Each iteration is 10 steps; the counter is particle-steps per second. Arg: threads.
+//
+// BM_StiffCatheterSettle: the implicit step's compute against the explicit one's (issue 34, item 4) — a stiff magnetic
+// catheter (E ≈ 3 MPa: G 1 MPa, K 20 G; 1 mm thick, 2 cells through it in 3D, 4 in 2D; B̃r 0.1 T along it, 20 mT
+// across it, damped near critically) settled from straight until its tip moves < 1e-6 m over 5 ms, one thread.
+// Args: dimension, step (0 explicit at courant 0.4, N > 0 implicit at N times that). Counters: steps, tip rise [mm].
 
 #include <benchmark/benchmark.h>
 #include <omp.h>
@@ -50,8 +55,61 @@ void BM_MpmBeam3D(benchmark::State& state) {
       benchmark::Counter(10.0 * static_cast<double>(b.model.size()), benchmark::Counter::kIsIterationInvariantRate);
 }
 
+template <int D>
+void settle_catheter(benchmark::State& state) {
+  omp_set_num_threads(1);
+  mpm::CantileverSpec s;
+  s.length = 10e-3;
+  s.thickness = 1e-3;
+  s.width = 1e-3;
+  s.cells_through_thickness = D == 2 ? 4 : 2;
+  s.particles_per_cell = 2;
+  s.material = {1e6, 2e7, 1100.0};
+  s.remanence = Vec3(0.1, 0.0, 0.0);
+  s.damping = 1000.0;
+  mpm::AppliedField f;
+  f.kind = mpm::AppliedField::Kind::kUniform;
+  f.uniform = Vec3(0.0, 20e-3, 0.0);
+  mpm::SettleOptions o;
+  o.tolerance = 1e-6;
+  o.window = 0.005;
+  o.max_time = 0.3;
+  const long ratio = state.range(1);
+  o.implicit = ratio > 0;
+  mpm::SettleResult r;
+  double rise = 0.0;
+  for (auto _ : state) {
+    mpm::Cantilever<D> c = mpm::make_cantilever<D>(s);
+    const double start = mpm::mean_position<D>(c.state, c.tip)[1];
+    if (o.implicit) o.time_step = static_cast<double>(ratio) * c.model.stable_step(o.courant);
+    mpm::MpmWorkspace<D> ws;
+    r = mpm::settle<D>(c.model, c.state, ws, [&](double) { return f; }, c.tip, o);
+    if (!r.status.ok || !r.settled) state.SkipWithError("the catheter did not settle");
+    rise = mpm::mean_position<D>(c.state, c.tip)[1] - start;
+  }
+  state.counters["steps"] = static_cast<double>(r.steps);
+  state.counters["tip_rise_mm"] = rise * 1e3;
+}
+
+void BM_StiffCatheterSettle(benchmark::State& state) {
+  if (state.range(0) == 2)
+    settle_catheter<2>(state);
+  else
+    settle_catheter<3>(state);
+}
+
 }  // namespace
 
+BENCHMARK(BM_StiffCatheterSettle)
+    ->Args({2, 0})
+    ->Args({2, 10})
+    ->Args({2, 100})
+    ->Args({3, 0})
+    ->Args({3, 10})
+    ->Args({3, 50})
+    ->Iterations(1)
+    ->Unit(benchmark::kSecond)
+    ->UseRealTime();
 BENCHMARK(BM_MpmBeam3D)->Args({6, 1})->Args({6, 2})->Args({10, 2})->Unit(benchmark::kMillisecond)->UseRealTime();
 
 BENCHMARK_MAIN();
