@@ -193,6 +193,11 @@ class Solver {
       m_s.v[u] = t / m_scale;
       m_s.unknown[u] = 1;
     }
+  }
+
+  /// The Jacobi preconditioner, built only where CG runs without a factor (too many unknowns for the direct solve).
+  void build_jacobi() {
+    const StepContext<D>& c = m_c;
     // Jacobi preconditioner: m (1 + cΔt) + Δt² Σ_p V0 w² (G |b|² + (K + G/3) b_a²), b = Fᵀ D⁻¹ (x_i − x_p): the
     // diagonal of an isotropic linear material's stiffness at the particle, the Neo-Hookean's at rest.
     for_particles_coloured<D>(c.ws, m_np, [&](std::size_t p) {
@@ -212,6 +217,7 @@ class Solver {
       m_s.diag[u] =
           m_s.unknown[u] ? VecD<D>((m * m_scale * VecD<D>::Ones() + m_s.diag[u]).cwiseInverse()) : VecD<D>::Zero();
     }
+    m_jacobi = true;
   }
 
   /// C_p = D⁻¹ Σ_i v_i (x_i − x_p)ᵀ w_ip: the velocity gradient G2P will form from node velocities v.
@@ -429,6 +435,7 @@ class Solver {
   void precondition(const std::vector<VecD<D>>& r, std::vector<VecD<D>>& z) {
     const auto n = static_cast<std::size_t>(m_nodes);
     if (!m_factored) {
+      if (!m_jacobi) build_jacobi();
       for (std::size_t k = 0; k < n; ++k) z[k] = m_s.diag[k].cwiseProduct(r[k]);
       return;
     }
@@ -508,6 +515,7 @@ class Solver {
   double m_scale;                     // 1 + cΔt
   double m_magnitude = 0.0;           // Σ |terms| of the last energy_at: its round-off scale
   bool m_factored = false;            // m_ldlt holds this step's factored Hessian
+  bool m_jacobi = false;              // m_s.diag holds the Jacobi preconditioner
   bool m_indefinite = false;          // the last factorization found the Hessian indefinite
   bool m_project = false;             // the tangents' negative eigenvalues are set to zero (after an indefinite one)
   std::vector<std::int64_t> m_index;  // direct solve: each node's unknown number (−1: fixed or empty)
