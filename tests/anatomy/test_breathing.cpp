@@ -9,6 +9,7 @@
 #include <cmath>
 #include <cstdio>
 #include <filesystem>
+#include <limits>
 #include <random>
 #include <thread>
 #include <utility>
@@ -144,6 +145,20 @@ TEST(CollisionWorldRefit, AnswersAsAWorldBuiltOnTheMovedMesh) {
   EXPECT_GT(compared, 400);
   std::vector<Vec3> wrong(3, Vec3::Zero());
   EXPECT_THROW(refitted.refit(wrong), InputError);
+  // A vertex not finite (NaN in the last coordinate, +∞ in one in the middle) is refused, the world left as it was.
+  const Vec3 probe = moved.vertices[10];  // on the moved wall
+  std::array<Contact, 8> kept_before{};
+  const std::size_t n_before = refitted.sphere_contacts(probe, 1e-3, kept_before);
+  ASSERT_GT(n_before, 0u);
+  for (const auto& [index, value] : {std::pair{moved.vertices.size() - 1, std::nan("")},
+                                     std::pair{moved.vertices.size() / 2, std::numeric_limits<double>::infinity()}}) {
+    std::vector<Vec3> bad = moved.vertices;
+    bad[index][index % 3 == 0 ? 2 : index % 3] = value;
+    EXPECT_THROW(refitted.refit(bad), InputError);
+    std::array<Contact, 8> kept_after{};
+    ASSERT_EQ(refitted.sphere_contacts(probe, 1e-3, kept_after), n_before);
+    for (std::size_t i = 0; i < n_before; ++i) EXPECT_EQ(kept_after[i].point, kept_before[i].point);
+  }
 }
 
 /// The records of a refitted world are filled by the queries that first read them (CollisionWorld::refit): two

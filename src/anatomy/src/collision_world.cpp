@@ -930,6 +930,62 @@ void CollisionWorld::Impl::fill_tables() {
   std::vector<Vec3>().swap(w.incidence.normals);  // the queries read only the incidence lists
 }
 
+namespace {
+
+/// Whether every coordinate is finite (one pass over the doubles, vectorised).
+MAGVINE_HOT_KERNEL bool all_finite(std::span<const Vec3> v) {
+  static_assert(sizeof(Vec3) == 3 * sizeof(double));
+  const double* x = v.empty() ? nullptr : v.front().data();
+  const std::size_t n = 3 * v.size();
+  // x·0 is 0 for a finite x and NaN for ±∞ and NaN; four sums of them, in lanes the compiler can vectorise.
+  std::array<double, 4> zero{};
+  std::size_t i = 0;
+  for (; i + 4 <= n; i += 4) {
+    for (std::size_t k = 0; k < 4; ++k) zero[k] += x[i + k] * 0.0;
+  }
+  for (; i < n; ++i) zero[0] += x[i] * 0.0;
+  return zero[0] + zero[1] + zero[2] + zero[3] == 0.0;
+}
+
+/// The box of points, kept in scalars that stay in registers (Eigen's Vec3 minima went through the stack).
+struct ScalarBox {
+  double lo_x = std::numeric_limits<double>::infinity(), lo_y = lo_x, lo_z = lo_x;
+  double hi_x = -lo_x, hi_y = -lo_x, hi_z = -lo_x;
+  void add(const Vec3& v) {
+    lo_x = std::min(lo_x, v.x());
+    lo_y = std::min(lo_y, v.y());
+    lo_z = std::min(lo_z, v.z());
+    hi_x = std::max(hi_x, v.x());
+    hi_y = std::max(hi_y, v.y());
+    hi_z = std::max(hi_z, v.z());
+  }
+  std::pair<Vec3, Vec3> box() const { return {Vec3(lo_x, lo_y, lo_z), Vec3(hi_x, hi_y, hi_z)}; }
+};
+
+/// Copies `from` to `to` and returns their box.
+MAGVINE_HOT_KERNEL std::pair<Vec3, Vec3> copy_with_box(std::span<const Vec3> from, Vec3* to) {
+  ScalarBox box;
+  for (std::size_t i = 0; i < from.size(); ++i) {
+    to[i] = from[i];
+    box.add(from[i]);
+  }
+  return box.box();
+}
+
+/// to[p] = from[source[p]] for every p, and the box of what was gathered.
+MAGVINE_HOT_KERNEL std::pair<Vec3, Vec3> gather_with_box(std::span<const Vec3> from,
+                                                         std::span<const std::uint32_t> source, Vec3* to) {
+  ScalarBox box;
+  for (std::size_t p = 0; p < source.size(); ++p) {
+    const Vec3& v = from[source[p]];
+    to[p] = v;
+    box.add(v);
+  }
+  return box.box();
+}
+
+}  // namespace
+
 CollisionWorld::CollisionWorld(const TriangleMesh& mesh, const CollisionWorldOptions& options)
     : m_impl(std::make_unique<Impl>(mesh, options)) {
   usage::note(usage::Component::kCollisionWorld);
@@ -941,9 +997,7 @@ void CollisionWorld::refit(std::span<const Vec3> vertices) {
     throw InputError("collision world refit: " + std::to_string(vertices.size()) + " vertices for a mesh of " +
                      std::to_string(m.mesh.vertices.size()));
   }
-  for (const Vec3& v : vertices) {
-    if (!v.allFinite()) throw InputError("collision world refit: a vertex is not finite");
-  }
+  if (!all_finite(vertices)) throw InputError("collision world refit: a vertex is not finite");
   // What may allocate comes first, so that nothing below can throw with the world half moved.
   Tables& w = m.tables;
   const std::size_t n = w.data.size();
@@ -951,23 +1005,10 @@ void CollisionWorld::refit(std::span<const Vec3> vertices) {
   m.bvh->prepare_refit(w.slot_corners);
   // The vertices and the mesh's box; the corners in slot order and their box; the BVH's boxes; the screen frame.
   // The slots' records follow lazily, each at the first query that reads it (Tables::ensure).
-  Vec3 lo = Vec3::Constant(std::numeric_limits<double>::infinity());
-  Vec3 hi = -lo;
-  for (std::size_t i = 0; i < vertices.size(); ++i) {
-    m.mesh.vertices[i] = vertices[i];
-    lo = lo.cwiseMin(vertices[i]);
-    hi = hi.cwiseMax(vertices[i]);
-  }
-  w.box_min = lo;
-  w.box_max = hi;
-  lo = Vec3::Constant(std::numeric_limits<double>::infinity());
-  hi = -lo;
-  for (std::size_t p = 0; p < w.points.size(); ++p) {
-    const Vec3& v = m.mesh.vertices[w.point_source[p]];
-    w.points[p] = v;
-    lo = lo.cwiseMin(v);
-    hi = hi.cwiseMax(v);
-  }
+  const auto [all_lo, all_hi] = copy_with_box(vertices, m.mesh.vertices.data());
+  w.box_min = all_lo;
+  w.box_max = all_hi;
+  const auto [lo, hi] = gather_with_box(vertices, w.point_source, w.points.data());
   m.bvh->refit(w.points, lo, hi);
   set_screen_frame(w);
   if (w.version + 1 == kBusy) {

@@ -55,7 +55,8 @@ class TriangleBvh {
   void prepare_refit(std::span<const std::array<std::uint32_t, 3>> corners);
 
   /// Recomputes every box bottom-up for moved corners `points` (prepare_refit first), keeping the tree (its nodes,
-  /// leaves and slot order), with the build's padding and outward rounding; [lo, hi] is the box of every corner.
+  /// leaves and slot order), with the build's padding and the outward rounding folded into it (boxes looser than
+  /// a build's by at most two float ulps of the largest coordinate); [lo, hi] is the box of every corner.
   void refit(std::span<const Vec3> points, const Vec3& lo, const Vec3& hi);
 
   /// slot → triangle index: leaves are contiguous runs of slots.
@@ -110,9 +111,15 @@ class TriangleBvh {
   std::vector<Node> m_nodes;  ///< node 0 is the root
   std::vector<std::uint32_t> m_order;
   /// For refit, filled at the first: each leaf child's distinct corner points (a leaf's triangles share most of
-  /// their corners, so its box reads each once), as ranges of m_leaf_points per node and child (node·4 + child).
+  /// their corners, so its box reads each once), listed in m_refit_leaves.
   std::vector<std::uint32_t> m_leaf_points;
-  std::vector<std::array<std::uint32_t, 2>> m_leaf_range;
+  /// A non-empty leaf child for refit: node·4 + child, and its range of m_leaf_points.
+  struct RefitLeaf {
+    std::uint32_t child, begin, end;
+  };
+  std::vector<RefitLeaf> m_refit_leaves;
+  /// For refit: per node, its place in its parent (parent·4 + child); the root's is unused.
+  std::vector<std::uint32_t> m_parent_slot;
 };
 
 /// One child's box as plain floats [mesh units], kept by callers that re-test a leaf later.
@@ -168,8 +175,7 @@ inline Float4 load4(const std::array<float, 4>& a) {
 }
 
 /// The nearest float at or below (`down`) / above (`up`) a double.
-/// The float after f towards −∞ (sign −1) or +∞ (+1): std::nextafter's value for a finite f, by the bits (the
-/// refit calls it for every box face).
+/// The float after f towards −∞ (sign −1) or +∞ (+1): std::nextafter's value for a finite f, by the bits.
 inline float float_step(float f, int sign) {
   if (!std::isfinite(f)) return std::nextafter(f, sign * std::numeric_limits<float>::infinity());
   if (f == 0.0F) return sign * std::numeric_limits<float>::denorm_min();
