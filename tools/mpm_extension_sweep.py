@@ -20,7 +20,8 @@ the same reduction is asserted within 3 % in test_mpm_scene, AMagnetsPullStretch
     /usr/bin/python3 tools/mpm_extension_sweep.py --out runs/extension_sweep \\
         --figure docs/figures/mpm_extension_sweep.png --csv docs/figures/mpm_extension_sweep.csv
 
-A missing or malformed input gives one line on stderr, exit status 2 and no CSV or PNG.
+A missing or malformed input gives one line on stderr, exit status 2 and no CSV or PNG. The robot's geometry (its
+free end at 30 mm, used for the gap) and the 1D bar's sections are the bundled scene's; another scene is refused.
 """
 import argparse
 import csv
@@ -178,7 +179,8 @@ def main():
     ap = argparse.ArgumentParser(description=__doc__.splitlines()[0])
     ap.add_argument("--scene", default="assets/scenes/mpm_gradient_extension.yaml")
     ap.add_argument("--magvine", default="build/src/cli/magvine")
-    ap.add_argument("--distances", default="30,35,40,50,60,80,100", help="gaps to the magnet's top face [mm]")
+    ap.add_argument("--distances", default="30,40,50,55,60,70,80,100,120",
+                    help="gaps to the magnet's top face [mm] (the default: docs/figures/mpm_extension_sweep.csv)")
     ap.add_argument("--out", required=True, help="folder for the scenes and runs")
     ap.add_argument("--csv", help="the table (default OUT/extension_sweep.csv)")
     ap.add_argument("--figure", help="the PNG (default OUT/extension_sweep.png)")
@@ -191,12 +193,25 @@ def main():
         distances = [float(d) for d in a.distances.split(",")]
     except ValueError:
         fail("--distances", "not a comma-separated list of numbers")
-    if not distances or min(distances) < 5.0:
+    if not distances or not all(math.isfinite(d) and d >= 5.0 for d in distances):
         fail("--distances", "each gap must be at least 5 mm (the domain's floor, 1 mm above the magnet, lies below "
                             "the robot's free end)")
     if scene_text(template, distances[0]) is None:
         fail(a.scene, "no magnet 'polarisation: 1.44, position: [0, 0, z]', domain or duration line (not the "
                       "bundled scene?)")
+    try:
+        import matplotlib
+        matplotlib.use("Agg")
+        import matplotlib.pyplot as plt
+    except ImportError as e:
+        fail("matplotlib", str(e))
+    out_csv = a.csv or os.path.join(a.out, "extension_sweep.csv")
+    out_png = a.figure or os.path.join(a.out, "extension_sweep.png")
+    for path in (a.csv, a.figure):
+        if path and not os.path.isdir(os.path.dirname(os.path.abspath(path))):
+            fail(path, "its folder does not exist")
+    if not (os.path.isfile(a.magvine) and os.access(a.magvine, os.X_OK)):
+        fail(a.magvine, "not an executable (--magvine)")
     os.makedirs(a.out, exist_ok=True)
     rows = []
     for d in distances:
@@ -207,10 +222,14 @@ def main():
             f.write(text)
         print(f"mpm_extension_sweep: {d:g} mm ...", file=sys.stderr, flush=True)
         start = time.monotonic()
-        done = subprocess.run([a.magvine, "mpm", scene, "--out", run], stdout=subprocess.DEVNULL,
-                              stderr=subprocess.PIPE, text=True)
+        try:
+            done = subprocess.run([a.magvine, "mpm", scene, "--out", run], stdout=subprocess.DEVNULL,
+                                  stderr=subprocess.PIPE, text=True)
+        except OSError as e:
+            fail(a.magvine, e.strerror)
         if done.returncode != 0:
-            fail(scene, f"magvine mpm exited {done.returncode}: {done.stderr.strip().splitlines()[-1:]}")
+            last_line = (done.stderr.strip().splitlines() or ["no message"])[-1]
+            fail(scene, f"magvine mpm exited {done.returncode}: {last_line}")
         wall = time.monotonic() - start
         first, last, t_end = tip_settled(run)
         # Within three cells of the floor above the magnet: pulled down onto it (no equilibrium in between).
@@ -218,16 +237,12 @@ def main():
         estimate = one_dimensional_extension(d)
         rows.append({"distance_mm": d, "extension_mm": first - last, "onto_magnet": int(onto),
                      "estimate_1d_mm": "" if estimate is None else estimate, "settled_at_s": t_end, "runtime_s": wall})
-    out_csv = a.csv or os.path.join(a.out, "extension_sweep.csv")
     with open(out_csv, "w", encoding="utf-8", newline="") as f:
         w = csv.DictWriter(f, fieldnames=list(rows[0]))
         w.writeheader()
         for r in rows:
             w.writerow({k: (f"{v:.4f}" if isinstance(v, float) else v) for k, v in r.items()})
 
-    import matplotlib
-    matplotlib.use("Agg")
-    import matplotlib.pyplot as plt
     fig, ax = plt.subplots(figsize=(6, 4.2))
     ds = [r["distance_mm"] for r in rows]
     held = [r for r in rows if not r["onto_magnet"]]
@@ -247,7 +262,6 @@ def main():
     ax.grid(alpha=0.3)
     ax.legend()
     fig.tight_layout()
-    out_png = a.figure or os.path.join(a.out, "extension_sweep.png")
     fig.savefig(out_png, dpi=120)
     for r in rows:
         print(f"{r['distance_mm']:5.1f} mm: extension {r['extension_mm']:.3f} mm"

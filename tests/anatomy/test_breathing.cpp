@@ -12,6 +12,7 @@
 #include <limits>
 #include <random>
 #include <thread>
+#include <tuple>
 #include <utility>
 #include <vector>
 
@@ -150,10 +151,13 @@ TEST(CollisionWorldRefit, AnswersAsAWorldBuiltOnTheMovedMesh) {
   std::array<Contact, 8> kept_before{};
   const std::size_t n_before = refitted.sphere_contacts(probe, 1e-3, kept_before);
   ASSERT_GT(n_before, 0u);
-  for (const auto& [index, value] : {std::pair{moved.vertices.size() - 1, std::nan("")},
-                                     std::pair{moved.vertices.size() / 2, std::numeric_limits<double>::infinity()}}) {
-    std::vector<Vec3> bad = moved.vertices;
-    bad[index][index % 3 == 0 ? 2 : index % 3] = value;
+  // The refused pose is the tube at rest, so a half-applied refit would move the wall under the probe.
+  for (const auto& [index, axis, value] :
+       {std::tuple{moved.vertices.size() - 1, 2, std::nan("")},
+        std::tuple{moved.vertices.size() / 2, 0, std::numeric_limits<double>::infinity()},
+        std::tuple{std::size_t{0}, 1, -std::numeric_limits<double>::infinity()}}) {
+    std::vector<Vec3> bad = tube.mesh.vertices;
+    bad[index][axis] = value;
     EXPECT_THROW(refitted.refit(bad), InputError);
     std::array<Contact, 8> kept_after{};
     ASSERT_EQ(refitted.sphere_contacts(probe, 1e-3, kept_after), n_before);

@@ -189,8 +189,9 @@ TriangleBvh::TriangleBvh(std::span<const Vec3> vertices, std::span<const Triangl
   args.maxLeafSize = kMaxLeafSize;
   // A triangle's test costs a quarter of a node's in the SAH (Embree's default: the same), so leaves hold a few
   // triangles rather than one: on the 195 k-triangle airway 52.8 k leaves in 17.6 k nodes instead of about 150 k in
-  // 51 k. Every query was as fast or faster in bench_contacts, the build 10 % faster and the refit 1.6× (2026-12-06,
-  // docs/benchmarks.md).
+  // 51 k. In bench_contacts the barrier's triangles_within took 0.41–0.61 and sphere contacts 0.62–0.90 of the time,
+  // rays 1.3–1.6 and the inside test 1.3 times it, the build 0.86 and the refit 0.6 (2026-12-06,
+  // docs/benchmarks.md); growth runs, dominated by triangles_within, gain.
   args.intersectionCost = kTriangleCost;
   args.bvh = bvh.get();
   args.primitives = primitives.data();
@@ -223,7 +224,7 @@ TriangleBvh::TriangleBvh(std::span<const Vec3> vertices, std::span<const Triangl
 }
 
 void TriangleBvh::prepare_refit(std::span<const std::array<std::uint32_t, 3>> corners) {
-  if (!m_refit_leaves.empty() || m_nodes.empty()) return;
+  if (!m_parent_slot.empty()) return;  // prepared (set last, so that a failed allocation leaves it unprepared)
   // Each leaf child's distinct corners, once (the tree and the corners' indices never change), and its place.
   std::vector<std::uint32_t> points;
   std::vector<RefitLeaf> leaves;
@@ -242,25 +243,26 @@ void TriangleBvh::prepare_refit(std::span<const std::array<std::uint32_t, 3>> co
       leaves.push_back({static_cast<std::uint32_t>(4 * i + k), begin, static_cast<std::uint32_t>(points.size())});
     }
   }
-  m_leaf_points = std::move(points);
-  m_refit_leaves = std::move(leaves);
-  m_parent_slot.assign(m_nodes.size(), 0);
+  std::vector<std::uint32_t> parent(m_nodes.size(), 0);
   for (std::size_t i = 0; i < m_nodes.size(); ++i) {
     for (std::size_t k = 0; k < 4; ++k) {
       const std::uint32_t c = m_nodes[i].child[k];
-      if ((c & kLeafBit) == 0) m_parent_slot[c] = static_cast<std::uint32_t>(4 * i + k);
+      if ((c & kLeafBit) == 0) parent[c] = static_cast<std::uint32_t>(4 * i + k);
     }
   }
+  m_leaf_points = std::move(points);
+  m_refit_leaves = std::move(leaves);
+  m_parent_slot = std::move(parent);
 }
 
 MAGVINE_HOT_KERNEL void TriangleBvh::refit(std::span<const Vec3> points, const Vec3& lo, const Vec3& hi) {
-  MAGVINE_ASSERT(!m_refit_leaves.empty() || m_nodes.empty());
+  MAGVINE_ASSERT(m_parent_slot.size() == m_nodes.size());
   // The build's pad, and the outward rounding folded into it: a float nearest to y is within half an ulp of y,
-  // at most 2^-24·|y| ≤ 2^-22·m for every |y| ≤ m + out with out ≤ 3m (m the largest corner coordinate), so
-  // rounding x − out to the nearest float lands at or below x − pad (and x + out at or above x + pad) with no
-  // test per face.
+  // at most 2^-24·|y| ≤ 2^-22·m for every |y| ≤ m + out with out ≤ 3m (m the largest corner coordinate), or 2^-150
+  // where the float is subnormal; so rounding x − out to the nearest float lands at or below x − pad (and x + out at
+  // or above x + pad) with no test per face.
   const double pad = kBoxPad * (hi - lo).norm();
-  const double out = pad + 0x1p-22 * std::max(lo.cwiseAbs().maxCoeff(), hi.cwiseAbs().maxCoeff());
+  const double out = pad + 0x1p-22 * std::max(lo.cwiseAbs().maxCoeff(), hi.cwiseAbs().maxCoeff()) + 0x1p-149;
   // The leaves' boxes from their corners (branch-free minima over each leaf's few distinct points).
   for (const RefitLeaf& leaf : m_refit_leaves) {
     double ax = std::numeric_limits<double>::infinity(), ay = ax, az = ax;

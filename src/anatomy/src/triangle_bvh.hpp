@@ -56,7 +56,7 @@ class TriangleBvh {
 
   /// Recomputes every box bottom-up for moved corners `points` (prepare_refit first), keeping the tree (its nodes,
   /// leaves and slot order), with the build's padding and the outward rounding folded into it (boxes looser than
-  /// a build's by at most two float ulps of the largest coordinate); [lo, hi] is the box of every corner.
+  /// a build's by at most three float ulps of the largest coordinate); [lo, hi] is the box of every corner.
   void refit(std::span<const Vec3> points, const Vec3& lo, const Vec3& hi);
 
   /// slot → triangle index: leaves are contiguous runs of slots.

@@ -291,9 +291,10 @@ double scaled_norm(const RodModel& m, const VecX& g) {
 /// The scaled gradient that round-off alone produces: the strains' round-off times the axial and shear stiffness,
 /// in units of EI/L². A slender rod (EA L²/EI = 12 (L/t)²) cannot converge below it. An edge vector is a difference
 /// of two positions, each rounded to ε·|x|, so a strain carries ε·|x|/h of round-off: 1e3·ε is allowed wherever
-/// |x|/h ≤ 250 (a body within 0.25 m of the origin at 1 mm edges), 4ε·|x|/h beyond. A patient's CT frame puts the
-/// airway 1.4 m from its origin; there a 1.5 mm-edge vine's gradient bounced at 4–6.5e-6 against a floor of 4.4e-6,
-/// and solves that had converged ran out of iterations (the needle's punctures, docs/ct.md).
+/// |x|/h ≤ 250 (a body within 0.25 m of the origin at 1 mm edges), 4ε·|x|/h beyond (h the mean edge; the factor
+/// covers a tip edge half as long). A patient's CT frame puts the airway 1.4 m from its origin; there a 1.5 mm-edge
+/// vine's gradient bounced at 4–6.5e-6 against the old floor of 4.4e-6 for dozens of iterations of a converged
+/// solve (traced in the needle's punctures, which still fail for another reason: docs/ct.md).
 double noise_floor(const RodModel& m, const RodState& s) {
   const double ei = bending_scale(m);
   double reach = 0.0;  // the largest coordinate [m]
