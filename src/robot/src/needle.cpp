@@ -68,6 +68,8 @@ PunctureReport push_needle(const GrowthModel& model, const RodField& field, cons
   control.pressure = pressure;
   control.tether_length = everted_length(model, state);  // held: the puncture grows nothing
   double p = 0.0;
+  double last_force = 0.0;  // the reaction of the last converged increment [N]
+  const double dt = needle.increment / needle.speed;
   while (p < out.target_protrusion) {
     p = std::min(p + needle.increment, out.target_protrusion);
     const Vec3 x = state.body.tip();
@@ -76,11 +78,29 @@ PunctureReport push_needle(const GrowthModel& model, const RodField& field, cons
     const double depth = std::max(0.0, p - wall_ahead(model.world, x, t, needle.length));
     const double force = needle_tissue_force(needle, depth);
     control.tip_force = -force * t;
-    const GrowthStatus r = grow_step(model, field, control, state, workspace, needle.increment / needle.speed);
+    GrowthStatus r = grow_step(model, field, control, state, workspace, dt);
+    // The reaction is the increment's load: where the step fails (the needle meeting the wall raises it by up to
+    // F_c·increment/d_p at once, and the growth step's own retries halve its time, not its load), the increment is
+    // taken again as 4, then 16 steps with the reaction raised evenly from the last converged one: a quasi-static
+    // loading path, each step from the last equilibrium.
+    double held = last_force;  // the largest reaction a step of this increment converged under
+    for (int pieces = 4; !r.converged && pieces <= 16; pieces *= 4) {
+      const GrowthState before = state;  // grow_step left the state where the failed step began
+      for (int k = 1; k <= pieces; ++k) {
+        const double piece = last_force + (force - last_force) * k / pieces;
+        control.tip_force = -piece * t;
+        r = grow_step(model, field, control, state, workspace, dt / pieces);
+        if (!r.converged) break;
+        held = std::max(held, piece);
+      }
+      if (!r.converged) state = before;
+    }
+    if (r.converged) last_force = force;
     if (!r.converged) {
       out.held = false;
-      out.why = printf_string("the vine found no equilibrium under the needle's %.2f N at %.1f mm protrusion: %s",
-                              force, 1e3 * p, r.failure.c_str());
+      out.why = printf_string(
+          "the vine found no equilibrium under the needle's %.2f N at %.1f mm protrusion (it held %.2f N): %s", force,
+          1e3 * p, held, r.failure.c_str());
       break;
     }
     PunctureStep s;
