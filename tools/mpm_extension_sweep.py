@@ -32,6 +32,13 @@ import subprocess
 import sys
 import time
 
+sys.path.insert(0, os.path.dirname(os.path.abspath(__file__)))
+try:  # a run's probes.csv as (t_s, tip_z_mm), exit 2 when malformed; it loads matplotlib too
+    from plot_mpm_sweeps import tip_track  # noqa: E402
+except ImportError as e:
+    print(f"mpm_extension_sweep: matplotlib: {e}", file=sys.stderr)
+    sys.exit(2)
+
 TIP_Z = 30.0  # the bundled robot's free end [mm]
 MAGNET_LENGTH = 100.0  # the bundled magnet's length [mm]
 
@@ -161,20 +168,6 @@ def scene_text(template, distance_mm):
     return text if n == 1 and m == 1 and k == 1 else None
 
 
-def tip_settled(run):
-    path = os.path.join(run, "probes.csv")
-    try:
-        with open(path, encoding="utf-8", newline="") as f:
-            rows = list(csv.DictReader(f))
-        if not rows or "tip_z_mm" not in rows[0]:
-            fail(path, "no tip_z_mm column")
-        return float(rows[0]["tip_z_mm"]), float(rows[-1]["tip_z_mm"]), float(rows[-1]["t_s"])
-    except OSError as e:
-        fail(path, e.strerror)
-    except ValueError as e:
-        fail(path, f"not a number ({e})")
-
-
 def main():
     ap = argparse.ArgumentParser(description=__doc__.splitlines()[0])
     ap.add_argument("--scene", default="assets/scenes/mpm_gradient_extension.yaml")
@@ -231,7 +224,8 @@ def main():
             last_line = (done.stderr.strip().splitlines() or ["no message"])[-1]
             fail(scene, f"magvine mpm exited {done.returncode}: {last_line}")
         wall = time.monotonic() - start
-        first, last, t_end = tip_settled(run)
+        times, heights = tip_track(run)
+        first, last, t_end = heights[0], heights[-1], times[-1]
         # Within three cells of the floor above the magnet: pulled down onto it (no equilibrium in between).
         onto = last - (TIP_Z - d + 1.0) < 3.0
         estimate = one_dimensional_extension(d)

@@ -947,24 +947,9 @@ MAGVINE_HOT_KERNEL bool all_finite(std::span<const Vec3> v) {
   return zero[0] + zero[1] + zero[2] + zero[3] == 0.0;
 }
 
-/// The box of points, kept in scalars that stay in registers (Eigen's Vec3 minima went through the stack).
-struct ScalarBox {
-  double lo_x = std::numeric_limits<double>::infinity(), lo_y = lo_x, lo_z = lo_x;
-  double hi_x = -lo_x, hi_y = -lo_x, hi_z = -lo_x;
-  void add(const Vec3& v) {
-    lo_x = std::min(lo_x, v.x());
-    lo_y = std::min(lo_y, v.y());
-    lo_z = std::min(lo_z, v.z());
-    hi_x = std::max(hi_x, v.x());
-    hi_y = std::max(hi_y, v.y());
-    hi_z = std::max(hi_z, v.z());
-  }
-  std::pair<Vec3, Vec3> box() const { return {Vec3(lo_x, lo_y, lo_z), Vec3(hi_x, hi_y, hi_z)}; }
-};
-
 /// Copies `from` to `to` and returns their box.
 MAGVINE_HOT_KERNEL std::pair<Vec3, Vec3> copy_with_box(std::span<const Vec3> from, Vec3* to) {
-  ScalarBox box;
+  detail::ScalarBox box;
   for (std::size_t i = 0; i < from.size(); ++i) {
     to[i] = from[i];
     box.add(from[i]);
@@ -975,7 +960,7 @@ MAGVINE_HOT_KERNEL std::pair<Vec3, Vec3> copy_with_box(std::span<const Vec3> fro
 /// to[p] = from[source[p]] for every p, and the box of what was gathered.
 MAGVINE_HOT_KERNEL std::pair<Vec3, Vec3> gather_with_box(std::span<const Vec3> from,
                                                          std::span<const std::uint32_t> source, Vec3* to) {
-  ScalarBox box;
+  detail::ScalarBox box;
   for (std::size_t p = 0; p < source.size(); ++p) {
     const Vec3& v = from[source[p]];
     to[p] = v;

@@ -265,25 +265,16 @@ MAGVINE_HOT_KERNEL void TriangleBvh::refit(std::span<const Vec3> points, const V
   const double out = pad + 0x1p-22 * std::max(lo.cwiseAbs().maxCoeff(), hi.cwiseAbs().maxCoeff()) + 0x1p-149;
   // The leaves' boxes from their corners (branch-free minima over each leaf's few distinct points).
   for (const RefitLeaf& leaf : m_refit_leaves) {
-    double ax = std::numeric_limits<double>::infinity(), ay = ax, az = ax;
-    double bx = -ax, by = -ax, bz = -ax;
-    for (std::uint32_t j = leaf.begin; j < leaf.end; ++j) {
-      const Vec3& p = points[m_leaf_points[j]];
-      ax = std::min(ax, p.x());
-      ay = std::min(ay, p.y());
-      az = std::min(az, p.z());
-      bx = std::max(bx, p.x());
-      by = std::max(by, p.y());
-      bz = std::max(bz, p.z());
-    }
+    ScalarBox b;
+    for (std::uint32_t j = leaf.begin; j < leaf.end; ++j) b.add(points[m_leaf_points[j]]);
     Node& n = m_nodes[leaf.child >> 2];
     const std::size_t k = leaf.child & 3u;
-    n.lo_x[k] = static_cast<float>(ax - out);
-    n.lo_y[k] = static_cast<float>(ay - out);
-    n.lo_z[k] = static_cast<float>(az - out);
-    n.hi_x[k] = static_cast<float>(bx + out);
-    n.hi_y[k] = static_cast<float>(by + out);
-    n.hi_z[k] = static_cast<float>(bz + out);
+    n.lo_x[k] = static_cast<float>(b.lo_x - out);
+    n.lo_y[k] = static_cast<float>(b.lo_y - out);
+    n.lo_z[k] = static_cast<float>(b.lo_z - out);
+    n.hi_x[k] = static_cast<float>(b.hi_x + out);
+    n.hi_y[k] = static_cast<float>(b.hi_y + out);
+    n.hi_z[k] = static_cast<float>(b.hi_z + out);
   }
   // Children come after their parents (the flattening appends a node before its subtree): from the last node back,
   // each node's four boxes are final when it is reached, and their union is its box in its parent (empty children's

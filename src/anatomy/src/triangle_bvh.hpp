@@ -122,6 +122,22 @@ class TriangleBvh {
   std::vector<std::uint32_t> m_parent_slot;
 };
 
+/// The box of points, kept in six scalars that stay in registers (Eigen's Vec3 minima went through the stack, a
+/// third of a refit's vertex pass); the refit's leaf boxes and the collision world's vertex passes.
+struct ScalarBox {
+  double lo_x = std::numeric_limits<double>::infinity(), lo_y = lo_x, lo_z = lo_x;
+  double hi_x = -lo_x, hi_y = -lo_x, hi_z = -lo_x;
+  void add(const Vec3& v) {
+    lo_x = std::min(lo_x, v.x());
+    lo_y = std::min(lo_y, v.y());
+    lo_z = std::min(lo_z, v.z());
+    hi_x = std::max(hi_x, v.x());
+    hi_y = std::max(hi_y, v.y());
+    hi_z = std::max(hi_z, v.z());
+  }
+  std::pair<Vec3, Vec3> box() const { return {Vec3(lo_x, lo_y, lo_z), Vec3(hi_x, hi_y, hi_z)}; }
+};
+
 /// One child's box as plain floats [mesh units], kept by callers that re-test a leaf later.
 struct ChildBox {
   std::array<float, 3> lo;
