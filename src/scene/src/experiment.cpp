@@ -320,7 +320,10 @@ Experiment::Impl::Impl(const ExperimentScene& s) : scene(s), anatomy(*s.anatomy)
   pressure_now = vine.pressure;
   if (navigator && scene.navigator->camera) {
     eye = video_plugin("control.navigator.guidance").tip_eye(scene);
-    navigator->use_camera([this]() { return eye->look(state.body.tip(), state.body.frames.back()); });
+    navigator->use_camera([this]() {
+      if (breathing_world) eye->move(moved_vertices);  // the airway as it is now (its shape at state.time)
+      return eye->look(state.body.tip(), state.body.frames.back());
+    });
   }
   for (const VideoOutput& v : scene.videos) frame_interval = std::min(frame_interval, v.speed / v.fps);
   record_frame(0.0);
@@ -399,9 +402,12 @@ bool Experiment::Impl::step(const StepRequest& request) {
       }
     }
     if (navigator && scene.breathing && !aim_until && !arms) {
-      // The navigator placed its magnet from the tip taken back to the rest frame: carried with the tip.
+      // The navigator placed its magnet from the tip taken back to the rest frame: carried with the tip. Camera
+      // guidance does not read the tip: it carries the magnet by the breathing model where its dead reckoning has
+      // the tip (a respiratory motion model known before the procedure).
+      const std::optional<Vec3> estimated = navigator->estimated_tip(workspace.body.length, state.time);
       next[static_cast<std::size_t>(navigator->magnet())].position +=
-          displacement(at_rest(state.body.tip(), state.time), state.time);
+          displacement(estimated ? *estimated : at_rest(state.body.tip(), state.time), state.time);
     }
     if (aim_until && !arms) {
       // Aiming: the navigator's magnet on the line from the tip to the nodule, its distance away, axis along it

@@ -661,8 +661,7 @@ Vec3 nodule_file(const YamlMap& t, const std::filesystem::path& directory) {
 }
 
 /// control.navigator.guidance: the oracle (the tip's position read; the default) or the tip camera.
-std::optional<Navigator::Camera> parse_guidance(const YamlMap& g, const FileUnits& units,
-                                                const ExperimentScene& scene) {
+std::optional<Navigator::Camera> parse_guidance(const YamlMap& g, const FileUnits& units) {
   g.allow_only({"mode", "size", "fov", "noise", "min_area", "junction_window", "frames"});
   const bool camera = g.choice<bool>("mode", {"oracle", false}, {"camera", true});
   if (!camera) {
@@ -675,7 +674,6 @@ std::optional<Navigator::Camera> parse_guidance(const YamlMap& g, const FileUnit
            "camera guidance renders the tip camera: this magvine was built without the render module "
            "(MAGVINE_WITH_RENDER=ON)");
   }
-  if (scene.breathing) g.fail("mode", "camera guidance renders the airway at rest: not with anatomy.breathing yet");
   Navigator::Camera c;
   if (g.has("size")) c.size = static_cast<int>(g.whole("size", 32, 1024));
   if (g.has("fov")) c.fov = g.quantity("fov", Unit{kDegToRad, "deg"}, Range{0.0, 180.0 * kDegToRad, true, true});
@@ -795,7 +793,7 @@ void parse_navigator(const YamlMap& n, const FileUnits& units, const std::filesy
   if (n.has("boost_after")) nav.boost_after = n.quantity("boost_after", kSeconds, range::kDuration);
   if (n.has("boost_length")) nav.boost_length = n.quantity("boost_length", units.len, range::kDistance);
   if (n.has("recover")) nav.recover = parse_recovery(n.map("recover"), units, scene);
-  if (n.has("guidance")) nav.camera = parse_guidance(n.map("guidance"), units, scene);
+  if (n.has("guidance")) nav.camera = parse_guidance(n.map("guidance"), units);
   if (n.has("gate")) {
     const YamlMap g = n.map("gate");
     g.allow_only({"from", "to"});

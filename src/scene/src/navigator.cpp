@@ -388,8 +388,31 @@ void NavigatorController::use_camera(std::function<std::vector<SeenLumen>()> loo
   }
 }
 
-int NavigatorController::estimated_branch(double length) const {
-  const double s = estimated_arc(length);
+double NavigatorController::estimated_arc(double length, double t) const {
+  if (!m_scene.breathing) return m_base_arc + length;
+  // Breathing stretches the airway between the fixed entry and the lobes (anatomy/breathing.hpp), and the vine lies
+  // along it as it is now: the everted length is measured along the plan moved by the breathing model at t (known
+  // before the procedure, with the phase from a respiratory sensor), and the point there taken back to the plan's
+  // rest arc, segment by segment.
+  std::vector<Vec3> moved(m_path.size());
+  for (std::size_t i = 0; i < m_path.size(); ++i) {
+    moved[i] = m_path[i] + anatomy::breathing_displacement(*m_scene.breathing, m_path[i], t);
+  }
+  const double s = arc_length_of_nearest(moved, m_scene.base_position) + length;
+  double along = 0.0;  // along the moved plan [m]
+  double rest = 0.0;   // the same points' arc along the plan at rest [m]
+  for (std::size_t i = 0; i + 1 < moved.size(); ++i) {
+    const double l_moved = (moved[i + 1] - moved[i]).norm();
+    const double l_rest = (m_path[i + 1] - m_path[i]).norm();
+    if (along + l_moved >= s) return rest + (l_moved > 0.0 ? (s - along) / l_moved * l_rest : 0.0);
+    along += l_moved;
+    rest += l_rest;
+  }
+  return rest + (s - along);  // past the plan's end, as point_at_arc_length goes on along its last segment
+}
+
+int NavigatorController::estimated_branch(double length, double t) const {
+  const double s = estimated_arc(length, t);
   for (std::size_t i = 0; i < m_branch_end.size(); ++i) {
     if (s <= m_branch_end[i]) return m_plan[i];
   }
@@ -402,13 +425,18 @@ Vec3 NavigatorController::oracle_line(const Vec3& tip, const Mat3& tip_frame) co
   return line;
 }
 
+std::optional<Vec3> NavigatorController::estimated_tip(double length, double t) const {
+  if (!m_look) return std::nullopt;
+  return point_at_arc_length(m_path, estimated_arc(length, t));
+}
+
 void NavigatorController::place_by_camera(double t, const Mat3& tip_frame, double length) {
   // Where the plan says the tip is (dead reckoning), and what the camera shows.
   const Navigator::Camera& cam = *m_nav.camera;
   GuidanceSample g;
   g.time = t;
   g.length = length;
-  g.arc = estimated_arc(length);
+  g.arc = estimated_arc(length, t);
   const Vec3 tip = point_at_arc_length(m_path, g.arc);
   const std::vector<SeenLumen> seen = m_look();
   g.lumens = static_cast<int>(seen.size());
@@ -471,7 +499,7 @@ void NavigatorController::place(double t, const Vec3& tip, const Mat3& tip_frame
   if (m_look) {
     // Camera-guided: the tip's position is not read (its estimate along the plan stands in for it).
     place_by_camera(t, tip_frame, length);
-    clear = keep_clear(point_at_arc_length(m_path, estimated_arc(length)));
+    clear = keep_clear(point_at_arc_length(m_path, estimated_arc(length, t)));
   } else {
     m_pose = navigate(m_nav, m_path, tip, tip_frame, m_skin, t, m_scene.navigator_offset, m_line);
     if (m_platform != nullptr) {
@@ -500,10 +528,10 @@ void NavigatorController::regulate(double t, double length, int branch, bool rea
   // Camera-guided: the branch, the tip and whether the target is reached are the dead reckoning's (a wrong turn is
   // not seen; a held tip is).
   if (m_look) {
-    branch = estimated_branch(length);
-    reached = estimated_arc(length) >= m_branch_end.back();
+    branch = estimated_branch(length, t);
+    reached = estimated_arc(length, t) >= m_branch_end.back();
   }
-  const Vec3 tip = m_look ? point_at_arc_length(m_path, estimated_arc(length)) : tip_read;
+  const Vec3 tip = m_look ? point_at_arc_length(m_path, estimated_arc(length, t)) : tip_read;
   // Held (the boost's and the recovery's test): the length has not changed since m_grown_at, and no tether or made
   // length caps it.
   if (length != m_grown_length || length >= std::min(control.tether_length, m_scene.growth.max_length) - 1e-9) {

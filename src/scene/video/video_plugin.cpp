@@ -351,6 +351,7 @@ class LumenEye final : public TipEye {
   std::string picture(int chosen) const override {
     return m_frame.empty() ? std::string() : encode_png(render::draw_lumens(m_frame, m_lumens, chosen));
   }
+  void move(const std::vector<Vec3>& vertices) override { m_renderer.move(vertices); }
 
  private:
   render::AirwayRenderer m_renderer;

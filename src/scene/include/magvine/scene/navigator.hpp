@@ -97,6 +97,9 @@ class NavigatorController {
   const std::vector<GuidanceSample>& guidance() const { return m_guidance; }
   /// The oracle's line from `tip` (navigate's), for the report of a camera-guided run.
   Vec3 oracle_line(const Vec3& tip, const Mat3& tip_frame) const;
+  /// Where it takes the tip to be with `length` everted at time t [m], in the plan's (rest) frame: camera-guided, the
+  /// point its dead reckoning puts on the plan; otherwise nullopt (the oracle reads the tip).
+  std::optional<Vec3> estimated_tip(double length, double t) const;
 
   /// Whether it places magnet `magnet` (its own, or with a platform the other arm's of a dEPM pair).
   bool steers(int magnet) const;
@@ -110,10 +113,11 @@ class NavigatorController {
  private:
   bool keep_clear(const Vec3& tip);
   void next_placement_after(double t);
-  /// Camera guidance: the tip's arc length along the plan by dead reckoning (the base's, plus the everted length),
-  /// the point there, and the branch of the plan there.
-  double estimated_arc(double length) const { return m_base_arc + length; }
-  int estimated_branch(double length) const;
+  /// Camera guidance: the tip's arc length along the plan (its rest frame) at time t by dead reckoning: the base's
+  /// plus the everted length, along the plan as the breathing model has moved it at t where the airway breathes; and
+  /// the branch of the plan there.
+  double estimated_arc(double length, double t) const;
+  int estimated_branch(double length, double t) const;
   /// Camera guidance's placement: the magnet's line from the lumens seen.
   void place_by_camera(double t, const Mat3& tip_frame, double length);
   /// A magnet it places through an arm, and where the arm has it.

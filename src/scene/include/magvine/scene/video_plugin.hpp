@@ -79,6 +79,8 @@ class TipEye {
   virtual std::vector<SeenLumen> look(const Vec3& lens, const Mat3& tip_frame) = 0;
   /// The last frame looked with its lumens drawn, `chosen` (index into look's answer, −1: none) in green: PNG bytes.
   virtual std::string picture(int chosen) const = 0;
+  /// Moves the airway's vertices (breathing; same count and order as the mesh's): later looks see it there.
+  virtual void move(const std::vector<Vec3>& vertices) = 0;
 };
 
 /// An RGB image: height rows of width pixels, 3 bytes each (red, green, blue), top row first.
@@ -111,7 +113,7 @@ class TipView {
 
 /// The plugin's entry points (C++ types; the plugin is built from this tree with the same compiler).
 struct VideoPlugin {
-  static constexpr int kAbi = 4;
+  static constexpr int kAbi = 5;
   int abi = kAbi;
   /// Renders every video of scene.videos from result.frames into `dir` (each file, and each PNG folder, appears
   /// complete or not at all). Returns JSON text {"videos": [{camera, file, codec, frames, fps, size}, ...],
