@@ -6,6 +6,8 @@
 
 #include "magvine/core/error.hpp"
 #include "magvine/core/text.hpp"
+#include "magvine/robot/inflated_beam.hpp"
+#include "magvine/robot/rod.hpp"
 
 namespace magvine::robot {
 
@@ -43,6 +45,16 @@ double wall_ahead(const anatomy::CollisionWorld* world, const Vec3& tip, const V
   if (world == nullptr) return std::numeric_limits<double>::infinity();
   const std::optional<anatomy::RayHit> hit = world->ray_cast(tip, axis, reach);
   return hit ? hit->distance : std::numeric_limits<double>::infinity();
+}
+
+/// The largest joint bending moment of `body` in `state` over its collapse moment πR³P; 0 without the inflated-beam
+/// law.
+double moment_over_collapse(const RodModel& body, const RodState& state) {
+  if (!body.inflated) return 0.0;
+  const double collapse = collapse_moment(body.inflated->radius, body.inflated->pressure);
+  if (!(collapse > 0.0)) return 0.0;
+  const std::vector<double> moments = joint_bending_moments(body, state);
+  return moments.empty() ? 0.0 : *std::max_element(moments.begin(), moments.end()) / collapse;
 }
 
 }  // namespace
@@ -84,6 +96,7 @@ PunctureReport push_needle(const GrowthModel& model, const RodField& field, cons
     // taken again as 4, then 16 steps with the reaction raised evenly from the last converged one: a quasi-static
     // loading path, each step from the last equilibrium.
     double held = last_force;  // the largest reaction a step of this increment converged under
+    double bent = moment_over_collapse(workspace.body, state.body);  // the largest moment then, over πR³P
     for (int pieces = 4; !r.converged && pieces <= 16; pieces *= 4) {
       const GrowthState before = state;  // grow_step left the state where the failed step began
       for (int k = 1; k <= pieces; ++k) {
@@ -92,6 +105,7 @@ PunctureReport push_needle(const GrowthModel& model, const RodField& field, cons
         r = grow_step(model, field, control, state, workspace, dt / pieces);
         if (!r.converged) break;
         held = std::max(held, piece);
+        bent = moment_over_collapse(workspace.body, state.body);
       }
       if (!r.converged) state = before;
     }
@@ -99,8 +113,9 @@ PunctureReport push_needle(const GrowthModel& model, const RodField& field, cons
     if (!r.converged) {
       out.held = false;
       out.why = printf_string(
-          "the vine found no equilibrium under the needle's %.2f N at %.1f mm protrusion (it held %.2f N): %s", force,
-          1e3 * p, held, r.failure.c_str());
+          "the vine found no equilibrium under the needle's %.2f N at %.1f mm protrusion (it held %.2f N, its largest "
+          "bending moment then %.2f of its collapse moment): %s",
+          force, 1e3 * p, held, bent, r.failure.c_str());
       break;
     }
     PunctureStep s;
@@ -118,6 +133,7 @@ PunctureReport push_needle(const GrowthModel& model, const RodField& field, cons
     s.total_normal = state.forces.total_normal;
     s.imbalance = force > 0.0 ? state.forces.imbalance.norm() / force : 0.0;
     s.unsupported = force > 0.0 ? (s.wall + s.clamp + s.reaction).norm() / force : 0.0;
+    s.moment = moment_over_collapse(workspace.body, state.body);
     out.steps.push_back(s);
     if (on_step) on_step(s, state);
     out.needle_tip = s.needle_tip;
@@ -129,6 +145,7 @@ PunctureReport push_needle(const GrowthModel& model, const RodField& field, cons
     out.max_unsupported = std::max(out.max_unsupported, s.unsupported);
     out.max_imbalance = std::max(out.max_imbalance, s.imbalance);
     out.max_normal = std::max(out.max_normal, s.max_normal);
+    out.max_moment = std::max(out.max_moment, s.moment);
     if (s.slide > needle.max_slide) {
       out.held = false;
       out.why = printf_string(

@@ -158,12 +158,13 @@ void write_experiment_outputs(const ExperimentScene& scene, const ExperimentResu
     b["wall_share"] = p ? nlohmann::json(p->wall_share) : nlohmann::json();
     b["max_unsupported"] = p ? nlohmann::json(p->max_unsupported) : nlohmann::json();
     b["max_wall_normal_N"] = p ? nlohmann::json(p->max_normal) : nlohmann::json();
+    b["max_moment_over_collapse"] = p ? nlohmann::json(p->max_moment) : nlohmann::json();
     if (p) {
       std::ostringstream rows;
       rows.precision(9);
       rows << "time_s,protrusion_mm,depth_mm,force_N,tip_x_mm,tip_y_mm,tip_z_mm,needle_x_mm,needle_y_mm,"
               "needle_z_mm,slide_mm,wall_x_N,wall_y_N,wall_z_N,clamp_x_N,clamp_y_N,clamp_z_N,max_normal_N,"
-              "total_normal_N,imbalance,unsupported\n";
+              "total_normal_N,imbalance,unsupported,moment_over_collapse\n";
       for (const robot::PunctureStep& st : p->steps) {
         rows << st.time << ',' << 1e3 * st.protrusion << ',' << 1e3 * st.depth << ',' << st.force;
         for (const Vec3* v : {&st.tip, &st.needle_tip}) {
@@ -173,7 +174,8 @@ void write_experiment_outputs(const ExperimentScene& scene, const ExperimentResu
         for (const Vec3* v : {&st.wall, &st.clamp}) {
           for (int c = 0; c < 3; ++c) rows << ',' << (*v)[c];
         }
-        rows << ',' << st.max_normal << ',' << st.total_normal << ',' << st.imbalance << ',' << st.unsupported << '\n';
+        rows << ',' << st.max_normal << ',' << st.total_normal << ',' << st.imbalance << ',' << st.unsupported << ','
+             << st.moment << '\n';
       }
       puncture_csv = rows.str();
     }

@@ -70,6 +70,9 @@ struct PunctureStep {
   /// |wall + clamp + R| / |R| (0 when F = 0): the share of the reaction that no support takes up (in a field, also
   /// the magnetic load's change as the body moves).
   double unsupported = 0.0;
+  /// The largest bending moment along the body over its collapse moment πR³P (inflated_beam.hpp; 0 for a body
+  /// without the inflated-beam law): at 1 a joint of the vine creases.
+  double moment = 0.0;
 };
 
 struct PunctureReport {
@@ -87,6 +90,7 @@ struct PunctureReport {
   /// At the largest reaction: the share of it the walls take up, |wall·R̂|/|R| (the rest: the clamp).
   double wall_share = 0.0;
   double max_normal = 0.0;  ///< the largest node force on the tissue during the puncture [N]
+  double max_moment = 0.0;  ///< the largest PunctureStep::moment
   bool success = false;     ///< held, and the needle's tip within the nodule
   std::string why;          ///< when it did not succeed
 };
