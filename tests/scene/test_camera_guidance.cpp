@@ -1,17 +1,20 @@
 // Camera-guided navigation (issue 31 item 3; control.navigator.guidance: camera): the navigator steers from the
 // lumens its tip camera shows and the plan, never from the tip's position, and reaches a generation-3 branch of the
 // generated tree; its dead reckoning along the plan against the true tip; the guidance keys refused where they do
-// not belong. Built with the render module only (the tip camera is the video plugin's).
+// not belong; in a breathing airway, the camera sees it moved and the dead reckoning follows the breathing model.
+// Built with the render module only (the tip camera is the video plugin's).
 #include <gtest/gtest.h>
 
 #include <algorithm>
 #include <cmath>
 #include <filesystem>
+#include <iostream>
 #include <limits>
 #include <memory>
 #include <string>
 #include <vector>
 
+#include "magvine/anatomy/breathing.hpp"
 #include "magvine/core/error.hpp"
 #include "magvine/core/units.hpp"
 #include "magvine/scene/experiment.hpp"
@@ -126,11 +129,12 @@ TEST(CameraGuidance, TheTipCameraSeesTheAirwayWhereBreathingHasMovedIt) {
     }
     return true;
   };
-  std::unique_ptr<TipEye> still = video_plugin("test").tip_eye(scene);
-  std::unique_ptr<TipEye> breathing = video_plugin("test").tip_eye(scene);
-  const std::vector<SeenLumen> at_rest = still->look(lens, frame);
+  // Each eye looks once (the same first frame: the same noise seed and a fresh exposure).
+  const auto eye = [&] { return video_plugin("test").tip_eye(scene); };
+  const std::vector<SeenLumen> at_rest = eye()->look(lens, frame);
   ASSERT_GE(at_rest.size(), 1u);
-  EXPECT_FALSE(same(at_rest, still->look(lens + d, frame)));
+  EXPECT_FALSE(same(at_rest, eye()->look(lens + d, frame)));
+  std::unique_ptr<TipEye> breathing = eye();
   breathing->move(moved);
   EXPECT_TRUE(same(at_rest, breathing->look(lens + d, frame)));
 }
@@ -146,11 +150,46 @@ TEST(CameraGuidance, TheCameraNavigatorRidesABreathingAirway) {
   const ExperimentResult r = run_experiment(scene);
   ASSERT_TRUE(r.converged) << r.failure;
   EXPECT_TRUE(r.success);
+  ASSERT_FALSE(r.samples.empty());
+  EXPECT_EQ(scene.anatomy->graph->branches[static_cast<std::size_t>(r.samples.back().branch)].name, "0-0-0-0");
   double drift = 0.0;
-  for (const GuidanceSample& g : r.guidance) drift = std::max(drift, std::abs(g.arc - g.true_arc));
+  int seeing = 0;
+  for (const GuidanceSample& g : r.guidance) {
+    drift = std::max(drift, std::abs(g.arc - g.true_arc));
+    seeing += g.lumens > 0;
+  }
   std::cout << "[ camera guidance, breathing ] reached at " << r.time_to_target << " s, dead reckoning off by at most "
-            << 1e3 * drift << " mm\n";
+            << 1e3 * drift << " mm, lumens seen in " << seeing << " of " << r.guidance.size() << " looks\n";
   EXPECT_LT(drift, 7.6e-3);
+  // It steered by what it saw: a lumen in most looks (a camera that saw the airway at rest while the body moved
+  // would face the wall).
+  EXPECT_GT(seeing, static_cast<int>(r.guidance.size()) / 2);
+}
+
+TEST(CameraGuidance, TheDeadReckoningLaysTheEvertedLengthAlongTheBreathingPlan) {
+  // estimated_tip: the base's arc plus the everted length, measured along the plan as breathing has moved it. At
+  // full inspiration (t = 0, the rest shape) the plan's own point; at full exhalation (t = period/2) a rest-frame
+  // point that, moved, lies the everted length along the moved plan from the base (checked with the nearest-point
+  // arc, a second function); past the plan's end, its end.
+  std::string text = edited("max_generation: 4}\n", "max_generation: 4}\n  breathing: {period: 4}\n");
+  const ExperimentScene scene = parse_experiment_scene(text, kScene.string(), kScene.parent_path());
+  ASSERT_TRUE(scene.breathing);
+  NavigatorController nav(scene);
+  nav.use_camera([] { return std::vector<SeenLumen>{}; });
+  const std::vector<Vec3>& path = nav.path();
+  const double base = arc_length_of_nearest(path, scene.base_position);
+  const double length = 0.12;  // into the main bronchus
+  nav.airway_at(0.0);
+  EXPECT_NEAR((*nav.estimated_tip(length) - point_at_arc_length(path, base + length)).norm(), 0.0, 1e-12);
+  nav.airway_at(2.0);
+  const Vec3 p = *nav.estimated_tip(length);
+  std::vector<Vec3> moved;
+  for (const Vec3& x : path) moved.push_back(x + anatomy::breathing_displacement(*scene.breathing, x, 2.0));
+  const Vec3 p_moved = p + anatomy::breathing_displacement(*scene.breathing, p, 2.0);
+  EXPECT_NEAR(arc_length_of_nearest(moved, p_moved), arc_length_of_nearest(moved, scene.base_position) + length, 1e-9);
+  // Exhaled, the airway between the fixed entry and the lobes is shorter: the same length reaches further on the plan.
+  EXPECT_GT(arc_length_of_nearest(path, p), base + length + 1e-3);
+  EXPECT_NEAR((*nav.estimated_tip(10.0) - path.back()).norm(), 0.0, 1e-12);
 }
 
 TEST(CameraGuidance, GuidanceKeysAreRefusedWhereTheyDoNotBelong) {

@@ -256,12 +256,11 @@ void AirwayRenderer::move(std::span<const Vec3> vertices) {
   std::vector<float> normals = vertex_normals(vertices, s.triangles);  // what may throw, before anything changes
   if (!s.refitting) {
     // From now on each commit refits the tree built on the first shape (Embree's refit keeps its topology). Embree
-    // reads a geometry's build quality only in a two-level scene of low build quality (the rtcSetGeometryBuildQuality
-    // manual) with the dynamic flag; without them every commit rebuilt the whole tree at high quality (0.16-0.55 s
-    // for the generation-4 tree's 908 k triangles, against 12-14 ms a refit now). The first commit after this builds
-    // the geometry's own tree; the later ones refit it.
+    // reads a geometry's build quality only in a scene of low build quality (the rtcSetGeometryBuildQuality manual),
+    // and measured, Embree 3.13 still rebuilt the whole tree at every commit until the scene was also dynamic
+    // (docs/rendering.md). The first commit after this builds the geometry's own tree; the later ones refit it.
     rtcSetSceneBuildQuality(s.scene, RTC_BUILD_QUALITY_LOW);
-    rtcSetSceneFlags(s.scene, RTC_SCENE_FLAG_ROBUST | RTC_SCENE_FLAG_DYNAMIC);
+    rtcSetSceneFlags(s.scene, rtcGetSceneFlags(s.scene) | RTC_SCENE_FLAG_DYNAMIC);
     rtcSetGeometryBuildQuality(s.geometry, RTC_BUILD_QUALITY_REFIT);
     s.refitting = true;
   }

@@ -6,8 +6,7 @@
 
 #include "magvine/core/error.hpp"
 #include "magvine/core/text.hpp"
-#include "magvine/robot/inflated_beam.hpp"
-#include "magvine/robot/rod.hpp"
+#include "magvine/robot/vine.hpp"
 
 namespace magvine::robot {
 
@@ -47,16 +46,6 @@ double wall_ahead(const anatomy::CollisionWorld* world, const Vec3& tip, const V
   return hit ? hit->distance : std::numeric_limits<double>::infinity();
 }
 
-/// The largest joint bending moment of `body` in `state` over its collapse moment πR³P; 0 without the inflated-beam
-/// law.
-double moment_over_collapse(const RodModel& body, const RodState& state) {
-  if (!body.inflated) return 0.0;
-  const double collapse = collapse_moment(body.inflated->radius, body.inflated->pressure);
-  if (!(collapse > 0.0)) return 0.0;
-  const std::vector<double> moments = joint_bending_moments(body, state);
-  return moments.empty() ? 0.0 : *std::max_element(moments.begin(), moments.end()) / collapse;
-}
-
 }  // namespace
 
 PunctureReport push_needle(const GrowthModel& model, const RodField& field, const NeedleTool& needle,
@@ -90,13 +79,15 @@ PunctureReport push_needle(const GrowthModel& model, const RodField& field, cons
     const double depth = std::max(0.0, p - wall_ahead(model.world, x, t, needle.length));
     const double force = needle_tissue_force(needle, depth);
     control.tip_force = -force * t;
+    // The largest moment over πR³P at the last equilibrium (its own model: a failed step may leave the workspace's
+    // body rebuilt for the step it tried).
+    double bent = vine_bend_state(workspace.body, state.body).largest_moment;
     GrowthStatus r = grow_step(model, field, control, state, workspace, dt);
     // The reaction is the increment's load: where the step fails (the needle meeting the wall raises it by up to
     // F_c·increment/d_p at once, and the growth step's own retries halve its time, not its load), the increment is
     // taken again as 4, then 16 steps with the reaction raised evenly from the last converged one: a quasi-static
     // loading path, each step from the last equilibrium.
     double held = last_force;  // the largest reaction a step of this increment converged under
-    double bent = moment_over_collapse(workspace.body, state.body);  // the largest moment then, over πR³P
     for (int pieces = 4; !r.converged && pieces <= 16; pieces *= 4) {
       const GrowthState before = state;  // grow_step left the state where the failed step began
       for (int k = 1; k <= pieces; ++k) {
@@ -104,8 +95,10 @@ PunctureReport push_needle(const GrowthModel& model, const RodField& field, cons
         control.tip_force = -piece * t;
         r = grow_step(model, field, control, state, workspace, dt / pieces);
         if (!r.converged) break;
-        held = std::max(held, piece);
-        bent = moment_over_collapse(workspace.body, state.body);
+        if (piece > held) {
+          held = piece;
+          bent = vine_bend_state(workspace.body, state.body).largest_moment;
+        }
       }
       if (!r.converged) state = before;
     }
@@ -133,7 +126,7 @@ PunctureReport push_needle(const GrowthModel& model, const RodField& field, cons
     s.total_normal = state.forces.total_normal;
     s.imbalance = force > 0.0 ? state.forces.imbalance.norm() / force : 0.0;
     s.unsupported = force > 0.0 ? (s.wall + s.clamp + s.reaction).norm() / force : 0.0;
-    s.moment = moment_over_collapse(workspace.body, state.body);
+    s.moment = vine_bend_state(workspace.body, state.body).largest_moment;
     out.steps.push_back(s);
     if (on_step) on_step(s, state);
     out.needle_tip = s.needle_tip;

@@ -1,5 +1,6 @@
 #include "magvine/robot/vine.hpp"
 
+#include <algorithm>
 #include <cmath>
 #include <string>
 
@@ -136,6 +137,7 @@ VineBendState vine_bend_state(const RodModel& vine, const RodState& state) {
   for (std::size_t i = 0; i < moments.size(); ++i) {
     if (moments[i] > m_w) out.wrinkled_length += i == 0 ? 0.5 * h : h;
     out.creased = out.creased || (m_c > 0.0 && moments[i] >= m_c);
+    if (m_c > 0.0) out.largest_moment = std::max(out.largest_moment, moments[i] / m_c);
   }
   return out;
 }

@@ -197,7 +197,9 @@ struct Experiment::Impl {
   Vec3 displacement(const Vec3& x, double t) const {
     return scene.breathing ? anatomy::breathing_displacement(*scene.breathing, x, t) : Vec3::Zero();
   }
-  Vec3 at_rest(const Vec3& x, double t) const { return x - displacement(x, t); }
+  Vec3 at_rest(const Vec3& x, double t) const {
+    return scene.breathing ? anatomy::breathing_rest_point(*scene.breathing, x, t) : x;
+  }
   // `needle`: during a biopsy's puncture, its increment (the needle drawn from the tip to its point).
   void record_frame(double t, const robot::PunctureStep* needle = nullptr) {
     if (scene.videos.empty() || t < next_frame - 1e-9) return;
@@ -378,6 +380,8 @@ bool Experiment::Impl::step(const StepRequest& request) {
   // the tether holds the vine.
   const bool open = !(scene.navigator && scene.navigator->gate) ||
                     scene.navigator->gate->open(anatomy::inspiration(*scene.breathing, t));
+  // The body and the airway it lies in are at state.time until the step (the navigator's camera sees them there).
+  if (navigator) navigator->airway_at(state.time);
   if (navigator && !aim_until && open) {
     const Stopwatch placing;
     const std::size_t looked = navigator->guidance().size();
@@ -405,7 +409,7 @@ bool Experiment::Impl::step(const StepRequest& request) {
       // The navigator placed its magnet from the tip taken back to the rest frame: carried with the tip. Camera
       // guidance does not read the tip: it carries the magnet by the breathing model where its dead reckoning has
       // the tip (a respiratory motion model known before the procedure).
-      const std::optional<Vec3> estimated = navigator->estimated_tip(workspace.body.length, state.time);
+      const std::optional<Vec3> estimated = navigator->estimated_tip(workspace.body.length);
       next[static_cast<std::size_t>(navigator->magnet())].position +=
           displacement(estimated ? *estimated : at_rest(state.body.tip(), state.time), state.time);
     }

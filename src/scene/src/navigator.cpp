@@ -363,13 +363,14 @@ void NavigatorController::use_camera(std::function<std::vector<SeenLumen>()> loo
   m_look = std::move(look);
   const anatomy::AirwayGraph& graph = *m_scene.anatomy->graph;
   m_base_arc = arc_length_of_nearest(m_path, m_scene.base_position);
+  if (m_scene.breathing) m_path_amplitudes = anatomy::breathing_amplitudes(*m_scene.breathing, m_path);
   // The plan's junctions, from the pre-operative graph: where each plan branch ends along the joined path, and the
-  // directions from there into the planned child and into its siblings (to the point `lead` along each).
+  // points `lead` into the planned child and into its siblings.
   const auto into = [&](int branch) {
     const anatomy::AirwayBranch& b = graph.branches[static_cast<std::size_t>(branch)];
     std::vector<Vec3> line;
     for (const std::uint32_t n : b.nodes) line.push_back(graph.nodes[n].position);
-    return Vec3((point_at_arc_length(line, m_nav.lead) - line.front()).normalized());
+    return std::array<Vec3, 2>{line.front(), point_at_arc_length(line, m_nav.lead)};
   };
   m_junctions.clear();
   m_branch_end.clear();
@@ -388,31 +389,33 @@ void NavigatorController::use_camera(std::function<std::vector<SeenLumen>()> loo
   }
 }
 
-double NavigatorController::estimated_arc(double length, double t) const {
+Vec3 NavigatorController::moved(const Vec3& x) const {
+  return m_scene.breathing ? Vec3(x + anatomy::breathing_displacement(*m_scene.breathing, x, m_airway_time)) : x;
+}
+
+double NavigatorController::estimated_arc(double length) const {
   if (!m_scene.breathing) return m_base_arc + length;
   // Breathing stretches the airway between the fixed entry and the lobes (anatomy/breathing.hpp), and the vine lies
-  // along it as it is now: the everted length is measured along the plan moved by the breathing model at t (known
+  // along it as it is now: the everted length is measured along the plan moved by the breathing model (known
   // before the procedure, with the phase from a respiratory sensor), and the point there taken back to the plan's
   // rest arc, segment by segment.
-  std::vector<Vec3> moved(m_path.size());
-  for (std::size_t i = 0; i < m_path.size(); ++i) {
-    moved[i] = m_path[i] + anatomy::breathing_displacement(*m_scene.breathing, m_path[i], t);
-  }
-  const double s = arc_length_of_nearest(moved, m_scene.base_position) + length;
+  std::vector<Vec3> path;
+  anatomy::breathing_vertices(*m_scene.breathing, m_path, m_path_amplitudes, m_airway_time, path);
+  const double s = arc_length_of_nearest(path, m_scene.base_position) + length;
   double along = 0.0;  // along the moved plan [m]
   double rest = 0.0;   // the same points' arc along the plan at rest [m]
-  for (std::size_t i = 0; i + 1 < moved.size(); ++i) {
-    const double l_moved = (moved[i + 1] - moved[i]).norm();
+  for (std::size_t i = 0; i + 1 < path.size(); ++i) {
+    const double l_moved = (path[i + 1] - path[i]).norm();
     const double l_rest = (m_path[i + 1] - m_path[i]).norm();
     if (along + l_moved >= s) return rest + (l_moved > 0.0 ? (s - along) / l_moved * l_rest : 0.0);
     along += l_moved;
     rest += l_rest;
   }
-  return rest + (s - along);  // past the plan's end, as point_at_arc_length goes on along its last segment
+  return rest + (s - along);  // past the plan's end the excess counts one for one, as without breathing
 }
 
-int NavigatorController::estimated_branch(double length, double t) const {
-  const double s = estimated_arc(length, t);
+int NavigatorController::estimated_branch(double length) const {
+  const double s = estimated_arc(length);
   for (std::size_t i = 0; i < m_branch_end.size(); ++i) {
     if (s <= m_branch_end[i]) return m_plan[i];
   }
@@ -425,9 +428,9 @@ Vec3 NavigatorController::oracle_line(const Vec3& tip, const Mat3& tip_frame) co
   return line;
 }
 
-std::optional<Vec3> NavigatorController::estimated_tip(double length, double t) const {
+std::optional<Vec3> NavigatorController::estimated_tip(double length) const {
   if (!m_look) return std::nullopt;
-  return point_at_arc_length(m_path, estimated_arc(length, t));
+  return point_at_arc_length(m_path, estimated_arc(length));
 }
 
 void NavigatorController::place_by_camera(double t, const Mat3& tip_frame, double length) {
@@ -436,7 +439,7 @@ void NavigatorController::place_by_camera(double t, const Mat3& tip_frame, doubl
   GuidanceSample g;
   g.time = t;
   g.length = length;
-  g.arc = estimated_arc(length, t);
+  g.arc = estimated_arc(length);
   const Vec3 tip = point_at_arc_length(m_path, g.arc);
   const std::vector<SeenLumen> seen = m_look();
   g.lumens = static_cast<int>(seen.size());
@@ -447,15 +450,21 @@ void NavigatorController::place_by_camera(double t, const Mat3& tip_frame, doubl
   const auto next = std::find_if(m_junctions.begin(), m_junctions.end(),
                                  [&](const Junction& j) { return j.arc > g.arc - 0.5 * cam.junction_window; });
   const bool at_junction = next != m_junctions.end() && next->arc - g.arc < cam.junction_window;
-  // The plan's direction ahead; past the plan's end (the dead reckoning beyond it), its last segment's.
-  Vec3 ahead = point_at_arc_length(m_path, g.arc + m_nav.lead) - tip;
-  if (ahead.norm() < 1e-9) ahead = m_path.back() - m_path[m_path.size() - 2];
+  // The plan's direction ahead; past the plan's end (the dead reckoning beyond it), its last segment's. Its
+  // directions are the airway's as it is now (the lumens are seen in it), the plan's own at rest.
+  Vec3 ahead = moved(point_at_arc_length(m_path, g.arc + m_nav.lead)) - moved(tip);
+  if (ahead.norm() < 1e-9) ahead = moved(m_path.back()) - moved(m_path[m_path.size() - 2]);
   ahead.normalize();
+  const Vec3 planned = at_junction ? moved_direction(next->planned) : Vec3::Zero();
+  std::vector<Vec3> others;
+  if (at_junction) {
+    for (const std::array<Vec3, 2>& o : next->others) others.push_back(moved_direction(o));
+  }
   const auto score = [&](const Vec3& d) {
     if (!at_junction) return d.dot(ahead);
     double other = -1.0;
-    for (const Vec3& o : next->others) other = std::max(other, d.dot(o));
-    return d.dot(next->planned) - other;
+    for (const Vec3& o : others) other = std::max(other, d.dot(o));
+    return d.dot(planned) - other;
   };
   if (at_junction) g.junction = static_cast<int>(next - m_junctions.begin());
   double best = -std::numeric_limits<double>::infinity();
@@ -472,7 +481,7 @@ void NavigatorController::place_by_camera(double t, const Mat3& tip_frame, doubl
   if (g.chosen >= 0 && !(at_junction && seen.size() == 1 && best < 0.0)) {
     u = seen[static_cast<std::size_t>(g.chosen)].direction;
   } else if (at_junction) {
-    u = next->planned;
+    u = planned;
     g.chosen = -1;
   } else {
     g.chosen = -1;
@@ -499,7 +508,7 @@ void NavigatorController::place(double t, const Vec3& tip, const Mat3& tip_frame
   if (m_look) {
     // Camera-guided: the tip's position is not read (its estimate along the plan stands in for it).
     place_by_camera(t, tip_frame, length);
-    clear = keep_clear(point_at_arc_length(m_path, estimated_arc(length, t)));
+    clear = keep_clear(point_at_arc_length(m_path, m_guidance.back().arc));
   } else {
     m_pose = navigate(m_nav, m_path, tip, tip_frame, m_skin, t, m_scene.navigator_offset, m_line);
     if (m_platform != nullptr) {
@@ -528,10 +537,10 @@ void NavigatorController::regulate(double t, double length, int branch, bool rea
   // Camera-guided: the branch, the tip and whether the target is reached are the dead reckoning's (a wrong turn is
   // not seen; a held tip is).
   if (m_look) {
-    branch = estimated_branch(length, t);
-    reached = estimated_arc(length, t) >= m_branch_end.back();
+    branch = estimated_branch(length);
+    reached = estimated_arc(length) >= m_branch_end.back();
   }
-  const Vec3 tip = m_look ? point_at_arc_length(m_path, estimated_arc(length, t)) : tip_read;
+  const Vec3 tip = m_look ? point_at_arc_length(m_path, estimated_arc(length)) : tip_read;
   // Held (the boost's and the recovery's test): the length has not changed since m_grown_at, and no tether or made
   // length caps it.
   if (length != m_grown_length || length >= std::min(control.tether_length, m_scene.growth.max_length) - 1e-9) {

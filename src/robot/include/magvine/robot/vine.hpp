@@ -80,6 +80,7 @@ double pressure_tip_force(const VineParameters& v);
 struct VineBendState {
   double wrinkled_length = 0.0;  ///< total length of joints carrying more than M_w = πR³P/2 [m]
   bool creased = false;          ///< some joint carries the collapse moment πR³P
+  double largest_moment = 0.0;   ///< the largest joint moment over πR³P (≥ 1: creased)
 };
 VineBendState vine_bend_state(const RodModel& vine, const RodState& state);
 

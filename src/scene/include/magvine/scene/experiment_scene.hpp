@@ -97,7 +97,9 @@ struct Navigator {
   /// Camera guidance (control.navigator.guidance: {mode: camera}; docs/experiments.md, camera guidance): the magnet's
   /// line comes from the lumens the tip camera shows (render/lumen.hpp), chosen with the plan; the tip's place along
   /// the plan is dead reckoning from the everted length, its orientation read as from a sensor in the tip. The
-  /// navigator never reads the tip's position (the oracle's mode, without it, does).
+  /// navigator never reads the tip's position (the oracle's mode, without it, does). In a breathing airway it reads
+  /// the respiratory phase and knows the breathing model: its dead reckoning and the plan's directions are taken in
+  /// the airway's shape at the look, and its magnet rides with the model where it takes the tip to be.
   struct Camera {
     int size = 160;                   ///< the image's side [px]
     double fov = 2.0943951023931953;  ///< equidistant fisheye, across the width [rad] (120°)

@@ -97,9 +97,13 @@ class NavigatorController {
   const std::vector<GuidanceSample>& guidance() const { return m_guidance; }
   /// The oracle's line from `tip` (navigate's), for the report of a camera-guided run.
   Vec3 oracle_line(const Vec3& tip, const Mat3& tip_frame) const;
-  /// Where it takes the tip to be with `length` everted at time t [m], in the plan's (rest) frame: camera-guided, the
-  /// point its dead reckoning puts on the plan; otherwise nullopt (the oracle reads the tip).
-  std::optional<Vec3> estimated_tip(double length, double t) const;
+  /// Where it takes the tip to be with `length` everted [m], in the plan's (rest) frame: camera-guided, the point
+  /// its dead reckoning puts on the plan (in the airway as it is at airway_at's time); otherwise nullopt (the oracle
+  /// reads the tip).
+  std::optional<Vec3> estimated_tip(double length) const;
+  /// The time of the airway's shape the body lies in now (a breathing airway; the experiment sets it each step
+  /// before place and regulate): camera guidance's dead reckoning and the plan's directions are taken in that shape.
+  void airway_at(double time) { m_airway_time = time; }
 
   /// Whether it places magnet `magnet` (its own, or with a platform the other arm's of a dEPM pair).
   bool steers(int magnet) const;
@@ -113,11 +117,15 @@ class NavigatorController {
  private:
   bool keep_clear(const Vec3& tip);
   void next_placement_after(double t);
-  /// Camera guidance: the tip's arc length along the plan (its rest frame) at time t by dead reckoning: the base's
-  /// plus the everted length, along the plan as the breathing model has moved it at t where the airway breathes; and
-  /// the branch of the plan there.
-  double estimated_arc(double length, double t) const;
-  int estimated_branch(double length, double t) const;
+  /// Camera guidance: the tip's arc length along the plan (its rest frame) by dead reckoning: the base's plus the
+  /// everted length, along the plan as the breathing model has moved it at m_airway_time where the airway breathes;
+  /// and the branch of the plan there.
+  double estimated_arc(double length) const;
+  int estimated_branch(double length) const;
+  /// A rest-frame point where the breathing model has it at m_airway_time (the point itself without breathing).
+  Vec3 moved(const Vec3& x) const;
+  /// The unit direction from rest-frame point ab[0] to ab[1] as the airway is at m_airway_time.
+  Vec3 moved_direction(const std::array<Vec3, 2>& ab) const { return (moved(ab[1]) - moved(ab[0])).normalized(); }
   /// Camera guidance's placement: the magnet's line from the lumens seen.
   void place_by_camera(double t, const Mat3& tip_frame, double length);
   /// A magnet it places through an arm, and where the arm has it.
@@ -170,12 +178,15 @@ class NavigatorController {
   // Camera guidance.
   std::function<std::vector<SeenLumen>()> m_look;  ///< set: camera-guided
   double m_base_arc = 0.0;                         ///< the base's arc length along the plan [m]
-  /// The plan's junctions: arc length along the plan [m], the planned child's direction from there and its
-  /// siblings' (world, unit; to the point `lead` into each), the plan branch that ends there.
+  double m_airway_time = 0.0;                      ///< airway_at's [s]
+  std::vector<double> m_path_amplitudes;           ///< breathing amplitudes of the plan's points [m]
+  /// The plan's junctions: arc length along the plan [m], and the planned child's and its siblings' first points
+  /// with the points `lead` into each (rest frame; the directions between them are taken as the airway is at the
+  /// look).
   struct Junction {
     double arc = 0.0;
-    Vec3 planned = Vec3::UnitX();
-    std::vector<Vec3> others;
+    std::array<Vec3, 2> planned{Vec3::Zero(), Vec3::Zero()};
+    std::vector<std::array<Vec3, 2>> others;
   };
   std::vector<Junction> m_junctions;
   std::vector<double> m_branch_end;  ///< arc length along the plan at each plan branch's end [m]
