@@ -82,8 +82,23 @@ TEST(Breathing, TheRestPointIsWhereBreathingMovesAPointFrom) {
   std::printf("  rest point: worst %.2e m; one step of the iteration: %.2f mm\n", worst, 1e3 * one_step);
   EXPECT_LT(worst, 1e-12);
   EXPECT_GT(one_step, 3e-3);
-  // An amplitude that rises by its depth or more folds the moved airway (and the iteration would not contract).
+  // An amplitude that changes by its depth or more, rising (the moved airway folds) or falling (no contraction),
+  // and a carina amplitude as large as the trachea's height, are refused; just below each is accepted.
+  check_breathing(p);
+  const BreathingParams ok = p;
   p.lower_amplitude = p.carina_amplitude + p.lower_depth;
+  EXPECT_THROW(check_breathing(p), InputError);
+  p.lower_amplitude = p.carina_amplitude + 0.99 * p.lower_depth;
+  EXPECT_NO_THROW(check_breathing(p));
+  p = ok;
+  p.carina_amplitude = 0.09;  // falling by 68 mm over 80 mm: accepted
+  p.lower_amplitude = 0.022;
+  EXPECT_NO_THROW(check_breathing(p));
+  p.carina_amplitude = 0.11;  // falling by 88 mm over 80 mm
+  EXPECT_THROW(check_breathing(p), InputError);
+  p = ok;
+  p.carina_amplitude = 0.12;  // the carina 120 mm below the entry
+  p.lower_amplitude = 0.15;
   EXPECT_THROW(check_breathing(p), InputError);
 }
 

@@ -17,12 +17,13 @@ void check_breathing(const BreathingParams& p) {
   if (!(p.lower_depth > 0.0 && std::isfinite(p.lower_depth))) throw InputError("breathing: lower_depth must be > 0");
   if (!(std::abs(p.superior.norm() - 1.0) < 1e-9)) throw InputError("breathing: superior must be a unit vector");
   if (!p.entry.allFinite() || !p.carina.allFinite()) throw InputError("breathing: entry and carina must be finite");
-  // The moved airway must not fold onto itself (and breathing_rest_point's iteration must contract): the amplitude
-  // may change by less than the distance along ŝ over which it changes, below the carina and above it.
+  // breathing_rest_point's iteration must contract (and a rising amplitude must not fold the moved airway onto
+  // itself): the amplitude may change by less than the distance along ŝ over which it changes, below the carina
+  // and above it.
   if (!(std::abs(p.lower_amplitude - p.carina_amplitude) < p.lower_depth)) {
     throw InputError(
-        "breathing: lower_amplitude - carina_amplitude must be smaller than lower_depth (the moved "
-        "airway would fold)");
+        "breathing: |lower_amplitude - carina_amplitude| must be smaller than lower_depth (the moved airway would "
+        "fold, or could not be mapped back to its rest shape)");
   }
   const double height = (p.entry - p.carina).dot(p.superior);
   if (height > 0.0 && !(p.carina_amplitude < height)) {
@@ -57,7 +58,9 @@ Vec3 breathing_displacement(const BreathingParams& p, double amplitude, double i
 Vec3 breathing_rest_point(const BreathingParams& p, const Vec3& x, double time) {
   const double phase = inspiration(p, time);
   Vec3 rest = x - breathing_displacement(p, breathing_amplitude(p, x), phase);
-  for (int k = 0; k < 100; ++k) {
+  // Each iteration shrinks the error by the slope times (1 − inspiration), below 1 by check_breathing: 19 iterations
+  // with the defaults, ~3000 at a slope of 0.99.
+  for (int k = 0; k < 10000; ++k) {
     const Vec3 next = x - breathing_displacement(p, breathing_amplitude(p, rest), phase);
     const double change = (next - rest).norm();
     rest = next;

@@ -101,7 +101,7 @@ struct Experiment::Impl {
   robot::VineParameters vine;
   // Breathing (scene.breathing): the run moves its own copy of the airway, refitted every step, from the rest shape
   // (the planning CT's, at full inspiration). The graph, the navigator's plan, the target and the nodule stay in the
-  // rest frame; the tip is taken back to it (less the displacement where it is) to read them.
+  // rest frame; the tip is taken back to it (breathing_rest_point) to read them.
   std::optional<anatomy::CollisionWorld> breathing_world;
   std::vector<Vec3> rest_vertices;
   std::vector<double> amplitudes;  // each vertex's breathing amplitude (time-independent)

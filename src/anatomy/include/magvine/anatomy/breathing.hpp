@@ -56,8 +56,8 @@ Vec3 breathing_displacement(const BreathingParams& params, double amplitude, dou
 
 /// The rest point X that breathing moves to x at `time`: X + u(X, t) = x, by the fixed-point iteration
 /// X ← x − u(X, t), a contraction where the amplitude's slope along ŝ times (1 − inspiration) is below 1
-/// (check_breathing asks it of the lobes' rise; the defaults' 17 mm over 80 mm is 0.21). One step of it, x − u(x, t),
-/// is off by that slope times u: 4.6 mm at exhalation in the lower lobes with the defaults.
+/// (check_breathing asks it of the trachea's and the lobes' slopes; the defaults' 17 mm over 80 mm is 0.21). One step
+/// of it, x − u(x, t), is off by that slope times u: up to 4.7 mm at exhalation in the lower lobes with the defaults.
 Vec3 breathing_rest_point(const BreathingParams& params, const Vec3& x, double time);
 
 /// Each rest vertex's amplitude, for moving a mesh at every step or frame (breathing_vertices).
