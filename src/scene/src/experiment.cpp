@@ -382,16 +382,18 @@ bool Experiment::Impl::step(const StepRequest& request) {
                     scene.navigator->gate->open(anatomy::inspiration(*scene.breathing, t));
   // The body and the airway it lies in are at state.time until the step (the navigator's camera sees them there).
   if (navigator) navigator->airway_at(state.time);
+  // The tip in the rest frame (the plan's), read by the oracle navigator, the report and the magnet's carry; the body
+  // does not move until the step below.
+  const Vec3 tip_at_rest = at_rest(state.body.tip(), state.time);
   if (navigator && !aim_until && open) {
     const Stopwatch placing;
     const std::size_t looked = navigator->guidance().size();
-    navigator->place(t, at_rest(state.body.tip(), state.time), state.body.frames.back(), workspace.body.length,
-                     navigator_events);
+    navigator->place(t, tip_at_rest, state.body.frames.back(), workspace.body.length, navigator_events);
     if (arms) platform_seconds += placing.seconds();
     if (navigator->guidance().size() > looked) {
       // The truth beside a camera-guided placement, for the report.
       GuidanceSample& g = navigator->guidance().back();
-      const Vec3 tip = at_rest(state.body.tip(), state.time);  // in the plan's (rest) frame, as the oracle reads it
+      const Vec3& tip = tip_at_rest;  // in the plan's (rest) frame, as the oracle reads it
       g.true_arc = arc_length_of_nearest(navigator->path(), tip);
       const Vec3 oracle = navigator->oracle_line(tip, state.body.frames.back());
       g.line_error = std::acos(std::clamp(oracle.dot(g.line), -1.0, 1.0));
@@ -411,7 +413,7 @@ bool Experiment::Impl::step(const StepRequest& request) {
       // the tip (a respiratory motion model known before the procedure).
       const std::optional<Vec3> estimated = navigator->estimated_tip(workspace.body.length);
       next[static_cast<std::size_t>(navigator->magnet())].position +=
-          displacement(estimated ? *estimated : at_rest(state.body.tip(), state.time), state.time);
+          displacement(estimated ? *estimated : tip_at_rest, state.time);
     }
     if (aim_until && !arms) {
       // Aiming: the navigator's magnet on the line from the tip to the nodule, its distance away, axis along it
@@ -446,8 +448,7 @@ bool Experiment::Impl::step(const StepRequest& request) {
   if (!open) control.tether_length = std::min(control.tether_length, workspace.body.length);
   if (navigator && !aim_until && open) {
     const int branch = out.samples.empty() ? -1 : out.samples.back().branch;
-    navigator->regulate(t, workspace.body.length, branch, out.success, at_rest(state.body.tip(), state.time), control,
-                        navigator_events);
+    navigator->regulate(t, workspace.body.length, branch, out.success, tip_at_rest, control, navigator_events);
   } else if (navigator && !aim_until) {
     navigator->pause(t, workspace.body.length);  // gated: no boost, deflation or recovery while the tether holds
   }
@@ -459,10 +460,14 @@ bool Experiment::Impl::step(const StepRequest& request) {
     // displacement's change where each point is; the clamp, at the fixed entry, stays).
     anatomy::breathing_vertices(*scene.breathing, rest_vertices, amplitudes, t, moved_vertices);
     breathing_world->refit(moved_vertices);
+    // The phases once a step, and each point's amplitude once (the same law as displacement(), evaluated apart).
+    const anatomy::BreathingParams& b = *scene.breathing;
+    const double before = anatomy::inspiration(b, state.time);
+    const double after = anatomy::inspiration(b, t);
     const auto carry = [&](Vec3& x) {
       if (!x.allFinite()) return;
-      const Vec3 rest = at_rest(x, state.time);
-      x += displacement(rest, t) - displacement(rest, state.time);
+      const double amplitude = anatomy::breathing_amplitude(b, at_rest(x, state.time));
+      x += anatomy::breathing_displacement(b, amplitude, after) - anatomy::breathing_displacement(b, amplitude, before);
     };
     for (std::size_t i = 1; i < state.body.x.size(); ++i) {
       carry(state.body.x[i]);

@@ -364,6 +364,7 @@ void NavigatorController::use_camera(std::function<std::vector<SeenLumen>()> loo
   const anatomy::AirwayGraph& graph = *m_scene.anatomy->graph;
   m_base_arc = arc_length_of_nearest(m_path, m_scene.base_position);
   if (m_scene.breathing) m_path_amplitudes = anatomy::breathing_amplitudes(*m_scene.breathing, m_path);
+  airway_at(m_airway_time);
   // The plan's junctions, from the pre-operative graph: where each plan branch ends along the joined path, and the
   // points `lead` into the planned child and into its siblings.
   const auto into = [&](int branch) {
@@ -393,15 +394,22 @@ Vec3 NavigatorController::moved(const Vec3& x) const {
   return m_scene.breathing ? Vec3(x + anatomy::breathing_displacement(*m_scene.breathing, x, m_airway_time)) : x;
 }
 
+void NavigatorController::airway_at(double time) {
+  m_airway_time = time;
+  // The plan as the airway is now, once per time (estimated_arc reads it several times a step).
+  if (!m_look || !m_scene.breathing) return;
+  anatomy::breathing_vertices(*m_scene.breathing, m_path, m_path_amplitudes, m_airway_time, m_moved_path);
+  m_moved_base_arc = arc_length_of_nearest(m_moved_path, m_scene.base_position);
+}
+
 double NavigatorController::estimated_arc(double length) const {
   if (!m_scene.breathing) return m_base_arc + length;
   // Breathing stretches the airway between the fixed entry and the lobes (anatomy/breathing.hpp), and the vine lies
   // along it as it is now: the everted length is measured along the plan moved by the breathing model (known
   // before the procedure, with the phase from a respiratory sensor), and the point there taken back to the plan's
   // rest arc, segment by segment.
-  std::vector<Vec3> path;
-  anatomy::breathing_vertices(*m_scene.breathing, m_path, m_path_amplitudes, m_airway_time, path);
-  const double s = arc_length_of_nearest(path, m_scene.base_position) + length;
+  const std::vector<Vec3>& path = m_moved_path;
+  const double s = m_moved_base_arc + length;
   double along = 0.0;  // along the moved plan [m]
   double rest = 0.0;   // the same points' arc along the plan at rest [m]
   for (std::size_t i = 0; i + 1 < path.size(); ++i) {

@@ -103,7 +103,7 @@ class NavigatorController {
   std::optional<Vec3> estimated_tip(double length) const;
   /// The time of the airway's shape the body lies in now (a breathing airway; the experiment sets it each step
   /// before place and regulate): camera guidance's dead reckoning and the plan's directions are taken in that shape.
-  void airway_at(double time) { m_airway_time = time; }
+  void airway_at(double time);
 
   /// Whether it places magnet `magnet` (its own, or with a platform the other arm's of a dEPM pair).
   bool steers(int magnet) const;
@@ -180,6 +180,10 @@ class NavigatorController {
   double m_base_arc = 0.0;                         ///< the base's arc length along the plan [m]
   double m_airway_time = 0.0;                      ///< airway_at's [s]
   std::vector<double> m_path_amplitudes;           ///< breathing amplitudes of the plan's points [m]
+  /// Camera guidance in a breathing airway: the plan moved to m_airway_time, and the base's arc along it [m] (set
+  /// by airway_at and use_camera, read by estimated_arc).
+  std::vector<Vec3> m_moved_path;
+  double m_moved_base_arc = 0.0;
   /// The plan's junctions: arc length along the plan [m], and the planned child's and its siblings' first points
   /// with the points `lead` into each (rest frame; the directions between them are taken as the airway is at the
   /// look).
