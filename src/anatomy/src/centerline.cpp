@@ -6,7 +6,6 @@
 #include <array>
 #include <bit>
 #include <chrono>
-#include <cstdio>
 #include <cstdlib>
 #include <cmath>
 #include <cstdint>
@@ -593,11 +592,6 @@ AirwayGraph extract_airway_graph(const TriangleMesh& mesh, const CenterlineOptio
         path.resize(i);
         break;
       }
-    }
-    if (std::getenv("MAGVINE_DEBUG_CL")) {
-      const Vec3 a = L.position(target), b = L.position(junction);
-      std::fprintf(stderr, "path %zu: target (%.1f %.1f %.1f) junction (%.1f %.1f %.1f) reach %.1f own %.1f\n",
-                   path.size(), 1e3*a.x(), 1e3*a.y(), 1e3*a.z(), 1e3*b.x(), 1e3*b.y(), 1e3*b.z(), reach, own);
     }
     cover(path);
     for (std::size_t i = 0; i < path.size(); ++i) {

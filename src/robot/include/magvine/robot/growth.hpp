@@ -102,13 +102,16 @@ struct PushedRod {
 };
 
 /// The body's solver in a growth step: from the last equilibrium at full load, no ramp (RodSolveOptions::ramp), at
-/// most 200 Newton iterations (a step that needs more is solved again with its loads ramped, then taken again as
-/// two halves).
+/// most 1000 Newton iterations (a step that needs more is solved again with its loads ramped, then taken again as
+/// two halves). Newton's line search lowers the energy at every iteration, so a longer run from the last
+/// equilibrium follows the quasi-static path; the ramp starts over from the unloaded body and may end on another
+/// branch (with a budget of 200, the three failed steps of a breathing generation-4 batch needed 204-313 from the
+/// last equilibrium, and 1600-2500 with 16-31 snaps on the ramp).
 inline RodSolveOptions growth_solver_options() {
   RodSolveOptions o;
   o.ramp = false;
-  o.max_snap_newton = 200;
-  o.max_iterations = 200;
+  o.max_snap_newton = 1000;
+  o.max_iterations = 1000;
   o.tolerance = 1e-7;
   o.reuse_hessian = false;
   return o;
