@@ -59,6 +59,21 @@ TEST(Needle, TheTissueForceIsTheCuttingForcePlusShaftFriction) {
   EXPECT_DOUBLE_EQ(needle_tissue_force(n, 0.5e-3), 1.2 * 0.25);  // the wall deflecting
   EXPECT_DOUBLE_EQ(needle_tissue_force(n, 2e-3), 1.2);           // punctured
   EXPECT_DOUBLE_EQ(needle_tissue_force(n, 5e-3), 1.2 + 20.0 * 3e-3);
+  // Its potential and stiffness (the step's TipContact) are the force's integral from 0 and its slope: central
+  // differences on either side of the puncture and across the contact's start (1e-8 relative: round-off of the
+  // differences of a quadratic).
+  EXPECT_EQ(needle_tissue_law(n, -1e-3).potential, 0.0);
+  for (const double d : {0.3e-3, 1.9e-3, 2.1e-3, 6e-3}) {
+    const double e = 1e-7;
+    const ContactLaw l = needle_tissue_law(n, d);
+    EXPECT_NEAR(l.force, (needle_tissue_law(n, d + e).potential - needle_tissue_law(n, d - e).potential) / (2 * e),
+                1e-8 * l.force + 1e-12)
+        << d;
+    EXPECT_NEAR(l.stiffness, (needle_tissue_force(n, d + e) - needle_tissue_force(n, d - e)) / (2 * e),
+                1e-6 * l.stiffness)
+        << d;
+  }
+  EXPECT_NEAR(needle_tissue_law(n, 2e-3).potential, 0.5 * 1.2 * 2e-3, 1e-15);  // ∫ of the rise: F_c·d_p/2
   n.length = 0.0;
   EXPECT_THROW(check_needle(n), InputError);
 }

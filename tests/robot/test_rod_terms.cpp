@@ -101,6 +101,16 @@ TermSetup make_setup(bool vine) {
   const double extension = s.state.frames.back().col(0).dot(s.state.x.back() - s.state.x[s.state.x.size() - 2]) -
                            1.2 * h;
   s.constraints.growth = TipGrowth{0.2, 50.0, 0.5 * extension};
+  // A contact ahead of the tip (a needle's tissue, TipContact): 1 mm deep along an axis off the tip's tangent, a
+  // convex law F = 300 N/m · d + 40 N/m² · d² (smooth there).
+  TipContact tissue;
+  tissue.axis = Vec3(0.3, -0.2, 1.0).normalized();
+  tissue.origin = s.state.x.back() - 0.4e-3 * tissue.axis;
+  tissue.depth = 0.6e-3;
+  tissue.law = [](double d) {
+    return ContactLaw{150.0 * d * d + 40.0 / 3.0 * d * d * d, 300.0 * d + 40.0 * d * d, 300.0 + 80.0 * d};
+  };
+  s.constraints.tip_contact = tissue;
   return s;
 }
 
@@ -173,6 +183,14 @@ TEST(RodTerms, Anchors) { expect_for_rod_and_vine<AnchorTerm>("anchors"); }
 TEST(RodTerms, Gravity) { expect_for_rod_and_vine<GravityTerm>("gravity and tip force"); }
 TEST(RodTerms, TipMoment) { expect_for_rod_and_vine<TipMomentTerm>("tip moment"); }
 TEST(RodTerms, Friction) { expect_for_rod_and_vine<FrictionTerm>("friction"); }
+TEST(RodTerms, TipContact) {
+  expect_for_rod_and_vine<TipContactTerm>("tip contact");
+  // Its force at the tip is the one the balance counts (tip_contact_force): −F(d)·a, d = 1 mm here.
+  const TermSetup s = make_setup(true);
+  const TipContact& t = *s.constraints.tip_contact;
+  EXPECT_NEAR(tip_contact_depth(t, s.state.x.back()), 1e-3, 1e-15);
+  EXPECT_TRUE(tip_contact_force(t, s.state.x.back()).isApprox(-(0.3 + 40e-6) * t.axis, 1e-12));
+}
 
 TEST(RodTerms, WallBarrier) {
   // One large triangle below the body; each node's radius set so that its gap lies in (0, d̂), all closest points
@@ -209,7 +227,7 @@ TEST(RodTerms, TheSolversEnergyIsTheSumOfTheTerms) {
   const double sum = term_energy<StretchShear>(c, nullptr) + term_energy<BendTwist>(c, nullptr) +
                      term_energy<Magnetic>(c, nullptr) + term_energy<AnchorTerm>(c, nullptr) +
                      term_energy<GravityTerm>(c, nullptr) + term_energy<TipMomentTerm>(c, nullptr) +
-                     term_energy<FrictionTerm>(c, nullptr);
+                     term_energy<FrictionTerm>(c, nullptr) + term_energy<TipContactTerm>(c, nullptr);
   EXPECT_NEAR(rod_energy(s.model, s.field, s.state, 1.0, &s.constraints), sum, 1e-12 * std::abs(sum));
 }
 

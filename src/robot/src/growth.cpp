@@ -124,7 +124,8 @@ struct Stepper {
   GrowthState& state;
   GrowthWorkspace& ws;
   GrowthStatus& status;
-  Vec3 tip_force = Vec3::Zero();  ///< the step's load on the tip (GrowthControl::tip_force)
+  Vec3 tip_force = Vec3::Zero();            ///< the step's load on the tip (GrowthControl::tip_force)
+  const TipContact* tip_contact = nullptr;  ///< the step's contact ahead of the tip (GrowthControl::tip_contact)
 
   const anatomy::CollisionWorld* world() const { return model.world; }
   double h() const { return model.edge_length; }
@@ -320,6 +321,7 @@ bool Stepper::barrier_step(double dt, double pressure, double cap, bool damp_sta
   // configuration with a finite barrier energy.
   RodConstraints c;
   c.growth = growth;
+  if (tip_contact != nullptr) c.tip_contact = *tip_contact;
   state.nodes.resize(nodes);
   // Node i's barrier radius for its contact radius r where it is now: the tip's at most its room ahead, and at
   // most its clearance (a finite barrier energy).
@@ -603,9 +605,10 @@ bool Stepper::barrier_step(double dt, double pressure, double cap, bool damp_sta
     }
     const Vec3 load = body_load(ws.body, field, state.body);
     state.forces.clamp = clamp_force(ws.body, field, state.body);
-    state.forces.imbalance = wall + friction + load + state.forces.clamp;
+    const Vec3 contact = tip_contact != nullptr ? tip_contact_force(*tip_contact, state.body.tip()) : Vec3::Zero();
+    state.forces.imbalance = wall + friction + load + state.forces.clamp + contact;
     state.forces.largest_load =
-        std::max({wall.norm(), friction.norm(), load.norm(), state.forces.clamp.norm(), growth.force});
+        std::max({wall.norm(), friction.norm(), load.norm(), state.forces.clamp.norm(), growth.force, contact.norm()});
   }
   for (std::size_t i = 0; i < nodes; ++i) state.nodes[i].reference = reference[i];
   // Growth: the tip edge's extension past its made length becomes made length; a tip edge of 3h/2 splits into an
@@ -967,7 +970,14 @@ GrowthStatus grow_step(const GrowthModel& model, const RodField& field, const Gr
                        GrowthState& state, GrowthWorkspace& workspace, double dt) {
   GrowthStatus status;
   if (!control.tip_force.allFinite()) throw InputError("grow_step: the tip force must be finite");
-  Stepper{model, field, state, workspace, status, control.tip_force}.step(control, dt);
+  if (control.tip_contact &&
+      (!control.tip_contact->law || !control.tip_contact->origin.allFinite() ||
+       !std::isfinite(control.tip_contact->depth) || !(std::abs(control.tip_contact->axis.norm() - 1.0) < 1e-9))) {
+    throw InputError("grow_step: a tip contact needs a law, a finite origin and depth and a unit axis");
+  }
+  Stepper{
+      model, field, state, workspace, status, control.tip_force, control.tip_contact ? &*control.tip_contact : nullptr}
+      .step(control, dt);
   return status;
 }
 

@@ -25,9 +25,17 @@ void check_needle(const NeedleTool& n) {
 }
 
 double needle_tissue_force(const NeedleTool& needle, double depth) {
-  if (!(depth > 0.0)) return 0.0;
-  if (depth < needle.puncture_depth) return needle.cutting_force * depth / needle.puncture_depth;
-  return needle.cutting_force + needle.shaft_friction * (depth - needle.puncture_depth);
+  return needle_tissue_law(needle, depth).force;
+}
+
+ContactLaw needle_tissue_law(const NeedleTool& needle, double depth) {
+  if (!(depth > 0.0)) return {};
+  const double fc = needle.cutting_force;
+  const double dp = needle.puncture_depth;
+  if (depth < dp) return {0.5 * fc * depth * depth / dp, fc * depth / dp, fc / dp};
+  const double past = depth - dp;
+  return {0.5 * fc * dp + fc * past + 0.5 * needle.shaft_friction * past * past, fc + needle.shaft_friction * past,
+          needle.shaft_friction};
 }
 
 namespace {
@@ -69,54 +77,64 @@ PunctureReport push_needle(const GrowthModel& model, const RodField& field, cons
   control.pressure = pressure;
   control.tether_length = everted_length(model, state);  // held: the puncture grows nothing
   double p = 0.0;
-  double last_force = 0.0;  // the reaction of the last converged increment [N]
+  double held = 0.0;     // the largest reaction a converged step held [N]
+  double bent = 0.0;     // the body's largest moment over πR³P then
+  double held_at = 0.0;  // the protrusion of the largest reaction of a whole increment [m]
   const double dt = needle.increment / needle.speed;
+  // The tissue ahead as the tip sees it where the step starts: the needle's tip `protrusion` past the vine's, the
+  // wall along the tip's axis (a ray cast). Within the step the depth follows the tip (TipContact): a tip that backs
+  // off presses less, as the tissue does (a dead load of the reaction at the start would not fall, and above what
+  // the body's friction holds it had no equilibrium near: traced in a patient, Newton carried the tip 70-77 mm back).
+  const auto tissue_at = [&](double protrusion) {
+    TipContact c;
+    c.origin = state.body.tip();
+    c.axis = state.body.frames.back().col(0);
+    const double ahead = wall_ahead(model.world, c.origin, c.axis, needle.length);
+    c.depth = std::isfinite(ahead) ? protrusion - ahead : -needle.length;
+    c.law = [&needle](double depth) { return needle_tissue_law(needle, depth); };
+    return c;
+  };
+  const auto note_held = [&](const TipContact& c) {
+    const double force = needle_tissue_force(needle, tip_contact_depth(c, state.body.tip()));
+    if (force > held) {
+      held = force;
+      bent = vine_bend_state(workspace.body, state.body).largest_moment;
+    }
+  };
   while (p < out.target_protrusion) {
+    const double from = p;
     p = std::min(p + needle.increment, out.target_protrusion);
-    const Vec3 x = state.body.tip();
-    const Vec3 t = state.body.frames.back().col(0);
-    // The reaction of the tissue on the needle, lagged by the increment: from where the tip is before the step.
-    const double depth = std::max(0.0, p - wall_ahead(model.world, x, t, needle.length));
-    const double force = needle_tissue_force(needle, depth);
-    control.tip_force = -force * t;
-    // The largest moment over πR³P at the last equilibrium (its own model: a failed step may leave the workspace's
-    // body rebuilt for the step it tried).
-    double bent = vine_bend_state(workspace.body, state.body).largest_moment;
+    control.tip_contact = tissue_at(p);
     GrowthStatus r = grow_step(model, field, control, state, workspace, dt);
-    // The reaction is the increment's load: where the step fails (the needle meeting the wall raises it by up to
-    // F_c·increment/d_p at once, and the growth step's own retries halve its time, not its load), the increment is
-    // taken again as 4, then 16 steps with the reaction raised evenly from the last converged one: a quasi-static
-    // loading path, each step from the last equilibrium.
-    double held = last_force;  // the largest reaction a step of this increment converged under
+    // An increment whose step fails (the growth step's own retries halve its time, not the needle's advance) is
+    // taken again as 4, then 16 smaller advances, each from the last equilibrium: a quasi-static loading path.
     for (int pieces = 4; !r.converged && pieces <= 16; pieces *= 4) {
       const GrowthState before = state;  // grow_step left the state where the failed step began
       for (int k = 1; k <= pieces; ++k) {
-        const double piece = last_force + (force - last_force) * k / pieces;
-        control.tip_force = -piece * t;
+        control.tip_contact = tissue_at(from + (p - from) * k / pieces);
         r = grow_step(model, field, control, state, workspace, dt / pieces);
         if (!r.converged) break;
-        if (piece > held) {
-          held = piece;
-          bent = vine_bend_state(workspace.body, state.body).largest_moment;
-        }
+        note_held(*control.tip_contact);
       }
       if (!r.converged) state = before;
     }
-    if (r.converged) last_force = force;
     if (!r.converged) {
       out.held = false;
       out.why = printf_string(
-          "the vine found no equilibrium under the needle's %.2f N at %.1f mm protrusion (it held %.2f N, its largest "
-          "bending moment then %.2f of its collapse moment): %s",
-          force, 1e3 * p, held, bent, r.failure.c_str());
+          "the vine found no equilibrium with the needle at %.1f mm protrusion (it held %.2f N, its largest bending "
+          "moment then %.2f of its collapse moment): %s",
+          1e3 * p, held, bent, r.failure.c_str());
       break;
     }
+    note_held(*control.tip_contact);
+    const double depth = tip_contact_depth(*control.tip_contact, state.body.tip());
+    const double force = needle_tissue_force(needle, depth);
     PunctureStep s;
     s.time = state.time;
     s.protrusion = p;
     s.depth = depth;
     s.force = force;
-    s.reaction = control.tip_force;
+    s.reaction = tip_contact_force(*control.tip_contact, state.body.tip());
     s.tip = state.body.tip();
     s.needle_tip = s.tip + p * state.body.frames.back().col(0);
     s.slide = (tip0 - s.tip).dot(t0);
@@ -133,6 +151,7 @@ PunctureReport push_needle(const GrowthModel& model, const RodField& field, cons
     out.slide = std::max(out.slide, s.slide);
     if (force > out.max_force) {
       out.max_force = force;
+      held_at = p;
       out.wall_share = std::abs(s.wall.dot(s.reaction)) / (force * force);
     }
     out.max_unsupported = std::max(out.max_unsupported, s.unsupported);
@@ -142,9 +161,9 @@ PunctureReport push_needle(const GrowthModel& model, const RodField& field, cons
     if (s.slide > needle.max_slide) {
       out.held = false;
       out.why = printf_string(
-          "the vine's tip slid back %.1f mm under the needle's %.2f N (limit %.1f mm): its contacts do not hold the "
-          "puncture",
-          1e3 * s.slide, force, 1e3 * needle.max_slide);
+          "the vine's tip slid back %.1f mm under the needle's %.2f N (limit %.1f mm; it held at most %.2f N, at %.1f "
+          "mm protrusion): its contacts do not hold the puncture",
+          1e3 * s.slide, force, 1e3 * needle.max_slide, out.max_force, 1e3 * held_at);
       break;
     }
   }

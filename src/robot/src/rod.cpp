@@ -745,6 +745,14 @@ Vec3 friction_force(const NodeFriction& f, const Vec3& x) {
   return -f.coefficient * f.normal_force * detail::friction_law(u.norm(), f.slip).force_per * u;
 }
 
+double tip_contact_depth(const TipContact& contact, const Vec3& x) {
+  return contact.depth + (x - contact.origin).dot(contact.axis);
+}
+
+Vec3 tip_contact_force(const TipContact& contact, const Vec3& x) {
+  return -contact.law(tip_contact_depth(contact, x)).force * contact.axis;
+}
+
 RodState straight_rod(const RodModel& model) {
   RodState s;
   const Vec3 t = model.base_frame.col(0);

@@ -14,13 +14,14 @@
 #include "terms/inertia.hpp"
 #include "terms/magnetic.hpp"
 #include "terms/stretch_shear.hpp"
+#include "terms/tip_contact.hpp"
 #include "terms/tip_moment.hpp"
 #include "terms/wall_barrier.hpp"
 
 namespace magvine::robot::detail {
 
 using RodTerms = std::tuple<StretchShear, BendTwist, Magnetic, InertiaTerm, AnchorTerm, GravityTerm, TipMomentTerm,
-                            WallBarrierTerm, FrictionTerm>;
+                            WallBarrierTerm, FrictionTerm, TipContactTerm>;
 
 /// The energy at load factor λ (c.load); adds its gradient to `sys` when given. Infinite when a joint has folded
 /// back on itself: the terms after the first non-finite energy are skipped (the gradient is then incomplete, and

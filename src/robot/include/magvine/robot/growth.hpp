@@ -260,6 +260,9 @@ struct GrowthControl {
   /// A load on the tip node [N], e.g. the reaction of a tool pushed out of the tip into tissue (needle.hpp). It
   /// enters the body's equilibrium and the global balance (WallForces::imbalance) like every other load.
   Vec3 tip_force = Vec3::Zero();
+  /// A contact ahead of the tip whose reaction depends on where the tip is (TipContact, rod.hpp: a needle's
+  /// tissue). It enters the equilibrium and the global balance like the tip force.
+  std::optional<TipContact> tip_contact = std::nullopt;
 };
 
 /// Checks what a growth model needs of its vine, options and base frame (make_growth_model calls it; scene loaders

@@ -5,8 +5,10 @@
 /// The needle is a rigid straight tool of `length` and `diameter` whose base sits in the channel at the tip: it
 /// leaves along the tip's tangent, and its tip is at x_tip + p·t for a protrusion p. It is pushed out in increments
 /// of p, each a quasi-static step of the vine (grow_step with the tether held at the everted length: no growth) in
-/// which the tissue's resistance on the needle comes back through the channel as a dead load on the vine's tip,
-/// −F(d)·t, d the depth of the needle tip past the wall along its axis (a ray cast from the tip). The body's
+/// which the tissue's resistance on the needle comes back through the channel as a load on the vine's tip, −F(d)·t,
+/// d the depth of the needle tip past the wall along its axis (a ray cast from the tip at the step's start). The
+/// depth follows the tip within the step (TipContact, rod.hpp: the needle rides with the tip, so a tip that backs
+/// off the tissue is resisted less), so the reaction is part of the step's energy, not a dead load. The body's
 /// equilibrium with the walls (barrier, lagged Coulomb friction, clamp) then carries that reaction; its global
 /// balance is the check that it does (PunctureStep::imbalance).
 ///
@@ -48,6 +50,10 @@ void check_needle(const NeedleTool& needle);
 /// The tissue's resistance on a needle whose tip is `depth` [m] past the wall [N]: 0 for depth ≤ 0, F_c·depth/d_p up
 /// to d_p, F_c + f·(depth − d_p) beyond (Okamura et al. 2004; see the file comment).
 double needle_tissue_force(const NeedleTool& needle, double depth);
+
+/// The same law with its potential and stiffness (ContactLaw): Ψ(d) = F_c·d²/(2d_p) up to d_p, then F_c·d_p/2 +
+/// F_c·(d − d_p) + f·(d − d_p)²/2; the step's TipContact.
+ContactLaw needle_tissue_law(const NeedleTool& needle, double depth);
 
 /// One increment of the puncture.
 struct PunctureStep {

@@ -258,6 +258,32 @@ struct TipGrowth {
   double limit = std::numeric_limits<double>::infinity();  ///< the most the tip edge may grow in this step [m]
 };
 
+/// A contact law along one axis: the potential Ψ(d) [J] of a depth d [m], its force F = Ψ'(d) [N] and stiffness
+/// F'(d) [N/m] (TipContact).
+struct ContactLaw {
+  double potential = 0.0;
+  double force = 0.0;
+  double stiffness = 0.0;
+};
+
+/// Something ahead of the tip that resists it by how deep the tip has pushed into it (a needle's tissue: the
+/// needle's tip rides at a fixed protrusion ahead of the rod's, needle.hpp): the depth d(x_N) = depth + (x_N −
+/// origin)·axis, the potential Ψ(d) and the force −F(d)·axis on x_N (terms/tip_contact.hpp). As the tip backs off,
+/// the reaction falls with it; a dead load of F(depth) would not, and above what the body can hold it has no
+/// equilibrium near (the body runs). The law is the caller's (convex: F' ≥ 0).
+struct TipContact {
+  Vec3 origin = Vec3::Zero();  ///< where the tip was when `depth` was measured [m]
+  Vec3 axis = Vec3::UnitX();   ///< unit: the direction the tip pushes into it
+  double depth = 0.0;          ///< d at origin [m] (≤ 0: not touching yet)
+  std::function<ContactLaw(double)> law;
+};
+
+/// The depth of a tip at x in a TipContact [m].
+double tip_contact_depth(const TipContact& contact, const Vec3& x);
+
+/// The TipContact's force on a tip at x, −F(d(x))·axis [N].
+Vec3 tip_contact_force(const TipContact& contact, const Vec3& x);
+
 /// Terms a simulation adds to the rod's energy for one solve; not scaled by the load ramp. Node 0 (the clamp)
 /// takes none.
 struct RodConstraints {
@@ -265,6 +291,7 @@ struct RodConstraints {
   std::optional<WallBarrier> wall;
   std::vector<NodeFriction> friction;
   std::optional<TipGrowth> growth;
+  std::optional<TipContact> tip_contact;
 };
 
 /// The wall's push on one node (wall_barrier_forces).
