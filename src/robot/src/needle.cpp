@@ -77,9 +77,11 @@ PunctureReport push_needle(const GrowthModel& model, const RodField& field, cons
   control.pressure = pressure;
   control.tether_length = everted_length(model, state);  // held: the puncture grows nothing
   double p = 0.0;
-  double held = 0.0;     // the largest reaction a converged step held [N]
-  double bent = 0.0;     // the body's largest moment over πR³P then
-  double held_at = 0.0;  // the protrusion of the largest reaction of a whole increment [m]
+  // The largest reaction a converged step held with the tip within max_slide, its protrusion, and the body's largest
+  // moment over πR³P then (at the start: nothing held yet).
+  double held = 0.0;
+  double held_at = 0.0;
+  double bent = vine_bend_state(workspace.body, state.body).largest_moment;
   const double dt = needle.increment / needle.speed;
   // The tissue ahead as the tip sees it where the step starts: the needle's tip `protrusion` past the vine's, the
   // wall along the tip's axis (a ray cast). Within the step the depth follows the tip (TipContact): a tip that backs
@@ -94,30 +96,33 @@ PunctureReport push_needle(const GrowthModel& model, const RodField& field, cons
     c.law = [&needle](double depth) { return needle_tissue_law(needle, depth); };
     return c;
   };
-  const auto note_held = [&](const TipContact& c) {
+  const auto note_held = [&](const TipContact& c, double protrusion) {
     const double force = needle_tissue_force(needle, tip_contact_depth(c, state.body.tip()));
-    if (force > held) {
+    if (force > held && (tip0 - state.body.tip()).dot(t0) <= needle.max_slide) {
       held = force;
+      held_at = protrusion;
       bent = vine_bend_state(workspace.body, state.body).largest_moment;
     }
   };
   while (p < out.target_protrusion) {
     const double from = p;
     p = std::min(p + needle.increment, out.target_protrusion);
+    const GrowthState start = state;  // the last equilibrium (a failed grow_step leaves its time advanced)
     control.tip_contact = tissue_at(p);
     GrowthStatus r = grow_step(model, field, control, state, workspace, dt);
     // An increment whose step fails (the growth step's own retries halve its time, not the needle's advance) is
-    // taken again as 4, then 16 smaller advances, each from the last equilibrium: a quasi-static loading path.
+    // taken again as 4, then 16 smaller advances from the last equilibrium: a quasi-static loading path.
     for (int pieces = 4; !r.converged && pieces <= 16; pieces *= 4) {
-      const GrowthState before = state;  // grow_step left the state where the failed step began
+      state = start;
       for (int k = 1; k <= pieces; ++k) {
-        control.tip_contact = tissue_at(from + (p - from) * k / pieces);
+        const double at = from + (p - from) * k / pieces;
+        control.tip_contact = tissue_at(at);
         r = grow_step(model, field, control, state, workspace, dt / pieces);
         if (!r.converged) break;
-        note_held(*control.tip_contact);
+        note_held(*control.tip_contact, at);
       }
-      if (!r.converged) state = before;
     }
+    if (!r.converged) state = start;
     if (!r.converged) {
       out.held = false;
       out.why = printf_string(
@@ -126,7 +131,7 @@ PunctureReport push_needle(const GrowthModel& model, const RodField& field, cons
           1e3 * p, held, bent, r.failure.c_str());
       break;
     }
-    note_held(*control.tip_contact);
+    note_held(*control.tip_contact, p);
     const double depth = tip_contact_depth(*control.tip_contact, state.body.tip());
     const double force = needle_tissue_force(needle, depth);
     PunctureStep s;
@@ -151,7 +156,6 @@ PunctureReport push_needle(const GrowthModel& model, const RodField& field, cons
     out.slide = std::max(out.slide, s.slide);
     if (force > out.max_force) {
       out.max_force = force;
-      held_at = p;
       out.wall_share = std::abs(s.wall.dot(s.reaction)) / (force * force);
     }
     out.max_unsupported = std::max(out.max_unsupported, s.unsupported);
@@ -161,9 +165,9 @@ PunctureReport push_needle(const GrowthModel& model, const RodField& field, cons
     if (s.slide > needle.max_slide) {
       out.held = false;
       out.why = printf_string(
-          "the vine's tip slid back %.1f mm under the needle's %.2f N (limit %.1f mm; it held at most %.2f N, at %.1f "
-          "mm protrusion): its contacts do not hold the puncture",
-          1e3 * s.slide, force, 1e3 * needle.max_slide, out.max_force, 1e3 * held_at);
+          "the vine's tip slid back %.1f mm under the needle's %.2f N (limit %.1f mm; within it, it held at most %.2f N, "
+          "at %.1f mm protrusion): its contacts do not hold the puncture",
+          1e3 * s.slide, force, 1e3 * needle.max_slide, held, 1e3 * held_at);
       break;
     }
   }

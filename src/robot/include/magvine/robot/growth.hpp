@@ -105,8 +105,9 @@ struct PushedRod {
 /// most 1000 Newton iterations (a step that needs more is solved again with its loads ramped, then taken again as
 /// two halves). Newton's line search lowers the energy at every iteration, so a longer run from the last
 /// equilibrium follows the quasi-static path; the ramp starts over from the unloaded body and may end on another
-/// branch (with a budget of 200, the three failed steps of a breathing generation-4 batch needed 204-313 from the
-/// last equilibrium, and 1600-2500 with 16-31 snaps on the ramp).
+/// branch (with a budget of 200, the three steps of a breathing generation-4 batch that reached the ramp, all three
+/// failed on its 600, needed 204-313 from the last equilibrium; the ramp, given 6000, needed 1600-2500 and 16-31
+/// snaps).
 inline RodSolveOptions growth_solver_options() {
   RodSolveOptions o;
   o.ramp = false;
@@ -223,8 +224,8 @@ struct WallForces {
   /// (hertz_line_pressure, GrowthOptions::tissue_modulus).
   std::vector<double> pressure;
   double max_pressure = 0.0;  ///< [Pa]
-  /// The global balance of the converged body, Σ(wall normal + friction + magnetic + gravity + clamp)
-  /// on the body [N] (zero at equilibrium), and the largest of those loads' magnitudes [N], its scale.
+  /// The global balance of the converged body, Σ(wall normal + friction + magnetic + gravity + tip force + clamp +
+  /// tip contact) on the body [N] (zero at equilibrium), and the largest of those loads' magnitudes [N], its scale.
   Vec3 imbalance = Vec3::Zero();
   double largest_load = 0.0;
   Vec3 clamp = Vec3::Zero();  ///< the clamp's force on the body [N]
@@ -243,7 +244,7 @@ struct GrowthStatus {
   bool burst = false;
   bool converged = true;  ///< the body reached equilibrium (else the cause is in failure and a kSolver event)
   int solves = 0;         ///< body solves in the step (the friction lag's iterations)
-  int retries = 0;        ///< steps that failed and were taken again as two halves
+  int retries = 0;        ///< steps that failed and were taken again (a damped lag, or as two halves)
   int newton_iterations = 0;
   double yield = 0.0;                     ///< Y [Pa] (with the magnetorheological term)
   double magnetorheological_yield = 0.0;  ///< its magnetorheological part ΔP [Pa]
@@ -257,8 +258,9 @@ struct GrowthStatus {
 struct GrowthControl {
   double pressure = 0.0;                                           ///< P [Pa]
   double tether_length = std::numeric_limits<double>::infinity();  ///< the length the tether has released [m]
-  /// A load on the tip node [N], e.g. the reaction of a tool pushed out of the tip into tissue (needle.hpp). It
-  /// enters the body's equilibrium and the global balance (WallForces::imbalance) like every other load.
+  /// A dead load on the tip node [N] (a constant pull or push; a tool's tissue, which resists by how deep the tip
+  /// has pushed, is tip_contact). It enters the body's equilibrium and the global balance (WallForces::imbalance)
+  /// like every other load.
   Vec3 tip_force = Vec3::Zero();
   /// A contact ahead of the tip whose reaction depends on where the tip is (TipContact, rod.hpp: a needle's
   /// tissue). It enters the equilibrium and the global balance like the tip force.
