@@ -59,7 +59,7 @@ ContactLaw needle_tissue_law(const NeedleTool& needle, double depth);
 struct PunctureStep {
   double time = 0.0;               ///< [s]
   double protrusion = 0.0;         ///< p [m]
-  double depth = 0.0;              ///< the needle tip past the wall [m]
+  double depth = 0.0;              ///< the needle tip past the wall [m] (negative: short of it)
   double force = 0.0;              ///< the tissue's resistance F(depth) = the reaction on the vine's tip [N]
   Vec3 reaction = Vec3::Zero();    ///< R = −F·t on the vine's tip, t the needle's axis then [N]
   Vec3 tip = Vec3::Zero();         ///< the vine's tip [m]
