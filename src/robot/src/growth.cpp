@@ -124,7 +124,6 @@ struct Stepper {
   GrowthState& state;
   GrowthWorkspace& ws;
   GrowthStatus& status;
-  Vec3 tip_force = Vec3::Zero();            ///< the step's load on the tip (GrowthControl::tip_force)
   const TipContact* tip_contact = nullptr;  ///< the step's contact ahead of the tip (GrowthControl::tip_contact)
 
   const anatomy::CollisionWorld* world() const { return model.world; }
@@ -139,7 +138,6 @@ struct Stepper {
   void rebuild(double pressure) {
     state.pressure = pressure;
     growth_body(model, state, pressure, ws);
-    ws.body.tip_force = tip_force;
   }
   double magnetorheological_yield() const;
   int retract_to(double length);
@@ -266,21 +264,19 @@ double Stepper::node_radius(const Vec3& x, const Mat3& frame, const Vec3& seen_f
 /// `cap`: how far the tether and the made length let it grow.
 bool Stepper::barrier_steps(double dt, double pressure, double cap, int depth) {
   constexpr int kMaxHalvings = 4;
-  if (barrier_step(dt, pressure, cap)) return true;
-  if (lag_unsettled && barrier_step(dt, pressure, cap, true)) {
+  const auto retried = [&] {
     ++status.retries;
     status.converged = true;
     status.failure.clear();
     return true;
-  }
+  };
+  if (barrier_step(dt, pressure, cap)) return true;
+  if (lag_unsettled && barrier_step(dt, pressure, cap, true)) return retried();
   if (depth == kMaxHalvings || dt == 0.0) return false;
   const double before = length();
   if (!barrier_steps(0.5 * dt, pressure, cap, depth + 1)) return false;
   if (!barrier_steps(0.5 * dt, pressure, std::max(0.0, cap - (length() - before)), depth + 1)) return false;
-  ++status.retries;
-  status.converged = true;
-  status.failure.clear();
-  return true;
+  return retried();
 }
 
 bool Stepper::barrier_step(double dt, double pressure, double cap, bool damp_stalls) {
@@ -969,15 +965,13 @@ GrowthStatus start_growth(const GrowthModel& model, const RodField& field, doubl
 GrowthStatus grow_step(const GrowthModel& model, const RodField& field, const GrowthControl& control,
                        GrowthState& state, GrowthWorkspace& workspace, double dt) {
   GrowthStatus status;
-  if (!control.tip_force.allFinite()) throw InputError("grow_step: the tip force must be finite");
   if (control.tip_contact &&
       (!control.tip_contact->law || !control.tip_contact->origin.allFinite() ||
        !std::isfinite(control.tip_contact->depth) || !(std::abs(control.tip_contact->axis.norm() - 1.0) < 1e-9))) {
     throw InputError("grow_step: a tip contact needs a law, a finite origin and depth and a unit axis");
   }
-  Stepper{
-      model, field, state, workspace, status, control.tip_force, control.tip_contact ? &*control.tip_contact : nullptr}
-      .step(control, dt);
+  Stepper{model, field, state, workspace, status, control.tip_contact ? &*control.tip_contact : nullptr}.step(control,
+                                                                                                              dt);
   return status;
 }
 

@@ -96,12 +96,13 @@ PunctureReport push_needle(const GrowthModel& model, const RodField& field, cons
     c.law = [&needle](double depth) { return needle_tissue_law(needle, depth); };
     return c;
   };
-  const auto note_held = [&](const TipContact& c, double protrusion) {
-    const double force = needle_tissue_force(needle, tip_contact_depth(c, state.body.tip()));
-    if (force > held && (tip0 - state.body.tip()).dot(t0) <= needle.max_slide) {
+  // The tip's slide back along the needle's first axis, where the body is now.
+  const auto slide_now = [&] { return (tip0 - state.body.tip()).dot(t0); };
+  const auto note_held = [&](double force, double slide, double protrusion, double moment) {
+    if (force > held && slide <= needle.max_slide) {
       held = force;
       held_at = protrusion;
-      bent = vine_bend_state(workspace.body, state.body).largest_moment;
+      bent = moment;
     }
   };
   while (p < out.target_protrusion) {
@@ -119,11 +120,12 @@ PunctureReport push_needle(const GrowthModel& model, const RodField& field, cons
         control.tip_contact = tissue_at(at);
         r = grow_step(model, field, control, state, workspace, dt / pieces);
         if (!r.converged) break;
-        note_held(*control.tip_contact, at);
+        note_held(needle_tissue_force(needle, tip_contact_depth(*control.tip_contact, state.body.tip())), slide_now(),
+                  at, vine_bend_state(workspace.body, state.body).largest_moment);
       }
     }
-    if (!r.converged) state = start;
     if (!r.converged) {
+      state = start;
       out.held = false;
       out.why = printf_string(
           "the vine found no equilibrium with the needle at %.1f mm protrusion (it held %.2f N, its largest bending "
@@ -131,7 +133,6 @@ PunctureReport push_needle(const GrowthModel& model, const RodField& field, cons
           1e3 * p, held, bent, r.failure.c_str());
       break;
     }
-    note_held(*control.tip_contact, p);
     const double depth = tip_contact_depth(*control.tip_contact, state.body.tip());
     const double force = needle_tissue_force(needle, depth);
     PunctureStep s;
@@ -139,10 +140,10 @@ PunctureReport push_needle(const GrowthModel& model, const RodField& field, cons
     s.protrusion = p;
     s.depth = depth;
     s.force = force;
-    s.reaction = tip_contact_force(*control.tip_contact, state.body.tip());
+    s.reaction = -force * control.tip_contact->axis;  // tip_contact_force, its law evaluated once
     s.tip = state.body.tip();
     s.needle_tip = s.tip + p * state.body.frames.back().col(0);
-    s.slide = (tip0 - s.tip).dot(t0);
+    s.slide = slide_now();
     s.wall = wall_on_body(state.forces) - wall0;
     s.clamp = state.forces.clamp - clamp0;
     s.max_normal = state.forces.max_normal;
@@ -150,6 +151,7 @@ PunctureReport push_needle(const GrowthModel& model, const RodField& field, cons
     s.imbalance = force > 0.0 ? state.forces.imbalance.norm() / force : 0.0;
     s.unsupported = force > 0.0 ? (s.wall + s.clamp + s.reaction).norm() / force : 0.0;
     s.moment = vine_bend_state(workspace.body, state.body).largest_moment;
+    note_held(force, s.slide, p, s.moment);
     out.steps.push_back(s);
     if (on_step) on_step(s, state);
     out.needle_tip = s.needle_tip;
@@ -165,7 +167,8 @@ PunctureReport push_needle(const GrowthModel& model, const RodField& field, cons
     if (s.slide > needle.max_slide) {
       out.held = false;
       out.why = printf_string(
-          "the vine's tip slid back %.1f mm under the needle's %.2f N (limit %.1f mm; within it, it held at most %.2f N, "
+          "the vine's tip slid back %.1f mm under the needle's %.2f N (limit %.1f mm; within it, it held at most %.2f "
+          "N, "
           "at %.1f mm protrusion): its contacts do not hold the puncture",
           1e3 * s.slide, force, 1e3 * needle.max_slide, held, 1e3 * held_at);
       break;

@@ -382,9 +382,10 @@ bool Experiment::Impl::step(const StepRequest& request) {
                     scene.navigator->gate->open(anatomy::inspiration(*scene.breathing, t));
   // The body and the airway it lies in are at state.time until the step (the navigator's camera sees them there).
   if (navigator) navigator->airway_at(state.time);
-  // The tip in the rest frame (the plan's), read by the oracle navigator, the report and the magnet's carry; the body
-  // does not move until the step below.
-  const Vec3 tip_at_rest = at_rest(state.body.tip(), state.time);
+  // The tip in the rest frame (the plan's), read by the navigator only (its placing and regulation, the guidance
+  // report's truth, the magnet's carry): an iterative solve under breathing, skipped without one. The body does
+  // not move until the step below.
+  const Vec3 tip_at_rest = navigator ? at_rest(state.body.tip(), state.time) : Vec3(state.body.tip());
   if (navigator && !aim_until && open) {
     const Stopwatch placing;
     const std::size_t looked = navigator->guidance().size();

@@ -224,8 +224,8 @@ struct WallForces {
   /// (hertz_line_pressure, GrowthOptions::tissue_modulus).
   std::vector<double> pressure;
   double max_pressure = 0.0;  ///< [Pa]
-  /// The global balance of the converged body, Σ(wall normal + friction + magnetic + gravity + tip force + clamp +
-  /// tip contact) on the body [N] (zero at equilibrium), and the largest of those loads' magnitudes [N], its scale.
+  /// The global balance of the converged body, Σ(wall normal + friction + magnetic + gravity + clamp + tip
+  /// contact) on the body [N] (zero at equilibrium), and the largest of those loads' magnitudes [N], its scale.
   Vec3 imbalance = Vec3::Zero();
   double largest_load = 0.0;
   Vec3 clamp = Vec3::Zero();  ///< the clamp's force on the body [N]
@@ -258,12 +258,8 @@ struct GrowthStatus {
 struct GrowthControl {
   double pressure = 0.0;                                           ///< P [Pa]
   double tether_length = std::numeric_limits<double>::infinity();  ///< the length the tether has released [m]
-  /// A dead load on the tip node [N] (a constant pull or push; a tool's tissue, which resists by how deep the tip
-  /// has pushed, is tip_contact). It enters the body's equilibrium and the global balance (WallForces::imbalance)
-  /// like every other load.
-  Vec3 tip_force = Vec3::Zero();
   /// A contact ahead of the tip whose reaction depends on where the tip is (TipContact, rod.hpp: a needle's
-  /// tissue). It enters the equilibrium and the global balance like the tip force.
+  /// tissue). It enters the equilibrium and the global balance (WallForces::imbalance) like every other load.
   std::optional<TipContact> tip_contact = std::nullopt;
 };
 
