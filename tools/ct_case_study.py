@@ -16,7 +16,7 @@ time to the stop (mean over those that reached it), punctured and biopsy k/N, th
 nodule (median over the punctured), the largest wall force (median over the runs, and the largest), and the
 failures' reasons. --figure CASE (e.g. patient1) runs that case's scene once, unperturbed, with the tip camera
 filmed, and draws DIR/<case>_frames.png: the tip camera at each branch point on the way (the first frame in each new
-branch) and at the end (the puncture; the tip camera draws the airway, not the needle). A missing input gives one
+branch) and at the end (the puncture, with the needle drawn beside the lens). A missing input gives one
 line on stderr and exit status 2.
 """
 import argparse
@@ -134,7 +134,8 @@ def figure(magvine, scene, out_dir, case):
     with open(trajectory, newline="") as f:
         rows = list(csv.DictReader(f))
     with open(os.path.join(run, "metrics.json")) as f:
-        stop = (json.load(f).get("biopsy") or {}).get("stop_branch", "")
+        biopsy = json.load(f).get("biopsy") or {}
+    stop = biopsy.get("stop_branch", "")
     # The first time the tip is in each branch on the way to the stop (a junction just passed), the trachea left out.
     picks = []
     seen = set()
@@ -145,7 +146,7 @@ def figure(magvine, scene, out_dir, case):
             seen.add(name)
             picks.append((float(r["t_s"]), name))
     last = len(os.listdir(frames_dir)) - 1
-    picks = picks[-7:] + [(last / fps, "end")]
+    picks = picks[-7:] + [(last / fps, "end, needle out" if biopsy.get("punctured") else "end")]
     fig, axes = plt.subplots(1, len(picks), figsize=(2.4 * len(picks), 2.8))
     for ax, (t, name) in zip(axes if len(picks) > 1 else [axes], picks):
         k = min(last, int(round(t * fps)))

@@ -283,9 +283,55 @@ int AirwayRenderer::threads() const {
   return m_impl->threads;
 }
 
+std::optional<std::pair<double, Vec3>> ray_capsule(const Vec3& o, const Vec3& d, const OverviewCapsule& capsule) {
+  const double r = capsule.radius;
+  std::optional<std::pair<double, Vec3>> best;
+  const auto take = [&](double t, const Vec3& n) {
+    if (t > 0.0 && (!best || t < best->first)) best = std::make_pair(t, n);
+  };
+  const Vec3 axis = capsule.b - capsule.a;
+  const double length = axis.norm();
+  if (length > 0.0) {
+    // |w × u|² = r² with w = (o − a) + t d: the parts of w and d across u give a t² + 2 b t + c = 0.
+    const Vec3 u = axis / length;
+    const Vec3 w0 = o - capsule.a;
+    const Vec3 wp = w0 - w0.dot(u) * u;
+    const Vec3 dp = d - d.dot(u) * u;
+    const double qa = dp.squaredNorm(), qb = wp.dot(dp), qc = wp.squaredNorm() - r * r;
+    const double disc = qb * qb - qa * qc;
+    if (qa > 0.0 && disc >= 0.0) {
+      const double t = (-qb - std::sqrt(disc)) / qa;  // the entry root
+      const double s = (w0 + t * d).dot(u);
+      if (s > 0.0 && s < length) take(t, (wp + t * dp) / r);
+    }
+  }
+  for (const Vec3& c : {capsule.a, capsule.b}) {
+    const Vec3 oc = o - c;
+    const double qb = oc.dot(d), qc = oc.squaredNorm() - r * r;
+    const double disc = qb * qb - qc;
+    if (disc >= 0.0) {
+      const double t = -qb - std::sqrt(disc);
+      take(t, (oc + t * d) / r);
+    }
+  }
+  return best;
+}
+
 EndoscopeFrame AirwayRenderer::render_endoscope(const Camera& camera, const EndoscopeLook& look,
-                                                std::uint64_t frame_index, AutoExposure* exposure) const {
+                                                std::uint64_t frame_index, AutoExposure* exposure,
+                                                std::span<const OverviewCapsule> tools) const {
   check_look(look);
+  for (const OverviewCapsule& tool : tools) {
+    if (!(tool.radius > 0.0) || !tool.a.allFinite() || !tool.b.allFinite())
+      throw InputError("render", 0, "tools", "a tool needs finite ends and a radius > 0");
+    const Vec3 ab = tool.b - tool.a;
+    const double ab2 = ab.squaredNorm();
+    const double s = ab2 > 0.0 ? std::clamp((camera.position - tool.a).dot(ab) / ab2, 0.0, 1.0) : 0.0;
+    if ((camera.position - (tool.a + s * ab)).norm() <= tool.radius)
+      throw InputError("render", 0, "tools", "the lens lies inside a tool");
+  }
+  const ToolLook steel;
+  const Vec3 o_world = camera.position;
   const Mat3 frame = camera_frame(camera);
   const std::shared_ptr<const RayTable> table = m_impl->rays(camera, look);
   const Impl& s = *m_impl;
@@ -344,10 +390,32 @@ EndoscopeFrame AirwayRenderer::render_endoscope(const Camera& camera, const Endo
       }
       rtcIntersect8(valid, s.scene, &ctx, &rh);
       for (int k = 0; k < 8; ++k) {
-        if (valid[k] == 0 || rh.hit.geomID[k] == RTC_INVALID_GEOMETRY_ID) continue;
+        if (valid[k] == 0) continue;
         const std::size_t i = pixel[static_cast<std::size_t>(k)];
-        const float t = rh.ray.tfar[k];
         const float dx = rh.ray.dir_x[k], dy = rh.ray.dir_y[k], dz = rh.ray.dir_z[k];
+        const bool wall_hit = rh.hit.geomID[k] != RTC_INVALID_GEOMETRY_ID;
+        if (!tools.empty()) {
+          // A tool in front of the wall takes the pixel, shaded by the same light with steel's reflectance.
+          const Vec3 d = Vec3(dx, dy, dz).normalized();
+          std::optional<std::pair<double, Vec3>> near;
+          for (const OverviewCapsule& tool : tools) {
+            const auto hit = ray_capsule(o_world, d, tool);
+            if (hit && (!near || hit->first < near->first)) near = hit;
+          }
+          if (near && (!wall_hit || near->first < rh.ray.tfar[k])) {
+            const double t = near->first;
+            const double cos_i = std::min(1.0, std::fabs(near->second.dot(d)));
+            const double irradiance = table->weight[i] / (t * t + t0sq);
+            const double glint = steel.specular * std::pow(cos_i, steel.shininess);
+            for (int c = 0; c < 3; ++c)
+              radiance[3 * i + static_cast<std::size_t>(c)] =
+                  static_cast<float>(irradiance * (steel.albedo[c] / kPi * cos_i + glint));
+            reinterpret_cast<float*>(out.depth.data)[i] = static_cast<float>(t) * table->dir[3 * i + 2];
+            continue;
+          }
+        }
+        if (!wall_hit) continue;
+        const float t = rh.ray.tfar[k];
         const anatomy::Triangle& tri = s.triangles[rh.hit.primID[k]];
         const float u = rh.hit.u[k], v = rh.hit.v[k];
         const float* n0 = &s.normals[3 * tri[0]];

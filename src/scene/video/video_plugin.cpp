@@ -108,6 +108,9 @@ class FrameFolder {
   bool m_done = false;
 };
 
+/// Half the side of the tip camera's sensor [m] (the thesis's NanEYE, 1 × 1 mm, 5.6.5).
+constexpr double kCameraHalfWidth = 0.5e-3;
+
 /// The tip camera: at the lens, looking along the tip's tangent (directors' column 0), image up its column 1.
 render::Camera tip_camera(const Vec3& lens, const Mat3& tip_frame, bool fisheye, double fov, int width, int height) {
   render::Camera c;
@@ -213,8 +216,15 @@ std::string experiment_videos(const ExperimentScene& scene, const ExperimentResu
       shape_at(f.time);
       cv::Mat image;
       if (tip) {
+        // The needle seen from beside its channel: the 1 mm × 1 mm camera (thesis fig 5.10C) and the needle lie side
+        // by side, touching, the needle below the image's centre (the model's needle runs along the tip's axis).
+        std::vector<render::OverviewCapsule> tools;
+        if (f.needle_radius > 0.0) {
+          const Vec3 beside = -(kCameraHalfWidth + f.needle_radius) * f.tip_frame.col(1);
+          tools.push_back({f.needle_base + beside, f.needle_tip + beside, f.needle_radius});
+        }
         const render::EndoscopeFrame e =
-            renderer.render_endoscope(tip_camera(v, f), look, static_cast<std::uint64_t>(k), &exposure);
+            renderer.render_endoscope(tip_camera(v, f), look, static_cast<std::uint64_t>(k), &exposure, tools);
         image = e.color;
         if (depths) render::write_png(depths->file(k), render::depth_to_u16(e.depth, v.depth_range));
       } else {

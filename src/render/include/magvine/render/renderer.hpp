@@ -78,6 +78,19 @@ struct OverviewCapsule {
   double radius = 0.0;    ///< [m]
 };
 
+/// The nearest t > 0 at which the ray o + t·d (d unit) enters the capsule of points within `radius` of the segment
+/// [a, b], with the outward unit normal there; nullopt when it misses (or starts inside). The capsule is the union of
+/// a cylinder and two balls, so its entry is the first of theirs: the cylinder's root from |(x − a) × u|² = r²
+/// (u the unit axis) where it lands between the ends, and each ball's |x − c|² = r².
+std::optional<std::pair<double, Vec3>> ray_capsule(const Vec3& o, const Vec3& d, const OverviewCapsule& capsule);
+
+/// How a tool looks in the endoscope: brushed steel, linear RGB albedo and a broad glint.
+struct ToolLook {
+  Vec3 albedo{0.55, 0.56, 0.60};
+  double specular = 0.6;
+  double shininess = 12.0;
+};
+
 struct OverviewContent {
   std::vector<Vec3> body;       ///< the robot's centreline, base first [m]
   double body_radius = 2.5e-3;  ///< [m]
@@ -107,9 +120,11 @@ class AirwayRenderer {
   AirwayRenderer& operator=(const AirwayRenderer&) = delete;
 
   /// The endoscope's view. `frame_index` seeds the noise with look.seed; `exposure` (optional) carries the
-  /// auto-exposure from frame to frame. InputError for a bad camera or look.
+  /// auto-exposure from frame to frame. `tools` are capsules in view (a biopsy needle out of the tool channel), drawn
+  /// in steel (`ToolLook`) under the same light, and in the depth map; the lens must lie outside them. InputError for a
+  /// bad camera or look, or a lens inside a tool.
   EndoscopeFrame render_endoscope(const Camera& camera, const EndoscopeLook& look, std::uint64_t frame_index = 0,
-                                  AutoExposure* exposure = nullptr) const;
+                                  AutoExposure* exposure = nullptr, std::span<const OverviewCapsule> tools = {}) const;
 
   /// Third-person view: the anatomy's walls semi-transparent (each crossing composited at look.anatomy_opacity), the
   /// robot's body (light blue), each magnet (north half red, south half blue, an arrow along its axis), the target
