@@ -331,6 +331,30 @@ TEST(MpmScene, BadScenesNameTheKey) {
   EXPECT_DOUBLE_EQ(implicit.time_step, 10.0 * implicit.stable_step);
 }
 
+TEST(MpmScene, AFieldRampedThenRotatedFollowsTheKeyframesThenTurns) {
+  // field: keyframes and a rotating field with `from`: the keyframes' linear ramp before `from` (hand values), then a
+  // field of the rotation's amplitude turning about its axis from `start`: a quarter turn after `from` it points
+  // along axis × start, half a turn later opposite `start`; the schedule is continuous at `from` when the ramp ends
+  // on the rotation's start (here 10 mT along z).
+  const std::string text = std::string(kBarScene) +
+                           "field:\n  keyframes: [{t: 0, b: [0, 0, 0]}, {t: 0.1, b: [0, 0, 0.01]}]\n"
+                           "  rotating: {amplitude: 0.01, frequency: 10, axis: [0, 1, 0], start: [0, 0, 1], from: 0.15}\n";
+  const MpmScene s = parse_mpm_scene(text, "s.yaml");
+  const auto near = [](const Vec3& a, const Vec3& b) { return (a - b).norm() < 1e-12; };
+  EXPECT_TRUE(near(s.field.at(0.05), Vec3(0, 0, 0.005)));   // half way up the ramp
+  EXPECT_TRUE(near(s.field.at(0.12), Vec3(0, 0, 0.01)));    // held
+  EXPECT_TRUE(near(s.field.at(0.15), Vec3(0, 0, 0.01)));    // the rotation starts where the ramp ends
+  EXPECT_TRUE(near(s.field.at(0.175), Vec3(0.01, 0, 0)));   // a quarter turn: y × z = x
+  EXPECT_TRUE(near(s.field.at(0.2), Vec3(0, 0, -0.01)));    // half a turn
+  // Without `from` the two kinds still exclude each other; `from` before the last keyframe is refused.
+  std::string both = text;
+  both.replace(both.find(", from: 0.15"), 12, "");
+  EXPECT_NE(error_of(both).find("give exactly one of"), std::string::npos);
+  std::string early = text;
+  early.replace(early.find("from: 0.15"), 10, "from: 0.05");
+  EXPECT_NE(error_of(early).find("field.rotating.from: must not come before the last keyframe"), std::string::npos);
+}
+
 /// A folder of its own under the system's temporary folder for one test's files.
 std::filesystem::path scratch(const std::string& name) {
   const std::filesystem::path dir = std::filesystem::temp_directory_path() / ("magvine_test_mpm_scene_" + name);

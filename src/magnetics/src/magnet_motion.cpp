@@ -41,8 +41,8 @@ std::vector<Pose> poses_at(const FieldModel& model, const std::vector<std::vecto
 }
 
 Vec3 UniformFieldSchedule::at(double t) const {
-  if (rotating) {
-    const double angle = 2.0 * kPi * frequency * t;
+  if (rotating && t >= rotation_start) {
+    const double angle = 2.0 * kPi * frequency * (t - rotation_start);
     return amplitude * (std::cos(angle) * start + std::sin(angle) * axis.cross(start));
   }
   if (keyframes.empty()) return Vec3::Zero();

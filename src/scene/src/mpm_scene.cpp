@@ -79,7 +79,10 @@ MpmFieldSchedule field_of(const YamlMap& f) {
   f.allow_only({"b", "keyframes", "rotating"});
   const int kinds =
       static_cast<int>(f.has("b")) + static_cast<int>(f.has("keyframes")) + static_cast<int>(f.has("rotating"));
-  if (kinds != 1) f.fail("b", "give exactly one of b (constant), keyframes or rotating");
+  // keyframes and a rotation go together when the rotation says when it takes over (`from`).
+  const bool ramp_then_rotation = kinds == 2 && f.has("keyframes") && f.has("rotating") && f.map("rotating").has("from");
+  if (kinds != 1 && !ramp_then_rotation)
+    f.fail("b", "give exactly one of b (constant), keyframes or rotating (or keyframes and a rotating with from)");
   MpmFieldSchedule s;
   if (f.has("b")) s.keyframes.push_back({0.0, f.vec3_quantity("b", kTesla, range::kField)});
   if (f.has("keyframes")) {
@@ -95,8 +98,13 @@ MpmFieldSchedule field_of(const YamlMap& f) {
   }
   if (f.has("rotating")) {
     const YamlMap r = f.map("rotating");
-    r.allow_only({"amplitude", "frequency", "axis", "start"});
+    r.allow_only({"amplitude", "frequency", "axis", "start", "from"});
     s.rotating = true;
+    if (r.has("from")) {
+      s.rotation_start = r.quantity("from", kSeconds, range::kTime);
+      if (!s.keyframes.empty() && s.rotation_start < s.keyframes.back().first)
+        r.fail("from", "must not come before the last keyframe");
+    }
     s.amplitude = r.quantity("amplitude", kTesla, range::kField);
     s.frequency = r.quantity("frequency", Unit{1.0, "Hz"}, Range{-1e6, 1e6});
     s.axis = r.direction("axis");

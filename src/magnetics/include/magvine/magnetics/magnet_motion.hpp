@@ -32,15 +32,17 @@ std::vector<Pose> poses_at(const FieldModel& model, const std::vector<std::vecto
                            double time);
 
 /// A spatially uniform applied field over time [T] (Helmholtz coils, an MPM scene's `field:`): keyframes (t, B)
-/// linear between and held beyond the ends, or a field of constant `amplitude` rotating at `frequency` about `axis`
-/// from `start` (B(t) = amplitude (cos ωt · start + sin ωt · axis × start), ω = 2π·frequency).
+/// linear between and held beyond the ends, and/or a field of constant `amplitude` rotating at `frequency` about
+/// `axis` from `start` once t reaches `rotation_start` (B(t) = amplitude (cos ωτ · start + sin ωτ · axis × start),
+/// ω = 2π·frequency, τ = t − rotation_start); before it the keyframes apply (a gripper closed by a ramp, then rolled).
 struct UniformFieldSchedule {
   std::vector<std::pair<double, Vec3>> keyframes;  ///< (t [s], B [T]), t increasing; empty: none (unless rotating)
   bool rotating = false;
-  double amplitude = 0.0;     ///< [T]
-  double frequency = 0.0;     ///< [Hz]
-  Vec3 axis = Vec3::UnitX();  ///< unit rotation axis
-  Vec3 start = Vec3::UnitZ(); ///< unit direction at t = 0, ⟂ axis
+  double amplitude = 0.0;       ///< [T]
+  double frequency = 0.0;       ///< [Hz]
+  Vec3 axis = Vec3::UnitX();    ///< unit rotation axis
+  Vec3 start = Vec3::UnitZ();   ///< unit direction at t = rotation_start, ⟂ axis
+  double rotation_start = 0.0;  ///< [s] when the rotation takes over from the keyframes
 
   /// B at time t [T].
   Vec3 at(double t) const;
