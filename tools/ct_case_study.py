@@ -9,8 +9,8 @@ repeats with and without breathing, as one table.
 SEGMENTATIONS_DIR holds Patient1..5/ (bronchialTree.nii.gz, target.txt), e.g. ../shared/airways/segmentations.
 For each patient and breathing setting it writes DIR/scenes/<case>.yaml (the segmentation imported by the scene,
 the base 15 mm down the airway graph's root, the nodule from target.txt, the generation-4 scene's fluid vine at the
-given diameter, boost (`boost_line`) and recovery; the supine patient's gravity, posterior, is −y in the scans' RAS frame) and runs
-`magvine trials --keep-runs` on it into DIR/<case>/. Then DIR/case_study.csv and DIR/case_study.md: per case the
+given diameter, boost (`boost_line`) and recovery; the supine patient's gravity, posterior, is −y in the scans'
+RAS frame) and runs `magvine trials --keep-runs` on it into DIR/<case>/. Then DIR/case_study.csv and DIR/case_study.md: per case the
 stop (branch, generation, needle length), reached k/N, the generation reached (median), the everted length and the
 time to the stop (mean over those that reached it), punctured and biopsy k/N, the needle tip's distance to the
 nodule (median over the punctured), the largest wall force (median over the runs, and the largest), and the
@@ -118,8 +118,9 @@ def summarise(case, runs_dir, rows):
 
 
 def boost_line(diameter):
-    """The navigator's pressure boost for a held tip: 45 kPa for the Ø3 mm vine, 42 for the Ø4 mm one (as in the
-    generation-4 scene); none from Ø5 mm, whose 38 µm wall bursts at 35.7 kPa, just above the 35 kPa it grows at."""
+    """The navigator's pressure boost for a held tip: 45 kPa up to Ø3 mm, 42 up to Ø4 mm (the generation-4 scene's);
+    none above Ø4 mm, where the 38 µm film bursts not far above the 35 kPa it grows at (35.7 kPa at Ø5 mm,
+    `burst_pressure` in src/robot/src/vine.cpp; magvine refuses a boost above it)."""
     if diameter <= 3.0:
         return "    boost_pressure: 45\n"
     if diameter <= 4.0:
@@ -155,7 +156,8 @@ def figure(magvine, scene, out_dir, case):
             seen.add(name)
             picks.append((float(r["t_s"]), name))
     last = len(os.listdir(frames_dir)) - 1
-    picks = picks[-7:] + [(last / fps, "end, needle out" if biopsy.get("punctured") else "end")]
+    needle_out = biopsy.get("punctured") and (biopsy.get("max_reaction_N") or 0.0) > 0.0  # it met the tissue
+    picks = picks[-7:] + [(last / fps, "end, needle out" if needle_out else "end")]
     fig, axes = plt.subplots(1, len(picks), figsize=(2.4 * len(picks), 2.8))
     for ax, (t, name) in zip(axes if len(picks) > 1 else [axes], picks):
         k = min(last, int(round(t * fps)))

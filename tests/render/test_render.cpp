@@ -6,6 +6,7 @@
 #include <cmath>
 #include <filesystem>
 #include <iostream>
+#include <limits>
 #include <opencv2/imgcodecs.hpp>
 #include <opencv2/imgproc.hpp>
 #include <opencv2/videoio.hpp>
@@ -259,88 +260,123 @@ TEST_F(TubeView, DepthAlongTheAxisAndAtTheWallIsTheTubesOwn) {
   EXPECT_NEAR(f.depth.at<float>(160, 160), 0.09, 0.09 * 2e-4);
 }
 
-TEST_F(TubeView, ANeedleBesideTheLensIsDrawnWhereItsRaysMeetItAndShadedAsSteel) {
-  // A Ø0.91 mm needle 30 mm long, parallel to the axis and touching a 1 mm camera below the lens (as the video draws
-  // the biopsy needle). Independent of the renderer's quadratic: a pixel's ray meets the needle iff its distance to
-  // the needle's segment, minimised by ternary search over the segment (the distance from a point to a ray is
-  // convex along it), is at most r. Where it does, the depth map's point lies on the capsule (|dist − r| within
-  // 1e-7 m: float depth at 10-40 mm is good to ~2e-9 m) and the colour is the endoscope's law with steel's
-  // reflectance and the capsule's normal at that point (1 grey level, as for the wall); elsewhere the tube shows.
+TEST_F(TubeView, ToolsAreDrawnWhereTheirRaysMeetThemFirstAndShadedAsSteel) {
+  // Two tools: a Ø0.91 mm needle parallel to the axis, touching a 1 mm camera below the lens (as the video draws the
+  // biopsy needle), 30 mm long; and a Ø2 mm bar across the tube 30 mm ahead, from x = −8 to 8 mm, through both walls,
+  // so that the wall hides its ends (as tissue hides a needle in the video). Independent of the renderer's quadratic:
+  // a pixel's ray meets a tool iff its distance to the tool's segment, minimised by ternary search over the segment
+  // (the distance from a point to a ray is convex along it), is at most r; where it does, the entry along the ray is
+  // found by bisection on the distance to the segment (convex along the ray, positive at the lens). The nearest tool
+  // takes the pixel iff its entry comes before the tube's own hit (the frame without tools). There the depth map's
+  // point lies on that capsule (|dist − r| within 1e-7 m: float depth at 1–40 mm is good to ~4e-9 m) and the colour
+  // is the endoscope's law with steel's reflectance and the capsule's normal at that point (1 grey level, as for the
+  // wall; only unsaturated pixels test it); elsewhere the tube shows, to the bit.
   EndoscopeLook look;
   look.texture = 0.0;
-  look.exposure = 2e-4;  // fixed, so that the frames with and without the needle are exposed alike
+  look.exposure = 2e-4;  // fixed, so that the frames with and without the tools are exposed alike
   const double r = 0.455e-3;
   const Vec3 below = -(0.5e-3 + r) * camera.up;
-  const OverviewCapsule needle{camera.position + below, camera.position + below + Vec3(0.0, 0.0, 0.03), r};
-  const EndoscopeFrame f = renderer->render_endoscope(camera, look, 0, nullptr, std::span(&needle, 1));
+  const std::vector<OverviewCapsule> tools = {
+      {camera.position + below, camera.position + below + Vec3(0.0, 0.0, 0.03), r},
+      {Vec3(-8e-3, -2e-3, 0.04), Vec3(8e-3, -2e-3, 0.04), 1e-3}};
+  const EndoscopeFrame f = renderer->render_endoscope(camera, look, 0, nullptr, tools);
   const EndoscopeFrame bare = renderer->render_endoscope(camera, look);
   const double focal = focal_pixels(camera);
   const Mat3 frame = camera_frame(camera);
-  const auto segment_point = [&](double s) { return Vec3(needle.a + s * (needle.b - needle.a)); };
+  const auto to_segment = [](const OverviewCapsule& c, const Vec3& p) {
+    const Vec3 ab = c.b - c.a;
+    const double s = std::clamp((p - c.a).dot(ab) / ab.squaredNorm(), 0.0, 1.0);
+    return (p - (c.a + s * ab)).norm();
+  };
   const auto to_ray = [&](const Vec3& q, const Vec3& d) {  // distance from q to the ray lens + t d, t ≥ 0
     const Vec3 w = q - camera.position;
     return (w - std::max(0.0, w.dot(d)) * d).norm();
   };
-  const auto to_segment = [&](const Vec3& p) {
-    const Vec3 ab = needle.b - needle.a;
-    const double s = std::clamp((p - needle.a).dot(ab) / ab.squaredNorm(), 0.0, 1.0);
-    return (p - segment_point(s)).norm();
+  // The ray's entry into capsule c (+∞ if it misses it), or NaN when it grazes it (within 1e-8 m: either answer).
+  const auto entry_of = [&](const OverviewCapsule& c, const Vec3& d) {
+    const Vec3 ab = c.b - c.a;
+    double lo = 0.0, hi = 1.0;
+    for (int k = 0; k < 200; ++k) {
+      const double m1 = lo + (hi - lo) / 3.0, m2 = hi - (hi - lo) / 3.0;
+      if (to_ray(c.a + m1 * ab, d) < to_ray(c.a + m2 * ab, d)) {
+        hi = m2;
+      } else {
+        lo = m1;
+      }
+    }
+    const Vec3 q = c.a + 0.5 * (lo + hi) * ab;  // the segment's point nearest the ray
+    const double gap = to_ray(q, d) - c.radius;
+    if (std::fabs(gap) < 1e-8) return std::numeric_limits<double>::quiet_NaN();
+    if (gap > 0.0) return std::numeric_limits<double>::infinity();
+    double t0 = 0.0, t1 = std::max(0.0, (q - camera.position).dot(d));  // outside at t0, inside at t1
+    for (int k = 0; k < 200; ++k) {
+      const double tm = 0.5 * (t0 + t1);
+      (to_segment(c, camera.position + tm * d) > c.radius ? t0 : t1) = tm;
+    }
+    return 0.5 * (t0 + t1);
   };
   const double half_diag2 = 0.25 * (320.0 * 320.0 + 320.0 * 320.0);
-  int on = 0, off = 0, worst_grey = 0;
+  const ToolLook steel;
+  int on = 0, hidden = 0, off = 0, lit_checked = 0, worst_grey = 0;
+  std::array<int, 2> per_tool{};
   double worst_surface = 0.0;
   for (int y = 0; y < 320; y += 2) {
     for (int x = 0; x < 320; x += 2) {
       const Vec3 dc = camera_ray(camera, focal, x + 0.5, y + 0.5);
       const Vec3 d = frame * dc;
       if (dc.z() <= 0.0) continue;
-      double lo = 0.0, hi = 1.0;
-      for (int k = 0; k < 200; ++k) {
-        const double m1 = lo + (hi - lo) / 3.0, m2 = hi - (hi - lo) / 3.0;
-        if (to_ray(segment_point(m1), d) < to_ray(segment_point(m2), d)) {
-          hi = m2;
-        } else {
-          lo = m1;
-        }
-      }
-      const double gap = to_ray(segment_point(0.5 * (lo + hi)), d) - r;
-      if (std::fabs(gap) < 1e-9) continue;  // grazing: either answer is right
+      const double e0 = entry_of(tools[0], d), e1 = entry_of(tools[1], d);
+      if (std::isnan(e0) || std::isnan(e1)) continue;
+      const std::size_t nearest = e0 <= e1 ? 0 : 1;
+      const double entry = std::min(e0, e1);
       const double z = f.depth.at<float>(y, x);
-      if (gap > 0.0) {
-        ++off;
-        EXPECT_EQ(z, bare.depth.at<float>(y, x)) << "pixel " << x << ", " << y << " should see the tube";
+      const double z_bare = bare.depth.at<float>(y, x);
+      if (!(entry * dc.z() < z_bare)) {  // the tube's hit comes first, or the ray misses both tools
+        ++(std::isinf(entry) ? off : hidden);
+        EXPECT_EQ(z, z_bare) << "pixel " << x << ", " << y << " should see the tube";
         continue;
       }
       ++on;
+      ++per_tool[nearest];
+      const OverviewCapsule& c = tools[nearest];
       const Vec3 p = camera.position + (z / dc.z()) * d;
-      worst_surface = std::max(worst_surface, std::fabs(to_segment(p) - r));
-      const Vec3 ab = (needle.b - needle.a).normalized();
-      const double s = std::clamp((p - needle.a).dot(ab), 0.0, (needle.b - needle.a).norm());
-      const Vec3 n = (p - (needle.a + s * ab)).normalized();
+      worst_surface = std::max(worst_surface, std::fabs(to_segment(c, p) - c.radius));
+      const Vec3 ab = c.b - c.a;
+      const double s = std::clamp((p - c.a).dot(ab) / ab.squaredNorm(), 0.0, 1.0);
+      const Vec3 n = (p - (c.a + s * ab)).normalized();
       const double t = (p - camera.position).norm();
       const double cos_i = std::fabs(n.dot(d));
       const double dx = x + 0.5 - 160.0, dy = y + 0.5 - 160.0;
       const double weight =
           std::pow(dc.z(), look.spot_exponent) * (1.0 - look.vignetting * (dx * dx + dy * dy) / half_diag2);
       const double e = weight / (t * t + look.light_softening * look.light_softening);
-      const ToolLook steel;
       const cv::Vec3b px = f.color.at<cv::Vec3b>(y, x);
-      for (int c = 0; c < 3; ++c) {
-        const double radiance = e * (steel.albedo[c] / kPi * cos_i + steel.specular * std::pow(cos_i, steel.shininess));
+      if (px[0] == 255 || px[1] == 255 || px[2] == 255) continue;  // saturated: the law is clipped there
+      ++lit_checked;
+      for (int ch = 0; ch < 3; ++ch) {
+        const double radiance =
+            e * (steel.albedo[ch] / kPi * cos_i + steel.specular * std::pow(cos_i, steel.shininess));
         const double expected = 255.0 * std::pow(std::min(1.0, f.gain * radiance), 1.0 / look.gamma);
-        worst_grey = std::max(worst_grey, static_cast<int>(std::ceil(std::fabs(px[2 - c] - expected) - 0.5)));
+        worst_grey = std::max(worst_grey, static_cast<int>(std::ceil(std::fabs(px[2 - ch] - expected) - 0.5)));
       }
     }
   }
-  std::cout << "[ tube view ] needle: " << on << " pixels on it, " << off << " off; worst depth off the surface "
-            << worst_surface << " m, worst colour " << worst_grey << " grey levels\n";
-  EXPECT_GT(on, 500);  // a needle touching the lens fills a wedge of the lower image
+  std::cout << "[ tube view ] tools: " << on << " pixels on them (needle " << per_tool[0] << ", bar " << per_tool[1]
+            << "; " << lit_checked << " unsaturated), " << hidden << " hidden by the wall, " << off
+            << " off; worst depth off the surface " << worst_surface << " m, worst colour " << worst_grey
+            << " grey levels\n";
+  EXPECT_GT(per_tool[0], 500);  // a needle touching the lens fills a wedge of the lower image
+  EXPECT_GT(per_tool[1], 50);   // the bar's middle: ±4.6 mm at 30 mm, 2 mm thick, about 23 × 5 sampled pixels
+  EXPECT_GT(hidden, 50);        // its ends behind the wall, about as many
+  EXPECT_GT(lit_checked, 200);
   EXPECT_GT(off, 5000);
   EXPECT_LT(worst_surface, 1e-7);
   EXPECT_LE(worst_grey, 1);
-  // A lens inside the tool is refused.
+  // A lens inside a tool is refused.
   const OverviewCapsule through{camera.position - Vec3(0, 0, 1e-3), camera.position + Vec3(0, 0, 0.02), r};
   EXPECT_THROW(renderer->render_endoscope(camera, look, 0, nullptr, std::span(&through, 1)), InputError);
+  // ray_capsule from inside answers nothing, also where a ball's entry lies ahead.
+  EXPECT_FALSE(ray_capsule(through.a + Vec3(0, 0, 2e-3), Vec3::UnitZ(), through));
 }
 
 TEST_F(TubeView, SameSeedSamePixelsAndThreadsDoNotChangeThem) {

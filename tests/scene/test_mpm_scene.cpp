@@ -336,9 +336,10 @@ TEST(MpmScene, AFieldRampedThenRotatedFollowsTheKeyframesThenTurns) {
   // field of the rotation's amplitude turning about its axis from `start`: a quarter turn after `from` it points
   // along axis × start, half a turn later opposite `start`; the schedule is continuous at `from` when the ramp ends
   // on the rotation's start (here 10 mT along z).
-  const std::string text = std::string(kBarScene) +
-                           "field:\n  keyframes: [{t: 0, b: [0, 0, 0]}, {t: 0.1, b: [0, 0, 0.01]}]\n"
-                           "  rotating: {amplitude: 0.01, frequency: 10, axis: [0, 1, 0], start: [0, 0, 1], from: 0.15}\n";
+  const std::string text =
+      std::string(kBarScene) +
+      "field:\n  keyframes: [{t: 0, b: [0, 0, 0]}, {t: 0.1, b: [0, 0, 0.01]}]\n"
+      "  rotating: {amplitude: 0.01, frequency: 10, axis: [0, 1, 0], start: [0, 0, 1], from: 0.15}\n";
   const MpmScene s = parse_mpm_scene(text, "s.yaml");
   const auto near = [](const Vec3& a, const Vec3& b) { return (a - b).norm() < 1e-12; };
   EXPECT_TRUE(near(s.field.at(0.05), Vec3(0, 0, 0.005)));   // half way up the ramp
@@ -350,6 +351,10 @@ TEST(MpmScene, AFieldRampedThenRotatedFollowsTheKeyframesThenTurns) {
   std::string both = text;
   both.replace(both.find(", from: 0.15"), 12, "");
   EXPECT_NE(error_of(both).find("give exactly one of"), std::string::npos);
+  std::string constant = text;  // a constant b and a rotation do not combine, `from` or not
+  const std::string ramp = "keyframes: [{t: 0, b: [0, 0, 0]}, {t: 0.1, b: [0, 0, 0.01]}]";
+  constant.replace(constant.find(ramp), ramp.size(), "b: [0, 0, 0.01]");
+  EXPECT_NE(error_of(constant).find("give exactly one of"), std::string::npos);
   std::string early = text;
   early.replace(early.find("from: 0.15"), 10, "from: 0.05");
   EXPECT_NE(error_of(early).find("field.rotating.from: must not come before the last keyframe"), std::string::npos);

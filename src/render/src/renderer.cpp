@@ -14,6 +14,7 @@
 #include <string>
 #include <thread>
 
+#include "magvine/anatomy/segment_geometry.hpp"
 #include "magvine/core/error.hpp"
 #include "magvine/core/text.hpp"
 #include "magvine/core/units.hpp"
@@ -63,6 +64,12 @@ inline float int_pow(float x, unsigned n) {
     n >>= 1u;
   }
   return r;
+}
+
+/// The endoscope's light on a surface (the header's law): radiance = E (ρ cos_i / π + k_s cos_i^s) for irradiance E;
+/// `diffuse` is ρ/π (times any texture), `glint` k_s, `shininess` s.
+inline float lit(float irradiance, float cos_i, float diffuse, float glint, unsigned shininess) {
+  return irradiance * (diffuse * cos_i + glint * int_pow(cos_i, shininess));
 }
 
 inline std::uint32_t hash3(std::int32_t x, std::int32_t y, std::int32_t z) {
@@ -285,6 +292,7 @@ int AirwayRenderer::threads() const {
 
 std::optional<std::pair<double, Vec3>> ray_capsule(const Vec3& o, const Vec3& d, const OverviewCapsule& capsule) {
   const double r = capsule.radius;
+  if ((o - anatomy::closest_point_on_segment(o, capsule.a, capsule.b)).norm() <= r) return std::nullopt;
   std::optional<std::pair<double, Vec3>> best;
   const auto take = [&](double t, const Vec3& n) {
     if (t > 0.0 && (!best || t < best->first)) best = std::make_pair(t, n);
@@ -324,13 +332,15 @@ EndoscopeFrame AirwayRenderer::render_endoscope(const Camera& camera, const Endo
   for (const OverviewCapsule& tool : tools) {
     if (!(tool.radius > 0.0) || !tool.a.allFinite() || !tool.b.allFinite())
       throw InputError("render", 0, "tools", "a tool needs finite ends and a radius > 0");
-    const Vec3 ab = tool.b - tool.a;
-    const double ab2 = ab.squaredNorm();
-    const double s = ab2 > 0.0 ? std::clamp((camera.position - tool.a).dot(ab) / ab2, 0.0, 1.0) : 0.0;
-    if ((camera.position - (tool.a + s * ab)).norm() <= tool.radius)
+    if ((camera.position - anatomy::closest_point_on_segment(camera.position, tool.a, tool.b)).norm() <= tool.radius)
       throw InputError("render", 0, "tools", "the lens lies inside a tool");
   }
   const ToolLook steel;
+  const float steel_diffuse[3] = {static_cast<float>(steel.albedo.x() / kPi),
+                                  static_cast<float>(steel.albedo.y() / kPi),
+                                  static_cast<float>(steel.albedo.z() / kPi)};
+  const auto steel_glint = static_cast<float>(steel.specular);
+  const auto steel_shininess = static_cast<unsigned>(std::lround(steel.shininess));
   const Vec3 o_world = camera.position;
   const Mat3 frame = camera_frame(camera);
   const std::shared_ptr<const RayTable> table = m_impl->rays(camera, look);
@@ -403,14 +413,13 @@ EndoscopeFrame AirwayRenderer::render_endoscope(const Camera& camera, const Endo
             if (hit && (!near || hit->first < near->first)) near = hit;
           }
           if (near && (!wall_hit || near->first < rh.ray.tfar[k])) {
-            const double t = near->first;
-            const double cos_i = std::min(1.0, std::fabs(near->second.dot(d)));
-            const double irradiance = table->weight[i] / (t * t + t0sq);
-            const double glint = steel.specular * std::pow(cos_i, steel.shininess);
+            const auto t = static_cast<float>(near->first);
+            const auto cos_i = static_cast<float>(std::min(1.0, std::fabs(near->second.dot(d))));
+            const float irradiance = table->weight[i] / (t * t + t0sq);
             for (int c = 0; c < 3; ++c)
-              radiance[3 * i + static_cast<std::size_t>(c)] =
-                  static_cast<float>(irradiance * (steel.albedo[c] / kPi * cos_i + glint));
-            reinterpret_cast<float*>(out.depth.data)[i] = static_cast<float>(t) * table->dir[3 * i + 2];
+              radiance[3 * i + static_cast<std::size_t>(c)] = lit(irradiance, cos_i, steel_diffuse[c], steel_glint,
+                                                                   steel_shininess);
+            reinterpret_cast<float*>(out.depth.data)[i] = t * table->dir[3 * i + 2];
             continue;
           }
         }
@@ -431,9 +440,8 @@ EndoscopeFrame AirwayRenderer::render_endoscope(const Camera& camera, const Endo
           const float p[3] = {org[0] + t * dx, org[1] + t * dy, org[2] + t * dz};
           mottle = 1.0f + texture * value_noise(p, kInvCell);
         }
-        const float glint = ks * int_pow(cos_i, shininess);
         for (int c = 0; c < 3; ++c)
-          radiance[3 * i + static_cast<std::size_t>(c)] = irradiance * (diffuse[c] * mottle * cos_i + glint);
+          radiance[3 * i + static_cast<std::size_t>(c)] = lit(irradiance, cos_i, diffuse[c] * mottle, ks, shininess);
         reinterpret_cast<float*>(out.depth.data)[i] = t * table->dir[3 * i + 2];  // continuous CV_32F
       }
     }

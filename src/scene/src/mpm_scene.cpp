@@ -80,7 +80,8 @@ MpmFieldSchedule field_of(const YamlMap& f) {
   const int kinds =
       static_cast<int>(f.has("b")) + static_cast<int>(f.has("keyframes")) + static_cast<int>(f.has("rotating"));
   // keyframes and a rotation go together when the rotation says when it takes over (`from`).
-  const bool ramp_then_rotation = kinds == 2 && f.has("keyframes") && f.has("rotating") && f.map("rotating").has("from");
+  const bool ramp_then_rotation =
+      kinds == 2 && f.has("keyframes") && f.has("rotating") && f.map("rotating").has("from");
   if (kinds != 1 && !ramp_then_rotation)
     f.fail("b", "give exactly one of b (constant), keyframes or rotating (or keyframes and a rotating with from)");
   MpmFieldSchedule s;

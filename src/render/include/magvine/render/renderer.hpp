@@ -79,9 +79,10 @@ struct OverviewCapsule {
 };
 
 /// The nearest t > 0 at which the ray o + t·d (d unit) enters the capsule of points within `radius` of the segment
-/// [a, b], with the outward unit normal there; nullopt when it misses (or starts inside). The capsule is the union of
-/// a cylinder and two balls, so its entry is the first of theirs: the cylinder's root from |(x − a) × u|² = r²
-/// (u the unit axis) where it lands between the ends, and each ball's |x − c|² = r².
+/// [a, b], with the outward unit normal there; nullopt when it misses or starts inside (o within `radius` of the
+/// segment). The capsule is the union of a cylinder and two balls, so its entry is the first of theirs: the
+/// cylinder's root from |(x − a) × u|² = r² (u the unit axis) where it lands between the ends, and each ball's
+/// |x − c|² = r².
 std::optional<std::pair<double, Vec3>> ray_capsule(const Vec3& o, const Vec3& d, const OverviewCapsule& capsule);
 
 /// How a tool looks in the endoscope: brushed steel, linear RGB albedo and a broad glint.

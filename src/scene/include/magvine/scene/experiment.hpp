@@ -67,7 +67,7 @@ struct FrameSample {
   std::vector<Vec3> magnet_positions;  ///< [m]
   std::vector<Vec3> magnet_axes;
   std::vector<platform::PlatformRun::Capsule> arm_links;  ///< with a platform: the arms' capsules [m]
-  /// During a biopsy's puncture: the needle from the tip to its point [m] (equal ends: none).
+  /// During a biopsy's puncture: the needle from the tip to its point [m] (needle_radius 0: no needle).
   Vec3 needle_base = Vec3::Zero();
   Vec3 needle_tip = Vec3::Zero();
   double needle_radius = 0.0;  ///< [m]
