@@ -12,8 +12,9 @@ the base 15 mm down the airway graph's root, the nodule from target.txt, the gen
 given diameter, boost (`boost_line`) and recovery; the supine patient's gravity, posterior, is −y in the scans'
 RAS frame) and runs `magvine trials --keep-runs` on it into DIR/<case>/. Then DIR/case_study.csv and DIR/case_study.md: per case the
 stop (branch, generation, needle length), reached k/N, the generation reached (median), the everted length and the
-time to the stop (mean over those that reached it), punctured and biopsy k/N, the needle tip's distance to the
-nodule (median over the punctured), the largest wall force (median over the runs, and the largest), and the
+time to the stop (mean over those that reached it), needle pushed (the puncture phase ran), punctured (the needle
+passed the wall's puncture depth) and biopsy k/N, the needle tip's distance to the nodule (median over the runs that
+pushed it), the largest wall force (median over the runs, and the largest), and the
 failures' reasons. --figure CASE (e.g. patient1) runs that case's scene once, unperturbed, with the tip camera
 filmed, and draws DIR/<case>_frames.png: the tip camera at each branch point on the way (the first frame in each new
 branch) and at the end (the puncture, with the needle drawn beside the lens). A missing input gives one
@@ -78,6 +79,7 @@ def summarise(case, runs_dir, rows):
     reached = [r for r in rows if r["success"] == "1"]
     generations = []
     walls = []
+    pushed = 0
     punctured = 0
     stop = {}
     for r in rows:
@@ -92,6 +94,7 @@ def summarise(case, runs_dir, rows):
         if m.get("max_wall_normal_N") is not None:
             walls.append(m["max_wall_normal_N"])
         b = m.get("biopsy") or {}
+        pushed += bool(b.get("needle_pushed"))
         punctured += bool(b.get("punctured"))
         if not stop and b.get("stop_branch"):
             stop = b
@@ -108,6 +111,7 @@ def summarise(case, runs_dir, rows):
         "generation_median": statistics.median(generations) if generations else "",
         "everted_mm": round(1e3 * mean([float(r["everted_length_m"]) for r in reached]), 1) if reached else "",
         "time_s": round(mean([float(r["time_to_target_s"]) for r in reached]), 2) if reached else "",
+        "needle_pushed": pushed,
         "punctured": punctured,
         "biopsy": biopsies,
         "needle_to_nodule_mm": round(1e3 * statistics.median(to_nodule), 1) if to_nodule else "",
@@ -156,7 +160,7 @@ def figure(magvine, scene, out_dir, case):
             seen.add(name)
             picks.append((float(r["t_s"]), name))
     last = len(os.listdir(frames_dir)) - 1
-    needle_out = biopsy.get("punctured") and (biopsy.get("max_reaction_N") or 0.0) > 0.0  # it met the tissue
+    needle_out = biopsy.get("needle_pushed") and (biopsy.get("max_reaction_N") or 0.0) > 0.0  # it met the tissue
     picks = picks[-7:] + [(last / fps, "end, needle out" if needle_out else "end")]
     fig, axes = plt.subplots(1, len(picks), figsize=(2.4 * len(picks), 2.8))
     for ax, (t, name) in zip(axes if len(picks) > 1 else [axes], picks):
@@ -214,8 +218,8 @@ def main():
                 rows = list(csv.DictReader(f))
             cases.append(summarise(case, os.path.join(out, "runs"), rows))
     columns = ["case", "stop_branch", "stop_generation", "needle_mm", "runs", "reached", "generation_median",
-               "everted_mm", "time_s", "punctured", "biopsy", "needle_to_nodule_mm", "wall_N_median", "wall_N_max",
-               "failures"]
+               "everted_mm", "time_s", "needle_pushed", "punctured", "biopsy", "needle_to_nodule_mm", "wall_N_median",
+               "wall_N_max", "failures"]
     with open(os.path.join(a.out, "case_study.csv"), "w", newline="") as f:
         w = csv.DictWriter(f, fieldnames=columns)
         w.writeheader()
@@ -223,13 +227,15 @@ def main():
             w.writerow({k: c.get(k, "") for k in columns})
     with open(os.path.join(a.out, "case_study.md"), "w") as f:
         f.write("| case | stop (generation) | needle [mm] | reached | generation reached | everted [mm] | time [s] | "
-                "punctured | biopsy | needle tip to nodule [mm] | peak wall force, median / largest [N] |\n")
-        f.write("|---|---|---|---|---|---|---|---|---|---|---|\n")
+                "needle pushed | punctured | biopsy | needle tip to nodule [mm] | "
+                "peak wall force, median / largest [N] |\n")
+        f.write("|---|---|---|---|---|---|---|---|---|---|---|---|\n")
         for c in cases:
             n = c.get("runs", 0)
             f.write(f"| {c['case']} | {c.get('stop_branch', '')} ({c.get('stop_generation', '')}) | "
                     f"{c.get('needle_mm', '')} | {c.get('reached', 0)}/{n} | {c.get('generation_median', '')} | "
-                    f"{c.get('everted_mm', '')} | {c.get('time_s', '')} | {c.get('punctured', 0)}/{n} | "
+                    f"{c.get('everted_mm', '')} | {c.get('time_s', '')} | {c.get('needle_pushed', 0)}/{n} | "
+                    f"{c.get('punctured', 0)}/{n} | "
                     f"{c.get('biopsy', 0)}/{n} | {c.get('needle_to_nodule_mm', '')} | "
                     f"{c.get('wall_N_median', '')} / {c.get('wall_N_max', '')} |\n")
         f.write("\nFailures:\n\n")

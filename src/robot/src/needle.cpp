@@ -152,6 +152,7 @@ PunctureReport push_needle(const GrowthModel& model, const RodField& field, cons
     s.unsupported = force > 0.0 ? (s.wall + s.clamp + s.reaction).norm() / force : 0.0;
     s.moment = vine_bend_state(workspace.body, state.body).largest_moment;
     note_held(force, s.slide, p, s.moment);
+    out.punctured = out.punctured || depth >= needle.puncture_depth;
     out.steps.push_back(s);
     if (on_step) on_step(s, state);
     out.needle_tip = s.needle_tip;

@@ -143,7 +143,8 @@ void write_experiment_outputs(const ExperimentScene& scene, const ExperimentResu
     // The puncture (robot/needle.hpp): null fields when the vine did not reach its stop.
     nlohmann::json& b = j["biopsy"];
     const std::optional<robot::PunctureReport>& p = result.puncture;
-    b["punctured"] = p.has_value();
+    b["needle_pushed"] = p.has_value();
+    b["punctured"] = p && p->punctured;
     b["success"] = p && p->success;
     b["why"] = p                ? nlohmann::json(p->why)
                : result.success ? nlohmann::json("the run failed before the puncture: " + result.failure)

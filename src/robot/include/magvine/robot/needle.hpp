@@ -88,6 +88,8 @@ struct PunctureReport {
   double target_protrusion = 0.0;  ///< how far it was to be pushed: to the nodule's centre along the axis [m]
   Vec3 needle_tip = Vec3::Zero();  ///< where its tip ended [m]
   double to_nodule = 0.0;          ///< |needle tip − nodule centre| at the end [m]
+  /// The needle's tip passed the puncture depth d_p at an equilibrium: the wall ruptured and the reaction reached F_c.
+  bool punctured = false;
   bool held = true;                ///< the vine held (slid back less than max_slide, and found its equilibrium)
   double slide = 0.0;              ///< the largest slide back [m]
   double max_force = 0.0;          ///< the largest reaction [N]
