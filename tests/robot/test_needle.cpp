@@ -5,6 +5,7 @@
 
 #include <gtest/gtest.h>
 
+#include <algorithm>
 #include <cstdio>
 #include <string>
 
@@ -100,6 +101,10 @@ TEST(Needle, TheReactionOfAOneNewtonPunctureIsCarriedByTheWallsAndTheClamp) {
   // The wall is 8 mm ahead: the needle meets tissue there and the reaction is the cutting force from then on.
   EXPECT_NEAR(r.wall_distance, 8e-3, 0.1e-3);
   EXPECT_DOUBLE_EQ(r.max_force, 1.0);
+  // It punctured: an increment's equilibrium put the needle's tip past d_p.
+  EXPECT_TRUE(r.punctured);
+  EXPECT_TRUE(std::any_of(r.steps.begin(), r.steps.end(),
+                          [&](const PunctureStep& s) { return s.depth >= n.puncture_depth; }));
   int loaded = 0;
   for (const PunctureStep& s : r.steps) {
     EXPECT_DOUBLE_EQ(s.force, needle_tissue_force(n, s.depth));
@@ -132,6 +137,9 @@ TEST(Needle, AStiffPunctureMakesTheTipSlideBack) {
   EXPECT_FALSE(r.held);
   EXPECT_FALSE(r.success);
   EXPECT_GT(r.slide, n.max_slide);
+  // It ruptured the wall (the reaction reached its 8 N) before the vine gave way.
+  EXPECT_TRUE(r.punctured);
+  EXPECT_DOUBLE_EQ(r.max_force, 8.0);
   EXPECT_NE(r.why.find("slid back"), std::string::npos) << r.why;
   // How it gives way: the body creases. A column pressed into a tube's clearance c = 0.3 mm bends by the load times
   // its offset, F·c, which reaches the inflated beam's collapse moment πR³P = 1.72 mN·m (R = 2.5 mm, 35 kPa) at

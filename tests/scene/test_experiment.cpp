@@ -307,6 +307,11 @@ TEST(Experiment, NavigatorTakesANoduleAndStopsWhereTheNeedleReachesIt) {
   EXPECT_GT(p.max_force, 0.0) << "the needle never met the wall";
   EXPECT_EQ(p.held, p.slide <= sc.biopsy->needle.max_slide);
   EXPECT_EQ(p.success, p.held && p.to_nodule <= sc.biopsy->radius);
+  // punctured: some increment's equilibrium put the needle's tip past d_p (a retried increment's last piece is its
+  // recorded equilibrium; its earlier pieces push the needle less far).
+  EXPECT_EQ(p.punctured, std::any_of(p.steps.begin(), p.steps.end(), [&](const robot::PunctureStep& st) {
+              return st.depth >= sc.biopsy->needle.puncture_depth;
+            }));
 
   const std::string inside = replaced(text, "target: \"0-0-1\"",
                                       "target: {nodule: [" + std::to_string(1e3 * end.x()) + ", " +

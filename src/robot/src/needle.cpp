@@ -120,8 +120,10 @@ PunctureReport push_needle(const GrowthModel& model, const RodField& field, cons
         control.tip_contact = tissue_at(at);
         r = grow_step(model, field, control, state, workspace, dt / pieces);
         if (!r.converged) break;
-        note_held(needle_tissue_force(needle, tip_contact_depth(*control.tip_contact, state.body.tip())), slide_now(),
-                  at, vine_bend_state(workspace.body, state.body).largest_moment);
+        const double piece_depth = tip_contact_depth(*control.tip_contact, state.body.tip());
+        note_held(needle_tissue_force(needle, piece_depth), slide_now(), at,
+                  vine_bend_state(workspace.body, state.body).largest_moment);
+        out.punctured = out.punctured || piece_depth >= needle.puncture_depth;  // an equilibrium past d_p
       }
     }
     if (!r.converged) {

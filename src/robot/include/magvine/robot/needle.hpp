@@ -99,7 +99,9 @@ struct PunctureReport {
   double wall_share = 0.0;
   double max_normal = 0.0;  ///< the largest node force on the tissue during the puncture [N]
   double max_moment = 0.0;  ///< the largest PunctureStep::moment
-  bool success = false;     ///< held, and the needle's tip within the nodule
+  /// Held, and the needle's tip within the nodule (a rupture is not required: a nodule less than d_p past the wall
+  /// is reached by the wall's deflection alone).
+  bool success = false;
   std::string why;          ///< when it did not succeed
 };
 
