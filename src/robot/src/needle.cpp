@@ -96,14 +96,23 @@ PunctureReport push_needle(const GrowthModel& model, const RodField& field, cons
     c.law = [&needle](double depth) { return needle_tissue_law(needle, depth); };
     return c;
   };
-  // The tip's slide back along the needle's first axis, where the body is now.
-  const auto slide_now = [&] { return (tip0 - state.body.tip()).dot(t0); };
-  const auto note_held = [&](double force, double slide, double protrusion, double moment) {
-    if (force > held && slide <= needle.max_slide) {
-      held = force;
+  // An equilibrium with the needle at `protrusion` (a whole increment's or one of its pieces'): the needle's depth
+  // and the tissue's reaction there, the tip's slide back along the needle's first axis and the body's largest
+  // moment; noted as held (within max_slide) and as punctured (past d_p).
+  struct Equilibrium {
+    double depth, force, slide, moment;
+  };
+  const auto reached = [&](double protrusion) {
+    const double depth = tip_contact_depth(*control.tip_contact, state.body.tip());
+    const Equilibrium e{depth, needle_tissue_force(needle, depth), (tip0 - state.body.tip()).dot(t0),
+                        vine_bend_state(workspace.body, state.body).largest_moment};
+    if (e.force > held && e.slide <= needle.max_slide) {
+      held = e.force;
       held_at = protrusion;
-      bent = moment;
+      bent = e.moment;
     }
+    out.punctured = out.punctured || depth >= needle.puncture_depth;
+    return e;
   };
   while (p < out.target_protrusion) {
     const double from = p;
@@ -120,10 +129,7 @@ PunctureReport push_needle(const GrowthModel& model, const RodField& field, cons
         control.tip_contact = tissue_at(at);
         r = grow_step(model, field, control, state, workspace, dt / pieces);
         if (!r.converged) break;
-        const double piece_depth = tip_contact_depth(*control.tip_contact, state.body.tip());
-        note_held(needle_tissue_force(needle, piece_depth), slide_now(), at,
-                  vine_bend_state(workspace.body, state.body).largest_moment);
-        out.punctured = out.punctured || piece_depth >= needle.puncture_depth;  // an equilibrium past d_p
+        (void)reached(at);
       }
     }
     if (!r.converged) {
@@ -135,26 +141,24 @@ PunctureReport push_needle(const GrowthModel& model, const RodField& field, cons
           1e3 * p, held, bent, r.failure.c_str());
       break;
     }
-    const double depth = tip_contact_depth(*control.tip_contact, state.body.tip());
-    const double force = needle_tissue_force(needle, depth);
+    const Equilibrium e = reached(p);
+    const double force = e.force;
     PunctureStep s;
     s.time = state.time;
     s.protrusion = p;
-    s.depth = depth;
+    s.depth = e.depth;
     s.force = force;
     s.reaction = -force * control.tip_contact->axis;  // tip_contact_force, its law evaluated once
     s.tip = state.body.tip();
     s.needle_tip = s.tip + p * state.body.frames.back().col(0);
-    s.slide = slide_now();
+    s.slide = e.slide;
     s.wall = wall_on_body(state.forces) - wall0;
     s.clamp = state.forces.clamp - clamp0;
     s.max_normal = state.forces.max_normal;
     s.total_normal = state.forces.total_normal;
     s.imbalance = force > 0.0 ? state.forces.imbalance.norm() / force : 0.0;
     s.unsupported = force > 0.0 ? (s.wall + s.clamp + s.reaction).norm() / force : 0.0;
-    s.moment = vine_bend_state(workspace.body, state.body).largest_moment;
-    note_held(force, s.slide, p, s.moment);
-    out.punctured = out.punctured || depth >= needle.puncture_depth;
+    s.moment = e.moment;
     out.steps.push_back(s);
     if (on_step) on_step(s, state);
     out.needle_tip = s.needle_tip;
@@ -170,9 +174,8 @@ PunctureReport push_needle(const GrowthModel& model, const RodField& field, cons
     if (s.slide > needle.max_slide) {
       out.held = false;
       out.why = printf_string(
-          "the vine's tip slid back %.1f mm under the needle's %.2f N (limit %.1f mm; within it, it held at most %.2f "
-          "N, "
-          "at %.1f mm protrusion): its contacts do not hold the puncture",
+          "the vine's tip slid back %.1f mm under the needle's %.2f N (limit %.1f mm; within it, it held at most "
+          "%.2f N, at %.1f mm protrusion): its contacts do not hold the puncture",
           1e3 * s.slide, force, 1e3 * needle.max_slide, held, 1e3 * held_at);
       break;
     }
