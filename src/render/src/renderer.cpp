@@ -290,9 +290,11 @@ int AirwayRenderer::threads() const {
   return m_impl->threads;
 }
 
-std::optional<std::pair<double, Vec3>> ray_capsule(const Vec3& o, const Vec3& d, const OverviewCapsule& capsule) {
+namespace {
+
+/// ray_capsule for an origin known to lie outside the capsule (the endoscope checks its lens once per frame).
+std::optional<std::pair<double, Vec3>> capsule_entry(const Vec3& o, const Vec3& d, const OverviewCapsule& capsule) {
   const double r = capsule.radius;
-  if ((o - anatomy::closest_point_on_segment(o, capsule.a, capsule.b)).norm() <= r) return std::nullopt;
   std::optional<std::pair<double, Vec3>> best;
   const auto take = [&](double t, const Vec3& n) {
     if (t > 0.0 && (!best || t < best->first)) best = std::make_pair(t, n);
@@ -325,6 +327,17 @@ std::optional<std::pair<double, Vec3>> ray_capsule(const Vec3& o, const Vec3& d,
   return best;
 }
 
+bool inside(const Vec3& x, const OverviewCapsule& capsule) {
+  return (x - anatomy::closest_point_on_segment(x, capsule.a, capsule.b)).norm() <= capsule.radius;
+}
+
+}  // namespace
+
+std::optional<std::pair<double, Vec3>> ray_capsule(const Vec3& o, const Vec3& d, const OverviewCapsule& capsule) {
+  if (inside(o, capsule)) return std::nullopt;
+  return capsule_entry(o, d, capsule);
+}
+
 EndoscopeFrame AirwayRenderer::render_endoscope(const Camera& camera, const EndoscopeLook& look,
                                                 std::uint64_t frame_index, AutoExposure* exposure,
                                                 std::span<const OverviewCapsule> tools) const {
@@ -332,8 +345,7 @@ EndoscopeFrame AirwayRenderer::render_endoscope(const Camera& camera, const Endo
   for (const OverviewCapsule& tool : tools) {
     if (!(tool.radius > 0.0) || !tool.a.allFinite() || !tool.b.allFinite())
       throw InputError("render", 0, "tools", "a tool needs finite ends and a radius > 0");
-    if ((camera.position - anatomy::closest_point_on_segment(camera.position, tool.a, tool.b)).norm() <= tool.radius)
-      throw InputError("render", 0, "tools", "the lens lies inside a tool");
+    if (inside(camera.position, tool)) throw InputError("render", 0, "tools", "the lens lies inside a tool");
   }
   const ToolLook steel;
   const float steel_diffuse[3] = {static_cast<float>(steel.albedo.x() / kPi),
@@ -409,7 +421,7 @@ EndoscopeFrame AirwayRenderer::render_endoscope(const Camera& camera, const Endo
           const Vec3 d = Vec3(dx, dy, dz).normalized();
           std::optional<std::pair<double, Vec3>> near;
           for (const OverviewCapsule& tool : tools) {
-            const auto hit = ray_capsule(o_world, d, tool);
+            const auto hit = capsule_entry(o_world, d, tool);  // the lens is outside (checked above)
             if (hit && (!near || hit->first < near->first)) near = hit;
           }
           if (near && (!wall_hit || near->first < rh.ray.tfar[k])) {
