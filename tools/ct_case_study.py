@@ -4,21 +4,24 @@ from the trachea to the stop from which a straight needle reaches the patient's 
 repeats with and without breathing, as one table.
 
     /usr/bin/python3 tools/ct_case_study.py SEGMENTATIONS_DIR --out DIR [--magvine BIN] [--repeats 4] [--jobs 2]
-        [--patients 1,2,3,4,5] [--diameter 3] [--needle 100] [--no-breathing] [--figure CASE]
+        [--patients 1,2,3,4,5] [--diameter 3] [--needle 100] [--max-angle DEG] [--no-breathing]
+        [--figure CASE]
 
 SEGMENTATIONS_DIR holds Patient1..5/ (bronchialTree.nii.gz, target.txt), e.g. ../shared/airways/segmentations.
 For each patient and breathing setting it writes DIR/scenes/<case>.yaml (the segmentation imported by the scene,
 the base 15 mm down the airway graph's root, the nodule from target.txt, the generation-4 scene's fluid vine at the
 given diameter, boost (`boost_line`) and recovery; the supine patient's gravity, posterior, is −y in the scans'
-RAS frame) and runs `magvine trials --keep-runs` on it into DIR/<case>/. Then DIR/case_study.csv and DIR/case_study.md: per case the
-stop (branch, generation, needle length), reached k/N, the generation reached (median), the everted length and the
-time to the stop (mean over those that reached it), needle pushed (the puncture phase ran), punctured (the needle
+RAS frame) and runs `magvine trials --keep-runs` on it into DIR/<case>/. Then DIR/case_study.csv and
+DIR/case_study.md: per case the stop (branch, generation, needle length, the needle's planned turn from the branch,
+and how far from the nodule's centre a tip that cannot turn points from the best stop the tool fits to), reached k/N,
+the generation reached (median), the everted length and the time to the stop (mean over those that reached it),
+needle pushed (the puncture phase ran), the tip's angle to the nodule after aiming (median), punctured (the needle
 passed the wall's puncture depth) and biopsy k/N, the needle tip's distance to the nodule (median over the runs that
-pushed it), the largest wall force (median over the runs, and the largest), and the
-failures' reasons. --figure CASE (e.g. patient1) runs that case's scene once, unperturbed, with the tip camera
-filmed, and draws DIR/<case>_frames.png: the tip camera at each branch point on the way (the first frame in each new
-branch) and at the end (the puncture, with the needle drawn beside the lens). A missing input gives one
-line on stderr and exit status 2.
+pushed it), the largest wall force (median over the runs, and the largest), and the failures' reasons. --max-angle
+sets the planner's largest turn (degrees; the scene's default, 60, otherwise). --figure CASE (e.g. patient1) runs
+that case's scene once, unperturbed, with the tip camera filmed, and draws DIR/<case>_frames.png: the tip camera at
+each branch point on the way (the first frame in each new branch) and at the end (the puncture, with the needle
+drawn beside the lens). A missing input gives one line on stderr and exit status 2.
 """
 import argparse
 import csv
@@ -53,7 +56,7 @@ magnets:
 control:
   pressure: [[0, 35]]
   navigator:
-    target: {{nodule: {target}, max_needle: {needle}, needle: {{length: {needle}}}}}
+    target: {{nodule: {target}, max_needle: {needle}{max_angle}, needle: {{length: {needle}}}}}
     magnet: 0
     distance: 110
 {boost}    recover: {{retries: 3}}
@@ -82,6 +85,7 @@ def summarise(case, runs_dir, rows):
     pushed = 0
     punctured = 0
     stop = {}
+    aims = []
     for r in rows:
         path = os.path.join(runs_dir, f"{r['target']}_r{r['repeat']}", "metrics.json")
         try:
@@ -96,6 +100,8 @@ def summarise(case, runs_dir, rows):
         b = m.get("biopsy") or {}
         pushed += bool(b.get("needle_pushed"))
         punctured += bool(b.get("punctured"))
+        if b.get("aim_angle_deg") is not None:
+            aims.append(b["aim_angle_deg"])
         if not stop and b.get("stop_branch"):
             stop = b
     to_nodule = [number(r["needle_to_nodule_m"]) for r in rows if number(r["needle_to_nodule_m"]) is not None]
@@ -106,6 +112,9 @@ def summarise(case, runs_dir, rows):
         "stop_branch": stop.get("stop_branch", ""),
         "stop_generation": stop.get("stop_branch", "").count("-") if stop else "",
         "needle_mm": round(1e3 * stop["needle_m"], 1) if stop else "",
+        "needle_angle_deg": round(stop["needle_angle_deg"], 1) if stop else "",
+        "straight_miss_mm": round(1e3 * stop["best_straight_miss_m"], 1) if stop else "",
+        "aim_angle_deg": round(statistics.median(aims), 1) if aims else "",
         "runs": n,
         "reached": len(reached),
         "generation_median": statistics.median(generations) if generations else "",
@@ -117,7 +126,8 @@ def summarise(case, runs_dir, rows):
         "needle_to_nodule_mm": round(1e3 * statistics.median(to_nodule), 1) if to_nodule else "",
         "wall_N_median": round(statistics.median(walls), 3) if walls else "",
         "wall_N_max": round(max(walls), 3) if walls else "",
-        "failures": "; ".join(f"r{r['repeat']}: {r['reason']}" for r in rows if r["reason"]),
+        # One line per failure: a reason's own semicolons become commas (the list is split on "; ").
+        "failures": "; ".join(f"r{r['repeat']}: {r['reason'].replace(';', ',')}" for r in rows if r["reason"]),
     }
 
 
@@ -182,6 +192,8 @@ def main():
     p.add_argument("--patients", default="1,2,3,4,5")
     p.add_argument("--diameter", type=float, default=3.0, help="the vine's diameter [mm]")
     p.add_argument("--needle", type=float, default=100.0, help="the needle's length and the planner's limit [mm]")
+    p.add_argument("--max-angle", type=float, default=None,
+                   help="the planner's largest turn of the needle from the branch [degrees] (default: the scene's)")
     p.add_argument("--no-breathing", action="store_true")
     p.add_argument("--figure", default="", help="a case to film and draw (e.g. patient1)")
     a = p.parse_args()
@@ -203,6 +215,7 @@ def main():
                     seed=patient, segmentation=os.path.join(folder, "bronchialTree.nii.gz"),
                     breathing="  breathing: {period: 4}\n" if breathing else "", diameter=a.diameter,
                     target=os.path.join(folder, "target.txt"), needle=a.needle,
+                    max_angle=f", max_angle: {a.max_angle:g}" if a.max_angle is not None else "",
                     boost=boost_line(a.diameter)))
             out = os.path.join(a.out, case)
             print(f"ct_case_study: {case} ...", flush=True)
@@ -217,8 +230,9 @@ def main():
             with open(trials, newline="") as f:
                 rows = list(csv.DictReader(f))
             cases.append(summarise(case, os.path.join(out, "runs"), rows))
-    columns = ["case", "stop_branch", "stop_generation", "needle_mm", "runs", "reached", "generation_median",
-               "everted_mm", "time_s", "needle_pushed", "punctured", "biopsy", "needle_to_nodule_mm", "wall_N_median",
+    columns = ["case", "stop_branch", "stop_generation", "needle_mm", "needle_angle_deg", "straight_miss_mm", "runs", "reached", "generation_median",
+               "everted_mm", "time_s", "needle_pushed", "aim_angle_deg", "punctured", "biopsy", "needle_to_nodule_mm",
+               "wall_N_median",
                "wall_N_max", "failures"]
     with open(os.path.join(a.out, "case_study.csv"), "w", newline="") as f:
         w = csv.DictWriter(f, fieldnames=columns)
@@ -226,15 +240,18 @@ def main():
         for c in cases:
             w.writerow({k: c.get(k, "") for k in columns})
     with open(os.path.join(a.out, "case_study.md"), "w") as f:
-        f.write("| case | stop (generation) | needle [mm] | reached | generation reached | everted [mm] | time [s] | "
-                "needle pushed | punctured | biopsy | needle tip to nodule [mm] | "
+        f.write("| case | stop (generation) | needle [mm] | needle's turn from the branch [deg] | "
+                "a tip that cannot turn misses by [mm] | reached | generation reached | everted [mm] | time [s] | "
+                "needle pushed | tip's angle to the nodule [deg] | punctured | biopsy | needle tip to nodule [mm] | "
                 "peak wall force, median / largest [N] |\n")
-        f.write("|---|---|---|---|---|---|---|---|---|---|---|---|\n")
+        f.write("|---|---|---|---|---|---|---|---|---|---|---|---|---|---|---|\n")
         for c in cases:
             n = c.get("runs", 0)
             f.write(f"| {c['case']} | {c.get('stop_branch', '')} ({c.get('stop_generation', '')}) | "
-                    f"{c.get('needle_mm', '')} | {c.get('reached', 0)}/{n} | {c.get('generation_median', '')} | "
+                    f"{c.get('needle_mm', '')} | {c.get('needle_angle_deg', '')} | {c.get('straight_miss_mm', '')} | "
+                    f"{c.get('reached', 0)}/{n} | {c.get('generation_median', '')} | "
                     f"{c.get('everted_mm', '')} | {c.get('time_s', '')} | {c.get('needle_pushed', 0)}/{n} | "
+                    f"{c.get('aim_angle_deg', '')} | "
                     f"{c.get('punctured', 0)}/{n} | "
                     f"{c.get('biopsy', 0)}/{n} | {c.get('needle_to_nodule_mm', '')} | "
                     f"{c.get('wall_N_median', '')} / {c.get('wall_N_max', '')} |\n")

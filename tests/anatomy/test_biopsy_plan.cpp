@@ -66,6 +66,27 @@ TEST(BiopsyPlan, ShortestNeedleUnderTheAngleLimitInATube) {
   EXPECT_NEAR(across.start.x(), 0.06, 0.25e-3 + 1e-9);
 }
 
+// A tip that cannot turn points down the tube (+x): its ray passes the nodule 26 mm from the axis at 26 mm, from
+// every stop before x = 60 mm; a nodule 4 mm off the axis 10 mm past the tube's end is missed by 4 mm. The plan's
+// own stop (x ≈ 45 mm, ray along +x) misses by 26 mm too. straight_miss against its closed form: a point behind the
+// ray is its distance to the start.
+TEST(BiopsyPlan, ReportsHowFarATipThatCannotTurnMisses) {
+  EXPECT_NEAR(straight_miss(Vec3::Zero(), Vec3::UnitX(), Vec3(0.01, 0.003, 0.004)), 0.005, 1e-15);
+  EXPECT_NEAR(straight_miss(Vec3::Zero(), Vec3::UnitX(), Vec3(-0.003, 0.004, 0.0)), 0.005, 1e-15);
+  const Tube t = tube();
+  const CollisionWorld world(t.mesh);
+  const BiopsyPlan beside = plan_biopsy(t.graph, world, Vec3(0.06, 0.026, 0.0), {.tool_radius = 2.5e-3});
+  ASSERT_TRUE(beside.found);
+  EXPECT_NEAR(beside.straight_miss, 0.026, 1e-9);
+  EXPECT_NEAR(beside.best_straight_miss, 0.026, 1e-9);
+  EXPECT_EQ(beside.best_straight_branch, 0);
+  const BiopsyPlan ahead = plan_biopsy(t.graph, world, Vec3(0.13, 0.004, 0.0),
+                                       {.tool_radius = 2.5e-3, .max_angle = std::numbers::pi / 2});
+  ASSERT_TRUE(ahead.found) << ahead.why;
+  EXPECT_NEAR(ahead.best_straight_miss, 0.004, 1e-9);
+  EXPECT_GE(ahead.straight_miss, ahead.best_straight_miss);
+}
+
 // A tool wider than the lumen reaches no node; a needle limit below 20 mm rules every stop out as too long.
 TEST(BiopsyPlan, SaysWhyWhenNoStopWorks) {
   const Tube t = tube();

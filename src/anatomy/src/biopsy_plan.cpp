@@ -19,6 +19,12 @@ Vec3 tangent_at(const AirwayGraph& graph, const AirwayBranch& b, std::size_t k) 
 
 }  // namespace
 
+double straight_miss(const Vec3& start, const Vec3& direction, const Vec3& point) {
+  const Vec3 d = point - start;
+  const double along = d.dot(direction);
+  return along <= 0.0 ? d.norm() : (d - along * direction).norm();
+}
+
 BiopsyPlan plan_biopsy(const AirwayGraph& graph, const CollisionWorld& world, const Vec3& nodule,
                        const BiopsyOptions& options) {
   BiopsyPlan plan;
@@ -40,7 +46,13 @@ BiopsyPlan plan_biopsy(const AirwayGraph& graph, const CollisionWorld& world, co
       if (!(length > 0.0)) continue;
       const Vec3 dir = d / length;
       // The robot arrives from the root, so the tip points along the branch's direction of growth.
-      const double forward = std::acos(std::clamp(dir.dot(tangent_at(graph, b, k)), -1.0, 1.0));
+      const Vec3 along = tangent_at(graph, b, k);
+      const double forward = std::acos(std::clamp(dir.dot(along), -1.0, 1.0));
+      const double miss = straight_miss(node.position, along, nodule);
+      if (miss < plan.best_straight_miss) {
+        plan.best_straight_miss = miss;
+        plan.best_straight_branch = b.id;
+      }
       if (forward > options.max_angle) {
         ++plan.too_steep;
         continue;
@@ -66,6 +78,7 @@ BiopsyPlan plan_biopsy(const AirwayGraph& graph, const CollisionWorld& world, co
       c.direction = dir;
       c.needle = needle;
       c.angle = forward;
+      c.straight_miss = miss;
       c.lumen_radius = node.radius;
       candidates.push_back(c);
     }
@@ -86,6 +99,8 @@ BiopsyPlan plan_biopsy(const AirwayGraph& graph, const CollisionWorld& world, co
     plan.too_long = counts.too_long;
     plan.too_steep = counts.too_steep;
     plan.through_airway = counts.through_airway;
+    plan.best_straight_miss = counts.best_straight_miss;
+    plan.best_straight_branch = counts.best_straight_branch;
   }
   if (!plan.found) {
     std::ostringstream s;

@@ -4,6 +4,7 @@
 /// path through tissue without entering another airway, in a branch the robot fits all the way in.
 
 #include <cstdint>
+#include <limits>
 #include <string>
 
 #include "magvine/anatomy/airway_graph.hpp"
@@ -34,10 +35,22 @@ struct BiopsyPlan {
   double needle = 0.0;                                          ///< needle path in tissue, wall → nodule centre [m]
   double angle = 0.0;                                           ///< needle against the branch's direction [rad]
   double lumen_radius = 0.0;                                    ///< the node's radius [m]
+  /// A tip that cannot turn (a tool as wide as its lumen) points along its branch: how far that ray from the stop
+  /// passes from the nodule's centre [m] (`straight_miss`, below).
+  double straight_miss = 0.0;
+  /// The smallest straight_miss over every node the tool fits to, whatever the needle's length or angle, and that
+  /// node's branch: no tip that cannot turn gets its needle closer to the nodule's centre than this [m].
+  double best_straight_miss = std::numeric_limits<double>::infinity();
+  int best_straight_branch = -1;
   std::size_t reachable = 0;                                    ///< nodes the tool fits to
   std::size_t too_long = 0, too_steep = 0, through_airway = 0;  ///< reachable nodes ruled out, by reason
   std::string why;                                              ///< when none is found: the reasons, counted
 };
+
+/// How far the ray from `start` along the unit `direction` passes from `point`: the distance to the ray's nearest
+/// point (its start when the point lies behind it) [m]. A needle pushed `direction`-wards from `start` ends no
+/// nearer the point than this, whatever its length.
+double straight_miss(const Vec3& start, const Vec3& direction, const Vec3& point);
 
 /// Plans the stop for a nodule centred at `nodule` [m] (outside the lumen). Candidates are the graph's nodes reached
 /// from the root through nodes at least `tool_radius` wide; for each, the needle runs from the node straight to the
