@@ -224,7 +224,9 @@ def main():
                                text=True)
             trials = os.path.join(out, "trials.csv")
             if r.returncode != 0 or not os.path.exists(trials):
-                cases.append({"case": case, "runs": 0, "failures": r.stderr.strip().splitlines()[-1] if r.stderr
+                # No trials ran (e.g. the planner found no stop): the row says so, the reason in its failures.
+                cases.append({"case": case, "runs": 0, "stop_branch": "none", "stop_generation": "—",
+                              "failures": r.stderr.strip().splitlines()[-1].replace(";", ",") if r.stderr
                               else f"magvine trials exited {r.returncode}"})
                 continue
             with open(trials, newline="") as f:

@@ -108,6 +108,10 @@ BiopsyPlan plan_biopsy(const AirwayGraph& graph, const CollisionWorld& world, co
       << 1e3 * options.tool_radius << " mm; " << plan.too_steep << " would turn the needle more than "
       << options.max_angle * 180.0 / std::numbers::pi << " deg from the branch, " << plan.too_long << " need more than "
       << 1e3 * options.max_needle << " mm of needle, " << plan.through_airway << " would cross another airway";
+    if (plan.best_straight_branch >= 0) {
+      s << " (a tip pointing along its branch passes the nodule's centre at " << 1e3 * plan.best_straight_miss
+        << " mm at best, in branch " << graph.branches[static_cast<std::size_t>(plan.best_straight_branch)].name << ")";
+    }
     plan.why = s.str();
   }
   return plan;
