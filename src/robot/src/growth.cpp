@@ -975,6 +975,30 @@ GrowthStatus grow_step(const GrowthModel& model, const RodField& field, const Gr
   return status;
 }
 
+GrowthStatus grow_step_in_pieces(const GrowthModel& model, const RodField& field, const GrowthControl& control,
+                                 GrowthState& state, GrowthWorkspace& workspace, double dt,
+                                 std::initializer_list<int> splits, const std::function<void(int, int)>& load_to,
+                                 const std::function<void(int, int)>& reached) {
+  const GrowthState start = state;
+  GrowthStatus r;
+  bool first = true;
+  for (const int pieces : splits) {
+    if (!first) state = start;
+    first = false;
+    std::vector<GrowthEvent> events;
+    for (int j = 1; j <= pieces; ++j) {
+      load_to(j, pieces);
+      r = grow_step(model, field, control, state, workspace, dt / pieces);
+      events.insert(events.end(), r.events.begin(), r.events.end());
+      if (!r.converged) break;
+      if (reached) reached(j, pieces);
+    }
+    r.events = std::move(events);
+    if (r.converged) break;
+  }
+  return r;
+}
+
 VineGrowth::VineGrowth(const VineParameters& vine, const GrowthOptions& options, const anatomy::CollisionWorld* world,
                        RodField field, const Vec3& base_position, const Mat3& base_frame)
     : m_model(make_growth_model(vine, options, world, base_position, base_frame)), m_field(std::move(field)) {

@@ -118,20 +118,13 @@ PunctureReport push_needle(const GrowthModel& model, const RodField& field, cons
     const double from = p;
     p = std::min(p + needle.increment, out.target_protrusion);
     const GrowthState start = state;  // the last equilibrium (a failed grow_step leaves its time advanced)
-    control.tip_contact = tissue_at(p);
-    GrowthStatus r = grow_step(model, field, control, state, workspace, dt);
     // An increment whose step fails (the growth step's own retries halve its time, not the needle's advance) is
     // taken again as 4, then 16 smaller advances from the last equilibrium: a quasi-static loading path.
-    for (int pieces = 4; !r.converged && pieces <= 16; pieces *= 4) {
-      state = start;
-      for (int k = 1; k <= pieces; ++k) {
-        const double at = from + (p - from) * k / pieces;
-        control.tip_contact = tissue_at(at);
-        r = grow_step(model, field, control, state, workspace, dt / pieces);
-        if (!r.converged) break;
-        (void)reached(at);
-      }
-    }
+    const auto at = [&](int k, int pieces) { return pieces == 1 ? p : from + (p - from) * k / pieces; };
+    const GrowthStatus r = grow_step_in_pieces(
+        model, field, control, state, workspace, dt, {1, 4, 16},
+        [&](int k, int pieces) { control.tip_contact = tissue_at(at(k, pieces)); },
+        [&](int k, int pieces) { (void)reached(at(k, pieces)); });
     if (!r.converged) {
       state = start;
       out.held = false;

@@ -484,21 +484,11 @@ bool Experiment::Impl::step(const StepRequest& request) {
     // step that fails is taken again from where it began as 2, then 4 steps, the airway moved a piece each (a
     // blocked tip's step is the same problem in every half of its growth; measured: a generation-4 trial whose lag
     // did not settle at 9.26 s in any of grow_step's halves settled as 2 moves of the airway).
-    const robot::GrowthState start = state;
     const double from = state.time;
-    for (int pieces = 1; pieces <= 4; pieces *= 2) {
-      if (pieces > 1) state = start;
-      std::vector<robot::GrowthEvent> events;
-      for (int j = 1; j <= pieces; ++j) {
-        breathe_to(j == pieces ? t : from + dt * j / pieces);
-        r = robot::grow_step(model, field, control, state, workspace, dt / pieces);
-        events.insert(events.end(), r.events.begin(), r.events.end());
-        if (!r.converged) break;
-      }
-      r.events = std::move(events);
-      if (r.converged) break;
-      if (pieces == 4) r.failure += " (also with the airway's motion in the step taken as 2 and 4 moves)";
-    }
+    r = robot::grow_step_in_pieces(model, field, control, state, workspace, dt, {1, 2, 4}, [&](int j, int pieces) {
+      breathe_to(j == pieces ? t : from + dt * j / pieces);
+    });
+    if (!r.converged) r.failure += " (also with the airway's motion in the step taken as 2 and 4 moves)";
   }
   pressure_now = control.pressure;
   growth_events.insert(growth_events.end(), r.events.begin(), r.events.end());

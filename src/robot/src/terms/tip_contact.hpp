@@ -11,9 +11,9 @@ struct TipContactTerm {
     if (c.constraints == nullptr || !c.constraints->tip_contact) return;
     const TipContact& t = *c.constraints->tip_contact;
     const int n = c.edges();
-    const ContactLaw l = t.law(tip_contact_depth(t, c.state.x[static_cast<std::size_t>(n)]));
-    energy += l.potential;
-    if (sys != nullptr) sys->add_gradient(position_slot(n), l.force * t.axis);
+    const Vec3& x = c.state.x[static_cast<std::size_t>(n)];
+    energy += t.law(tip_contact_depth(t, x)).potential;
+    if (sys != nullptr) sys->add_gradient(position_slot(n), -tip_contact_force(t, x));  // ∇Ψ: minus the force
   }
 
   static void add_hessian(const TermContext& c, System& sys) {

@@ -47,6 +47,8 @@
 /// of the converged body.
 
 #include <array>
+#include <functional>
+#include <initializer_list>
 #include <limits>
 #include <optional>
 #include <string>
@@ -362,6 +364,17 @@ GrowthStatus start_growth(const GrowthModel& model, const RodField& field, doubl
 /// last converged one with the time advanced. Throws InputError for dt ≤ 0 or a negative or non-finite pressure.
 GrowthStatus grow_step(const GrowthModel& model, const RodField& field, const GrowthControl& control,
                        GrowthState& state, GrowthWorkspace& workspace, double dt);
+
+/// A step whose load moves within it (the airway's breathing, a needle's advance), which grow_step's own retries
+/// (halves of the growth) do not cut: taken as one grow_step, and while it fails, again from `state` as it was in
+/// `splits[1]`, `splits[2]`, … pieces (e.g. {1, 2, 4}) of dt/pieces each, a loading path. Before piece j of n
+/// (1-based), `load_to(j, n)` sets the load there (the caller's: it owns `control` and the world); after each
+/// converged piece `reached(j, n)` is called (may be empty). Returns the last attempt's status with the events of
+/// all its pieces; on failure `state` is the last converged piece's, as grow_step leaves it.
+GrowthStatus grow_step_in_pieces(const GrowthModel& model, const RodField& field, const GrowthControl& control,
+                                 GrowthState& state, GrowthWorkspace& workspace, double dt,
+                                 std::initializer_list<int> splits, const std::function<void(int, int)>& load_to,
+                                 const std::function<void(int, int)>& reached = {});
 
 /// Σθ over the joints of the state's body [rad] (workspace.body must be the state's: growth_body).
 double growth_turning(const GrowthWorkspace& workspace, const GrowthState& state);
