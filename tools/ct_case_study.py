@@ -5,7 +5,7 @@ repeats with and without breathing, as one table.
 
     /usr/bin/python3 tools/ct_case_study.py SEGMENTATIONS_DIR --out DIR [--magvine BIN] [--repeats 4] [--jobs 2]
         [--patients 1,2,3,4,5] [--diameter 3] [--needle 100] [--max-angle DEG] [--no-breathing]
-        [--figure CASE]
+        [--guidance oracle|camera] [--figure CASE]
 
 SEGMENTATIONS_DIR holds Patient1..5/ (bronchialTree.nii.gz, target.txt), e.g. ../shared/airways/segmentations.
 For each patient and breathing setting it writes DIR/scenes/<case>.yaml (the segmentation imported by the scene,
@@ -18,7 +18,8 @@ the generation reached (median), the everted length and the time to the stop (me
 needle pushed (the puncture phase ran), the tip's angle to the nodule after aiming (median), punctured (the needle
 passed the wall's puncture depth) and biopsy k/N, the needle tip's distance to the nodule (median over the runs that
 pushed it), the largest wall force (median over the runs, and the largest), and the failures' reasons. --max-angle
-sets the planner's largest turn (degrees; the scene's default, 60, otherwise). --figure CASE (e.g. patient1) runs
+sets the planner's largest turn (degrees; the scene's default, 60, otherwise); --guidance camera steers by the tip
+camera and the plan instead of the tip's true position (docs/experiments.md, camera guidance). --figure CASE (e.g. patient1) runs
 that case's scene once, unperturbed, with the tip camera filmed, and draws DIR/<case>_frames.png: the tip camera at
 each branch point on the way (the first frame in each new branch) and at the end (the puncture, with the needle
 drawn beside the lens). A missing input gives one line on stderr and exit status 2.
@@ -59,7 +60,7 @@ control:
     target: {{nodule: {target}, max_needle: {needle}{max_angle}, needle: {{length: {needle}}}}}
     magnet: 0
     distance: 110
-{boost}    recover: {{retries: 3}}
+{boost}{guidance}    recover: {{retries: 3}}
 simulation: {{duration: 40, dt: 0.02, gravity: [0, -9.81, 0]}}
 """
 
@@ -194,6 +195,8 @@ def main():
     p.add_argument("--needle", type=float, default=100.0, help="the needle's length and the planner's limit [mm]")
     p.add_argument("--max-angle", type=float, default=None,
                    help="the planner's largest turn of the needle from the branch [degrees] (default: the scene's)")
+    p.add_argument("--guidance", choices=["oracle", "camera"], default="oracle",
+                   help="the navigator's guidance: the tip's true position, or the tip camera and the plan")
     p.add_argument("--no-breathing", action="store_true")
     p.add_argument("--figure", default="", help="a case to film and draw (e.g. patient1)")
     a = p.parse_args()
@@ -216,7 +219,8 @@ def main():
                     breathing="  breathing: {period: 4}\n" if breathing else "", diameter=a.diameter,
                     target=os.path.join(folder, "target.txt"), needle=a.needle,
                     max_angle=f", max_angle: {a.max_angle:g}" if a.max_angle is not None else "",
-                    boost=boost_line(a.diameter)))
+                    boost=boost_line(a.diameter),
+                    guidance="    guidance: {mode: camera, frames: false}\n" if a.guidance == "camera" else ""))
             out = os.path.join(a.out, case)
             print(f"ct_case_study: {case} ...", flush=True)
             r = subprocess.run([a.magvine, "trials", scene, "--repeats", str(a.repeats), "--jobs", str(a.jobs),

@@ -7,7 +7,11 @@
 
 #include <algorithm>
 #include <cstdio>
+#include <limits>
+#include <optional>
 #include <string>
+#include <utility>
+#include <vector>
 
 #include "magvine/anatomy/collision_world.hpp"
 #include "magvine/anatomy/phantom.hpp"
@@ -145,6 +149,49 @@ TEST(Needle, AStiffPunctureMakesTheTipSlideBack) {
   // its offset, F·c, which reaches the inflated beam's collapse moment πR³P = 1.72 mN·m (R = 2.5 mm, 35 kPa) at
   // F = 5.7 N: held at 5 N, creased at 8 N (a joint past πR³P, on the crease's hinge law, eq 4.13).
   EXPECT_GE(r.max_moment, 1.0);
+}
+
+// The loading path of a step whose load moves within it (grow_step_in_pieces: the breathing airway's retry and the
+// needle's increments). A load under which no step converges (a tip contact whose law is not a number) stands for
+// the whole step's load: the first try fails, and the retry in two pieces, the load set before each (none here),
+// starts again from where the step began and ends where two plain half steps from there end, bit for bit. A load
+// that fails in every split leaves the run failed after the splits asked for, each tried once.
+TEST(Needle, AStepThatFailsIsTakenAgainInPiecesFromWhereItBegan) {
+  const Tube tube(capped_tube(8e-3));
+  Grown g = grow(tube, 30e-3);
+  const GrowthState start = g.state;
+  const double nan = std::numeric_limits<double>::quiet_NaN();
+  TipContact broken;
+  broken.axis = Vec3::UnitX();
+  broken.law = [nan](double) { return ContactLaw{nan, nan, nan}; };
+  const GrowthControl plain{.pressure = 35e3, .tether_length = 40e-3};
+  GrowthControl control = plain;
+  std::vector<std::pair<int, int>> loads, reached;
+  const GrowthStatus r = grow_step_in_pieces(
+      g.model, {}, control, g.state, g.ws, 0.05, {1, 2, 4},
+      [&](int j, int pieces) {
+        loads.emplace_back(j, pieces);
+        control.tip_contact = pieces == 1 ? std::optional<TipContact>(broken) : std::nullopt;
+      },
+      [&](int j, int pieces) { reached.emplace_back(j, pieces); });
+  ASSERT_TRUE(r.converged) << r.failure;
+  EXPECT_EQ(loads, (std::vector<std::pair<int, int>>{{1, 1}, {1, 2}, {2, 2}}));
+  EXPECT_EQ(reached, (std::vector<std::pair<int, int>>{{1, 2}, {2, 2}}));
+  GrowthState halves = start;
+  GrowthWorkspace ws;
+  for (int k = 0; k < 2; ++k) ASSERT_TRUE(grow_step(g.model, {}, plain, halves, ws, 0.025).converged);
+  ASSERT_EQ(halves.body.x.size(), g.state.body.x.size());
+  for (std::size_t i = 0; i < halves.body.x.size(); ++i) EXPECT_EQ(halves.body.x[i], g.state.body.x[i]) << i;
+  EXPECT_EQ(halves.time, g.state.time);
+
+  g.state = start;
+  loads.clear();
+  control.tip_contact = broken;
+  const GrowthStatus fails = grow_step_in_pieces(g.model, {}, control, g.state, g.ws, 0.05, {1, 2},
+                                                 [&](int j, int pieces) { loads.emplace_back(j, pieces); });
+  EXPECT_FALSE(fails.converged);
+  EXPECT_FALSE(fails.failure.empty());
+  EXPECT_EQ(loads, (std::vector<std::pair<int, int>>{{1, 1}, {1, 2}}));
 }
 
 }  // namespace
