@@ -19,10 +19,10 @@ needle pushed (the puncture phase ran), the tip's angle to the nodule after aimi
 passed the wall's puncture depth) and biopsy k/N, the needle tip's distance to the nodule (median over the runs that
 pushed it), the largest wall force (median over the runs, and the largest), and the failures' reasons. --max-angle
 sets the planner's largest turn (degrees; the scene's default, 60, otherwise); --guidance camera steers by the tip
-camera and the plan instead of the tip's true position (docs/experiments.md, camera guidance). --figure CASE (e.g. patient1) runs
-that case's scene once, unperturbed, with the tip camera filmed, and draws DIR/<case>_frames.png: the tip camera at
-each branch point on the way (the first frame in each new branch) and at the end (the puncture, with the needle
-drawn beside the lens). A missing input gives one line on stderr and exit status 2.
+camera and the plan instead of the tip's true position (docs/experiments.md, camera guidance). --figure CASE (e.g.
+patient1) runs that case's scene once, unperturbed, with the tip camera filmed, and draws DIR/<case>_frames.png: the
+tip camera at each branch point on the way (the first frame in each new branch) and at the end (the puncture, with
+the needle drawn beside the lens). A missing input gives one line on stderr and exit status 2.
 """
 import argparse
 import csv
@@ -236,7 +236,8 @@ def main():
             with open(trials, newline="") as f:
                 rows = list(csv.DictReader(f))
             cases.append(summarise(case, os.path.join(out, "runs"), rows))
-    columns = ["case", "stop_branch", "stop_generation", "needle_mm", "needle_angle_deg", "straight_miss_mm", "runs", "reached", "generation_median",
+    columns = ["case", "stop_branch", "stop_generation", "needle_mm", "needle_angle_deg", "straight_miss_mm", "runs",
+               "reached", "generation_median",
                "everted_mm", "time_s", "needle_pushed", "aim_angle_deg", "punctured", "biopsy", "needle_to_nodule_mm",
                "wall_N_median",
                "wall_N_max", "failures"]

@@ -142,7 +142,10 @@ void write_experiment_outputs(const ExperimentScene& scene, const ExperimentResu
                    {"straight_miss_m", plan.straight_miss},
                    {"best_straight_miss_m", plan.best_straight_miss},
                    {"best_straight_branch",
-                    scene.anatomy->graph->branches[static_cast<std::size_t>(plan.best_straight_branch)].name},
+                    plan.best_straight_branch < 0
+                        ? nlohmann::json()
+                        : nlohmann::json(
+                              scene.anatomy->graph->branches[static_cast<std::size_t>(plan.best_straight_branch)].name)},
                    {"tip_to_stop_m", (tip - plan.start).norm()}};
     // The puncture (robot/needle.hpp): null fields when the vine did not reach its stop.
     nlohmann::json& b = j["biopsy"];

@@ -366,11 +366,12 @@ GrowthStatus grow_step(const GrowthModel& model, const RodField& field, const Gr
                        GrowthState& state, GrowthWorkspace& workspace, double dt);
 
 /// A step whose load moves within it (the airway's breathing, a needle's advance), which grow_step's own retries
-/// (halves of the growth) do not cut: taken as one grow_step, and while it fails, again from `state` as it was in
-/// `splits[1]`, `splits[2]`, … pieces (e.g. {1, 2, 4}) of dt/pieces each, a loading path. Before piece j of n
-/// (1-based), `load_to(j, n)` sets the load there (the caller's: it owns `control` and the world); after each
-/// converged piece `reached(j, n)` is called (may be empty). Returns the last attempt's status with the events of
-/// all its pieces; on failure `state` is the last converged piece's, as grow_step leaves it.
+/// (halves of the growth) do not cut: taken in `splits[0]` pieces of dt/pieces each (1: the whole step), and while
+/// that fails again from `state` as it was, in `splits[1]`, then `splits[2]`, … pieces: a loading path (e.g.
+/// {1, 2, 4}). Before piece j of n (1-based) `load_to(j, n)` sets the load there: `control` is read afresh for every
+/// piece, so load_to may change the caller's object it refers to (and the world). After each converged piece
+/// `reached(j, n)` is called (may be empty). Returns the last attempt's status with the events of all its pieces;
+/// on failure `state` is the last converged piece's, as grow_step leaves it.
 GrowthStatus grow_step_in_pieces(const GrowthModel& model, const RodField& field, const GrowthControl& control,
                                  GrowthState& state, GrowthWorkspace& workspace, double dt,
                                  std::initializer_list<int> splits, const std::function<void(int, int)>& load_to,
