@@ -113,8 +113,10 @@ def summarise(case, runs_dir, rows):
         "stop_branch": stop.get("stop_branch", ""),
         "stop_generation": stop.get("stop_branch", "").count("-") if stop else "",
         "needle_mm": round(1e3 * stop["needle_m"], 1) if stop else "",
-        "needle_angle_deg": round(stop["needle_angle_deg"], 1) if stop else "",
-        "straight_miss_mm": round(1e3 * stop["best_straight_miss_m"], 1) if stop else "",
+        "needle_angle_deg": round(stop["needle_angle_deg"], 1) if stop.get("needle_angle_deg") is not None else "",
+        # over every node the tool fits to, not the stop's own (older runs' metrics lack it: left blank)
+        "best_straight_miss_mm": round(1e3 * stop["best_straight_miss_m"], 1)
+        if stop.get("best_straight_miss_m") is not None else "",
         "aim_angle_deg": round(statistics.median(aims), 1) if aims else "",
         "runs": n,
         "reached": len(reached),
@@ -228,15 +230,18 @@ def main():
                                text=True)
             trials = os.path.join(out, "trials.csv")
             if r.returncode != 0 or not os.path.exists(trials):
-                # No trials ran (e.g. the planner found no stop): the row says so, the reason in its failures.
-                cases.append({"case": case, "runs": 0, "stop_branch": "none", "stop_generation": "—",
-                              "failures": r.stderr.strip().splitlines()[-1].replace(";", ",") if r.stderr
-                              else f"magvine trials exited {r.returncode}"})
+                # No trials ran: the reason in the row's failures; "none" for the stop where the planner found none.
+                said = r.stderr.strip()
+                reason = said.splitlines()[-1].replace(";", ",") if said else f"magvine trials exited {r.returncode}"
+                no_stop = "no stop reaches the nodule" in reason
+                cases.append({"case": case, "runs": 0, "stop_branch": "none" if no_stop else "",
+                              "stop_generation": "—" if no_stop else "", "failures": reason})
                 continue
             with open(trials, newline="") as f:
                 rows = list(csv.DictReader(f))
             cases.append(summarise(case, os.path.join(out, "runs"), rows))
-    columns = ["case", "stop_branch", "stop_generation", "needle_mm", "needle_angle_deg", "straight_miss_mm", "runs",
+    columns = ["case", "stop_branch", "stop_generation", "needle_mm", "needle_angle_deg", "best_straight_miss_mm",
+               "runs",
                "reached", "generation_median",
                "everted_mm", "time_s", "needle_pushed", "aim_angle_deg", "punctured", "biopsy", "needle_to_nodule_mm",
                "wall_N_median",
@@ -248,14 +253,16 @@ def main():
             w.writerow({k: c.get(k, "") for k in columns})
     with open(os.path.join(a.out, "case_study.md"), "w") as f:
         f.write("| case | stop (generation) | needle [mm] | needle's turn from the branch [deg] | "
-                "a tip that cannot turn misses by [mm] | reached | generation reached | everted [mm] | time [s] | "
+                "a tip that cannot turn misses by, at best [mm] | reached | generation reached | everted [mm] | "
+                "time [s] | "
                 "needle pushed | tip's angle to the nodule [deg] | punctured | biopsy | needle tip to nodule [mm] | "
                 "peak wall force, median / largest [N] |\n")
         f.write("|---|---|---|---|---|---|---|---|---|---|---|---|---|---|---|\n")
         for c in cases:
             n = c.get("runs", 0)
             f.write(f"| {c['case']} | {c.get('stop_branch', '')} ({c.get('stop_generation', '')}) | "
-                    f"{c.get('needle_mm', '')} | {c.get('needle_angle_deg', '')} | {c.get('straight_miss_mm', '')} | "
+                    f"{c.get('needle_mm', '')} | {c.get('needle_angle_deg', '')} | "
+                    f"{c.get('best_straight_miss_mm', '')} | "
                     f"{c.get('reached', 0)}/{n} | {c.get('generation_median', '')} | "
                     f"{c.get('everted_mm', '')} | {c.get('time_s', '')} | {c.get('needle_pushed', 0)}/{n} | "
                     f"{c.get('aim_angle_deg', '')} | "

@@ -84,7 +84,7 @@ TEST(BiopsyPlan, ReportsHowFarATipThatCannotTurnMisses) {
                                        {.tool_radius = 2.5e-3, .max_angle = std::numbers::pi / 2});
   ASSERT_TRUE(ahead.found) << ahead.why;
   EXPECT_NEAR(ahead.best_straight_miss, 0.004, 1e-9);
-  EXPECT_GE(ahead.straight_miss, ahead.best_straight_miss);
+  EXPECT_NEAR(ahead.straight_miss, 0.004, 1e-9);  // the stop's own ray runs down the axis too
 }
 
 // A tool wider than the lumen reaches no node; a needle limit below 20 mm rules every stop out as too long.
@@ -99,6 +99,8 @@ TEST(BiopsyPlan, SaysWhyWhenNoStopWorks) {
   const BiopsyPlan shortn = plan_biopsy(t.graph, world, nodule, {.tool_radius = 2.5e-3, .max_needle = 0.019});
   EXPECT_FALSE(shortn.found);
   EXPECT_EQ(shortn.too_long + shortn.too_steep, shortn.reachable);
+  // ... and how near a tip pointing down the tube comes: 26 mm (the nodule's offset from the axis).
+  EXPECT_NE(shortn.why.find("passes the nodule's centre at 26.0 mm at best"), std::string::npos) << shortn.why;
   EXPECT_GT(shortn.too_long, 0u);
 }
 

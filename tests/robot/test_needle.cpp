@@ -156,7 +156,7 @@ TEST(Needle, AStiffPunctureMakesTheTipSlideBack) {
 // the whole step's load: the first try fails, and the retry in two pieces, the load set before each (none here),
 // starts again from where the step began and ends where two plain half steps from there end, bit for bit. A load
 // that fails in every split leaves the run failed after the splits asked for, each tried once.
-TEST(Needle, AStepThatFailsIsTakenAgainInPiecesFromWhereItBegan) {
+TEST(GrowStepInPieces, AStepThatFailsIsTakenAgainInPiecesFromWhereItBegan) {
   const Tube tube(capped_tube(8e-3));
   Grown g = grow(tube, 30e-3);
   const GrowthState start = g.state;
@@ -192,6 +192,10 @@ TEST(Needle, AStepThatFailsIsTakenAgainInPiecesFromWhereItBegan) {
   EXPECT_FALSE(fails.converged);
   EXPECT_FALSE(fails.failure.empty());
   EXPECT_EQ(loads, (std::vector<std::pair<int, int>>{{1, 1}, {1, 2}}));
+  EXPECT_EQ(g.state.body.x.back(), start.body.x.back());  // the last converged state: the step's start
+  const auto none = [](int, int) {};
+  EXPECT_THROW(grow_step_in_pieces(g.model, {}, plain, g.state, g.ws, 0.05, {}, none), InputError);
+  EXPECT_THROW(grow_step_in_pieces(g.model, {}, plain, g.state, g.ws, 0.05, {1, 0}, none), InputError);
 }
 
 }  // namespace

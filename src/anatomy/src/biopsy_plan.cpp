@@ -7,6 +7,8 @@
 #include <sstream>
 #include <vector>
 
+#include "magvine/core/text.hpp"
+
 namespace magvine::anatomy {
 
 namespace {
@@ -109,8 +111,8 @@ BiopsyPlan plan_biopsy(const AirwayGraph& graph, const CollisionWorld& world, co
       << options.max_angle * 180.0 / std::numbers::pi << " deg from the branch, " << plan.too_long << " need more than "
       << 1e3 * options.max_needle << " mm of needle, " << plan.through_airway << " would cross another airway";
     if (plan.best_straight_branch >= 0) {
-      s << " (a tip pointing along its branch passes the nodule's centre at " << 1e3 * plan.best_straight_miss
-        << " mm at best, in branch " << graph.branches[static_cast<std::size_t>(plan.best_straight_branch)].name << ")";
+      s << " (a tip pointing along its branch passes the nodule's centre at "
+        << printf_string("%.1f", 1e3 * plan.best_straight_miss) << " mm at best, in branch " << graph.branches[static_cast<std::size_t>(plan.best_straight_branch)].name << ")";
     }
     plan.why = s.str();
   }

@@ -979,6 +979,9 @@ GrowthStatus grow_step_in_pieces(const GrowthModel& model, const RodField& field
                                  GrowthState& state, GrowthWorkspace& workspace, double dt,
                                  std::initializer_list<int> splits, const std::function<void(int, int)>& load_to,
                                  const std::function<void(int, int)>& reached) {
+  if (splits.size() == 0 || std::any_of(splits.begin(), splits.end(), [](int n) { return n < 1; })) {
+    throw InputError("grow_step_in_pieces: the splits must be one or more piece counts, each at least 1");
+  }
   const GrowthState start = state;
   GrowthStatus r;
   bool first = true;

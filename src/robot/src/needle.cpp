@@ -173,6 +173,7 @@ PunctureReport push_needle(const GrowthModel& model, const RodField& field, cons
       break;
     }
   }
+  out.held_force = held;
   out.to_nodule = (out.needle_tip - nodule).norm();
   if (out.held && out.target_protrusion <= 0.0) {
     out.why = "the nodule lies behind the tip's direction: the needle cannot be aimed at it";

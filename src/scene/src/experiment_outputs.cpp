@@ -139,6 +139,7 @@ void write_experiment_outputs(const ExperimentScene& scene, const ExperimentResu
                    {"needle_direction", vec(plan.direction)},
                    {"needle_m", plan.needle},
                    {"needle_angle_deg", plan.angle / kDegToRad},
+                   {"stop_lumen_diameter_m", 2.0 * plan.lumen_radius},
                    {"straight_miss_m", plan.straight_miss},
                    {"best_straight_miss_m", plan.best_straight_miss},
                    {"best_straight_branch",
@@ -163,6 +164,7 @@ void write_experiment_outputs(const ExperimentScene& scene, const ExperimentResu
     b["needle_tip_m"] = p ? vec(p->needle_tip) : nlohmann::json();
     b["needle_to_nodule_m"] = p ? nlohmann::json(p->to_nodule) : nlohmann::json();
     b["max_reaction_N"] = p ? nlohmann::json(p->max_force) : nlohmann::json();
+    b["held_reaction_N"] = p ? nlohmann::json(p->held_force) : nlohmann::json();
     b["wall_share"] = p ? nlohmann::json(p->wall_share) : nlohmann::json();
     b["max_unsupported"] = p ? nlohmann::json(p->max_unsupported) : nlohmann::json();
     b["max_wall_normal_N"] = p ? nlohmann::json(p->max_normal) : nlohmann::json();

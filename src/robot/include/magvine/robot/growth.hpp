@@ -371,7 +371,8 @@ GrowthStatus grow_step(const GrowthModel& model, const RodField& field, const Gr
 /// {1, 2, 4}). Before piece j of n (1-based) `load_to(j, n)` sets the load there: `control` is read afresh for every
 /// piece, so load_to may change the caller's object it refers to (and the world). After each converged piece
 /// `reached(j, n)` is called (may be empty). Returns the last attempt's status with the events of all its pieces;
-/// on failure `state` is the last converged piece's, as grow_step leaves it.
+/// on failure `state` is the last converged piece's, as grow_step leaves it. Throws InputError for no splits or a
+/// piece count below 1.
 GrowthStatus grow_step_in_pieces(const GrowthModel& model, const RodField& field, const GrowthControl& control,
                                  GrowthState& state, GrowthWorkspace& workspace, double dt,
                                  std::initializer_list<int> splits, const std::function<void(int, int)>& load_to,

@@ -93,6 +93,9 @@ struct PunctureReport {
   bool held = true;                ///< the vine held (slid back less than max_slide, and found its equilibrium)
   double slide = 0.0;              ///< the largest slide back [m]
   double max_force = 0.0;          ///< the largest reaction [N]
+  /// The largest reaction at an equilibrium whose slide back was within max_slide: what the vine held [N] (below
+  /// max_force when the tip slid back past the limit under the last one).
+  double held_force = 0.0;
   double max_imbalance = 0.0;      ///< the largest PunctureStep::imbalance
   double max_unsupported = 0.0;    ///< the largest PunctureStep::unsupported
   /// At the largest reaction: the share of it the walls take up, |wall·R̂|/|R| (the rest: the clamp).
