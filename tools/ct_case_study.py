@@ -4,8 +4,8 @@ from the trachea to the stop from which a straight needle reaches the patient's 
 repeats with and without breathing, as one table.
 
     /usr/bin/python3 tools/ct_case_study.py SEGMENTATIONS_DIR --out DIR [--magvine BIN] [--repeats 4] [--jobs 2]
-        [--patients 1,2,3,4,5] [--diameter 3] [--needle 100] [--max-angle DEG] [--no-breathing]
-        [--guidance oracle|camera] [--figure CASE]
+        [--patients 1,2,3,4,5] [--diameter 3] [--needle 100] [--max-angle DEG] [--start K|nearest]
+        [--no-breathing] [--guidance oracle|camera] [--figure CASE]
 
 SEGMENTATIONS_DIR holds Patient1..5/ (bronchialTree.nii.gz, target.txt), e.g. ../shared/airways/segmentations.
 For each patient and breathing setting it writes DIR/scenes/<case>.yaml (the segmentation imported by the scene,
@@ -18,11 +18,13 @@ the generation reached (median), the everted length and the time to the stop (me
 needle pushed (the puncture phase ran), the tip's angle to the nodule after aiming (median), punctured (the needle
 passed the wall's puncture depth) and biopsy k/N, the needle tip's distance to the nodule (median over the runs that
 pushed it), the largest wall force (median over the runs, and the largest), and the failures' reasons. --max-angle
-sets the planner's largest turn (degrees; the scene's default, 60, otherwise); --guidance camera steers by the tip
-camera and the plan instead of the tip's true position (docs/experiments.md, camera guidance). --figure CASE (e.g.
-patient1) runs that case's scene once, unperturbed, with the tip camera filmed, and draws DIR/<case>_frames.png: the
-tip camera at each branch point on the way (the first frame in each new branch) and at the end (the puncture, with
-the needle drawn beside the lens). A missing input gives one line on stderr and exit status 2.
+sets the planner's largest turn (degrees; the scene's default, 60, otherwise); --start K|nearest stops at the node
+nearest the dataset's start pose K (startK.txt; nearest: the one nearest the nodule) instead of the planner's
+choice; --guidance camera steers by the tip camera and the plan instead of the tip's true position
+(docs/experiments.md, camera guidance). --figure CASE (e.g. patient1) runs that case's scene once, unperturbed, with
+the tip camera filmed, and draws DIR/<case>_frames.png: the tip camera at each branch point on the way (the first
+frame in each new branch) and at the end (the puncture, with the needle drawn beside the lens). A missing input
+gives one line on stderr and exit status 2.
 """
 import argparse
 import csv
@@ -57,7 +59,7 @@ magnets:
 control:
   pressure: [[0, 35]]
   navigator:
-    target: {{nodule: {target}, max_needle: {needle}{max_angle}, needle: {{length: {needle}}}}}
+    target: {{nodule: {target}{limits}, needle: {{length: {needle}}}}}
     magnet: 0
     distance: 110
 {boost}{guidance}    recover: {{retries: 3}}
@@ -134,6 +136,33 @@ def summarise(case, runs_dir, rows):
     }
 
 
+def start_pose(folder, which):
+    """The path of the patient's start pose file: startK.txt, or for "nearest" the one whose position (the 4x4 pose's
+    translation, mm) lies nearest the nodule of target.txt."""
+    if which != "nearest":
+        path = os.path.join(folder, f"start{which}.txt")
+        if not os.path.exists(path):
+            fail(path, "missing")
+        return path
+    with open(os.path.join(folder, "target.txt")) as f:
+        nodule = [float(x) for x in f.read().split()[:3]]
+    best, best_d = "", float("inf")
+    for k in range(1, 100):
+        path = os.path.join(folder, f"start{k}.txt")
+        if not os.path.exists(path):
+            break
+        with open(path) as f:
+            m = [float(x) for x in f.read().split()]
+        if len(m) != 16:
+            fail(path, "needs 16 numbers (a 4x4 pose)")
+        d = sum((m[4 * i + 3] - nodule[i]) ** 2 for i in range(3)) ** 0.5
+        if d < best_d:
+            best, best_d = path, d
+    if not best:
+        fail(os.path.join(folder, "start1.txt"), "missing")
+    return best
+
+
 def boost_line(diameter):
     """The navigator's pressure boost for a held tip: 45 kPa up to Ø3 mm, 42 up to Ø4 mm (the generation-4 scene's);
     none above Ø4 mm, where the 38 µm film bursts not far above the 35 kPa it grows at (35.7 kPa at Ø5 mm,
@@ -197,6 +226,9 @@ def main():
     p.add_argument("--needle", type=float, default=100.0, help="the needle's length and the planner's limit [mm]")
     p.add_argument("--max-angle", type=float, default=None,
                    help="the planner's largest turn of the needle from the branch [degrees] (default: the scene's)")
+    p.add_argument("--start", default="",
+                   help="stop at the dataset's start pose K (startK.txt), or the one nearest the nodule (nearest), "
+                        "instead of the planner's choice")
     p.add_argument("--guidance", choices=["oracle", "camera"], default="oracle",
                    help="the navigator's guidance: the tip's true position, or the tip camera and the plan")
     p.add_argument("--no-breathing", action="store_true")
@@ -211,6 +243,7 @@ def main():
         for f in ("bronchialTree.nii.gz", "target.txt"):
             if not os.path.exists(os.path.join(folder, f)):
                 fail(os.path.join(folder, f), "missing")
+        start = start_pose(folder, a.start) if a.start else ""
         for breathing in ([False] if a.no_breathing else [False, True]):
             case = f"patient{patient}" + ("_breathing" if breathing else "")
             scene = os.path.join(a.out, "scenes", case + ".yaml")
@@ -220,7 +253,9 @@ def main():
                     seed=patient, segmentation=os.path.join(folder, "bronchialTree.nii.gz"),
                     breathing="  breathing: {period: 4}\n" if breathing else "", diameter=a.diameter,
                     target=os.path.join(folder, "target.txt"), needle=a.needle,
-                    max_angle=f", max_angle: {a.max_angle:g}" if a.max_angle is not None else "",
+                    limits=(f", stop: {start}" if start else
+                            f", max_needle: {a.needle:g}"
+                            + (f", max_angle: {a.max_angle:g}" if a.max_angle is not None else "")),
                     boost=boost_line(a.diameter),
                     guidance="    guidance: {mode: camera, frames: false}\n" if a.guidance == "camera" else ""))
             out = os.path.join(a.out, case)

@@ -80,11 +80,37 @@ TEST(BiopsyPlan, ReportsHowFarATipThatCannotTurnMisses) {
   EXPECT_NEAR(beside.straight_miss, 0.026, 1e-9);
   EXPECT_NEAR(beside.best_straight_miss, 0.026, 1e-9);
   EXPECT_EQ(beside.best_straight_branch, 0);
-  const BiopsyPlan ahead = plan_biopsy(t.graph, world, Vec3(0.13, 0.004, 0.0),
-                                       {.tool_radius = 2.5e-3, .max_angle = std::numbers::pi / 2});
+  const BiopsyPlan ahead =
+      plan_biopsy(t.graph, world, Vec3(0.13, 0.004, 0.0), {.tool_radius = 2.5e-3, .max_angle = std::numbers::pi / 2});
   ASSERT_TRUE(ahead.found) << ahead.why;
   EXPECT_NEAR(ahead.best_straight_miss, 0.004, 1e-9);
   EXPECT_NEAR(ahead.straight_miss, 0.004, 1e-9);  // the stop's own ray runs down the axis too
+}
+
+// A given stop (a planning problem's start pose on the wall): its nearest node the tool fits to is the stop, taken
+// as given. Pose on the wall at x = 30 mm, y = 6 mm: the node (30, 0, 0), 6 mm from it; the needle towards the
+// nodule (60, 26, 0) leaves at θ = atan(26/30) to the axis and runs √(30² + 26²) − 6/sin θ = 30.54 mm in tissue. A
+// pose at x = 55 mm, where the needle must turn 79°, beyond the 60° limit, is still taken.
+TEST(BiopsyPlan, AGivenStopIsTakenAtItsNearestNode) {
+  const Tube t = tube();
+  const CollisionWorld world(t.mesh);
+  const Vec3 nodule(0.06, 0.026, 0.0);
+  const BiopsyPlan p = plan_biopsy(t.graph, world, nodule, {.tool_radius = 2.5e-3, .stop = Vec3(0.03, kR, 0.0)});
+  ASSERT_TRUE(p.found) << p.why;
+  EXPECT_NEAR(p.start.x(), 0.03, 1e-12);
+  EXPECT_NEAR(p.given_distance, kR, 1e-12);
+  const double theta = std::atan2(0.026, 0.030);
+  EXPECT_NEAR(p.angle, theta, 1e-9);
+  EXPECT_NEAR(p.needle, std::hypot(0.030, 0.026) - kR / std::sin(theta), 1e-5);  // the 256-gon's wall: 0.5 µm
+  EXPECT_FALSE(p.crosses_airway);
+  const BiopsyPlan steep = plan_biopsy(t.graph, world, nodule, {.tool_radius = 2.5e-3, .stop = Vec3(0.055, 0, 0)});
+  ASSERT_TRUE(steep.found) << steep.why;
+  EXPECT_NEAR(steep.angle, std::atan2(0.026, 0.005), 1e-9);
+  // A nodule in the lumen seen from the given stop: refused, saying why.
+  const BiopsyPlan in_lumen =
+      plan_biopsy(t.graph, world, Vec3(0.09, 0.001, 0.0), {.tool_radius = 2.5e-3, .stop = Vec3(0.03, 0, 0)});
+  EXPECT_FALSE(in_lumen.found);
+  EXPECT_NE(in_lumen.why.find("inside the lumen"), std::string::npos) << in_lumen.why;
 }
 
 // A tool wider than the lumen reaches no node; a needle limit below 20 mm rules every stop out as too long.

@@ -322,6 +322,30 @@ TEST(Experiment, NavigatorTakesANoduleAndStopsWhereTheNeedleReachesIt) {
   limited.replace(limited.size() - 1, 1, ", max_needle: 5}");
   const std::string shortn = replaced(text, "target: \"0-0-1\"", limited);
   EXPECT_NE(error_of(shortn).find("no stop reaches the nodule"), std::string::npos) << error_of(shortn);
+
+  // A given stop from a planning problem's start pose file (Med-MPD's startN.txt: a 4×4 pose by rows, mm): the
+  // stop is the node the tool fits to nearest the pose's position, here the leaf's second-last node itself.
+  const Vec3 pose = g.nodes[b.nodes[b.nodes.size() - 2]].position;
+  const std::filesystem::path pose_file = std::filesystem::temp_directory_path() / "magvine_start_pose.txt";
+  {
+    std::ofstream out(pose_file);
+    out.precision(17);
+    out << "1 0 0 " << 1e3 * pose.x() << "\n0 1 0 " << 1e3 * pose.y() << "\n0 0 1 " << 1e3 * pose.z() << "\n0 0 0 1\n";
+  }
+  std::string given = target.str();
+  given.replace(given.size() - 1, 1, ", stop: " + pose_file.string() + "}");
+  const ExperimentScene at =
+      parse_experiment_scene(replaced(text, "target: \"0-0-1\"", given), file.string(), file.parent_path());
+  ASSERT_TRUE(at.biopsy.has_value());
+  EXPECT_EQ(at.biopsy->plan.node, b.nodes[b.nodes.size() - 2]);
+  EXPECT_LT(at.biopsy->plan.given_distance, 1e-9);
+  EXPECT_EQ(*at.target, at.biopsy->plan.start);
+  std::string both = given;
+  both.replace(both.size() - 1, 1, ", max_angle: 30}");
+  EXPECT_NE(error_of(replaced(text, "target: \"0-0-1\"", both)).find("taken as given"), std::string::npos);
+  std::ofstream(pose_file) << "1 0 0 1\n0 1 0 2\n";  // 8 numbers
+  EXPECT_NE(error_of(replaced(text, "target: \"0-0-1\"", given)).find("needs 16 finite numbers"), std::string::npos);
+  std::filesystem::remove(pose_file);
 }
 
 TEST(Experiment, NavigatorSteersIntoEitherDaughterOfTheYAndToGenerationTwoOfTheTree) {

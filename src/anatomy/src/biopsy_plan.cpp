@@ -31,6 +31,10 @@ BiopsyPlan plan_biopsy(const AirwayGraph& graph, const CollisionWorld& world, co
                        const BiopsyOptions& options) {
   BiopsyPlan plan;
   std::vector<BiopsyPlan> candidates;  // every stop that passes the rules, in graph order
+  // A given stop: the reachable node nearest to it, taken whatever the rules say (evaluated after the walk).
+  const AirwayBranch* given_branch = nullptr;
+  std::size_t given_k = 0;
+  double given_distance = std::numeric_limits<double>::infinity();
   // Branches the tool fits into: their parent fits and every node is wide enough (a branch's first node is its
   // parent's last, already checked).
   std::vector<char> fits(graph.branches.size(), 0);
@@ -43,6 +47,11 @@ BiopsyPlan plan_biopsy(const AirwayGraph& graph, const CollisionWorld& world, co
       if (k + 1 == b.nodes.size()) fits[static_cast<std::size_t>(b.id)] = 1;
       if (b.parent >= 0 && k == 0) continue;  // the parent's end node, already a candidate
       ++plan.reachable;
+      if (options.stop && (node.position - *options.stop).norm() < given_distance) {
+        given_distance = (node.position - *options.stop).norm();
+        given_branch = &b;
+        given_k = k;
+      }
       const Vec3 d = nodule - node.position;
       const double length = d.norm();
       if (!(length > 0.0)) continue;
@@ -55,6 +64,7 @@ BiopsyPlan plan_biopsy(const AirwayGraph& graph, const CollisionWorld& world, co
         plan.best_straight_miss = miss;
         plan.best_straight_branch = b.id;
       }
+      if (options.stop) continue;  // the given stop is the only candidate
       if (forward > options.max_angle) {
         ++plan.too_steep;
         continue;
@@ -85,6 +95,39 @@ BiopsyPlan plan_biopsy(const AirwayGraph& graph, const CollisionWorld& world, co
       candidates.push_back(c);
     }
   }
+  if (options.stop) {
+    if (given_branch == nullptr) {
+      plan.why =
+          printf_string("no centreline node is reachable by a tool of radius %.1f mm", 1e3 * options.tool_radius);
+      return plan;
+    }
+    const std::uint32_t n = given_branch->nodes[given_k];
+    const AirwayNode& node = graph.nodes[n];
+    const Vec3 d = nodule - node.position;
+    const auto exit = d.norm() > 0.0 ? world.ray_cast(node.position, d.normalized(), d.norm()) : std::nullopt;
+    if (!exit) {
+      plan.why = printf_string(
+          "the given stop's nearest reachable node (branch %s, %.1f mm from it) sees the nodule inside the lumen: "
+          "no wall to pass",
+          given_branch->name.c_str(), 1e3 * given_distance);
+      return plan;
+    }
+    const Vec3 dir = d.normalized();
+    const Vec3 along = tangent_at(graph, *given_branch, given_k);
+    plan.found = true;
+    plan.node = n;
+    plan.branch = given_branch->id;
+    plan.start = node.position;
+    plan.wall = exit->point;
+    plan.direction = dir;
+    plan.needle = d.norm() - exit->distance;
+    plan.angle = std::acos(std::clamp(dir.dot(along), -1.0, 1.0));
+    plan.straight_miss = straight_miss(node.position, along, nodule);
+    plan.lumen_radius = node.radius;
+    plan.given_distance = given_distance;
+    plan.crosses_airway = world.segment_crosses(exit->point + 1e-6 * dir, nodule);
+    return plan;
+  }
   // The shortest needle, and of those within needle_tolerance of it the one the tip needs to turn least for
   // (then the shorter needle, then the first in graph order).
   double shortest = std::numeric_limits<double>::infinity();
@@ -112,7 +155,8 @@ BiopsyPlan plan_biopsy(const AirwayGraph& graph, const CollisionWorld& world, co
       << 1e3 * options.max_needle << " mm of needle, " << plan.through_airway << " would cross another airway";
     if (plan.best_straight_branch >= 0) {
       s << " (a tip pointing along its branch passes the nodule's centre at "
-        << printf_string("%.1f", 1e3 * plan.best_straight_miss) << " mm at best, in branch " << graph.branches[static_cast<std::size_t>(plan.best_straight_branch)].name << ")";
+        << printf_string("%.1f", 1e3 * plan.best_straight_miss) << " mm at best, in branch "
+        << graph.branches[static_cast<std::size_t>(plan.best_straight_branch)].name << ")";
     }
     plan.why = s.str();
   }

@@ -485,9 +485,8 @@ bool Experiment::Impl::step(const StepRequest& request) {
     // blocked tip's step is the same problem in every half of its growth; measured: a generation-4 trial whose lag
     // did not settle at 9.26 s in any of grow_step's halves settled as 2 moves of the airway).
     const double from = state.time;
-    r = robot::grow_step_in_pieces(model, field, control, state, workspace, dt, {1, 2, 4}, [&](int j, int pieces) {
-      breathe_to(j == pieces ? t : from + dt * j / pieces);
-    });
+    r = robot::grow_step_in_pieces(model, field, control, state, workspace, dt, {1, 2, 4},
+                                   [&](int j, int pieces) { breathe_to(j == pieces ? t : from + dt * j / pieces); });
     if (!r.converged) r.failure += " (also with the airway's motion in the step taken as 2 and 4 moves)";
   }
   pressure_now = control.pressure;

@@ -131,23 +131,29 @@ void write_experiment_outputs(const ExperimentScene& scene, const ExperimentResu
   if (scene.biopsy) {
     const Vec3& nodule = scene.biopsy->nodule;
     const anatomy::BiopsyPlan& plan = scene.biopsy->plan;
-    j["biopsy"] = {{"nodule_m", vec(nodule)},
-                   {"nodule_radius_m", scene.biopsy->radius},
-                   {"stop_m", vec(plan.start)},
-                   {"stop_branch", scene.anatomy->graph->branches[static_cast<std::size_t>(plan.branch)].name},
-                   {"wall_m", vec(plan.wall)},
-                   {"needle_direction", vec(plan.direction)},
-                   {"needle_m", plan.needle},
-                   {"needle_angle_deg", plan.angle / kDegToRad},
-                   {"stop_lumen_diameter_m", 2.0 * plan.lumen_radius},
-                   {"straight_miss_m", plan.straight_miss},
-                   {"best_straight_miss_m", plan.best_straight_miss},
-                   {"best_straight_branch",
-                    plan.best_straight_branch < 0
-                        ? nlohmann::json()
-                        : nlohmann::json(
-                              scene.anatomy->graph->branches[static_cast<std::size_t>(plan.best_straight_branch)].name)},
-                   {"tip_to_stop_m", (tip - plan.start).norm()}};
+    j["biopsy"] = {
+        {"nodule_m", vec(nodule)},
+        {"nodule_radius_m", scene.biopsy->radius},
+        {"stop_m", vec(plan.start)},
+        {"stop_branch", scene.anatomy->graph->branches[static_cast<std::size_t>(plan.branch)].name},
+        {"wall_m", vec(plan.wall)},
+        {"needle_direction", vec(plan.direction)},
+        {"needle_m", plan.needle},
+        {"needle_angle_deg", plan.angle / kDegToRad},
+        {"stop_lumen_diameter_m", 2.0 * plan.lumen_radius},
+        {"straight_miss_m", plan.straight_miss},
+        {"best_straight_miss_m", plan.best_straight_miss},
+        {"best_straight_branch",
+         plan.best_straight_branch < 0
+             ? nlohmann::json()
+             : nlohmann::json(
+                   scene.anatomy->graph->branches[static_cast<std::size_t>(plan.best_straight_branch)].name)},
+        {"tip_to_stop_m", (tip - plan.start).norm()}};
+    if (scene.biopsy->given_stop) {  // a given stop: how far its node lies from it, and whether the needle crosses
+      j["biopsy"]["given_stop_m"] = vec(*scene.biopsy->given_stop);
+      j["biopsy"]["given_stop_distance_m"] = plan.given_distance;
+      j["biopsy"]["needle_crosses_airway"] = plan.crosses_airway;
+    }
     // The puncture (robot/needle.hpp): null fields when the vine did not reach its stop.
     nlohmann::json& b = j["biopsy"];
     const std::optional<robot::PunctureReport>& p = result.puncture;

@@ -660,6 +660,25 @@ Vec3 nodule_file(const YamlMap& t, const std::filesystem::path& directory) {
   return 1e-3 * x;
 }
 
+/// A planning problem's start pose (Med-MPD's startN.txt: a 4×4 homogeneous matrix by rows, 16 numbers, lengths in
+/// mm): its position, the translation column [m].
+Vec3 pose_file_position(const YamlMap& t, const std::filesystem::path& directory) {
+  const std::filesystem::path file = directory / t.text("stop");
+  std::istringstream in(read_text_file(file.string(), "start pose file"));
+  double m[16];
+  for (double& v : m) {
+    if (!(in >> v) || !std::isfinite(v) || std::abs(v) > 1e4) {
+      t.fail("stop", file.string() + ": needs 16 finite numbers (a 4x4 pose by rows, mm), as Med-MPD's startN.txt");
+    }
+  }
+  std::string rest;
+  if (in >> rest) t.fail("stop", file.string() + ": more than 16 numbers (a 4x4 pose by rows, mm)");
+  if (m[12] != 0.0 || m[13] != 0.0 || m[14] != 0.0 || m[15] != 1.0) {
+    t.fail("stop", file.string() + ": the last row of a 4x4 pose must be 0 0 0 1");
+  }
+  return 1e-3 * Vec3(m[3], m[7], m[11]);
+}
+
 /// control.navigator.guidance: the oracle (the tip's position read; the default) or the tip camera.
 std::optional<Navigator::Camera> parse_guidance(const YamlMap& g, const FileUnits& units) {
   g.allow_only({"mode", "size", "fov", "noise", "min_area", "junction_window", "frames"});
@@ -701,7 +720,7 @@ void parse_navigator(const YamlMap& n, const FileUnits& units, const std::filesy
   if (n.node("target").IsMap()) {
     // A nodule outside the airway: the stop from which a straight needle reaches it (anatomy/biopsy_plan.hpp).
     const YamlMap t = n.map("target");
-    t.allow_only({"nodule", "radius", "max_needle", "max_angle", "needle", "aim_time"});
+    t.allow_only({"nodule", "radius", "max_needle", "max_angle", "needle", "aim_time", "stop"});
     anatomy::BiopsyOptions options;
     options.tool_radius = scene.growth.rod ? scene.growth.rod->radius : scene.vine.radius;
     if (t.has("max_needle")) options.max_needle = t.quantity("max_needle", units.len, range::kDistance);
@@ -714,8 +733,16 @@ void parse_navigator(const YamlMap& n, const FileUnits& units, const std::filesy
     if (scene.anatomy->closed && scene.anatomy->world.contains(nodule)) {
       t.fail("nodule", "lies inside the airway lumen; a biopsy target lies in the tissue outside it");
     }
+    // A given stop: a point, or a planning problem's start pose file; its nearest node the tool fits to.
+    if (t.has("stop")) {
+      if (t.has("max_needle") || t.has("max_angle")) {
+        t.fail("stop", "a given stop is taken as given: max_needle and max_angle limit the planner's own choice");
+      }
+      options.stop = t.node("stop").IsScalar() ? pose_file_position(t, directory)
+                                               : t.vec3_quantity("stop", units.len, range::kCoordinate);
+    }
     const anatomy::BiopsyPlan plan = anatomy::plan_biopsy(*graph, scene.anatomy->world, nodule, options);
-    if (!plan.found) t.fail("nodule", plan.why);
+    if (!plan.found) t.fail(t.has("stop") ? "stop" : "nodule", plan.why);
     nav.target_branch = plan.branch;
     nav.target = graph->branches[static_cast<std::size_t>(plan.branch)].name;
     scene.target = plan.start;
@@ -723,6 +750,7 @@ void parse_navigator(const YamlMap& n, const FileUnits& units, const std::filesy
     Biopsy biopsy;
     biopsy.nodule = nodule;
     biopsy.plan = plan;
+    biopsy.given_stop = options.stop;
     if (t.has("radius")) biopsy.radius = t.quantity("radius", units.len, range::kSectionSize);
     if (t.has("aim_time")) biopsy.aim_time = t.quantity("aim_time", kSeconds, range::kTime);
     if (t.has("needle")) {

@@ -195,6 +195,7 @@ struct Biopsy {
   Vec3 nodule = Vec3::Zero();  ///< its centre [m]
   double radius = 5e-3;        ///< [m]
   anatomy::BiopsyPlan plan;
+  std::optional<Vec3> given_stop;  ///< target.stop, when given: the plan's stop is its nearest reachable node [m]
   robot::NeedleTool needle;
   double aim_time = 2.0;  ///< [s]
 };
