@@ -8,8 +8,10 @@ Each STUDY_DIR is a case study's output (its scenes/ and <case>/runs/*/metrics.j
 the tool does). For every run whose needle was pushed: the clearance (the stop's lumen diameter from the plan less
 the vine's diameter from the scene), the largest needle force the vine held (`held_reaction_N`: at an equilibrium
 within the slide limit; filled where it held the whole puncture, open where its tip then slid back past the limit)
-and the tip's angle to the nodule after aiming (the held panel leaves out needles that never met the tissue).
-Two panels side by side, one colour per vine diameter; --csv writes the points. A missing input gives one line on
+and the tip's angle to the nodule after aiming (the held panels leave out needles that never met the tissue); and
+the force held against the run's largest contact pressure over the film's (a pressurised film presses a flat patch
+at its own pressure: far above it, the contact model's rigid sphere carries the load). Three panels side by side,
+one colour per vine diameter; --csv writes the points. A missing input gives one line on
 stderr and exit status 2.
 """
 import argparse
@@ -31,15 +33,15 @@ def fail(path, problem):
     sys.exit(2)
 
 
-def scene_diameter(path):
-    """The vine's diameter [mm] in a case-study scene (robot.diameter, the scene's units are mm)."""
+def scene_value(path, key):
+    """robot.<key> of a case-study scene (the tool writes it as "  key: number"; units mm and kPa)."""
     try:
         with open(path) as f:
-            m = re.search(r"^\s+diameter:\s*([0-9.]+)\s*$", f.read(), re.MULTILINE)
+            m = re.search(r"^  " + key + r":\s*([0-9.]+)\s*$", f.read(), re.MULTILINE)
     except OSError:
         fail(path, "cannot read the case's scene")
     if not m:
-        fail(path, "no robot diameter in the scene")
+        fail(path, f"no robot {key} in the scene")
     return float(m.group(1))
 
 
@@ -53,7 +55,8 @@ def points(study):
         case = metrics.split(os.sep)[-4]
         try:
             with open(metrics) as f:
-                b = json.load(f).get("biopsy") or {}
+                m = json.load(f)
+            b = m.get("biopsy") or {}
         except (OSError, ValueError) as e:
             fail(metrics, f"unreadable ({e})")
         if not b.get("needle_pushed"):
@@ -61,13 +64,16 @@ def points(study):
         if b.get("stop_lumen_diameter_m") is None or b.get("held_reaction_N") is None:
             fail(metrics, "no biopsy.stop_lumen_diameter_m or held_reaction_N (written by magvine since 2026-12-06: "
                           "run the study again)")
-        vine = scene_diameter(os.path.join(scenes, case + ".yaml"))
+        scene = os.path.join(scenes, case + ".yaml")
+        vine = scene_value(scene, "diameter")
         rows.append({"case": case, "run": metrics.split(os.sep)[-2], "vine_mm": vine,
                      "lumen_mm": round(1e3 * b["stop_lumen_diameter_m"], 3),
                      "clearance_mm": round(1e3 * b["stop_lumen_diameter_m"] - vine, 3),
                      "held_N": b["held_reaction_N"], "held_all": bool(b.get("held")),
                      "met_tissue": (b.get("max_reaction_N") or 0.0) > 0.0,
-                     "aim_angle_deg": b.get("aim_angle_deg")})
+                     "aim_angle_deg": b.get("aim_angle_deg"),
+                     "film_kPa": scene_value(scene, "pressure"),
+                     "contact_kPa": round(1e-3 * m["max_contact_pressure_Pa"], 3)})
     return rows
 
 
@@ -85,7 +91,7 @@ def main():
             w = csv.DictWriter(f, fieldnames=list(rows[0].keys()))
             w.writeheader()
             w.writerows(rows)
-    fig, (left, right) = plt.subplots(1, 2, figsize=(10, 4))
+    fig, (left, middle, right) = plt.subplots(1, 3, figsize=(15, 4))
     colours = {}
     for r in rows:
         c = colours.setdefault(r["vine_mm"], f"C{len(colours)}")
@@ -93,6 +99,8 @@ def main():
         face = c if r["held_all"] else "none"
         if r["met_tissue"]:  # a needle that never met the tissue (aimed away) held nothing to speak of
             left.scatter(r["clearance_mm"], r["held_N"], edgecolors=c, facecolors=face, s=36, label=label)
+            middle.scatter(r["contact_kPa"] / r["film_kPa"], r["held_N"], edgecolors=c, facecolors=face, s=36,
+                           label=label)
         if r["aim_angle_deg"] is not None:
             right.scatter(r["clearance_mm"], r["aim_angle_deg"], edgecolors=c, facecolors=face, s=36, label=label)
     left.axhline(1.0, color="grey", lw=0.8, ls="--")
@@ -100,10 +108,16 @@ def main():
     left.set_xlabel("lumen Ø at the stop − vine Ø [mm]")
     left.set_ylabel("largest needle force held [N]")
     left.set_title("held (filled: the whole puncture; open: slid back)", fontsize=9)
+    middle.axhline(1.0, color="grey", lw=0.8, ls="--")
+    middle.axvline(1.0, color="grey", lw=0.8, ls=":")
+    middle.set_xscale("log")
+    middle.set_xlabel("the run's largest contact pressure / the film's pressure")
+    middle.set_ylabel("largest needle force held [N]")
+    middle.set_title("a film presses at most its own pressure (dotted)", fontsize=9)
     right.set_xlabel("lumen Ø at the stop − vine Ø [mm]")
     right.set_ylabel("tip's angle to the nodule after aiming [deg]")
     right.set_title("aimed (0°: the needle leaves towards the nodule)", fontsize=9)
-    for ax in (left, right):
+    for ax in (left, middle, right):
         handles, labels = ax.get_legend_handles_labels()
         unique = dict(zip(labels, handles))
         ax.legend(unique.values(), unique.keys(), fontsize=8)
