@@ -305,6 +305,12 @@ TEST(Experiment, NavigatorTakesANoduleAndStopsWhereTheNeedleReachesIt) {
     EXPECT_LE(st.imbalance, 0.02) << "at " << 1e3 * st.protrusion << " mm";
   }
   EXPECT_GT(p.max_force, 0.0) << "the needle never met the wall";
+  // Lying on the walls of the generated tree, the film presses them at its own pressure (film_contact_pressure)
+  // and no more anywhere on the way: no wedged node (a ratio far above 1, docs/growth-and-contact.md).
+  const std::optional<double> overload = film_overload(sc, run);
+  ASSERT_TRUE(overload.has_value());
+  std::printf("  largest contact pressure over the inflation pressure: %.4f\n", *overload);
+  EXPECT_NEAR(*overload, 1.0, 1e-9);
   EXPECT_EQ(p.held, p.slide <= sc.biopsy->needle.max_slide);
   EXPECT_EQ(p.success, p.held && p.to_nodule <= sc.biopsy->radius);
   // punctured: some increment's equilibrium put the needle's tip past d_p (a retried increment's last piece is its
@@ -618,9 +624,12 @@ TEST(Experiment, OutputsCarryTheContractKeys) {
   for (const char* key :
        {"success", "time_to_target_s", "final_tip_error_m", "tip_position_m", "everted_length_m", "tip_path_length_m",
         "branches_reached", "max_wall_normal_N", "mean_wall_normal_N", "max_wall_shear_N", "max_contact_pressure_Pa",
-        "max_force_imbalance", "stalls", "magnet_travel_m", "runtime_s", "real_time_factor", "converged", "seed"}) {
+        "max_force_imbalance", "stalls", "magnet_travel_m", "runtime_s", "real_time_factor", "converged", "seed",
+        "max_contact_pressure_over_inflation"}) {
     EXPECT_TRUE(m.contains(key)) << key;
   }
+  // Half a second in, the body has not touched the trachea yet: no contact pressure.
+  EXPECT_EQ(m["max_contact_pressure_over_inflation"].get<double>(), 0.0);
   // The magnet moves 140 mm towards the axis and 20 mm back along it in the first second, in a straight line: in
   // half a second, half that path.
   EXPECT_NEAR(m["magnet_travel_m"].get<double>() * 1e3, 0.5 * std::hypot(20.0, 140.0), 1e-6);

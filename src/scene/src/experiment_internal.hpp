@@ -50,6 +50,9 @@ struct RunFigures {
   double mean_normal = 0.0;          ///< time average of the total [N]
   double max_shear = 0.0;            ///< largest total shear [N]
   double max_pressure = 0.0;         ///< largest contact pressure on a node [Pa]
+  /// A vine's largest contact pressure over its inflation pressure at that step (none for a pushed catheter or rod):
+  /// a film presses a flat patch at its own pressure, so far above 1 the contact's rigid sphere carries the load.
+  std::optional<double> film_overload;
   std::vector<std::string> branches; ///< graph branches the tip passed through, in order
   int generation = -1;               ///< the deepest generation among them (−1 without a graph)
   std::optional<double> centreline;       ///< tip to the nearest centreline at the end [m] (with a graph)

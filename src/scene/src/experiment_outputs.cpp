@@ -18,12 +18,23 @@
 #include "magvine/scene/video_plugin.hpp"
 
 namespace magvine::scene {
+
+std::optional<double> film_overload(const ExperimentScene& scene, const ExperimentResult& result) {
+  if (scene.growth.rod || scene.growth.catheter) return std::nullopt;
+  std::optional<double> overload;
+  for (const ExperimentSample& s : result.samples) {
+    if (s.pressure > 0.0) overload = std::max(overload.value_or(0.0), s.max_pressure / s.pressure);
+  }
+  return overload;
+}
+
 namespace detail {
 
 RunFigures figures_of(const ExperimentScene& scene, const ExperimentResult& result) {
   RunFigures f;
   const Vec3 tip = result.final_state.tip();
   f.everted_length = result.samples.empty() ? scene.vine.length : result.samples.back().length;
+  f.film_overload = film_overload(scene, result);
   if (scene.target) f.final_error = (tip - *scene.target).norm();
   Vec3 last = result.samples.empty() ? tip : result.samples.front().tip;
   int last_branch = -1;
@@ -125,6 +136,7 @@ void write_experiment_outputs(const ExperimentScene& scene, const ExperimentResu
   j["mean_wall_normal_N"] = f.mean_normal;
   j["max_wall_shear_N"] = f.max_shear;
   j["max_contact_pressure_Pa"] = f.max_pressure;
+  j["max_contact_pressure_over_inflation"] = optional(f.film_overload);
   double imbalance = 0.0;
   for (const ExperimentSample& s : result.samples) imbalance = std::max(imbalance, s.imbalance);
   j["max_force_imbalance"] = imbalance;

@@ -166,6 +166,12 @@ class Experiment {
 /// Runs the experiment from t = 0 to duration in steps of dt (Experiment, stepped until done()). `progress`
 /// (optional) is called with the fraction done after each step.
 ExperimentResult run_experiment(const ExperimentScene& scene, const std::function<void(double)>& progress = nullptr);
+/// A vine's largest contact pressure over its inflation pressure at that step, over the run's steps (none for a
+/// pushed catheter or rod, or a run without steps). A pressurised film presses a flat patch at its own pressure
+/// (robot's film_contact_pressure: above it only where a node's force exceeds what half its film facing one wall
+/// carries), so a value far above 1 is load the contact's rigid sphere carries that a film could not: a wedged
+/// node (docs/growth-and-contact.md, Known gaps). metrics.json's max_contact_pressure_over_inflation.
+std::optional<double> film_overload(const ExperimentScene& scene, const ExperimentResult& result);
 
 /// Writes, atomically, into `dir` (created): metrics.json, tip_trajectory.csv, magnet_trajectory.csv (when the
 /// scene has magnets), events.json, shape.csv (the final body), shapes.csv (t_s,node,x_m,y_m,z_m; with
@@ -175,7 +181,8 @@ ExperimentResult run_experiment(const ExperimentScene& scene, const std::functio
 /// (graph names in order, with a graph), generation_reached, tip_to_centreline_m (at the end) and
 /// mean_tip_to_centreline_m (time average), path_progress (0–1 along the navigator's planned path to its target),
 /// max_wall_normal_N, mean_wall_normal_N (time average of the total), max_wall_shear_N (largest total over the
-/// steps), max_contact_pressure_Pa (largest on a node over the steps), stalls, blocked, retractions (the
+/// steps), max_contact_pressure_Pa (largest on a node over the steps), max_contact_pressure_over_inflation
+/// (film_overload; null for a pushed body), stalls, blocked, retractions (the
 /// navigator's), events, magnet_travel_m, simulated_s, runtime_s, real_time_factor, converged (the last step),
 /// failed_steps, failure, seed, and with outputs.video the videos (tip.mp4 / overview.mp4, or .avi) and
 /// "videos": [{camera, file, codec, frames, fps, size}].
