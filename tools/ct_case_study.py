@@ -116,6 +116,10 @@ def summarise(case, runs_dir, rows):
         "stop_generation": stop.get("stop_branch", "").count("-") if stop else "",
         "needle_mm": round(1e3 * stop["needle_m"], 1) if stop else "",
         "needle_angle_deg": round(stop["needle_angle_deg"], 1) if stop.get("needle_angle_deg") is not None else "",
+        "given_stop_distance_mm": round(1e3 * stop["given_stop_distance_m"], 1)
+        if stop.get("given_stop_distance_m") is not None else "",
+        "needle_crosses_airway": int(stop["needle_crosses_airway"]) if stop.get("needle_crosses_airway") is not None
+        else "",
         # over every node the tool fits to, not the stop's own (older runs' metrics lack it: left blank)
         "best_straight_miss_mm": round(1e3 * stop["best_straight_miss_m"], 1)
         if stop.get("best_straight_miss_m") is not None else "",
@@ -136,6 +140,18 @@ def summarise(case, runs_dir, rows):
     }
 
 
+def numbers(path, count):
+    """The `count` numbers of a planning problem's text file (target.txt: 3, startK.txt: 16)."""
+    try:
+        with open(path) as f:
+            values = [float(x) for x in f.read().split()]
+    except (OSError, ValueError) as e:
+        fail(path, f"unreadable as numbers ({e})")
+    if len(values) != count:
+        fail(path, f"needs {count} numbers")
+    return values
+
+
 def start_pose(folder, which):
     """The path of the patient's start pose file: startK.txt, or for "nearest" the one whose position (the 4x4 pose's
     translation, mm) lies nearest the nodule of target.txt."""
@@ -144,17 +160,13 @@ def start_pose(folder, which):
         if not os.path.exists(path):
             fail(path, "missing")
         return path
-    with open(os.path.join(folder, "target.txt")) as f:
-        nodule = [float(x) for x in f.read().split()[:3]]
+    nodule = numbers(os.path.join(folder, "target.txt"), 3)
     best, best_d = "", float("inf")
     for k in range(1, 100):
         path = os.path.join(folder, f"start{k}.txt")
         if not os.path.exists(path):
             break
-        with open(path) as f:
-            m = [float(x) for x in f.read().split()]
-        if len(m) != 16:
-            fail(path, "needs 16 numbers (a 4x4 pose)")
+        m = numbers(path, 16)
         d = sum((m[4 * i + 3] - nodule[i]) ** 2 for i in range(3)) ** 0.5
         if d < best_d:
             best, best_d = path, d
@@ -234,6 +246,8 @@ def main():
     p.add_argument("--no-breathing", action="store_true")
     p.add_argument("--figure", default="", help="a case to film and draw (e.g. patient1)")
     a = p.parse_args()
+    if a.start and a.max_angle is not None:
+        fail("--max-angle", "a given start (--start) is taken as given: no planner limit applies to it")
     if not os.access(a.magvine, os.X_OK):
         fail(a.magvine, "not an executable magvine (build it, or give --magvine)")
     os.makedirs(os.path.join(a.out, "scenes"), exist_ok=True)
@@ -276,7 +290,7 @@ def main():
                 rows = list(csv.DictReader(f))
             cases.append(summarise(case, os.path.join(out, "runs"), rows))
     columns = ["case", "stop_branch", "stop_generation", "needle_mm", "needle_angle_deg", "best_straight_miss_mm",
-               "runs",
+               "given_stop_distance_mm", "needle_crosses_airway", "runs",
                "reached", "generation_median",
                "everted_mm", "time_s", "needle_pushed", "aim_angle_deg", "punctured", "biopsy", "needle_to_nodule_mm",
                "wall_N_median",

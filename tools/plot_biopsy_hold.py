@@ -9,10 +9,10 @@ the tool does). For every run whose needle was pushed: the clearance (the stop's
 the vine's diameter from the scene), the largest needle force the vine held (`held_reaction_N`: at an equilibrium
 within the slide limit; filled where it held the whole puncture, open where its tip then slid back past the limit)
 and the tip's angle to the nodule after aiming (the held panels leave out needles that never met the tissue); and
-the force held against the run's largest contact pressure over the film's (a pressurised film presses a flat patch
-at its own pressure: far above it, the contact model's rigid sphere carries the load). Three panels side by side,
-one colour per vine diameter; --csv writes the points. A missing input gives one line on
-stderr and exit status 2.
+the force held against the run's largest contact pressure over the scene's (nominal) pressure (a pressurised film
+presses a flat patch at its own pressure: far above it, the contact model's rigid sphere carries the load). Three
+panels side by side, one colour per vine diameter; --csv writes the points. A missing input gives one line on stderr
+and exit status 2.
 """
 import argparse
 import csv
@@ -45,6 +45,14 @@ def scene_value(path, key):
     return float(m.group(1))
 
 
+def contact_pressure(m, path):
+    """The run's largest contact pressure [Pa] from its metrics.json."""
+    value = m.get("max_contact_pressure_Pa")
+    if not isinstance(value, (int, float)):
+        fail(path, "no max_contact_pressure_Pa")
+    return value
+
+
 def points(study):
     """One row per pushed needle of a study: case, repeat, vine and lumen diameters [mm], force [N], held, angle."""
     scenes = os.path.join(study, "scenes")
@@ -73,7 +81,7 @@ def points(study):
                      "met_tissue": (b.get("max_reaction_N") or 0.0) > 0.0,
                      "aim_angle_deg": b.get("aim_angle_deg"),
                      "film_kPa": scene_value(scene, "pressure"),
-                     "contact_kPa": round(1e-3 * m["max_contact_pressure_Pa"], 3)})
+                     "contact_kPa": round(1e-3 * contact_pressure(m, metrics), 3)})
     return rows
 
 
@@ -96,7 +104,7 @@ def main():
     for r in rows:
         c = colours.setdefault(r["vine_mm"], f"C{len(colours)}")
         label = f"Ø{r['vine_mm']:g} mm vine"
-        face = c if r["held_all"] else "none"
+        face = c if r["held_all"] and r["met_tissue"] else "none"
         if r["met_tissue"]:  # a needle that never met the tissue (aimed away) held nothing to speak of
             left.scatter(r["clearance_mm"], r["held_N"], edgecolors=c, facecolors=face, s=36, label=label)
             middle.scatter(r["contact_kPa"] / r["film_kPa"], r["held_N"], edgecolors=c, facecolors=face, s=36,
@@ -111,7 +119,7 @@ def main():
     middle.axhline(1.0, color="grey", lw=0.8, ls="--")
     middle.axvline(1.0, color="grey", lw=0.8, ls=":")
     middle.set_xscale("log")
-    middle.set_xlabel("the run's largest contact pressure / the film's pressure")
+    middle.set_xlabel("the run's largest contact pressure / the scene's pressure")
     middle.set_ylabel("largest needle force held [N]")
     middle.set_title("a film presses at most its own pressure (dotted)", fontsize=9)
     right.set_xlabel("lumen Ø at the stop − vine Ø [mm]")

@@ -169,8 +169,8 @@ ExperimentResult run_experiment(const ExperimentScene& scene, const std::functio
 /// A vine's largest contact pressure over its inflation pressure at that step, over the run's steps (none for a
 /// pushed catheter or rod, or a run without steps). A pressurised film presses a flat patch at its own pressure
 /// (robot's film_contact_pressure: above it only where a node's force exceeds what half its film facing one wall
-/// carries), so a value far above 1 is load the contact's rigid sphere carries that a film could not: a wedged
-/// node (docs/growth-and-contact.md, Known gaps). metrics.json's max_contact_pressure_over_inflation.
+/// carries), so a value far above 1 is load the contact's rigid sphere carries that the film at that pressure could
+/// not: a wedged node, or a deflated vine under a load (docs/growth-and-contact.md, Known gaps). metrics.json's max_contact_pressure_over_inflation.
 std::optional<double> film_overload(const ExperimentScene& scene, const ExperimentResult& result);
 
 /// Writes, atomically, into `dir` (created): metrics.json, tip_trajectory.csv, magnet_trajectory.csv (when the
