@@ -38,6 +38,25 @@ BiopsyPlan plan_biopsy(const AirwayGraph& graph, const CollisionWorld& world, co
   // Branches the tool fits into: their parent fits and every node is wide enough (a branch's first node is its
   // parent's last, already checked).
   std::vector<char> fits(graph.branches.size(), 0);
+  // The plan for a stop at node k of branch b whose needle leaves the airway at `exit` on its way to the nodule.
+  const auto stop_at = [&](const AirwayBranch& b, std::size_t k, const RayHit& exit) {
+    const AirwayNode& node = graph.nodes[b.nodes[k]];
+    const Vec3 d = nodule - node.position;
+    const Vec3 dir = d.normalized();
+    const Vec3 along = tangent_at(graph, b, k);
+    BiopsyPlan c;
+    c.found = true;
+    c.node = b.nodes[k];
+    c.branch = b.id;
+    c.start = node.position;
+    c.wall = exit.point;
+    c.direction = dir;
+    c.needle = d.norm() - exit.distance;
+    c.angle = std::acos(std::clamp(dir.dot(along), -1.0, 1.0));
+    c.straight_miss = straight_miss(node.position, along, nodule);
+    c.lumen_radius = node.radius;
+    return c;
+  };
   for (const AirwayBranch& b : graph.branches) {  // parents come before their children (add_branch order)
     if (b.parent >= 0 && !fits[static_cast<std::size_t>(b.parent)]) continue;
     for (std::size_t k = 0; k < b.nodes.size(); ++k) {
@@ -81,18 +100,7 @@ BiopsyPlan plan_biopsy(const AirwayGraph& graph, const CollisionWorld& world, co
         ++plan.through_airway;
         continue;
       }
-      BiopsyPlan c;
-      c.found = true;
-      c.node = n;
-      c.branch = b.id;
-      c.start = node.position;
-      c.wall = exit->point;
-      c.direction = dir;
-      c.needle = needle;
-      c.angle = forward;
-      c.straight_miss = miss;
-      c.lumen_radius = node.radius;
-      candidates.push_back(c);
+      candidates.push_back(stop_at(b, k, *exit));
     }
   }
   if (options.stop) {
@@ -101,10 +109,9 @@ BiopsyPlan plan_biopsy(const AirwayGraph& graph, const CollisionWorld& world, co
           printf_string("no centreline node is reachable by a tool of radius %.1f mm", 1e3 * options.tool_radius);
       return plan;
     }
-    const std::uint32_t n = given_branch->nodes[given_k];
-    const AirwayNode& node = graph.nodes[n];
-    const Vec3 d = nodule - node.position;
-    const auto exit = d.norm() > 0.0 ? world.ray_cast(node.position, d.normalized(), d.norm()) : std::nullopt;
+    const Vec3 from = graph.nodes[given_branch->nodes[given_k]].position;
+    const Vec3 d = nodule - from;
+    const auto exit = d.norm() > 0.0 ? world.ray_cast(from, d.normalized(), d.norm()) : std::nullopt;
     if (!exit) {
       plan.why = printf_string(
           "the given stop's nearest reachable node (branch %s, %.1f mm from it) sees the nodule inside the lumen: "
@@ -112,20 +119,13 @@ BiopsyPlan plan_biopsy(const AirwayGraph& graph, const CollisionWorld& world, co
           given_branch->name.c_str(), 1e3 * given_distance);
       return plan;
     }
-    const Vec3 dir = d.normalized();
-    const Vec3 along = tangent_at(graph, *given_branch, given_k);
-    plan.found = true;
-    plan.node = n;
-    plan.branch = given_branch->id;
-    plan.start = node.position;
-    plan.wall = exit->point;
-    plan.direction = dir;
-    plan.needle = d.norm() - exit->distance;
-    plan.angle = std::acos(std::clamp(dir.dot(along), -1.0, 1.0));
-    plan.straight_miss = straight_miss(node.position, along, nodule);
-    plan.lumen_radius = node.radius;
+    const BiopsyPlan counts = plan;
+    plan = stop_at(*given_branch, given_k, *exit);
+    plan.reachable = counts.reachable;
+    plan.best_straight_miss = counts.best_straight_miss;
+    plan.best_straight_branch = counts.best_straight_branch;
     plan.given_distance = given_distance;
-    plan.crosses_airway = world.segment_crosses(exit->point + 1e-6 * dir, nodule);
+    plan.crosses_airway = world.segment_crosses(exit->point + 1e-6 * plan.direction, nodule);
     return plan;
   }
   // The shortest needle, and of those within needle_tolerance of it the one the tip needs to turn least for

@@ -120,11 +120,13 @@ PunctureReport push_needle(const GrowthModel& model, const RodField& field, cons
     const GrowthState start = state;  // the last equilibrium (a failed grow_step leaves its time advanced)
     // An increment whose step fails (the growth step's own retries halve its time, not the needle's advance) is
     // taken again as 4, then 16 smaller advances from the last equilibrium: a quasi-static loading path.
+    // Each converged piece (the whole increment's one included) is recorded once; the last is the increment's.
     const auto at = [&](int k, int pieces) { return pieces == 1 ? p : from + (p - from) * k / pieces; };
+    Equilibrium e{};
     const GrowthStatus r = grow_step_in_pieces(
         model, field, control, state, workspace, dt, {1, 4, 16},
         [&](int k, int pieces) { control.tip_contact = tissue_at(at(k, pieces)); },
-        [&](int k, int pieces) { (void)reached(at(k, pieces)); });
+        [&](int k, int pieces) { e = reached(at(k, pieces)); });
     if (!r.converged) {
       state = start;
       out.held = false;
@@ -134,7 +136,6 @@ PunctureReport push_needle(const GrowthModel& model, const RodField& field, cons
           1e3 * p, held, bent, r.failure.c_str());
       break;
     }
-    const Equilibrium e = reached(p);
     const double force = e.force;
     PunctureStep s;
     s.time = state.time;

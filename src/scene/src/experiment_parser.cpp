@@ -4,6 +4,7 @@
 
 #include <Eigen/Geometry>
 #include <algorithm>
+#include <array>
 #include <cmath>
 #include <initializer_list>
 #include <sstream>
@@ -644,37 +645,38 @@ Navigator::Recovery parse_recovery(const YamlMap& r, const FileUnits& units, con
   return rec;
 }
 
-/// A nodule file at `nodule` (relative to the scene's folder): three numbers in mm, whitespace apart (Med-MPD's
-/// target.txt).
-Vec3 nodule_file(const YamlMap& t, const std::filesystem::path& directory) {
-  const std::filesystem::path file = directory / t.text("nodule");
-  std::istringstream in(read_text_file(file.string(), "nodule file"));
-  Vec3 x;
-  for (int k = 0; k < 3; ++k) {
-    if (!(in >> x[k]) || !std::isfinite(x[k]) || std::abs(x[k]) > 1e4) {
-      t.fail("nodule", file.string() + ": needs three finite numbers in mm (a point), as Med-MPD's target.txt");
-    }
+/// A planning problem's file at `key` (relative to the scene's folder): N finite numbers in mm, whitespace
+/// apart, and no more; `needs` and `more` finish the messages for too few (or bad) and too many numbers.
+template <std::size_t N>
+std::array<double, N> planning_numbers(const YamlMap& t, const std::string& key, const std::filesystem::path& directory,
+                                       const char* file_kind, const std::string& needs, const std::string& more) {
+  const std::filesystem::path file = directory / t.text(key);
+  std::istringstream in(read_text_file(file.string(), file_kind));
+  std::array<double, N> m{};
+  for (double& v : m) {
+    if (!(in >> v) || !std::isfinite(v) || std::abs(v) > 1e4) t.fail(key, file.string() + ": " + needs);
   }
   std::string rest;
-  if (in >> rest) t.fail("nodule", file.string() + ": more than three numbers (a point in mm)");
-  return 1e-3 * x;
+  if (in >> rest) t.fail(key, file.string() + ": " + more);
+  return m;
 }
 
-/// A planning problem's start pose (Med-MPD's startN.txt: a 4×4 homogeneous matrix by rows, 16 numbers, lengths in
-/// mm): its position, the translation column [m].
+/// A nodule file at `nodule`: three numbers in mm (Med-MPD's target.txt).
+Vec3 nodule_file(const YamlMap& t, const std::filesystem::path& directory) {
+  const auto x = planning_numbers<3>(t, "nodule", directory, "nodule file",
+                                     "needs three finite numbers in mm (a point), as Med-MPD's target.txt",
+                                     "more than three numbers (a point in mm)");
+  return 1e-3 * Vec3(x[0], x[1], x[2]);
+}
+
+/// A planning problem's start pose at `stop` (Med-MPD's startN.txt: a 4×4 homogeneous matrix by rows, 16 numbers,
+/// lengths in mm): its position, the translation column [m].
 Vec3 pose_file_position(const YamlMap& t, const std::filesystem::path& directory) {
-  const std::filesystem::path file = directory / t.text("stop");
-  std::istringstream in(read_text_file(file.string(), "start pose file"));
-  double m[16];
-  for (double& v : m) {
-    if (!(in >> v) || !std::isfinite(v) || std::abs(v) > 1e4) {
-      t.fail("stop", file.string() + ": needs 16 finite numbers (a 4x4 pose by rows, mm), as Med-MPD's startN.txt");
-    }
-  }
-  std::string rest;
-  if (in >> rest) t.fail("stop", file.string() + ": more than 16 numbers (a 4x4 pose by rows, mm)");
+  const auto m = planning_numbers<16>(t, "stop", directory, "start pose file",
+                                      "needs 16 finite numbers (a 4x4 pose by rows, mm), as Med-MPD's startN.txt",
+                                      "more than 16 numbers (a 4x4 pose by rows, mm)");
   if (m[12] != 0.0 || m[13] != 0.0 || m[14] != 0.0 || m[15] != 1.0) {
-    t.fail("stop", file.string() + ": the last row of a 4x4 pose must be 0 0 0 1");
+    t.fail("stop", (directory / t.text("stop")).string() + ": the last row of a 4x4 pose must be 0 0 0 1");
   }
   return 1e-3 * Vec3(m[3], m[7], m[11]);
 }

@@ -11,9 +11,10 @@ struct TipContactTerm {
     if (c.constraints == nullptr || !c.constraints->tip_contact) return;
     const TipContact& t = *c.constraints->tip_contact;
     const int n = c.edges();
-    const Vec3& x = c.state.x[static_cast<std::size_t>(n)];
-    energy += t.law(tip_contact_depth(t, x)).potential;
-    if (sys != nullptr) sys->add_gradient(position_slot(n), -tip_contact_force(t, x));  // ∇Ψ: minus the force
+    const ContactLaw l = t.law(tip_contact_depth(t, c.state.x[static_cast<std::size_t>(n)]));
+    energy += l.potential;
+    // ∇Ψ(d(x)) = Ψ'(d)·a, the chain rule through d = d₀ + (x − o)·a: minus tip_contact_force, the law evaluated once.
+    if (sys != nullptr) sys->add_gradient(position_slot(n), l.force * t.axis);
   }
 
   static void add_hessian(const TermContext& c, System& sys) {
