@@ -7,6 +7,7 @@
 #include <gtest/gtest.h>
 
 #include <cmath>
+#include <cstdio>
 #include <random>
 #include <string>
 
@@ -217,7 +218,64 @@ TEST(RodTerms, WallBarrier) {
     s.constraints = RodConstraints{};
     s.constraints.wall = w;
     expect_term_derivatives<WallBarrierTerm>(s, vine ? "wall barrier (vine)" : "wall barrier (rod)");
+    if (!vine) continue;
+    // The film flattening (WallBarrier::flattening): each sphere's radius s minimises the barrier plus the film's
+    // Ψ(r − s) inside the energy, so the gradient is the envelope's and the Hessian the Schur complement of s.
+    // P and ℓ are chosen so that the films give way by about d̂ (both laws in play): the tip's a cap.
+    w.flattening.assign(s.state.x.size(), FlatteningSection{1e3, 1e-3, false});
+    w.flattening.back().cap = true;
+    w.flattening.back().pressure = 0.1;
+    s.constraints.wall = w;
+    const std::vector<NodeWallForce> f = wall_barrier_forces(s.state, w);
+    for (std::size_t i = 1; i < f.size(); ++i) {
+      // Each sphere gave way by a fraction of d̂, and the wall's push is the film's force there (to the root's
+      // tolerance, 1e-13 of the forces, or its bracket at 1e-15 of r times the barrier's stiffness).
+      const double depth = w.radius[i] - f[i].radius;
+      EXPECT_GT(depth, 1e-3 * w.activation) << i;
+      EXPECT_LT(depth, 10.0 * w.activation) << i;
+      EXPECT_NEAR(f[i].magnitude, flattening_law(w.flattening[i], w.radius[i], depth).force, 1e-8 * f[i].magnitude)
+          << i;
+    }
+    expect_term_derivatives<WallBarrierTerm>(s, "wall barrier (vine, flattening)");
   }
+}
+
+TEST(RodTerms, AFlatteningFilmCarriesItsPressureOverThePatch) {
+  // flattening_law against an independent reference: the exact section of an inextensible pressurised membrane
+  // (no bending stiffness) pressed on a flat wall. Its free part has one tension, so one curvature (Laplace): a
+  // circular arc of radius ρ over the flat patch a, the perimeter kept, 2πR = ρ(2π − 2φ) + a with a = 2ρ sin φ;
+  // the arc's centre is ρ cos φ from the wall, δ = R − ρ cos φ, and the patch carries P·a per length.
+  const double radius = 2.5e-3;
+  const double pressure = 35e3;
+  const double length = 2.5e-3;
+  const FlatteningSection side{pressure, length, false};
+  for (const double phi : {0.05, 0.2, 0.5, 0.8, 1.0, 1.3, 1.57}) {
+    const double rho = kPi * radius / (kPi - phi + std::sin(phi));
+    const double depth = radius - rho * std::cos(phi);
+    const double exact = pressure * length * 2.0 * rho * std::sin(phi);
+    const double law = flattening_law(side, radius, depth).force;
+    // To leading order in δ the law is exact; the stated bound is 3 % up to δ = 0.3R, 16 % to δ = R.
+    const double bound = depth <= 0.3 * radius ? 0.03 : 0.16;
+    std::printf("  membrane: delta/R %.3f, exact %.4f N, law %.4f N (%+.1f %%)\n", depth / radius, exact, law,
+                100.0 * (law / exact - 1.0));
+    EXPECT_NEAR(law / exact, 1.0, bound) << "phi " << phi;
+  }
+  // Each law's force is its energy's derivative, and its stiffness the force's (central differences).
+  for (const bool cap : {false, true}) {
+    const FlatteningSection section{pressure, length, cap};
+    for (const double depth : {1e-5, 3e-4, 1.2e-3}) {
+      const double step = 1e-9;
+      const FlatteningLaw plus = flattening_law(section, radius, depth + step);
+      const FlatteningLaw minus = flattening_law(section, radius, depth - step);
+      const FlatteningLaw at = flattening_law(section, radius, depth);
+      EXPECT_NEAR(at.force, (plus.energy - minus.energy) / (2.0 * step), 1e-6 * at.force);
+      EXPECT_NEAR(at.stiffness, (plus.force - minus.force) / (2.0 * step), 1e-5 * at.stiffness);
+    }
+  }
+  // The cap: a spherical membrane cut by the wall at depth δ presses a disc of radius² 2Rδ − δ² at P.
+  const double depth = 0.05 * radius;
+  EXPECT_NEAR(flattening_law(FlatteningSection{pressure, length, true}, radius, depth).force,
+              pressure * kPi * (2.0 * radius * depth - depth * depth), 0.03 * pressure * kPi * 2.0 * radius * depth);
 }
 
 TEST(RodTerms, TheSolversEnergyIsTheSumOfTheTerms) {

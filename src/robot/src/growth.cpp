@@ -27,6 +27,9 @@ constexpr double kStill = 0.02;
 // radius is continuous in w: min(R, kSlack·w) reaches R at w = 2.22R, where slot_area and flat_width are already
 // those of the round section.
 constexpr double kSlack = 0.45;
+// The fraction of a vine node's contact radius its film keeps rigid as it flattens on the wall
+// (WallBarrier::core): at a half, the nodes' spheres still cover the edges between them (h = R).
+constexpr double kFilmCore = 0.5;
 // Moves toward the middle of its chords of the point where the growth test measures the lumen ahead of a new tip
 // (Stepper::lumen_width): two leave a quarter of the offset in a round lumen.
 constexpr int kRecentrings = 2;
@@ -321,10 +324,13 @@ bool Stepper::barrier_step(double dt, double pressure, double cap, bool damp_sta
   state.nodes.resize(nodes);
   // Node i's barrier radius for its contact radius r where it is now: the tip's at most its room ahead, and at
   // most its clearance (a finite barrier energy).
+  // A vine's film flattens on the wall (WallBarrier::flattening): only its core needs the room.
+  const bool film = model.options.flattening && !pushed && !model.solid() && !state.placing;
+  const double core = film ? kFilmCore : 1.0;
   const auto barrier_radius = [&](std::size_t i, double r) {
     if (i == tip) r = std::min(r, tip_room);  // the tip flattens into a slot
     std::array<anatomy::NearTriangle, 1> near{};
-    if (world()->triangles_within(state.body.x[i], r, near) > 0) r = near[0].distance - 0.1 * model.dhat;
+    if (world()->triangles_within(state.body.x[i], core * r, near) > 0) r = (near[0].distance - 0.1 * model.dhat) / core;
     return r > 0.1 * radius() ? r : 0.0;
   };
   // Whether node i has moved 2 % R from where its contact radius was measured.
@@ -333,7 +339,7 @@ bool Stepper::barrier_step(double dt, double pressure, double cap, bool damp_sta
   };
   const auto frame_of = [&](std::size_t i) -> const Mat3& { return state.body.frames[std::min(i, nodes - 2)]; };
   if (world() != nullptr) {
-    WallBarrier wall{world(), std::vector<double>(nodes, 0.0), model.dhat, ws.stiffness, &ws.near};
+    WallBarrier wall{world(), std::vector<double>(nodes, 0.0), model.dhat, ws.stiffness, &ws.near, {}, kFilmCore};
     for (std::size_t i = 1; i < nodes; ++i) {
       GrowthNode& cache = state.nodes[i];
       if (moved(i)) {
@@ -341,6 +347,12 @@ bool Stepper::barrier_step(double dt, double pressure, double cap, bool damp_sta
         cache.radius = node_radius(state.body.x[i], frame_of(i), state.body.x[i - 1], &cache.across);
       }
       wall.radius[i] = barrier_radius(i, cache.radius);
+    }
+    if (film) {
+      // Each side stands for an edge's length of body; the tip for its cap.
+      wall.core = kFilmCore;
+      wall.flattening.assign(nodes, FlatteningSection{pressure, h(), false});
+      wall.flattening[tip].cap = true;
     }
     c.wall = std::move(wall);
   }

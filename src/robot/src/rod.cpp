@@ -676,14 +676,29 @@ std::vector<double> joint_bending_moments(const RodModel& model, const RodState&
   return out;
 }
 
+FlatteningLaw flattening_law(const FlatteningSection& section, double radius, double depth) {
+  const double d = std::max(0.0, depth);
+  if (section.cap) {
+    const double k = 2.0 * kPi * section.pressure * radius;  // F = 2πPRδ
+    return {0.5 * k * d * d, k * d, k};
+  }
+  const double c = section.pressure * section.length * std::sqrt(8.0 * radius);  // F = c√δ
+  const double root = std::sqrt(d);
+  return {2.0 / 3.0 * c * d * root, c * root, root > 0.0 ? 0.5 * c / root : std::numeric_limits<double>::infinity()};
+}
+
 std::vector<NodeWallForce> wall_barrier_forces(const RodState& state, const WallBarrier& wall) {
   std::vector<NodeWallForce> out(state.x.size());
   std::vector<Mat3> spread(state.x.size(), Mat3::Zero());
-  const bool clear = detail::WallBarrierTerm::for_each_gap(state, nullptr, wall, [&](std::size_t i, double gap, const Vec3& n) {
-    const double f = detail::barrier_force(wall, gap);
-    out[i].force += f * n;
-    out[i].magnitude += f;
-    spread[i] += f * n * n.transpose();
+  const bool clear = detail::WallBarrierTerm::for_each_node(state, nullptr, wall, [&](const detail::NodeContact& n) {
+    for (const anatomy::NearTriangle& t : n.near) {
+      const double f = detail::barrier_force(wall, n.gap(t));
+      const Vec3 normal = n.normal(t);
+      out[n.node].force += f * normal;
+      out[n.node].magnitude += f;
+      spread[n.node] += f * normal * normal.transpose();
+    }
+    out[n.node].radius = n.radius;
   });
   for (std::size_t i = 0; i < out.size(); ++i) {
     if (out[i].magnitude <= 0.0) continue;
@@ -694,7 +709,9 @@ std::vector<NodeWallForce> wall_barrier_forces(const RodState& state, const Wall
   if (!clear) {
     for (std::size_t i = 1; i < state.x.size() && i < wall.radius.size(); ++i) {
       std::array<anatomy::NearTriangle, 1> near{};
-      if (wall.radius[i] > 0.0 && wall.world->triangles_within(state.x[i], wall.radius[i], near) > 0) {
+      const double rigid = i < wall.flattening.size() && wall.flattening[i].pressure > 0.0 ? wall.core * wall.radius[i]
+                                                                                         : wall.radius[i];
+      if (wall.radius[i] > 0.0 && wall.world->triangles_within(state.x[i], rigid, near) > 0) {
         out[i].magnitude = std::numeric_limits<double>::infinity();
       }
     }

@@ -291,8 +291,9 @@ void parse_growth(const YamlMap& g, const FileUnits& units, bool rod, Experiment
   }
   g.allow_only({"mode", "yield_pressure", "length_yield", "turning_yield", "extensibility", "friction", "edge_length",
                 "catheter", "magnetorheology", "retraction_pressure", "contact_distance", "friction_slip",
-                "tissue_modulus"});
+                "tissue_modulus", "flattening"});
   robot::GrowthOptions& o = scene.growth;
+  if (g.has("flattening")) o.flattening = g.flag("flattening");
   if (g.has("tissue_modulus")) o.tissue_modulus = g.quantity("tissue_modulus", units.stress, range::kModulus);
   if (g.has("contact_distance")) o.contact_distance = g.quantity("contact_distance", units.len, range::kSpacing);
   if (g.has("friction_slip")) o.friction_slip = g.quantity("friction_slip", units.len, range::kSpacing);

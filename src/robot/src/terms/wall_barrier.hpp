@@ -6,8 +6,10 @@
 // κ b''(g) n nᵀ and drops the term κ b'(g) ∇²|x − q| of a closest point on an edge or corner, which is negative
 // semi-definite (b' < 0): the Newton matrix stays positive semi-definite.
 
+#include <algorithm>
 #include <cmath>
 #include <limits>
+#include <utility>
 #include <span>
 #include <vector>
 
@@ -57,11 +59,84 @@ inline std::size_t barrier_triangles(const WallBarrier& w, std::size_t i, const 
   return w.world->triangles_within(x, reach, out, near[i], overlap);
 }
 
+/// Node i's sphere at one state (WallBarrierTerm::for_each_node): the wall's triangles within its reach and the
+/// radius s its section takes, with the film's energy and stiffness there.
+struct NodeContact {
+  std::size_t node = 0;
+  Vec3 x = Vec3::Zero();
+  std::span<const anatomy::NearTriangle> near;
+  double radius = 0.0;  ///< s [m]
+  /// Ψ(r − s) [J] and F'(r − s) [N/m]: +∞ where s does not give way (a rigid sphere, one out of contact, or a
+  /// section flattened to its core).
+  double film_energy = 0.0;
+  double film_stiffness = std::numeric_limits<double>::infinity();
+  /// The gap of triangle t and its unit normal (from the wall to the node).
+  double gap(const anatomy::NearTriangle& t) const { return t.distance - radius; }
+  Vec3 normal(const anatomy::NearTriangle& t) const { return (x - t.point) / t.distance; }
+};
+
+/// The barrier's push on a sphere of radius s among `near`: B(s) = Σ_t −κ b'(d_t − s) [N] and dB/ds = Σ_t κ b''
+/// [N/m] (d_t − s > 0 for every t).
+inline std::pair<double, double> barrier_push(const WallBarrier& w, std::span<const anatomy::NearTriangle> near,
+                                              double s) {
+  double push = 0.0;
+  double rate = 0.0;
+  for (const anatomy::NearTriangle& t : near) {
+    const BarrierLaw b = barrier_law(t.distance - s, w.activation);
+    push -= w.stiffness * b.slope;
+    rate += w.stiffness * b.curvature;
+  }
+  return {push, rate};
+}
+
+/// The radius s of node i's sphere among `near` (WallBarrier::flattening): r_i for a rigid sphere; for a film's,
+/// the root of B(s) = F(r_i − s) on [c·r_i, r_i] (B rises with s, F falls: one root), or c·r_i where the film
+/// flattened to its core still does not carry the push. False where the wall is within the rigid part.
+inline bool section_radius(const WallBarrier& w, NodeContact& contact) {
+  const double r = w.radius[contact.node];
+  double nearest = std::numeric_limits<double>::infinity();
+  for (const anatomy::NearTriangle& t : contact.near) nearest = std::min(nearest, t.distance);
+  contact.radius = r;
+  contact.film_energy = 0.0;
+  contact.film_stiffness = std::numeric_limits<double>::infinity();
+  const bool film = contact.node < w.flattening.size() && w.flattening[contact.node].pressure > 0.0;
+  if (!film) return nearest > r;
+  const FlatteningSection& section = w.flattening[contact.node];
+  const double core = w.core * r;
+  if (!(nearest > core)) return false;
+  if (nearest >= r + w.activation) return true;  // no triangle within d̂ of the round sphere
+  double lo = std::max(core, nearest - w.activation);
+  double hi = std::min(r, nearest);
+  if (barrier_push(w, contact.near, lo).first >= flattening_law(section, r, r - lo).force) {
+    // Flattened to its core (φ(lo) ≥ 0 only at lo = core: B vanishes at nearest − d̂).
+    contact.radius = lo;
+    contact.film_energy = flattening_law(section, r, r - lo).energy;
+    return true;
+  }
+  // Safeguarded Newton on φ(s) = B(s) − F(r − s), rising in s; φ(lo) < 0 ≤ φ(hi).
+  double s = 0.5 * (lo + hi);
+  for (int k = 0; k < 200; ++k) {
+    const auto [push, rate] = barrier_push(w, contact.near, s);
+    const FlatteningLaw law = flattening_law(section, r, r - s);
+    const double phi = push - law.force;
+    (phi > 0.0 ? hi : lo) = s;
+    if (std::abs(phi) <= 1e-13 * (push + law.force) || hi - lo <= 1e-15 * r) break;
+    const double newton = s - phi / (rate + law.stiffness);
+    s = newton > lo && newton < hi ? newton : 0.5 * (lo + hi);
+  }
+  const FlatteningLaw law = flattening_law(section, r, r - s);
+  contact.radius = s;
+  contact.film_energy = law.energy;
+  contact.film_stiffness = law.stiffness;
+  return true;
+}
+
 struct WallBarrierTerm {
-  /// Calls visit(i, gap, unit normal) for every triangle within reach of node i; false when the node overlaps the
-  /// wall (g ≤ 0) or, for a line-search trial moving from the iterate `from`, its centre's path crossed the wall.
+  /// Calls visit(NodeContact) for every node with a contact radius; false when a node overlaps the wall (within its
+  /// rigid sphere, or within the core of a film's) or, for a line-search trial moving from the iterate `from`, its
+  /// centre's path crossed the wall.
   template <class Visit>
-  static bool for_each_gap(const RodState& state, const RodState* from, const WallBarrier& w, Visit&& visit) {
+  static bool for_each_node(const RodState& state, const RodState* from, const WallBarrier& w, Visit&& visit) {
     // The thread's own buffer, grown to the most triangles a node has had within reach (no cap: see
     // kBarrierTriangles); a node that finds more than it holds is asked again with room for all.
     thread_local std::vector<anatomy::NearTriangle> near(kBarrierTriangles);
@@ -69,21 +144,24 @@ struct WallBarrierTerm {
     for (std::size_t i = 1; i < nodes && i < w.radius.size(); ++i) {
       const double r = w.radius[i];
       if (!(r > 0.0)) continue;
+      // The sphere no finite energy lets the wall into: the rigid one, or a film's core.
+      const double rigid = i < w.flattening.size() && w.flattening[i].pressure > 0.0 ? w.core * r : r;
       const Vec3& x = state.x[i];
       if (from != nullptr) {
-        // A move shorter than r stays inside the wall-free ball of the feasible iterate.
-        if ((x - from->x[i]).norm() >= r && w.world->segment_crosses(from->x[i], x)) return false;
+        // A move shorter than that radius stays inside the wall-free ball of the feasible iterate.
+        if ((x - from->x[i]).norm() >= rigid && w.world->segment_crosses(from->x[i], x)) return false;
       }
-      std::size_t found = barrier_triangles(w, i, x, r + w.activation, near, r);
+      std::size_t found = barrier_triangles(w, i, x, r + w.activation, near, rigid);
       if (found > near.size()) {
         near.resize(found);
-        found = barrier_triangles(w, i, x, r + w.activation, near, r);
+        found = barrier_triangles(w, i, x, r + w.activation, near, rigid);
       }
-      for (const anatomy::NearTriangle& t : std::span(near.data(), found)) {
-        const double gap = t.distance - r;
-        if (!(gap > 0.0)) return false;
-        visit(i, gap, Vec3((x - t.point) / t.distance));
-      }
+      NodeContact contact;
+      contact.node = i;
+      contact.x = x;
+      contact.near = std::span<const anatomy::NearTriangle>(near.data(), found);
+      if (!section_radius(w, contact)) return false;
+      visit(static_cast<const NodeContact&>(contact));
     }
     return true;
   }
@@ -92,20 +170,39 @@ struct WallBarrierTerm {
     if (c.constraints == nullptr || !c.constraints->wall) return;
     const WallBarrier& w = *c.constraints->wall;
     double sum = 0.0;
-    const bool clear = for_each_gap(c.state, c.from, w, [&](std::size_t i, double gap, const Vec3& n) {
-      const BarrierLaw b = barrier_law(gap, w.activation);
-      sum += b.energy;
-      if (sys != nullptr && b.slope != 0.0) sys->add_gradient(position_slot(static_cast<int>(i)), w.stiffness * b.slope * n);
+    const bool clear = for_each_node(c.state, c.from, w, [&](const NodeContact& n) {
+      sum += n.film_energy;
+      for (const anatomy::NearTriangle& t : n.near) {
+        const BarrierLaw b = barrier_law(n.gap(t), w.activation);
+        sum += w.stiffness * b.energy;
+        // The gradient at the minimising s (its own gradient is zero there).
+        if (sys != nullptr && b.slope != 0.0) {
+          sys->add_gradient(position_slot(static_cast<int>(n.node)), w.stiffness * b.slope * n.normal(t));
+        }
+      }
     });
-    energy = clear ? energy + w.stiffness * sum : std::numeric_limits<double>::infinity();
+    energy = clear ? energy + sum : std::numeric_limits<double>::infinity();
   }
 
+  /// κ b'' n nᵀ per triangle; with a film's s free, the Schur complement of s: − v vᵀ/(Σ κb'' + F'), v = Σ κb'' n
+  /// (the barrier and the film in series; positive semi-definite by Cauchy–Schwarz).
   static void add_hessian(const TermContext& c, System& sys) {
     if (c.constraints == nullptr || !c.constraints->wall) return;
     const WallBarrier& w = *c.constraints->wall;
-    for_each_gap(c.state, c.from, w, [&](std::size_t i, double gap, const Vec3& n) {
-      const double k = w.stiffness * barrier_law(gap, w.activation).curvature;
-      if (k > 0.0) add_block(sys, position_slot(static_cast<int>(i)), position_slot(static_cast<int>(i)), k * n * n.transpose());
+    for_each_node(c.state, c.from, w, [&](const NodeContact& n) {
+      Mat3 block = Mat3::Zero();
+      Vec3 v = Vec3::Zero();
+      double sum = 0.0;
+      for (const anatomy::NearTriangle& t : n.near) {
+        const double k = w.stiffness * barrier_law(n.gap(t), w.activation).curvature;
+        if (!(k > 0.0)) continue;
+        const Vec3 normal = n.normal(t);
+        block += k * normal * normal.transpose();
+        v += k * normal;
+        sum += k;
+      }
+      if (std::isfinite(n.film_stiffness) && sum > 0.0) block -= v * v.transpose() / (sum + n.film_stiffness);
+      if (sum > 0.0) add_block(sys, position_slot(static_cast<int>(n.node)), position_slot(static_cast<int>(n.node)), block);
     });
   }
 };

@@ -162,6 +162,11 @@ struct GrowthOptions {
   /// the wall itself stays rigid in the solve). Human bronchial walls measure 0.17–1.65 MPa in compression, their
   /// mucosa 0.02–0.28 MPa (Wang et al. 2011, arXiv:1111.5645); 0.5 MPa is an assumption within the walls' range.
   double tissue_modulus = 0.5e6;
+  /// A vine's film flattens on the wall (WallBarrier::flattening, flattening_law): a node's sphere gives way to
+  /// half its radius under the pressure's work, so no node presses the wall with more than its flattened film
+  /// carries until it is flattened to that core. Off: rigid spheres (as before 2026-12-06). Pushed and solid
+  /// bodies are rigid either way.
+  bool flattening = true;
   RodSolveOptions solver = growth_solver_options();
 };
 

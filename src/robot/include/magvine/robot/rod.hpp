@@ -208,6 +208,33 @@ struct NodeAnchor {
   double stiffness = 0.0;       ///< [N/m]
 };
 
+/// The film law of one node's section flattened on the wall by a depth δ (flattening_law) [J, N, N/m].
+struct FlatteningLaw {
+  double energy = 0.0;     ///< Ψ(δ)
+  double force = 0.0;      ///< F = Ψ'(δ), the force the flattened patch carries
+  double stiffness = 0.0;  ///< F'(δ); +∞ at δ = 0 for the cylinder
+};
+
+/// How a pressurised film's section gives way on the wall (WallBarrier::flattening). A thin film without bending
+/// stiffness lying on a wall carries its inflation pressure P on the flat patch and nothing else, so a section
+/// pressed into the wall by δ carries F = P × the patch's area. Away from the patch the section keeps its round
+/// shape; to leading order in δ (the patch a chord of the round section at depth δ):
+///   a side of the body (a cylinder of radius R over the length ℓ a node stands for): F = P ℓ √(8Rδ),
+///     Ψ = (2/3) P ℓ √(8R) δ^{3/2};
+///   the tip's cap (a hemisphere of radius R, head-on or obliquely): F = 2πPRδ (the patch a disc of radius
+///     √(2Rδ)), Ψ = πPRδ².
+/// Ψ is the pressure's work on the volume the flattening displaces (P·ΔV to leading order). The chord form lies
+/// within 3 % of the membrane's exact section (a circular arc of the same perimeter) up to δ = 0.3R and 16 %
+/// above it at δ = R.
+struct FlatteningSection {
+  double pressure = 0.0;  ///< P [Pa]
+  double length = 0.0;    ///< ℓ [m]; ignored for the cap
+  bool cap = false;       ///< the tip's hemisphere instead of a cylinder's side
+};
+
+/// Ψ, F and F' of `section` at radius R [m] flattened by δ ≥ 0 [m].
+FlatteningLaw flattening_law(const FlatteningSection& section, double radius, double depth);
+
 /// The wall as a smooth barrier on the unsigned distance between each node's sphere and the wall's triangles
 /// (incremental potential contact, Li et al. 2020, eq. 6; terms/wall_barrier.hpp): for every triangle t within
 /// r_i + d̂ of node i, the gap g = |x_i − q_t| − r_i (q_t the closest point on t) stores
@@ -216,6 +243,11 @@ struct NodeAnchor {
 /// −κ b'(g) along (x − q)/|x − q|. A line-search trial whose node centre moves by r_i or more from the iterate is
 /// also refused when the straight path crosses a triangle (a shorter move stays inside the wall-free ball of the
 /// feasible iterate). The nodes' spheres cover the edges between them while r_i > h/2.
+///
+/// With `flattening` (a pressurised film, FlatteningSection) the sphere's radius gives way: node i's radius is
+/// s ∈ [c·r_i, r_i] (c = `core`), the film storing the pressure's work Ψ(r_i − s) as it flattens
+/// (flattening_law), and s is the one that minimises κ Σ_t b(|x_i − q_t| − s) + Ψ(r_i − s) for the node at x_i
+/// (condensed out: the barrier's force on the node is then the film's, F = Ψ'). Below c·r_i the section is rigid.
 struct WallBarrier {
   const anatomy::CollisionWorld* world = nullptr;
   std::vector<double> radius;  ///< per node [m] (index = node); ≤ 0: the node does not touch the wall
@@ -224,6 +256,11 @@ struct WallBarrier {
   /// Optional, per node: each node's neighbourhood of the wall kept across the solve's queries (NearCache; exact,
   /// so the solve is the same with or without it). Sized by the barrier to the nodes it queries.
   std::vector<anatomy::NearCache>* near = nullptr;
+  /// Per node (index = node), or empty: every node's sphere is rigid.
+  std::vector<FlatteningSection> flattening;
+  /// The fraction of r_i a flattening section keeps rigid: at c = 1/2 the spheres still cover the edges between
+  /// the nodes for h ≤ r_i (the default h = R), so no wall passes between two nodes.
+  double core = 0.5;
 };
 
 /// Smoothed Coulomb friction of one node against the wall, lagged (Li et al. 2020, §5): with the normal force λ and
@@ -299,6 +336,7 @@ struct NodeWallForce {
   Vec3 force = Vec3::Zero();  ///< Σ_t −κ b'(g_t) n_t, the net force on the node [N]
   double magnitude = 0.0;     ///< Σ_t |f_t|: what the walls carry together (two jaws of a slot add up) [N]
   Vec3 axis = Vec3::Zero();   ///< the principal direction of Σ_t |f_t| n_t n_tᵀ (unit; zero without contact)
+  double radius = 0.0;        ///< the sphere's radius s: r_i, or less where a film flattened [m]
 };
 
 /// The wall's push on each node of `state` under `wall` (WallBarrier). A node that overlaps the wall gets an
