@@ -1061,14 +1061,20 @@ TEST(Experiment, EveryStepOfAGenerationFourBatchBalancesAndKeepsTheBodyInTheLume
 
 TEST(Experiment, TheNavigatorRaisesThePressureOnlyForAHeldTipAndOnlyBelowBurst) {
   // assets/scenes/bronchial_tree_generation4.yaml: boost_pressure 42 kPa after 0.5 s without growth, until the tip
-  // has grown 5 mm. Towards 0-0-1-1-0 the unperturbed Ø4 mm vine is held at the generation-4 entry near 7.9 s
-  // (re-measured with the barrier model, issue 28: the planes model held it towards 0-1-0-1-1 near 7 s).
-  // Asserted from the samples: the pressure is the schedule's 35 kPa or the boost's 42 kPa; every rise comes at
-  // least 0.5 s after the everted length last changed, every fall once the length is 5 mm past where the rise
-  // began (edges of 2 mm: the first edge at or past it); and at least one boost happens.
+  // has grown 5 mm. With the magnet's placement error widened to σ = 30 mm (the scene's is 2 mm), trial seed
+  // 1·1000003 + 3·10007 + 2 towards 0-1-1-0-0 (the third `magvine trials --targets 0-0-0-0-1,0-1-0-1-1,0-0-1-1-0,
+  // 0-1-1-0-0` runs towards it) is held near 7.7 s, boosted from 8.16 s, grows 5 mm and reaches the target at
+  // 8.54 s. (Re-measured with the film's flattening, 2026-12-06: before it, the unperturbed vine towards 0-0-1-1-0
+  // was held at its generation-4 entry near 7.9 s, and no trial of the scene's batch is held any more; before the
+  // barrier model, towards 0-1-0-1-1 near 7 s.) Asserted from the samples: the pressure is the schedule's (35 kPa,
+  // perturbed) or the boost's 42 kPa; every rise comes at least 0.5 s after the everted length last changed, every
+  // fall once the length is 5 mm past where the rise began (edges of 2 mm: the first edge at or past it); and at
+  // least one boost happens.
   const std::filesystem::path file =
       std::filesystem::path(MAGVINE_SOURCE_DIR) / "assets/scenes/bronchial_tree_generation4.yaml";
-  ExperimentScene scene = with_target(load_experiment_scene(file), "0-0-1-1-0");
+  ExperimentScene wide = with_target(load_experiment_scene(file), "0-1-1-0-0");
+  wide.perturbation.magnet_position_sd = 30e-3;
+  ExperimentScene scene = perturbed(wide, 1 * 1000003ULL + 3 * 10007ULL + 2);
   ASSERT_TRUE(scene.navigator);
   EXPECT_DOUBLE_EQ(scene.navigator->boost_pressure, 42e3);
   scene.navigator->recover.retries = 0;  // the boost alone (the retractions: the test after the next)
@@ -1077,10 +1083,13 @@ TEST(Experiment, TheNavigatorRaisesThePressureOnlyForAHeldTipAndOnlyBelowBurst) 
   int rises = 0;
   double changed_at = 0.0;  // when the everted length last changed
   double previous_length = scene.vine.length;
-  double previous_pressure = 35e3;
+  ASSERT_FALSE(r.samples.empty());
+  const double schedule = r.samples.front().pressure;  // the trial's perturbed 35 kPa
+  EXPECT_NEAR(schedule, 35e3, 1e3);
+  double previous_pressure = schedule;
   double rise_length = 0.0;
   for (const ExperimentSample& s : r.samples) {
-    EXPECT_TRUE(s.pressure == 35e3 || s.pressure == 42e3) << s.time << " s: " << s.pressure;
+    EXPECT_TRUE(s.pressure == schedule || s.pressure == 42e3) << s.time << " s: " << s.pressure;
     if (s.pressure > previous_pressure) {
       ++rises;
       EXPECT_GE(s.time - changed_at, 0.5 - 1e-9) << "rise at " << s.time << " s";
@@ -1128,26 +1137,28 @@ TEST(Experiment, AGenerationFourEntryIsEnteredWithEdgesOfTwoAndOneAndAHalfMillim
 
 TEST(Experiment, TheNavigatorBacksTheVineOutOfAWrongBranchAndGrowsItAgain) {
   // assets/scenes/bronchial_tree_generation4.yaml with the magnet's placement error widened to σ = 30 mm (the
-  // scene's is 2 mm), the trial towards 0-1-0-1-1 that `magvine trials --targets 0-0-0-0-1,0-1-0-1-1,...` runs
-  // third (seed 1·1000003 + 1·10007 + 2): the misplaced magnet turns the vine into the wrong generation-2
-  // daughter, 0-1-1, and on into 0-1-1-0-0, where it is held. Without retractions it stays there. With
+  // scene's is 2 mm), the trial towards 0-1-1-0-0 that `magvine trials --targets 0-0-0-0-1,0-1-0-1-1,0-0-1-1-0,
+  // 0-1-1-0-0` runs second towards it (seed 1·1000003 + 3·10007 + 1): the misplaced magnet turns the vine into the
+  // wrong generation-3 daughter, 0-1-1-1, and on into 0-1-1-1-1, where it is held. Without retractions it stays
+  // there. With
   // control.navigator.recover (retries 3, past 4 mm, back 20 mm) the navigator deflates it to the growth's
   // retraction pressure, 5 kPa, once it has grown 4 mm into 0-1-1, pulls it back to 20 mm short of where it left
   // the path, gives the pressure back, and grows it again: the magnet's error is the same each time, so each of
   // the three tries turns into 0-1-1 again, and the run ends there (a retry that then succeeds: the next test).
   // Asserted from the samples: the length only falls at or below 5 kPa; the first retraction takes back 24 mm (4
-  // past, 20 back) within an edge either way; the tip was in 0-1-1; all three retries were spent. (Re-measured with
-  // the barrier model, issue 28: with the planes model the scene's own trial 1·1000003 + 1·10007 towards 0-0-1-1-0
-  // turned into 0-0-1-1-1 and reached the target after one retraction; with the barrier model none of the scene's
-  // 80 trials turns the wrong way.)
+  // past, 20 back) within an edge either way; the tip was in 0-1-1-1; all three retries were spent. (Re-measured
+  // with the film's flattening, 2026-12-06: before it, trial 1·1000003 + 1·10007 + 2 towards 0-1-0-1-1 turned into
+  // 0-1-1 and its third retraction failed on a lag that did not settle; with the planes model, the scene's own trial
+  // 1·1000003 + 1·10007 towards 0-0-1-1-0 turned into 0-0-1-1-1 and reached the target after one retraction; with the
+  // barrier model none of the scene's 80 trials turns the wrong way.)
   const std::filesystem::path file =
       std::filesystem::path(MAGVINE_SOURCE_DIR) / "assets/scenes/bronchial_tree_generation4.yaml";
-  ExperimentScene aimed = with_target(load_experiment_scene(file), "0-1-0-1-1");
+  ExperimentScene aimed = with_target(load_experiment_scene(file), "0-1-1-0-0");
   ASSERT_TRUE(aimed.navigator);
   EXPECT_EQ(aimed.navigator->recover.retries, 3);
   EXPECT_DOUBLE_EQ(aimed.growth.retraction_pressure, 5e3);
   aimed.perturbation.magnet_position_sd = 30e-3;
-  ExperimentScene scene = perturbed(aimed, 1 * 1000003ULL + 1 * 10007ULL + 2);
+  ExperimentScene scene = perturbed(aimed, 1 * 1000003ULL + 3 * 10007ULL + 1);
   const auto describe = [](const char* label, const ExperimentResult& r) {
     std::printf("  %s: %s at %.2f s, %.0f mm everted, %d retraction(s)\n", label, r.success ? "reached" : "not reached",
                 r.time_to_target, 1e3 * r.samples.back().length, r.recoveries);
@@ -1163,7 +1174,7 @@ TEST(Experiment, TheNavigatorBacksTheVineOutOfAWrongBranchAndGrowsItAgain) {
   EXPECT_EQ(stuck.recoveries, 0);
   ASSERT_TRUE(scene.anatomy->graph);
   ASSERT_GE(stuck.samples.back().branch, 0);
-  EXPECT_EQ(scene.anatomy->graph->branches[static_cast<std::size_t>(stuck.samples.back().branch)].name, "0-1-1-0-0");
+  EXPECT_EQ(scene.anatomy->graph->branches[static_cast<std::size_t>(stuck.samples.back().branch)].name, "0-1-1-1-1");
 
   scene.navigator->recover.retries = 3;
   const ExperimentResult r = run_experiment(scene);
@@ -1178,7 +1189,7 @@ TEST(Experiment, TheNavigatorBacksTheVineOutOfAWrongBranchAndGrowsItAgain) {
   double previous = scene.vine.length;
   for (const ExperimentSample& s : r.samples) {
     wrong =
-        wrong || (s.branch >= 0 && scene.anatomy->graph->branches[static_cast<std::size_t>(s.branch)].name == "0-1-1");
+        wrong || (s.branch >= 0 && scene.anatomy->graph->branches[static_cast<std::size_t>(s.branch)].name == "0-1-1-1");
     if (s.length < previous) {
       EXPECT_LE(s.pressure, 5e3) << s.time << " s";
       if (!retracting && !first_done) peak = previous;
@@ -1204,7 +1215,7 @@ TEST(Experiment, TheNavigatorBacksTheVineOutOfAWrongBranchAndGrowsItAgain) {
   ASSERT_TRUE(in);
   EXPECT_EQ(nlohmann::json::parse(in).at("retractions").get<int>(), r.recoveries);
   TrialOutcome o;
-  o.target = "0-1-0-1-1";
+  o.target = "0-1-1-0-0";
   o.success = r.success;
   o.time_to_target = r.time_to_target;
   o.everted_length = r.samples.back().length;
@@ -1219,17 +1230,23 @@ TEST(Experiment, TheNavigatorBacksTheVineOutOfAWrongBranchAndGrowsItAgain) {
 
 TEST(Experiment, TheNavigatorBacksAHeldTipOutAndGrowsItInAgain) {
   // The other trigger of control.navigator.recover: a tip held for `after` (2 s) with nothing but the wall holding
-  // it. With the magnet's placement error widened to σ = 15 mm (the scene's is 2 mm), trial seed 1·1000003 + 2
-  // (the third towards 0-0-1-1-0) is held at the generation-4 entry and stays held through the boost. Asserted
-  // from the samples: before the first retraction the everted length stood still for at least 2 s; the retraction
-  // takes it back 20 mm (within an edge), shortening only at 5 kPa; the run then reaches the target.
-  // (Re-measured with the barrier model, issue 28: with the planes model, trial 3·1000003 towards 0-0-0-0-1 of
-  // the scene as it is was held by the energy test; with the barrier model none of the scene's 80 trials is.)
+  // it. With the magnet's placement error widened to σ = 30 mm (the scene's is 2 mm), trial seed 1·1000003 +
+  // 1·10007 + 2 (the third towards 0-1-0-1-1) turns into 0-1-1 and is held at the end of 0-1-1-0-0, through the
+  // boost; the wrong-branch trigger is put out of reach (`past` 100 mm) so that the held one acts. Asserted from the
+  // samples: before the first retraction the everted length stood still for at least 2 s; the retraction takes it
+  // back 20 mm (within an edge), shortening only at 5 kPa; then it grows again. (Re-measured with the film's
+  // flattening, 2026-12-06: before it, trial 1·1000003 + 2 towards 0-0-1-1-0 with σ = 15 mm was held at the
+  // generation-4 entry and reached the target after its retraction; with the film no trial of the scene's batch,
+  // nor of it with σ = 15 or 30 mm, is held with its retries left, so none shows the retry that then succeeds. With
+  // the planes model, trial 3·1000003 towards 0-0-0-0-1 of the scene as it is was held by the energy test.)
   const std::filesystem::path file =
       std::filesystem::path(MAGVINE_SOURCE_DIR) / "assets/scenes/bronchial_tree_generation4.yaml";
-  ExperimentScene wide = with_target(load_experiment_scene(file), "0-0-1-1-0");
-  wide.perturbation.magnet_position_sd = 15e-3;
-  const ExperimentScene scene = perturbed(wide, 1 * 1000003ULL + 2);
+  ExperimentScene wide = with_target(load_experiment_scene(file), "0-1-0-1-1");
+  wide.perturbation.magnet_position_sd = 30e-3;
+  ExperimentScene scene = perturbed(wide, 1 * 1000003ULL + 1 * 10007ULL + 2);
+  ASSERT_TRUE(scene.navigator);
+  scene.navigator->recover.past = 0.1;
+  scene.duration = 16.0;
   const ExperimentResult r = run_experiment(scene);
   std::printf("  %s at %.2f s, %d retraction(s)\n", r.success ? "reached" : "not reached", r.time_to_target,
               r.recoveries);
@@ -1237,12 +1254,12 @@ TEST(Experiment, TheNavigatorBacksAHeldTipOutAndGrowsItInAgain) {
     if (e.kind != EventKind::kRecover && e.kind != EventKind::kBlocked) continue;
     std::printf("    %.2f s %s: %s\n", e.time, std::string(event_name(e.kind)).c_str(), e.detail.c_str());
   }
-  EXPECT_TRUE(r.success);
   ASSERT_GE(r.recoveries, 1);
   double still_since = 0.0;  // when the everted length last changed before the first retraction
   double held = -1.0;        // how long it had stood still when the retraction began
   double from = 0.0;
   double lowest = 1.0;
+  bool regrew = false;
   double previous = scene.vine.length;
   for (const ExperimentSample& s : r.samples) {
     if (held < 0.0 && s.length < previous) {
@@ -1250,7 +1267,10 @@ TEST(Experiment, TheNavigatorBacksAHeldTipOutAndGrowsItInAgain) {
       from = previous;
     }
     if (held >= 0.0) {
-      if (s.length > previous) break;  // growing again
+      if (s.length > previous) {  // growing again
+        regrew = true;
+        break;
+      }
       if (s.length < previous) {
         EXPECT_LE(s.pressure, 5e3) << s.time << " s";
       }
@@ -1263,6 +1283,7 @@ TEST(Experiment, TheNavigatorBacksAHeldTipOutAndGrowsItInAgain) {
   std::printf("  held %.2f s at %.1f mm, then back to %.1f mm\n", held, 1e3 * from, 1e3 * lowest);
   EXPECT_GE(held, 2.0 - 1e-9);
   EXPECT_NEAR(from - lowest, 20e-3, 2e-3 + 1e-9);  // back 20 mm, in whole 2 mm edges
+  EXPECT_TRUE(regrew);
 }
 
 TEST(Experiment, ATargetOrABaseOutsideTheLumenIsRefusedBeforeTheRun) {

@@ -597,6 +597,7 @@ bool Stepper::barrier_step(double dt, double pressure, double cap, bool damp_sta
                                            : std::max(film_contact_pressure(lambda[i], pressure, radius(), share),
                                                       strip[i] > 0.0 ? pressure : 0.0);
     state.forces.pressure[i] = p_contact;
+    state.forces.max_line_load = std::max(state.forces.max_line_load, fn / share);
     state.forces.max_pressure = std::max(state.forces.max_pressure, p_contact);
     if (!(fn > 0.0) || pushed) reference[i] = Vec3::Constant(kNone);  // off the wall: released
   }

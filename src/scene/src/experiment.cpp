@@ -232,6 +232,7 @@ struct Experiment::Impl {
     s.pressure = pressure;
     const robot::WallForces& forces = state.forces;
     s.max_normal = forces.max_normal;
+    s.max_line_load = forces.max_line_load;
     s.mean_normal = forces.mean_normal;
     s.total_normal = forces.total_normal;
     s.total_shear = forces.total_shear;

@@ -47,6 +47,7 @@ struct RunFigures {
   std::optional<double> final_error;  ///< tip to target at the end [m]; none without a target
   double path = 0.0;                 ///< tip path length [m]
   double max_normal = 0.0;           ///< largest wall normal force on a node [N]
+  double max_line_load = 0.0;        ///< largest normal force per length of body [N/m]
   double mean_normal = 0.0;          ///< time average of the total [N]
   double max_shear = 0.0;            ///< largest total shear [N]
   double max_pressure = 0.0;         ///< largest contact pressure on a node [Pa]

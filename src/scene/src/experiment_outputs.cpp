@@ -42,6 +42,7 @@ RunFigures figures_of(const ExperimentScene& scene, const ExperimentResult& resu
     f.path += (s.tip - last).norm();
     last = s.tip;
     f.max_normal = std::max(f.max_normal, s.max_normal);
+    f.max_line_load = std::max(f.max_line_load, s.max_line_load);
     f.max_shear = std::max(f.max_shear, s.total_shear);
     f.max_pressure = std::max(f.max_pressure, s.max_pressure);
     f.mean_normal += s.total_normal / static_cast<double>(result.samples.size());
@@ -133,6 +134,7 @@ void write_experiment_outputs(const ExperimentScene& scene, const ExperimentResu
   j["mean_tip_to_centreline_m"] = optional(f.mean_centreline);
   j["path_progress"] = optional(f.progress);
   j["max_wall_normal_N"] = f.max_normal;
+  j["max_wall_line_load_N_per_mm"] = 1e-3 * f.max_line_load;
   j["mean_wall_normal_N"] = f.mean_normal;
   j["max_wall_shear_N"] = f.max_shear;
   j["max_contact_pressure_Pa"] = f.max_pressure;

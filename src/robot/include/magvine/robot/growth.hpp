@@ -237,6 +237,10 @@ struct WallForces {
   double largest_load = 0.0;
   Vec3 clamp = Vec3::Zero();  ///< the clamp's force on the body [N]
   double max_normal = 0.0;
+  /// The largest normal force per length of body over the nodes [N/m]: a node's normal force over the length it
+  /// stands for (an edge; the tip half its edge and its cap), the line load. A distributed contact splits the same
+  /// load over more nodes on a finer mesh, so a node's force falls with h; its line load is what converges.
+  double max_line_load = 0.0;
   double mean_normal = 0.0;  ///< over the nodes in contact
   double total_normal = 0.0;
   double max_shear = 0.0;

@@ -27,6 +27,7 @@ struct ExperimentSample {
   double length = 0.0;        ///< everted length [m]
   double pressure = 0.0;      ///< [Pa]
   double max_normal = 0.0;    ///< largest wall normal force on a node [N]
+  double max_line_load = 0.0; ///< largest normal force per length of body (robot::WallForces::max_line_load) [N/m]
   double mean_normal = 0.0;   ///< over the nodes in contact [N]
   double total_normal = 0.0;  ///< [N]
   double total_shear = 0.0;   ///< [N]
