@@ -325,7 +325,7 @@ bool Stepper::barrier_step(double dt, double pressure, double cap, bool damp_sta
   // Node i's barrier radius for its contact radius r where it is now: the tip's at most its room ahead, and at
   // most its clearance (a finite barrier energy).
   // A vine's film flattens on the wall (WallBarrier::flattening): only its core needs the room.
-  const bool film = model.options.flattening && !pushed && !model.solid() && !state.placing;
+  const bool film = model.options.flattening && !pushed && !model.solid() && !state.placing && pressure > 0.0;
   const double core = film ? kFilmCore : 1.0;
   const auto barrier_radius = [&](std::size_t i, double r) {
     if (i == tip) r = std::min(r, tip_room);  // the tip flattens into a slot
@@ -350,7 +350,6 @@ bool Stepper::barrier_step(double dt, double pressure, double cap, bool damp_sta
     }
     if (film) {
       // Each side stands for an edge's length of body; the tip for its cap.
-      wall.core = kFilmCore;
       wall.flattening.assign(nodes, FlatteningSection{pressure, h(), false});
       wall.flattening[tip].cap = true;
     }

@@ -709,9 +709,7 @@ std::vector<NodeWallForce> wall_barrier_forces(const RodState& state, const Wall
   if (!clear) {
     for (std::size_t i = 1; i < state.x.size() && i < wall.radius.size(); ++i) {
       std::array<anatomy::NearTriangle, 1> near{};
-      const double rigid = i < wall.flattening.size() && wall.flattening[i].pressure > 0.0 ? wall.core * wall.radius[i]
-                                                                                         : wall.radius[i];
-      if (wall.radius[i] > 0.0 && wall.world->triangles_within(state.x[i], rigid, near) > 0) {
+      if (wall.radius[i] > 0.0 && wall.world->triangles_within(state.x[i], rigid_radius(wall, i), near) > 0) {
         out[i].magnitude = std::numeric_limits<double>::infinity();
       }
     }

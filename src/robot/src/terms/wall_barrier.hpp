@@ -4,7 +4,9 @@
 // g = |x_i − q_t| − r_i stores κ b(g), b(g) = −(g − d̂)² ln(g/d̂) on 0 < g < d̂ (C² at d̂), +∞ at g ≤ 0. The
 // triangles are queried from the collision world at every evaluation (no frozen planes). The Hessian keeps
 // κ b''(g) n nᵀ and drops the term κ b'(g) ∇²|x − q| of a closest point on an edge or corner, which is negative
-// semi-definite (b' < 0): the Newton matrix stays positive semi-definite.
+// semi-definite (b' < 0): the Newton matrix stays positive semi-definite. A film's node (WallBarrier::flattening)
+// replaces r_i by the radius s that minimises the barrier plus its film's energy (section_radius), and its Hessian
+// by the Schur complement of s.
 
 #include <algorithm>
 #include <cmath>
@@ -99,18 +101,18 @@ inline bool section_radius(const WallBarrier& w, NodeContact& contact) {
   contact.radius = r;
   contact.film_energy = 0.0;
   contact.film_stiffness = std::numeric_limits<double>::infinity();
-  const bool film = contact.node < w.flattening.size() && w.flattening[contact.node].pressure > 0.0;
-  if (!film) return nearest > r;
-  const FlatteningSection& section = w.flattening[contact.node];
-  const double core = w.core * r;
+  const double core = rigid_radius(w, contact.node);
   if (!(nearest > core)) return false;
+  if (core == r) return true;  // a rigid sphere
+  const FlatteningSection& section = w.flattening[contact.node];
   if (nearest >= r + w.activation) return true;  // no triangle within d̂ of the round sphere
   double lo = std::max(core, nearest - w.activation);
   double hi = std::min(r, nearest);
-  if (barrier_push(w, contact.near, lo).first >= flattening_law(section, r, r - lo).force) {
+  if (const FlatteningLaw at_core = flattening_law(section, r, r - lo);
+      barrier_push(w, contact.near, lo).first >= at_core.force) {
     // Flattened to its core (φ(lo) ≥ 0 only at lo = core: B vanishes at nearest − d̂).
     contact.radius = lo;
-    contact.film_energy = flattening_law(section, r, r - lo).energy;
+    contact.film_energy = at_core.energy;
     return true;
   }
   // Safeguarded Newton on φ(s) = B(s) − F(r − s), rising in s; φ(lo) < 0 ≤ φ(hi).
@@ -144,8 +146,7 @@ struct WallBarrierTerm {
     for (std::size_t i = 1; i < nodes && i < w.radius.size(); ++i) {
       const double r = w.radius[i];
       if (!(r > 0.0)) continue;
-      // The sphere no finite energy lets the wall into: the rigid one, or a film's core.
-      const double rigid = i < w.flattening.size() && w.flattening[i].pressure > 0.0 ? w.core * r : r;
+      const double rigid = rigid_radius(w, i);  // the rigid sphere, or a film's core
       const Vec3& x = state.x[i];
       if (from != nullptr) {
         // A move shorter than that radius stays inside the wall-free ball of the feasible iterate.

@@ -339,6 +339,13 @@ struct NodeWallForce {
   double radius = 0.0;        ///< the sphere's radius s: r_i, or less where a film flattened [m]
 };
 
+/// The sphere of node i that no finite barrier energy lets the wall into [m]: a film's core c·r_i where the node's
+/// section flattens (WallBarrier::flattening with a pressure above 0), else its whole radius r_i.
+inline double rigid_radius(const WallBarrier& wall, std::size_t i) {
+  const bool film = i < wall.flattening.size() && wall.flattening[i].pressure > 0.0;
+  return film ? wall.core * wall.radius[i] : wall.radius[i];
+}
+
 /// The wall's push on each node of `state` under `wall` (WallBarrier). A node that overlaps the wall gets an
 /// infinite magnitude.
 std::vector<NodeWallForce> wall_barrier_forces(const RodState& state, const WallBarrier& wall);
