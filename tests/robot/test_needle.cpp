@@ -132,8 +132,11 @@ TEST(Needle, AStiffPunctureMakesTheTipSlideBack) {
   const Tube tube(capped_tube(5.6e-3));
   Grown g = grow(tube, 50e-3);
   NeedleTool n;
-  // 8 N: eight times the thesis's design load. In the Ø5.6 mm tube the body holds 5 N with its tip 0.13 mm back
-  // (measured under a dead load); at 8 N it creases and its tip goes back past the 2 mm limit (2.8 mm).
+  // 8 N: eight times the thesis's design load. With rigid contact spheres the body in the Ø5.6 mm tube held 5 N
+  // with its tip 0.13 mm back (under a dead load) and slid 2.8 mm at 8 N. With the film's flattening (2026-12-06)
+  // it gives way before the wall ruptures: it holds at most 2.9–3.0 N within the 2 mm limit, then slides (2.3 mm
+  // in one build, 12.7 mm in another: whether the reaction reaches 8 N as it slides turns on round-off, so the
+  // rupture is not asserted).
   n.cutting_force = 8.0;
   const PunctureReport r = push_needle(g.model, {}, n, Vec3(75e-3, 0.0, 0.0), 3e-3, 35e3, g.state, g.ws);
   std::printf("  held %d slide %.3f mm, max force %.2f N, largest moment %.3f of the collapse moment: %s\n", r.held,
@@ -141,13 +144,14 @@ TEST(Needle, AStiffPunctureMakesTheTipSlideBack) {
   EXPECT_FALSE(r.held);
   EXPECT_FALSE(r.success);
   EXPECT_GT(r.slide, n.max_slide);
-  // It ruptured the wall (the reaction reached its 8 N) before the vine gave way.
-  EXPECT_TRUE(r.punctured);
-  EXPECT_DOUBLE_EQ(r.max_force, 8.0);
+  // What it held within the slide limit stays below the wall's 8 N: the vine gave way first.
+  EXPECT_GT(r.held_force, 1.0);
+  EXPECT_LT(r.held_force, 8.0);
   EXPECT_NE(r.why.find("slid back"), std::string::npos) << r.why;
   // How it gives way: the body creases. A column pressed into a tube's clearance c = 0.3 mm bends by the load times
   // its offset, F·c, which reaches the inflated beam's collapse moment πR³P = 1.72 mN·m (R = 2.5 mm, 35 kPa) at
-  // F = 5.7 N: held at 5 N, creased at 8 N (a joint past πR³P, on the crease's hinge law, eq 4.13).
+  // F = 5.7 N; with the flattened film a joint passes πR³P (the crease's hinge law, eq 4.13) before the wall
+  // ruptures (1.19 and 1.76 of it in the two builds).
   EXPECT_GE(r.max_moment, 1.0);
 }
 
