@@ -1006,6 +1006,8 @@ void CollisionWorld::refit(std::span<const Vec3> vertices) {
   m.stats.refit_seconds = std::chrono::duration<double>(std::chrono::steady_clock::now() - start).count();
 }
 
+std::uint64_t CollisionWorld::geometry_id() const { return m_impl->id; }
+
 CollisionWorld::~CollisionWorld() = default;
 CollisionWorld::CollisionWorld(CollisionWorld&&) noexcept = default;
 CollisionWorld& CollisionWorld::operator=(CollisionWorld&&) noexcept = default;

@@ -339,7 +339,8 @@ bool Stepper::barrier_step(double dt, double pressure, double cap, bool damp_sta
   };
   const auto frame_of = [&](std::size_t i) -> const Mat3& { return state.body.frames[std::min(i, nodes - 2)]; };
   if (world() != nullptr) {
-    WallBarrier wall{world(), std::vector<double>(nodes, 0.0), model.dhat, ws.stiffness, &ws.near, {}, kFilmCore};
+    WallBarrier wall{world(), std::vector<double>(nodes, 0.0), model.dhat, ws.stiffness, &ws.near, {}, kFilmCore,
+                     &ws.sections};
     for (std::size_t i = 1; i < nodes; ++i) {
       GrowthNode& cache = state.nodes[i];
       if (moved(i)) {

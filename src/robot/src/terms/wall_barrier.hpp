@@ -106,6 +106,27 @@ inline bool section_radius(const WallBarrier& w, NodeContact& contact) {
   if (core == r) return true;  // a rigid sphere
   const FlatteningSection& section = w.flattening[contact.node];
   if (nearest >= r + w.activation) return true;  // no triangle within d̂ of the round sphere
+  SectionMemo* memo = nullptr;
+  if (w.sections != nullptr) {
+    if (w.sections->size() <= contact.node) w.sections->resize(contact.node + 1);
+    memo = &(*w.sections)[contact.node];
+    if (memo->x == contact.x && memo->world == w.world->geometry_id() && memo->radius == r &&
+        memo->section.pressure == section.pressure &&
+        memo->section.length == section.length && memo->section.cap == section.cap && memo->core == core &&
+        memo->stiffness == w.stiffness && memo->activation == w.activation) {
+      contact.radius = memo->s;
+      contact.film_energy = memo->energy;
+      contact.film_stiffness = memo->film_stiffness;
+      return true;
+    }
+  }
+  const auto remember = [&] {
+    if (memo != nullptr) {
+      *memo = {contact.x, w.world->geometry_id(), r, section, core, w.stiffness, w.activation, contact.radius,
+               contact.film_energy, contact.film_stiffness};
+    }
+    return true;
+  };
   double lo = std::max(core, nearest - w.activation);
   double hi = std::min(r, nearest);
   if (const FlatteningLaw at_core = flattening_law(section, r, r - lo);
@@ -113,7 +134,7 @@ inline bool section_radius(const WallBarrier& w, NodeContact& contact) {
     // Flattened to its core (φ(lo) ≥ 0 only at lo = core: B vanishes at nearest − d̂).
     contact.radius = lo;
     contact.film_energy = at_core.energy;
-    return true;
+    return remember();
   }
   // Safeguarded Newton on φ(s) = B(s) − F(r − s), rising in s; φ(lo) < 0 ≤ φ(hi).
   double s = 0.5 * (lo + hi);
@@ -130,7 +151,7 @@ inline bool section_radius(const WallBarrier& w, NodeContact& contact) {
   contact.radius = s;
   contact.film_energy = law.energy;
   contact.film_stiffness = law.stiffness;
-  return true;
+  return remember();
 }
 
 struct WallBarrierTerm {

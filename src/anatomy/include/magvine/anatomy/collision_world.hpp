@@ -243,6 +243,9 @@ class CollisionWorld {
   /// same time. Throws InputError for a wrong count or a non-finite vertex.
   void refit(std::span<const Vec3> vertices);
 
+  /// The geometry's identity: unique to this world and changed by every refit (what the caches key on).
+  std::uint64_t geometry_id() const;
+
   /// The world's own copy of the mesh [m].
   const TriangleMesh& mesh() const;
   const CollisionWorldOptions& options() const;

@@ -22,6 +22,7 @@
 /// the energy, each trial also offered with its nodes rebuilt along the new frames; the loads are ramped (full load
 /// first, the step halved when Newton fails); NaN and an exhausted ramp stop with a named cause.
 
+#include <cstdint>
 #include <functional>
 #include <limits>
 #include <memory>
@@ -235,6 +236,22 @@ struct FlatteningSection {
 /// Ψ, F and F' of `section` at radius R [m] flattened by δ ≥ 0 [m].
 FlatteningLaw flattening_law(const FlatteningSection& section, double radius, double depth);
 
+/// One node's last flattened sphere (WallBarrier::sections): what it was solved for, and the root. The solver asks
+/// again at the same state (its gradient, then its Hessian; a line search's winner, then the next gradient), and
+/// the root is a function of these alone, so the answer is the recomputed one, bit for bit.
+struct SectionMemo {
+  Vec3 x = Vec3::Constant(std::numeric_limits<double>::quiet_NaN());  ///< the node [m] (NaN: none yet)
+  std::uint64_t world = 0;  ///< the wall's geometry (CollisionWorld::geometry_id: a breathing airway's refits)
+  double radius = 0.0;      ///< r_i [m]
+  FlatteningSection section;
+  double core = 0.0;
+  double stiffness = 0.0;   ///< κ [N/m]
+  double activation = 0.0;  ///< d̂ [m]
+  double s = 0.0;           ///< the root [m]
+  double energy = 0.0;      ///< Ψ(r_i − s) [J]
+  double film_stiffness = 0.0;  ///< F'(r_i − s), or +∞ at the core [N/m]
+};
+
 /// The wall as a smooth barrier on the unsigned distance between each node's sphere and the wall's triangles
 /// (incremental potential contact, Li et al. 2020, eq. 6; terms/wall_barrier.hpp): for every triangle t within
 /// r_i + d̂ of node i, the gap g = |x_i − q_t| − r_i (q_t the closest point on t) stores
@@ -261,6 +278,9 @@ struct WallBarrier {
   /// The fraction of r_i a flattening section keeps rigid: at c = 1/2 the spheres still cover the edges between
   /// the nodes for h ≤ r_i (the default h = R), so no wall passes between two nodes.
   double core = 0.5;
+  /// Optional, per node: the last flattened sphere each node solved (SectionMemo; exact, so the solve is the same
+  /// with or without it).
+  std::vector<SectionMemo>* sections = nullptr;
 };
 
 /// Smoothed Coulomb friction of one node against the wall, lagged (Li et al. 2020, §5): with the normal force λ and
