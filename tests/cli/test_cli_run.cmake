@@ -78,6 +78,10 @@ assert m['branches_reached'][-1] == '0-0', m['branches_reached']
 rows = list(csv.reader(open('${WORK}/experiment/tip_trajectory.csv')))
 assert rows[0][:4] == ['t_s', 'x_m', 'y_m', 'z_m'], rows[0]
 assert len(rows) == round(m['simulated_s'] / 0.02) + 1, (len(rows), m['simulated_s'])
+# each step's largest line load; the run's is the largest of them (10 significant digits in the CSV)
+k = rows[0].index('max_line_load_N_per_mm')
+peak = max(float(r[k]) for r in rows[1:])
+assert peak > 0 and abs(peak - m['max_wall_line_load_N_per_mm']) <= 1e-9 * peak, (peak, m['max_wall_line_load_N_per_mm'])
 events = json.load(open('${WORK}/experiment/events.json'))
 assert all('kind' in e and 'time_s' in e for e in events)
 " RESULT_VARIABLE rc ERROR_VARIABLE err)

@@ -298,11 +298,13 @@ void write_experiment_outputs(const ExperimentScene& scene, const ExperimentResu
   std::ostringstream tips;
   tips.precision(10);
   // With breathing, a last column: the fraction of inspiration (1: the rest shape).
-  tips << "t_s,x_m,y_m,z_m,length_m,pressure_Pa,max_normal_N,mean_normal_N,total_normal_N,total_shear_N,branch"
+  tips << "t_s,x_m,y_m,z_m,length_m,pressure_Pa,max_normal_N,max_line_load_N_per_mm,mean_normal_N,"
+          "total_normal_N,total_shear_N,branch"
        << (scene.breathing ? ",inspiration\n" : "\n");
   for (const ExperimentSample& s : result.samples) {
     tips << s.time << ',' << s.tip.x() << ',' << s.tip.y() << ',' << s.tip.z() << ',' << s.length << ',' << s.pressure
-         << ',' << s.max_normal << ',' << s.mean_normal << ',' << s.total_normal << ',' << s.total_shear << ','
+         << ',' << s.max_normal << ',' << 1e-3 * s.max_line_load << ',' << s.mean_normal << ',' << s.total_normal
+         << ',' << s.total_shear << ','
          << (s.branch >= 0 ? scene.anatomy->graph->branches[static_cast<std::size_t>(s.branch)].name : std::string());
     if (scene.breathing) tips << ',' << s.inspiration;
     tips << '\n';
