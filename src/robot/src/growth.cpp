@@ -27,9 +27,6 @@ constexpr double kStill = 0.02;
 // radius is continuous in w: min(R, kSlack·w) reaches R at w = 2.22R, where slot_area and flat_width are already
 // those of the round section.
 constexpr double kSlack = 0.45;
-// The fraction of a vine node's contact radius its film keeps rigid as it flattens on the wall
-// (WallBarrier::core): at a half, the nodes' spheres still cover the edges between them (h = R).
-constexpr double kFilmCore = 0.5;
 // Moves toward the middle of its chords of the point where the growth test measures the lumen ahead of a new tip
 // (Stepper::lumen_width): two leave a quarter of the offset in a round lumen.
 constexpr int kRecentrings = 2;

@@ -111,9 +111,8 @@ inline bool section_radius(const WallBarrier& w, NodeContact& contact) {
     if (w.sections->size() <= contact.node) w.sections->resize(contact.node + 1);
     memo = &(*w.sections)[contact.node];
     if (memo->x == contact.x && memo->world == w.world->geometry_id() && memo->radius == r &&
-        memo->section.pressure == section.pressure &&
-        memo->section.length == section.length && memo->section.cap == section.cap && memo->core == core &&
-        memo->stiffness == w.stiffness && memo->activation == w.activation) {
+        memo->section == section && memo->core == core && memo->stiffness == w.stiffness &&
+        memo->activation == w.activation) {
       contact.radius = memo->s;
       contact.film_energy = memo->energy;
       contact.film_stiffness = memo->film_stiffness;

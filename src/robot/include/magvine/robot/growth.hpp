@@ -354,7 +354,8 @@ struct GrowthWorkspace {
   std::vector<std::array<double, 4>> last;
   /// Per node, its neighbourhood of the wall (the barrier's NearCache: spares BVH walks, changes no result).
   std::vector<anatomy::NearCache> near;
-  /// Per node, its last flattened sphere (the barrier's SectionMemo: spares root solves, changes no result).
+  /// Per node, its last flattened sphere (the barrier's SectionMemo: spares root solves, changes results only at
+  /// round-off).
   std::vector<SectionMemo> sections;
 };
 

@@ -209,6 +209,11 @@ struct NodeAnchor {
   double stiffness = 0.0;       ///< [N/m]
 };
 
+/// The fraction of a node's contact radius its film keeps rigid as it flattens on the wall (WallBarrier::core): at
+/// a half, the nodes' spheres still cover the edges between them for h ≤ r_i (the default h = R), so no wall passes
+/// between two nodes.
+inline constexpr double kFilmCore = 0.5;
+
 /// The film law of one node's section flattened on the wall by a depth δ (flattening_law) [J, N, N/m].
 struct FlatteningLaw {
   double energy = 0.0;     ///< Ψ(δ)
@@ -231,6 +236,7 @@ struct FlatteningSection {
   double pressure = 0.0;  ///< P [Pa]
   double length = 0.0;    ///< ℓ [m]; ignored for the cap
   bool cap = false;       ///< the tip's hemisphere instead of a cylinder's side
+  bool operator==(const FlatteningSection&) const = default;
 };
 
 /// Ψ, F and F' of `section` at radius R [m] flattened by δ ≥ 0 [m].
@@ -238,7 +244,9 @@ FlatteningLaw flattening_law(const FlatteningSection& section, double radius, do
 
 /// One node's last flattened sphere (WallBarrier::sections): what it was solved for, and the root. The solver asks
 /// again at the same state (its gradient, then its Hessian; a line search's winner, then the next gradient), and
-/// the root is a function of these alone, so the answer is the recomputed one, bit for bit.
+/// the root is a function of these and the triangles near the node. The same triangles may come back from the
+/// NearCache in another order, so a recomputed root can differ from the kept one in its last digits (runs differ
+/// at about 1e-11 with and without the memo); a run is still the same from one execution to the next.
 struct SectionMemo {
   Vec3 x = Vec3::Constant(std::numeric_limits<double>::quiet_NaN());  ///< the node [m] (NaN: none yet)
   std::uint64_t world = 0;  ///< the wall's geometry (CollisionWorld::geometry_id: a breathing airway's refits)
@@ -275,11 +283,10 @@ struct WallBarrier {
   std::vector<anatomy::NearCache>* near = nullptr;
   /// Per node (index = node), or empty: every node's sphere is rigid.
   std::vector<FlatteningSection> flattening;
-  /// The fraction of r_i a flattening section keeps rigid: at c = 1/2 the spheres still cover the edges between
-  /// the nodes for h ≤ r_i (the default h = R), so no wall passes between two nodes.
-  double core = 0.5;
-  /// Optional, per node: the last flattened sphere each node solved (SectionMemo; exact, so the solve is the same
-  /// with or without it).
+  /// The fraction of r_i a flattening section keeps rigid (kFilmCore).
+  double core = kFilmCore;
+  /// Optional, per node: the last flattened sphere each node solved (SectionMemo; the same solve with or without
+  /// it, to round-off).
   std::vector<SectionMemo>* sections = nullptr;
 };
 
