@@ -116,3 +116,54 @@ string(FIND "${err}" "beam.yaml" pos)
 if(pos EQUAL -1 OR EXISTS ${WORK}/sweep_bad/extension_sweep.csv)
   message(FATAL_ERROR "extension sweep of another scene: the error does not name the file, or a table was written: '${err}'")
 endif()
+
+# Pittiglio's robot over a field sweep (tools/mpm_tentacle_sweep.py, thesis 3.6.5.1): its reference, the planar
+# elastica of the scene's sections, against linear beam theory. A rod of two materials (EI 4.45e-6 and 2.48e-6 N·m²,
+# 40 mm each), magnetised across its axis, in a field of 10 µT along it and no gravity: a couple q per length, tip
+# deflection q ∫ (L − s)²/EI(s) ds (unit load), 0.58 mm. Measured −0.06 % (−0.03 % with 3200 segments: first order
+# in the segment, the joint at the material boundary a harmonic mean); tolerance 0.5 %, room for the nonlinear terms
+# at slopes below 0.02 (~1e-4).
+# The sweep's MPM runs take minutes each and are measured in docs/mpm.md, not here.
+execute_process(COMMAND ${PYTHON} -c "
+import math, sys
+sys.path.insert(0, '${SRC}/tools')
+import mpm_tentacle_sweep as t
+r, br, l = 2e-3, 0.138, 0.08
+sections = [(0.0, 0.04, 120000.0, 1882.0, r, br, (1.0, 0.0)), (0.04, 0.08, 67000.0, 927.0, r, br, (1.0, 0.0))]
+s, x, z = t.elastica(sections, (0.0, 1e-5), gravity=0.0)
+tip = abs(t.at_arc(s, x, z, l)[0])
+q = br / t.MU0 * math.pi * r * r * 1e-5
+ei = [9 * 20 * g * g / (61 * g) * math.pi * r ** 4 / 4 for g in (120000.0, 67000.0)]
+linear = q * (((l - 0.0) ** 3 - (l - 0.04) ** 3) / ei[0] + (l - 0.04) ** 3 / ei[1]) / 3
+assert abs(tip / linear - 1) < 0.005, (tip, linear)
+" RESULT_VARIABLE rc ERROR_VARIABLE err)
+expect_rc(${rc} 0 "tentacle elastica against linear beam theory: ${err}")
+# Its twist criterion against torsional buckling in closed form: a uniform rod magnetised against the field (no
+# gravity; straight, the planar state at any field) loses its twist stability where the negative stiffness m·B per
+# length reaches GJ (π/2L)², here at 0.84 mT. Asserted stable at 0.98 of it and unstable at 1.02 (the 800 segments'
+# threshold lies 3e-7 below the continuum's, measured by bisection).
+execute_process(COMMAND ${PYTHON} -c "
+import math, sys
+sys.path.insert(0, '${SRC}/tools')
+import mpm_tentacle_sweep as t
+r, br, l, g = 2e-3, 0.138, 0.08, 120000.0
+sections = [(0.0, l, g, 1882.0, r, br, (-1.0, 0.0))]
+critical = g * math.pi * r ** 4 / 2 * (math.pi / (2 * l)) ** 2 / (br / t.MU0 * math.pi * r * r)
+assert t.twist_stiffness(sections, (0.98 * critical, 0.0), gravity=0.0) > 0
+assert t.twist_stiffness(sections, (1.02 * critical, 0.0), gravity=0.0) < 0
+" RESULT_VARIABLE rc ERROR_VARIABLE err)
+expect_rc(${rc} 0 "tentacle twist criterion against torsional buckling: ${err}")
+# Another scene, or a field out of range: one line, exit 2, no table.
+file(REMOVE_RECURSE ${WORK}/tentacle_bad)
+execute_process(COMMAND ${PYTHON} ${SRC}/tools/mpm_tentacle_sweep.py --scene ${WORK}/beam.yaml
+                        --magvine ${MAGVINE} --out ${WORK}/tentacle_bad
+                RESULT_VARIABLE rc ERROR_VARIABLE err)
+expect_rc(${rc} 2 "tentacle sweep of another scene: ${err}")
+string(FIND "${err}" "beam.yaml" pos)
+if(pos EQUAL -1 OR EXISTS ${WORK}/tentacle_bad/tentacle_sweep.csv)
+  message(FATAL_ERROR "tentacle sweep of another scene: the error does not name the file, or a table was written: '${err}'")
+endif()
+execute_process(COMMAND ${PYTHON} ${SRC}/tools/mpm_tentacle_sweep.py --scene ${SRC}/assets/scenes/mpm_tentacle.yaml
+                        --magvine ${MAGVINE} --fields 500 --out ${WORK}/tentacle_bad
+                RESULT_VARIABLE rc ERROR_VARIABLE err)
+expect_rc(${rc} 2 "tentacle sweep at 500 mT: ${err}")
