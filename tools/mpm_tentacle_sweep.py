@@ -268,6 +268,48 @@ def last_snapshot(run):
         return None
 
 
+def rod_tip(magvine, folder, tag, sections, field, arc, sign):
+    """magvine's Cosserat rod (`magvine run`, a free-space rod scene) of `sections`, all of one material, hanging
+    from the clamp along −z in a field (Bx, Bz) [T]: its (x, y, z) [mm, from the clamp] at `arc` [m], or None where
+    the solve fails. The rod twists as freely as it bends, so past the twist threshold it leaves the plane like the
+    MPM body; a planar rod sits on the unstable branch there and its solve fails at the bifurcation, so each
+    magnetisation is given a component of 0.1 % out of the plane, of sign `sign` (which picks the branch). Body
+    frame: x the tangent (−z), y the base normal (+x), z = x × y (−y)."""
+    import numpy as np
+
+    _, _, shear, rho, radius, _, _ = sections[0]
+    bulk = 20.0 * shear
+    magnetisation = []
+    for a, b, _, _, _, remanence, direction in sections:
+        if direction is not None:
+            wx, wz = direction
+            magnetisation.append({"from": a * 1e3, "to": b * 1e3, "remanence": remanence,
+                                  "direction": [-wz, wx, -sign * 1e-3 * math.hypot(wx, wz)]})
+    scene = {"units": {"length": "mm"},
+             "robot": {"kind": "rod", "length": sections[-1][1] * 1e3,
+                       "section": {"shape": "circle", "diameter": 2e3 * radius},
+                       "youngs_modulus": 9.0 * bulk * shear / (3.0 * bulk + shear), "density": rho,
+                       "magnetisation": magnetisation,
+                       "base": {"position": [0, 0, 0], "direction": [0, 0, -1], "normal": [1, 0, 0]},
+                       "node_spacing": 0.5},
+             "magnets": [{"kind": "uniform", "field": [field[0], 0.0, field[1]]}],
+             "simulation": {"gravity": [0, 0, -9.81]}}
+    import yaml
+    path = os.path.join(folder, f"rod_{tag}.yaml")
+    out = os.path.join(folder, f"rod_{tag}")
+    with open(path, "w", encoding="utf-8") as f:
+        yaml.safe_dump(scene, f, sort_keys=False)
+    done = subprocess.run([magvine, "run", path, "--out", out], stdout=subprocess.DEVNULL, stderr=subprocess.PIPE,
+                          text=True)
+    if done.returncode != 0:
+        return None
+    try:
+        shape = np.loadtxt(os.path.join(out, "shape.csv"), delimiter=",", skiprows=1, ndmin=2)
+    except (OSError, ValueError) as e:
+        fail(os.path.join(out, "shape.csv"), str(e))
+    return [float(np.interp(arc, shape[:, 0], shape[:, k])) * 1e3 for k in (1, 2, 3)]
+
+
 def main():
     ap = argparse.ArgumentParser(description=__doc__.splitlines()[0])
     ap.add_argument("--scene", default="assets/scenes/mpm_tentacle.yaml")
@@ -277,6 +319,9 @@ def main():
     ap.add_argument("--out", required=True, help="folder for the scenes and runs")
     ap.add_argument("--reuse", action="store_true",
                     help="keep a run whose scene in OUT is unchanged and which ended well (a sweep resumed)")
+    ap.add_argument("--uniform-material", action="store_true",
+                    help="every section of the magnetic sections' material, and magvine's 3D Cosserat rod of it "
+                         "beside MPM (a second method past the twist threshold; magvine's rods take one material)")
     ap.add_argument("--csv", help="the table (default OUT/tentacle_sweep.csv)")
     ap.add_argument("--figure", help="the PNG (default OUT/tentacle_sweep.png)")
     a = ap.parse_args()
@@ -325,12 +370,16 @@ def main():
             for b in variant["bodies"]:
                 if b["name"] in PROFILE_B:
                     b["magnetisation"]["direction"] = PROFILE_B[b["name"]]
+        if a.uniform_material:
+            magnetic = next(b for b in variant["bodies"] if b.get("magnetisation"))
+            for b in variant["bodies"]:
+                b["material"] = copy.deepcopy(magnetic["material"])
         sections, _ = robot_sections(variant, a.scene)
         threshold = twist_threshold(sections, max(fields) * 1e-3)
         for mt in fields:
             ramp = variant["field"]["keyframes"]
             variant["field"]["keyframes"] = [{"t": 0, "b": [0, 0, 0]}, {"t": ramp[-1]["t"], "b": [mt * 1e-3, 0, 0]}]
-            tag = f"{profile}_{mt:g}mT"
+            tag = f"{'uniform_' if a.uniform_material else ''}{profile}_{mt:g}mT"
             path = os.path.join(a.out, f"tentacle_{tag}.yaml")
             run = os.path.join(a.out, f"run_{tag}")
             text = yaml.safe_dump(variant, sort_keys=False)
@@ -374,6 +423,18 @@ def main():
                          "twist_threshold_mT": "" if threshold is None else threshold * 1e3,
                          "planar_stable": int(threshold is None or mt * 1e-3 < threshold),
                          "tip_error_mm": error, "settled_at_s": t_end, "runtime_s": wall})
+            if a.uniform_material:
+                arc = (face - first[2]) * 1e-3
+                # The twisted branches are mirror images in y: the rod's is taken on the MPM body's side.
+                tip = rod_tip(a.magvine, a.out, tag, sections, (mt * 1e-3, 0.0), arc, 1.0)
+                if tip is not None and abs(last[1]) > 0.05 and tip[1] * last[1] < 0.0:
+                    tip = rod_tip(a.magvine, a.out, tag, sections, (mt * 1e-3, 0.0), arc, -1.0)
+                rows[-1]["rod_tip_x_mm"] = "" if tip is None else tip[0]
+                rows[-1]["rod_tip_y_mm"] = "" if tip is None else tip[1]
+                rows[-1]["rod_tip_z_mm"] = "" if tip is None else face + tip[2]
+                rows[-1]["rod_gap_mm"] = "" if tip is None else math.dist(last, (tip[0], tip[1], face + tip[2]))
+                said = "its solve failed" if tip is None else f"{rows[-1]['rod_gap_mm']:.2f} mm from MPM's tip"
+                print(f"  the Cosserat rod: {said}", file=sys.stderr, flush=True)
             shapes[(profile, mt)] = (ex * 1e3, face + ez * 1e3, last_snapshot(run))
             print(f"  profile {profile}, {mt:g} mT: MPM ({last[0]:.2f}, {last[2]:.2f}) mm, elastica ({rx:.2f}, {rz:.2f}) "
                   f"mm: {error:.2f} mm apart; planar path {'stable' if rows[-1]['planar_stable'] else 'unstable'} in twist, "
@@ -415,8 +476,9 @@ def main():
     fig.savefig(out_png, dpi=120)
     for profile in profiles:
         planar = [r["tip_error_mm"] for r in rows if r["profile"] == profile and r["planar_stable"]]
-        print(f"profile {profile}: mean tip gap {sum(planar) / len(planar) if planar else float('nan'):.3f} mm over "
-              f"the {len(planar)} fields below the twist threshold")
+        print(f"profile {profile}: mean tip gap to the elastica {sum(planar) / len(planar):.3f} mm over the "
+              f"{len(planar)} field(s) below the twist threshold" if planar
+              else f"profile {profile}: no field below the twist threshold")
     print(f"mpm_tentacle_sweep: {out_csv}, {out_png}", file=sys.stderr)
 
 
