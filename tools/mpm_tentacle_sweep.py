@@ -9,7 +9,7 @@ profile a, 6.97 mm with b); their measured tips are not published, so the refere
 same model: the planar Kirchhoff elastica of the scene's sections (inextensible and unshearable, EI = E·πr⁴/4 with
 the MPM material's small-strain E = 9KG/(3K + G), K = 20 G; weight ρAg; a magnetic couple per length
 A (B̃r/μ0) × B with B̃r turning with the section), clamped at the clamp's lower face, discretised in 1600 segments and
-solved by Newton to round-off (the tip moves < 1e-4 mm from 800 to 1600 segments). Every magnetisation direction
+solved by Newton to round-off (the tip moves ≤ 1.5e-4 mm from 800 to 1600 segments). Every magnetisation direction
 lies in the x–z plane and so does the field, so the elastica is planar.
 
 A planar state is a reference only while it is stable: a section magnetised against the field can turn about its own
@@ -46,9 +46,12 @@ def fail(path, problem):
 
 def robot_sections(scene, path):
     """The scene's sections below the clamp, from it down: (from, to) [m of arc], G [Pa], ρ, radius [m], B̃r [T],
-    direction (x, z) or None; and the clamp's lower face z [m]. Exits 2 unless the scene is a vertical chain of
-    cylinders on the z axis under one clamp."""
+    direction (x, z) or None. Exits 2 unless the scene is a vertical chain of touching cylinders on the z axis under
+    one clamp, in mm and Pa, each of K = 20 G (the elastica's material), with at least one magnetised."""
     try:
+        units = scene.get("units", {})
+        if units.get("length") != "mm" or units.get("pressure", "Pa") != "Pa":
+            fail(path, "units: the sweep reads lengths in mm and moduli in Pa (units: {length: mm})")
         bodies = scene["bodies"]
         clamp = scene["clamps"][0]
         face = float(clamp["min"][2])
@@ -61,26 +64,40 @@ def robot_sections(scene, path):
             direction = None
             remanence = 0.0
             if m:
-                d = m["direction"]
+                d = [float(v) for v in m["direction"]]
                 if abs(d[1]) > 1e-12:
                     fail(path, f"bodies: {b['name']}: magnetisation out of the x-z plane (the elastica is planar)")
-                direction = (float(d[0]), float(d[2]))
+                if not math.hypot(d[0], d[2]) > 0.0:
+                    fail(path, f"bodies: {b['name']}: magnetisation direction is zero")
+                direction = (d[0], d[2])
                 remanence = float(m["remanence"])
+            shear, density = float(b["material"]["shear_modulus"]), float(b["material"]["density"])
+            radius = float(b["radius"])
+            bulk = float(b["material"].get("bulk_modulus", 20.0 * shear))
+            if not (shear > 0.0 and density >= 0.0 and radius > 0.0) or abs(bulk / shear - 20.0) > 1e-9:
+                fail(path, f"bodies: {b['name']}: needs shear_modulus > 0, density >= 0, radius > 0 and the "
+                           "default bulk_modulus (K = 20 G)")
             a, c = max(0.0, face - top), face - bottom
             if c > 0.0:
-                out.append((a * 1e-3, c * 1e-3, float(b["material"]["shear_modulus"]),
-                            float(b["material"]["density"]), float(b["radius"]) * 1e-3, remanence, direction))
-        return out, face * 1e-3
-    except (KeyError, IndexError, TypeError, ValueError) as e:
+                if abs(a * 1e-3 - (out[-1][1] if out else 0.0)) > 1e-9:
+                    fail(path, f"bodies: {b['name']}: does not start where the body above it ends (sections must "
+                               "touch, from the clamp down)")
+                out.append((a * 1e-3, c * 1e-3, shear, density, radius * 1e-3, remanence, direction))
+        if not out or not any(sec[6] is not None for sec in out):
+            fail(path, "bodies: no section below the clamp, or none magnetised")
+        return out
+    except (KeyError, IndexError, TypeError, ValueError, AttributeError) as e:
         fail(path, f"not the bundled robot's form ({e!r})")
 
 
-def elastica(sections, field, gravity=9.81, n=1600, start=None):
+def elastica(sections, field, gravity=9.81, n=1600):
     """The clamped planar elastica of `sections` hanging along −z under gravity and a uniform field (Bx, Bz) [T]:
-    the arc s [m] of each segment's midpoint and its (x, z) offset from the clamp [m]. Segment j has angle φ_j from
-    the vertical, tangent (−sin φ, −cos φ); the energy Σ ½ k_j (φ_j − φ_{j−1})² − Σ ds m_j(φ_j)·B − Σ ds W_j cos φ_j
-    (k the joints' EI/ds, harmonic mean across a section boundary; W_j the weight below segment j's midpoint) is
-    minimised by Newton with a tridiagonal Hessian, shifted where not positive, and a backtracking line search."""
+    the arc s [m] of each segment's midpoint, its (x, z) offset from the clamp [m] and its angle φ. Segment j has
+    angle φ_j from the vertical, tangent (−sin φ, −cos φ); the energy Σ ½ k_j (φ_j − φ_{j−1})² − Σ ds m_j(φ_j)·B −
+    Σ ds W_j cos φ_j (k the joints' EI/ds, harmonic mean across a section boundary; W_j the weight below segment j's
+    midpoint) is minimised from straight by Newton (its Hessian is tridiagonal; shifted until Cholesky accepts it
+    where it is not positive definite) with a backtracking line search. Raises RuntimeError when Newton does not
+    converge in 500 steps."""
     import numpy as np
 
     length = sections[-1][1]
@@ -97,7 +114,7 @@ def elastica(sections, field, gravity=9.81, n=1600, start=None):
             moment = remanence / MU0 * math.pi * r * r / math.hypot(*direction)  # per length [A·m]
             mx[sel], mz[sel] = moment * direction[0], moment * direction[1]
     if not (ei > 0).all():
-        raise ValueError("a gap between the sections")
+        raise RuntimeError("a gap between the sections")
     weight_below = np.cumsum(w[::-1])[::-1] - 0.5 * w
     k = np.empty(n)
     k[0] = ei[0] / (0.5 * ds)  # the clamp to the first midpoint
@@ -110,7 +127,7 @@ def elastica(sections, field, gravity=9.81, n=1600, start=None):
         return (0.5 * np.sum(k * d * d) - ds * np.sum(bx * (mx * c + mz * s) + bz * (mz * c - mx * s))
                 - ds * np.sum(weight_below * c))
 
-    phi = np.zeros(n) if start is None else np.array(start, dtype=float)
+    phi = np.zeros(n)
     for _ in range(500):
         d = np.diff(phi, prepend=0.0)
         c, s = np.cos(phi), np.sin(phi)
@@ -121,20 +138,25 @@ def elastica(sections, field, gravity=9.81, n=1600, start=None):
             + ds * weight_below * c
         off = -k[1:]
         h = np.diag(diag) + np.diag(off, 1) + np.diag(off, -1)
-        low = np.linalg.eigvalsh(h)[0]
-        if low <= 0.0:
-            h += (1e-9 * np.abs(diag).max() - 1.1 * low) * np.eye(n)
-        step = -np.linalg.solve(h, grad)
+        shift = 0.0
+        while True:
+            try:
+                lower = np.linalg.cholesky(h + shift * np.eye(n))
+                break
+            except np.linalg.LinAlgError:
+                shift = max(1e-9 * np.abs(diag).max(), 4.0 * shift)
+        step = -np.linalg.solve(lower.T, np.linalg.solve(lower, grad))
         e0, t = energy(phi), 1.0
         while energy(phi + t * step) > e0 and t > 1e-12:
             t *= 0.5
         phi = phi + t * step
-        if np.abs(t * step).max() < 1e-13:
+        if np.abs(t * step).max() < 1e-13 and shift == 0.0 and np.abs(grad).max() <= 1e-9 * np.abs(diag).max():
             break
+    else:
+        raise RuntimeError("the elastica's Newton did not converge in 500 steps")
     x = np.cumsum(-np.sin(phi)) * ds - 0.5 * ds * -np.sin(phi)
     z = np.cumsum(-np.cos(phi)) * ds - 0.5 * ds * -np.cos(phi)
-    elastica.last_angles = phi
-    return s_mid, x, z
+    return s_mid, x, z, phi
 
 
 def at_arc(s_mid, x, z, s):
@@ -159,16 +181,16 @@ def twist_stiffness(sections, field, gravity=9.81, n=800):
     """The lowest eigenvalue [N·m] of the second variation of the energy in a twist ψ(s) of each section about its
     own tangent, at the planar elastica's equilibrium: ½ Σ GJ ψ'² + ½ Σ ds (m⊥·B) ψ² (GJ = G·πr⁴/2; m⊥ the
     magnetic moment per length across the tangent; a twist turns m⊥ about t, and at a planar state the first-order
-    term (t × m⊥)·B vanishes). Negative: the planar state is unstable and the body twists out of the x–z plane,
+    term (t × m⊥)·B vanishes); its value scales with the segments, its sign is what counts. Negative: the planar
+    state is unstable and the body twists out of the x–z plane,
     where the planar elastica no longer describes it (a section magnetised against the field turns about its axis).
     Twist alone; its coupling with bending out of the plane could only lower the eigenvalue."""
     import numpy as np
 
-    s_mid, _, _ = elastica(sections, field, gravity, n)
-    phi = elastica.last_angles
+    s_mid, _, _, phi = elastica(sections, field, gravity, n)
     ds = sections[-1][1] / n
     gj, k = np.zeros(n), np.zeros(n)
-    for a, b, shear, rho, r, remanence, direction in sections:
+    for a, b, shear, _, r, remanence, direction in sections:
         sel = (s_mid >= a) & (s_mid < b)
         gj[sel] = shear * math.pi * r ** 4 / 2.0
         if direction is not None:
@@ -200,7 +222,7 @@ def largest_twist(run, clamp_face, length, slab=2.0, every=5.0):
     """The largest twist [degrees] of the MPM body about its own axis between its first and last snapshots: for each
     slab of particles (`slab` mm thick, every `every` mm below the clamp) the best rotation of its particles about
     their centroid (Kabsch), less the swing that turns its axis (−z at rest) onto its new direction; the angle left,
-    about the axis. None without two snapshots."""
+    about the axis, folded into 0–180°. None without two snapshots."""
     import numpy as np
     folder = os.path.join(run, "snapshots")
     try:
@@ -232,14 +254,14 @@ def largest_twist(run, clamp_face, length, slab=2.0, every=5.0):
 
 
 def final_probe(run):
-    """(first, last) (x, y, z) [mm] of the run's tip probe."""
+    """The run's tip probe: its first and last (x, y, z) [mm], and the time of the last [s]."""
     path = os.path.join(run, "probes.csv")
     try:
         with open(path, encoding="utf-8", newline="") as f:
             rows = list(csv.DictReader(f))
         keys = ("tip_x_mm", "tip_y_mm", "tip_z_mm")
-        if not rows or any(k not in rows[0] for k in keys):
-            fail(path, "no tip_x_mm, tip_y_mm, tip_z_mm columns")
+        if not rows or any(k not in rows[0] for k in keys + ("t_s",)):
+            fail(path, "no t_s, tip_x_mm, tip_y_mm, tip_z_mm columns")
         return [float(rows[0][k]) for k in keys], [float(rows[-1][k]) for k in keys], float(rows[-1]["t_s"])
     except OSError as e:
         fail(path, e.strerror)
@@ -248,36 +270,29 @@ def final_probe(run):
 
 
 def last_snapshot(run):
-    """The last PLY snapshot's particle (x, z) [mm] (ASCII, as magvine mpm writes it), or None."""
+    """The last PLY snapshot's particle (x, z) [mm] (snapshot), or None."""
     folder = os.path.join(run, "snapshots")
     try:
         names = sorted(n for n in os.listdir(folder) if n.endswith(".ply"))
         if not names:
             return None
-        xs, zs = [], []
-        with open(os.path.join(folder, names[-1]), encoding="utf-8") as f:
-            for line in f:
-                if line.strip() == "end_header":
-                    break
-            for line in f:
-                p = line.split()
-                xs.append(float(p[0]))
-                zs.append(float(p[2]))
-        return xs, zs
-    except (OSError, ValueError, IndexError):
+        points = snapshot(os.path.join(folder, names[-1]))
+        return points[:, 0], points[:, 2]
+    except (OSError, ValueError):
         return None
 
 
 def rod_tip(magvine, folder, tag, sections, field, arc, sign):
     """magvine's Cosserat rod (`magvine run`, a free-space rod scene) of `sections`, all of one material, hanging
     from the clamp along −z in a field (Bx, Bz) [T]: its (x, y, z) [mm, from the clamp] at `arc` [m], or None where
-    the solve fails. The rod twists as freely as it bends, so past the twist threshold it leaves the plane like the
+    `magvine run` exits non-zero (exit 2 here if it leaves an unreadable shape.csv). The rod's torsion takes
+    G = E/3 (magvine's rods), 1.6 % below the G of the MPM material's E. The rod twists as freely as it bends, so past the twist threshold it leaves the plane like the
     MPM body; a planar rod sits on the unstable branch there and its solve fails at the bifurcation, so each
     magnetisation is given a component of 0.1 % out of the plane, of sign `sign` (which picks the branch). Body
     frame: x the tangent (−z), y the base normal (+x), z = x × y (−y)."""
     import numpy as np
 
-    _, _, shear, rho, radius, _, _ = sections[0]
+    _, _, shear, rho, radius, _, _ = sections[0]  # one material (--uniform-material)
     bulk = 20.0 * shear
     magnetisation = []
     for a, b, _, _, _, remanence, direction in sections:
@@ -299,8 +314,8 @@ def rod_tip(magvine, folder, tag, sections, field, arc, sign):
     out = os.path.join(folder, f"rod_{tag}")
     with open(path, "w", encoding="utf-8") as f:
         yaml.safe_dump(scene, f, sort_keys=False)
-    done = subprocess.run([magvine, "run", path, "--out", out], stdout=subprocess.DEVNULL, stderr=subprocess.PIPE,
-                          text=True)
+    done = subprocess.run([magvine, "run", path, "--out", out], stdout=subprocess.DEVNULL,
+                          stderr=subprocess.DEVNULL)
     if done.returncode != 0:
         return None
     try:
@@ -349,11 +364,17 @@ def main():
     profiles = a.profiles.split(",")
     if not profiles or any(p not in ("a", "b") for p in profiles):
         fail("--profiles", "a comma-separated list of a and b")
-    names = {b.get("name") for b in scene.get("bodies", []) if isinstance(b, dict)}
-    if not set(PROFILE_B) <= names:
-        fail(a.scene, f"no bodies {sorted(PROFILE_B)} (not the bundled robot?)")
-    if "keyframes" not in scene.get("field", {}):
+    if not isinstance(scene, dict) or not isinstance(scene.get("bodies"), list):
+        fail(a.scene, "bodies: missing (not the bundled robot?)")
+    magnetised = {b.get("name") for b in scene["bodies"] if isinstance(b, dict) and isinstance(b.get("magnetisation"), dict)}
+    if not set(PROFILE_B) <= magnetised:
+        fail(a.scene, f"bodies: no magnetised bodies {sorted(PROFILE_B)} (not the bundled robot?)")
+    field = scene.get("field")
+    ramp = field.get("keyframes") if isinstance(field, dict) else None
+    if not isinstance(ramp, list) or not ramp or not isinstance(ramp[-1], dict) or "t" not in ramp[-1]:
         fail(a.scene, "field: no keyframes (not the bundled robot?)")
+    if os.path.exists(a.out) and not os.path.isdir(a.out):
+        fail(a.out, "exists and is not a folder (--out)")
     out_csv = a.csv or os.path.join(a.out, "tentacle_sweep.csv")
     out_png = a.figure or os.path.join(a.out, "tentacle_sweep.png")
     for path in (a.csv, a.figure):
@@ -361,21 +382,29 @@ def main():
             fail(path, "its folder does not exist")
     if not (os.path.isfile(a.magvine) and os.access(a.magvine, os.X_OK)):
         fail(a.magvine, "not an executable (--magvine)")
-    os.makedirs(a.out, exist_ok=True)
 
-    rows, shapes = [], {}
+    # Every variant's robot is read, and its elastica's twist threshold found, before the first MPM run.
+    plans = []
     for profile in profiles:
         variant = copy.deepcopy(scene)
         if profile == "b":
             for b in variant["bodies"]:
-                if b["name"] in PROFILE_B:
+                if b.get("name") in PROFILE_B:
                     b["magnetisation"]["direction"] = PROFILE_B[b["name"]]
         if a.uniform_material:
-            magnetic = next(b for b in variant["bodies"] if b.get("magnetisation"))
+            magnetic = next(b for b in variant["bodies"] if isinstance(b.get("magnetisation"), dict))
             for b in variant["bodies"]:
-                b["material"] = copy.deepcopy(magnetic["material"])
-        sections, _ = robot_sections(variant, a.scene)
-        threshold = twist_threshold(sections, max(fields) * 1e-3)
+                b["material"] = copy.deepcopy(magnetic.get("material"))
+        sections = robot_sections(variant, a.scene)
+        try:
+            threshold = twist_threshold(sections, max(fields) * 1e-3)
+        except RuntimeError as e:
+            fail(a.scene, f"profile {profile}: {e}")
+        plans.append((profile, variant, sections, threshold))
+    os.makedirs(a.out, exist_ok=True)
+
+    rows, shapes = [], {}
+    for profile, variant, sections, threshold in plans:
         for mt in fields:
             ramp = variant["field"]["keyframes"]
             variant["field"]["keyframes"] = [{"t": 0, "b": [0, 0, 0]}, {"t": ramp[-1]["t"], "b": [mt * 1e-3, 0, 0]}]
@@ -392,7 +421,7 @@ def main():
                         metrics = json.load(f)
                     reuse = reuse and metrics.get("ok") is True
                     wall = float(metrics.get("runtime_s", float("nan")))
-                except (OSError, ValueError):
+                except (OSError, ValueError, TypeError, AttributeError):
                     reuse = False
             if not reuse:
                 with open(path, "w", encoding="utf-8") as f:
@@ -410,25 +439,29 @@ def main():
                 wall = time.monotonic() - start
             first, last, t_end = final_probe(run)
             face = float(variant["clamps"][0]["min"][2])
-            s_mid, ex, ez = elastica(sections, (mt * 1e-3, 0.0))
-            rx, rz = at_arc(s_mid, ex, ez, (face - first[2]) * 1e-3)
+            arc = (face - first[2]) * 1e-3
+            try:
+                s_mid, ex, ez, _ = elastica(sections, (mt * 1e-3, 0.0))
+                stiffness = twist_stiffness(sections, (mt * 1e-3, 0.0))
+            except RuntimeError as e:
+                fail(a.scene, f"profile {profile}, {mt:g} mT: {e}")
+            rx, rz = at_arc(s_mid, ex, ez, arc)
             rx, rz = rx * 1e3, face + rz * 1e3
             error = math.hypot(last[0] - rx, last[2] - rz)
-            stiffness = twist_stiffness(sections, (mt * 1e-3, 0.0))
             twist = largest_twist(run, face, sections[-1][1] * 1e3)
             rows.append({"profile": profile, "field_mT": mt, "mpm_tip_x_mm": last[0], "mpm_tip_z_mm": last[2],
                          "mpm_tip_y_mm": last[1], "mpm_largest_twist_deg": "" if twist is None else twist,
                          "elastica_tip_x_mm": rx, "elastica_tip_z_mm": rz,
-                         "planar_twist_stiffness_Nm": stiffness,
+                         "planar_twist_eigenvalue": stiffness,
                          "twist_threshold_mT": "" if threshold is None else threshold * 1e3,
                          "planar_stable": int(threshold is None or mt * 1e-3 < threshold),
                          "tip_error_mm": error, "settled_at_s": t_end, "runtime_s": wall})
             if a.uniform_material:
-                arc = (face - first[2]) * 1e-3
-                # The twisted branches are mirror images in y: the rod's is taken on the MPM body's side.
+                # The twisted branches are mirror images in y: the rod's is taken on the MPM body's side (or the
+                # other sign where the first fails).
                 tip = rod_tip(a.magvine, a.out, tag, sections, (mt * 1e-3, 0.0), arc, 1.0)
-                if tip is not None and abs(last[1]) > 0.05 and tip[1] * last[1] < 0.0:
-                    tip = rod_tip(a.magvine, a.out, tag, sections, (mt * 1e-3, 0.0), arc, -1.0)
+                if tip is None or (abs(last[1]) > 0.05 and tip[1] * last[1] < 0.0):
+                    tip = rod_tip(a.magvine, a.out, tag, sections, (mt * 1e-3, 0.0), arc, -1.0) or tip
                 rows[-1]["rod_tip_x_mm"] = "" if tip is None else tip[0]
                 rows[-1]["rod_tip_y_mm"] = "" if tip is None else tip[1]
                 rows[-1]["rod_tip_z_mm"] = "" if tip is None else face + tip[2]
@@ -440,12 +473,6 @@ def main():
                   f"mm: {error:.2f} mm apart; planar path {'stable' if rows[-1]['planar_stable'] else 'unstable'} in twist, "
                   f"MPM twisted {twist if twist is not None else float('nan'):.0f}° (at rest at {t_end:.3f} s, "
                   f"{wall:.0f} s{', reused' if reuse else ''})", file=sys.stderr, flush=True)
-    with open(out_csv, "w", encoding="utf-8", newline="") as f:
-        w = csv.DictWriter(f, fieldnames=list(rows[0]))
-        w.writeheader()
-        for r in rows:
-            w.writerow({k: (f"{v:.4g}" if k == "planar_twist_stiffness_Nm" else f"{v:.4f}" if isinstance(v, float)
-                            else v) for k, v in r.items()})
 
     fig, axes = plt.subplots(1, len(profiles), figsize=(5.2 * len(profiles), 5.2), squeeze=False)
     for ax, profile in zip(axes[0], profiles):
@@ -455,7 +482,8 @@ def main():
             colour = f"C{i}"
             if cloud is not None:
                 ax.plot(cloud[0], cloud[1], ",", color=colour, alpha=0.15)
-            state = "" if r["planar_stable"] else f", twists {r['mpm_largest_twist_deg'] or 0:.0f}°"
+            twisted = r["mpm_largest_twist_deg"]
+            state = "" if r["planar_stable"] else f", twists {twisted:.0f}°" if twisted != "" else ", twists"
             ax.plot(ex, ez, "-" if r["planar_stable"] else ":", color=colour, lw=1.2,
                     label=f"{r['field_mT']:g} mT: {r['tip_error_mm']:.2f} mm{state}")
             ax.plot(r["mpm_tip_x_mm"], r["mpm_tip_z_mm"], "o", color=colour, mfc="none")
@@ -474,6 +502,12 @@ def main():
                  "dotted where a twist makes it unstable)", fontsize=9)
     fig.tight_layout()
     fig.savefig(out_png, dpi=120)
+    with open(out_csv, "w", encoding="utf-8", newline="") as f:
+        w = csv.DictWriter(f, fieldnames=list(rows[0]))
+        w.writeheader()
+        for r in rows:
+            w.writerow({k: (f"{v:.4g}" if k == "planar_twist_eigenvalue" else f"{v:.4f}" if isinstance(v, float)
+                            else v) for k, v in r.items()})
     for profile in profiles:
         planar = [r["tip_error_mm"] for r in rows if r["profile"] == profile and r["planar_stable"]]
         print(f"profile {profile}: mean tip gap to the elastica {sum(planar) / len(planar):.3f} mm over the "

@@ -130,7 +130,7 @@ sys.path.insert(0, '${SRC}/tools')
 import mpm_tentacle_sweep as t
 r, br, l = 2e-3, 0.138, 0.08
 sections = [(0.0, 0.04, 120000.0, 1882.0, r, br, (1.0, 0.0)), (0.04, 0.08, 67000.0, 927.0, r, br, (1.0, 0.0))]
-s, x, z = t.elastica(sections, (0.0, 1e-5), gravity=0.0)
+s, x, z, _ = t.elastica(sections, (0.0, 1e-5), gravity=0.0)
 tip = abs(t.at_arc(s, x, z, l)[0])
 q = br / t.MU0 * math.pi * r * r * 1e-5
 ei = [9 * 20 * g * g / (61 * g) * math.pi * r ** 4 / 4 for g in (120000.0, 67000.0)]
@@ -167,3 +167,16 @@ execute_process(COMMAND ${PYTHON} ${SRC}/tools/mpm_tentacle_sweep.py --scene ${S
                         --magvine ${MAGVINE} --fields 500 --out ${WORK}/tentacle_bad
                 RESULT_VARIABLE rc ERROR_VARIABLE err)
 expect_rc(${rc} 2 "tentacle sweep at 500 mT: ${err}")
+# A scene in other units is refused before any run (the elastica reads mm and Pa).
+file(WRITE ${WORK}/tentacle_kpa.yaml "units: {length: mm, pressure: kPa}\n")
+file(READ ${SRC}/assets/scenes/mpm_tentacle.yaml tentacle)
+string(REPLACE "units: {length: mm}" "" tentacle "${tentacle}")
+file(APPEND ${WORK}/tentacle_kpa.yaml "${tentacle}")
+execute_process(COMMAND ${PYTHON} ${SRC}/tools/mpm_tentacle_sweep.py --scene ${WORK}/tentacle_kpa.yaml
+                        --magvine ${MAGVINE} --out ${WORK}/tentacle_bad
+                RESULT_VARIABLE rc ERROR_VARIABLE err)
+expect_rc(${rc} 2 "tentacle sweep in kPa: ${err}")
+string(FIND "${err}" "units" pos)
+if(pos EQUAL -1 OR EXISTS ${WORK}/tentacle_bad/tentacle_sweep.csv OR EXISTS ${WORK}/tentacle_bad/run_a_1mT)
+  message(FATAL_ERROR "tentacle sweep in kPa: the error does not name the units, or a run or table was written: '${err}'")
+endif()
