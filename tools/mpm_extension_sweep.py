@@ -28,13 +28,11 @@ import csv
 import math
 import os
 import re
-import subprocess
 import sys
-import time
 
 sys.path.insert(0, os.path.dirname(os.path.abspath(__file__)))
 try:  # a run's probes.csv as (t_s, tip_z_mm), exit 2 when malformed; it loads matplotlib too
-    from plot_mpm_sweeps import tip_track  # noqa: E402
+    from plot_mpm_sweeps import run_mpm, tip_track  # noqa: E402
 except ImportError as e:
     print(f"mpm_extension_sweep: matplotlib: {e}", file=sys.stderr)
     sys.exit(2)
@@ -214,16 +212,7 @@ def main():
         with open(scene, "w", encoding="utf-8") as f:
             f.write(text)
         print(f"mpm_extension_sweep: {d:g} mm ...", file=sys.stderr, flush=True)
-        start = time.monotonic()
-        try:
-            done = subprocess.run([a.magvine, "mpm", scene, "--out", run], stdout=subprocess.DEVNULL,
-                                  stderr=subprocess.PIPE, text=True)
-        except OSError as e:
-            fail(a.magvine, e.strerror)
-        if done.returncode != 0:
-            last_line = (done.stderr.strip().splitlines() or ["no message"])[-1]
-            fail(scene, f"magvine mpm exited {done.returncode}: {last_line}")
-        wall = time.monotonic() - start
+        wall = run_mpm(a.magvine, scene, run, "mpm_extension_sweep")
         times, heights = tip_track(run)
         first, last, t_end = heights[0], heights[-1], times[-1]
         # Within three cells of the floor above the magnet: pulled down onto it (no equilibrium in between).

@@ -32,7 +32,6 @@ import math
 import os
 import subprocess
 import sys
-import time
 
 MU0 = 4e-7 * math.pi
 # Profile b: the magnetic sections' directions (x, y, z) in the thesis's public code (tentacleF).
@@ -346,6 +345,7 @@ def main():
         import matplotlib
         matplotlib.use("Agg")
         import matplotlib.pyplot as plt
+        from plot_mpm_sweeps import run_mpm  # the sweeps' one way to run magvine mpm
     except ImportError as e:
         fail("python", str(e))
     try:
@@ -427,16 +427,7 @@ def main():
                 with open(path, "w", encoding="utf-8") as f:
                     f.write(text)
                 print(f"mpm_tentacle_sweep: profile {profile}, {mt:g} mT ...", file=sys.stderr, flush=True)
-                start = time.monotonic()
-                try:
-                    done = subprocess.run([a.magvine, "mpm", path, "--out", run], stdout=subprocess.DEVNULL,
-                                          stderr=subprocess.PIPE, text=True)
-                except OSError as e:
-                    fail(a.magvine, e.strerror)
-                if done.returncode != 0:
-                    last_line = (done.stderr.strip().splitlines() or ["no message"])[-1]
-                    fail(path, f"magvine mpm exited {done.returncode}: {last_line}")
-                wall = time.monotonic() - start
+                wall = run_mpm(a.magvine, path, run, "mpm_tentacle_sweep")
             first, last, t_end = final_probe(run)
             face = float(variant["clamps"][0]["min"][2])
             arc = (face - first[2]) * 1e-3

@@ -11,7 +11,9 @@ length, δ/L, against the field. A missing or malformed input gives one line on 
 import argparse
 import csv
 import os
+import subprocess
 import sys
+import time
 
 import matplotlib
 
@@ -22,6 +24,23 @@ import matplotlib.pyplot as plt  # noqa: E402
 def fail(path, problem):
     print(f"plot_mpm_sweeps: {path}: {problem}", file=sys.stderr)
     sys.exit(2)
+
+
+def run_mpm(magvine, scene, run, tool):
+    """`magvine mpm SCENE --out RUN` for a sweep tool: its wall time [s]. When magvine cannot start or exits non-zero,
+    one line on stderr naming `tool`, the file and magvine's last line, and exit status 2."""
+    start = time.monotonic()
+    try:
+        done = subprocess.run([magvine, "mpm", scene, "--out", run], stdout=subprocess.DEVNULL,
+                              stderr=subprocess.PIPE, text=True)
+    except OSError as e:
+        print(f"{tool}: {magvine}: {e.strerror}", file=sys.stderr)
+        sys.exit(2)
+    if done.returncode != 0:
+        last_line = (done.stderr.strip().splitlines() or ["no message"])[-1]
+        print(f"{tool}: {scene}: magvine mpm exited {done.returncode}: {last_line}", file=sys.stderr)
+        sys.exit(2)
+    return time.monotonic() - start
 
 
 def tip_track(run):
