@@ -5,6 +5,7 @@
 
 #include "magvine/core/error.hpp"
 #include "magvine/mpm/sampling.hpp"
+#include "magvine/mpm/total_lagrangian.hpp"
 
 namespace magvine::mpm {
 
@@ -89,12 +90,20 @@ SettleResult settle(const MpmModel<D>& model, MpmState<D>& state, MpmWorkspace<D
   RestWatch watch(o.tolerance);
   double next_sample = state.time;
   const double start = state.time;
+  TlGrid<D> grid;
+  TlWorkspace<D> tl_ws;
+  if (o.total_lagrangian) grid = make_tl_grid<D>(model, state);
   while (state.time - start < o.max_time) {
     if (o.implicit) {
       ImplicitStats counted;
-      r.status = implicit_step(model, field(state.time), state, ws, r.time_step, o.newton, &counted);
+      r.status = o.total_lagrangian
+                     ? tl_implicit_step<D>(model, grid, field(state.time), state, tl_ws, r.time_step, o.newton, &counted)
+                     : implicit_step(model, field(state.time), state, ws, r.time_step, o.newton, &counted);
       r.cg += counted.cg;
       r.newton += counted.newton;
+      r.factorizations += counted.factorizations;
+    } else if (o.total_lagrangian) {
+      r.status = tl_step<D>(model, grid, field(state.time), state, r.time_step);
     } else {
       r.status = step(model, field(state.time), state, ws, r.time_step);
     }

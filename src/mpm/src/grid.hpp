@@ -2,8 +2,10 @@
 // Internal to the MPM module: the grid machinery the explicit step (mpm.cpp) and the implicit step (implicit.cpp)
 // share — stencils, the grid box and its slabs, the particle transfers, the grid nodes' boundary conditions.
 
+#include <algorithm>
 #include <cstdint>
 #include <limits>
+#include <vector>
 
 #include "magvine/mpm/mpm.hpp"
 
@@ -13,6 +15,24 @@ constexpr int kSlabCells = 4;           // a particle writes 3 nodes along an ax
 constexpr double kMaxJ = 100.0;         // |det F| beyond this is an explosion, not a deformation
 constexpr double kMaxCellsPerStep = 1;  // a particle moving a whole cell in one step has broken the CFL bound
 constexpr std::int64_t kParallelMin = 4096;  // below this many items a loop runs on one thread (fork cost)
+
+constexpr std::int64_t kBlock = 4096;  // sums run over fixed blocks, then in order: the same for any thread count
+
+/// Σ_k f(k) over [0, n) as per-block partial sums added in block order (deterministic for any thread count).
+template <class Fn>
+double ordered_sum(std::int64_t n, Fn&& f) {
+  const std::int64_t blocks = (n + kBlock - 1) / kBlock;
+  std::vector<double> part(static_cast<std::size_t>(blocks), 0.0);
+#pragma omp parallel for schedule(static) if (blocks > 1)
+  for (std::int64_t b = 0; b < blocks; ++b) {
+    double s = 0.0;
+    for (std::int64_t k = b * kBlock; k < std::min(n, (b + 1) * kBlock); ++k) s += f(k);
+    part[static_cast<std::size_t>(b)] = s;
+  }
+  double total = 0.0;
+  for (double s : part) total += s;
+  return total;
+}
 
 template <int D>
 using Index = Eigen::Matrix<std::int64_t, D, 1>;
@@ -187,6 +207,11 @@ const VecD<D>* clamp_velocity(const StepContext<D>& c, const VecD<D>& xi);
 /// The domain walls' and the obstacles' conditions on the velocity v of node i (at xi = i δx).
 template <int D>
 void apply_walls_and_obstacles(const StepContext<D>& c, const Index<D>& i, const VecD<D>& xi, VecD<D>& v);
+
+/// The status of a step whose particle `bad` failed its checks (kNoFailure: ok), naming the cause: non-finite,
+/// inverted, exploded, moving more than a cell in dt, or (none of those) out of the domain.
+template <int D>
+StepStatus particle_failure(const MpmState<D>& state, std::int64_t bad, double dt, double dx);
 
 /// The status of a step whose G2P found particle `bad` failing (kNoFailure: ok), naming the cause.
 template <int D>

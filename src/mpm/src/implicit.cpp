@@ -15,7 +15,6 @@ namespace magvine::mpm {
 using namespace detail;  // NOLINT(google-build-using-namespace): the module's own internals (grid.hpp)
 namespace {
 
-constexpr std::int64_t kBlock = 4096;  // sums run over fixed blocks, then in order: the same for any thread count
 constexpr double kArmijo = 1e-4;       // sufficient decrease of the line search
 constexpr int kMaxHalvings = 30;       // line-search halvings before Newton gives up
 // Scalar unknowns (D per free node) up to which the Hessian is assembled and factored (a sparse LDLᵀ); beyond,
@@ -23,22 +22,6 @@ constexpr int kMaxHalvings = 30;       // line-search halvings before Newton giv
 // ~120 MB at the bound, and the factor's fill-in comes on top (11 907 unknowns in 3D: 6.1 M entries, 1.3–1.45 s a
 // factorization on one thread).
 constexpr std::int64_t kMaxDirectUnknowns = 40000;
-
-/// Σ_k f(k) over [0, n) as per-block partial sums added in block order (deterministic for any thread count).
-template <class Fn>
-double ordered_sum(std::int64_t n, Fn&& f) {
-  const std::int64_t blocks = (n + kBlock - 1) / kBlock;
-  std::vector<double> part(static_cast<std::size_t>(blocks), 0.0);
-#pragma omp parallel for schedule(static) if (blocks > 1)
-  for (std::int64_t b = 0; b < blocks; ++b) {
-    double s = 0.0;
-    for (std::int64_t k = b * kBlock; k < std::min(n, (b + 1) * kBlock); ++k) s += f(k);
-    part[static_cast<std::size_t>(b)] = s;
-  }
-  double total = 0.0;
-  for (double s : part) total += s;
-  return total;
-}
 
 /// Visits particle p's stencil nodes: fn(node index in the box, weight w_ip, x_i − x_p).
 template <int D, class Fn>

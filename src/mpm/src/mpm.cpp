@@ -678,9 +678,8 @@ std::int64_t gather_all(const StepContext<D>& c) {
 }
 
 template <int D>
-StepStatus failure_of(const StepContext<D>& c, std::int64_t bad) {
+StepStatus particle_failure(const MpmState<D>& state, std::int64_t bad, double dt, double dx) {
   if (bad == kNoFailure) return {};
-  const MpmState<D>& state = c.state;
   const auto p = static_cast<std::size_t>(bad);
   const double j = state.f[p].determinant();
   std::string what;
@@ -690,12 +689,17 @@ StepStatus failure_of(const StepContext<D>& c, std::int64_t bad) {
     what = "inverted (det F = " + std::to_string(j) + ")";
   else if (!(j < kMaxJ))
     what = "exploded (det F = " + std::to_string(j) + ")";
-  else if (state.v[p].norm() * c.dt > kMaxCellsPerStep * c.dx) {
+  else if (state.v[p].norm() * dt > kMaxCellsPerStep * dx) {
     what = "moves more than a cell per step (|v| = " + std::to_string(state.v[p].norm()) + " m/s)";
   } else {
     what = "left the domain";
   }
   return {false, "particle " + std::to_string(p) + " " + what + " at t = " + std::to_string(state.time) + " s"};
+}
+
+template <int D>
+StepStatus failure_of(const StepContext<D>& c, std::int64_t bad) {
+  return particle_failure<D>(c.state, bad, c.dt, c.dx);
 }
 
 template StepStatus prepare_grid<2>(StepContext<2>&, const AppliedField&);
@@ -710,6 +714,8 @@ template const VecD<2>* clamp_velocity<2>(const StepContext<2>&, const VecD<2>&)
 template const VecD<3>* clamp_velocity<3>(const StepContext<3>&, const VecD<3>&);
 template void apply_walls_and_obstacles<2>(const StepContext<2>&, const Index<2>&, const VecD<2>&, VecD<2>&);
 template void apply_walls_and_obstacles<3>(const StepContext<3>&, const Index<3>&, const VecD<3>&, VecD<3>&);
+template StepStatus particle_failure<2>(const MpmState<2>&, std::int64_t, double, double);
+template StepStatus particle_failure<3>(const MpmState<3>&, std::int64_t, double, double);
 template StepStatus failure_of<2>(const StepContext<2>&, std::int64_t);
 template StepStatus failure_of<3>(const StepContext<3>&, std::int64_t);
 

@@ -52,12 +52,20 @@ inline Vec3 hard_magnetic_moment(const Vec3& br_body, double volume, const Mat3&
   return hard_magnetic_moment<3>(Vec3(body_to_world * br_body), volume);
 }
 
-/// The hard-magnetic stress of Zhao et al. (2019), thesis eq 3.13, P_mag = −(1/μ0) B ⊗ B̃r (B̃r referential), as
-/// the Kirchhoff stress P_mag Fᵀ = −B ⊗ (F B̃r)/μ0 the MPM solver uses (`f_br` = F B̃r) [Pa].
+/// The hard-magnetic stress of Zhao et al. (2019), thesis eq 3.13: the first Piola–Kirchhoff stress
+/// P_mag = −(1/μ0) B ⊗ B̃r (B̃r referential) [Pa] (what the total-Lagrangian MPM step uses).
+template <int D>
+Eigen::Matrix<double, D, D> hard_magnetic_piola_stress(const Eigen::Matrix<double, D, 1>& b,
+                                                       const Eigen::Matrix<double, D, 1>& br) {
+  return (-1.0 / kMu0) * b * br.transpose();
+}
+
+/// The same stress as the Kirchhoff stress P_mag Fᵀ = −B ⊗ (F B̃r)/μ0 the updated-Lagrangian MPM step uses
+/// (`f_br` = F B̃r) [Pa].
 template <int D>
 Eigen::Matrix<double, D, D> hard_magnetic_kirchhoff_stress(const Eigen::Matrix<double, D, 1>& b,
                                                            const Eigen::Matrix<double, D, 1>& f_br) {
-  return (-1.0 / kMu0) * b * f_br.transpose();
+  return hard_magnetic_piola_stress<D>(b, f_br);  // P_mag Fᵀ = −B (F B̃r)ᵀ/μ0: eq 3.13 with F B̃r for B̃r
 }
 
 /// The hard-magnetic energy density whose derivative in F is P_mag = −B B̃rᵀ/μ0 (Zhao et al. 2019; thesis 3.3),

@@ -53,6 +53,9 @@ struct SettleOptions {
   double tolerance = 0.0;        ///< [m]
   bool implicit = false;         ///< implicit steps (implicit_step) of `time_step` (0: the explicit bound, as above)
   ImplicitSettings newton;       ///< for implicit steps
+  /// Total-Lagrangian steps (total_lagrangian.hpp), explicit or implicit as above, on a reference grid made from the
+  /// state as it is at the call (so settle an undeformed body).
+  bool total_lagrangian = false;
 };
 
 /// Rest detection from probe samples taken every window/10: at rest once the last 11 samples all lie within
@@ -74,6 +77,7 @@ struct SettleResult {
   long steps = 0;
   long cg = 0;           ///< implicit steps: conjugate-gradient iterations (Hessian products) over the run
   long newton = 0;       ///< implicit steps: Newton iterations over the run
+  long factorizations = 0;  ///< implicit steps: Hessian factorizations over the run
   double time = 0.0;     ///< simulated [s]
   double time_step = 0.0;
 };

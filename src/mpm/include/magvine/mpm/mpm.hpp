@@ -129,6 +129,9 @@ struct MpmState {
   std::vector<VecD<D>> v;  ///< velocities [m/s]
   std::vector<MatD<D>> c;  ///< affine velocity field C (APIC/MLS) [1/s]
   std::vector<MatD<D>> f;  ///< deformation gradient F
+  /// Total-Lagrangian steps only (total_lagrangian.hpp): the reference grid's node positions [m] and velocities [m/s];
+  /// empty for the updated-Lagrangian steps of this file.
+  std::vector<VecD<D>> grid_x, grid_v;
 };
 
 /// A rest state: particles at `positions`, at rest, undeformed.
