@@ -6,7 +6,10 @@ as a line and each MPM resolution as markers (hollow where a run did not come to
 percentage error over the fields against the total runtime of that resolution. A missing or malformed input gives one
 line on stderr, exit status 2 and no PNG.
 
-    /usr/bin/python3 tools/plot_mpm_study.py DIR [--out DIR/mpm_beam_study.png]
+    /usr/bin/python3 tools/plot_mpm_study.py DIR [--out DIR/mpm_beam_study.png] [--compare DIR2]
+
+--compare draws another study's error against runtime beside this one's (e.g. the other frame: --frame updated and
+--frame total), each labelled with its frame.
 """
 import argparse
 import csv
@@ -68,9 +71,11 @@ def main():
     ap = argparse.ArgumentParser(description=__doc__.splitlines()[0])
     ap.add_argument("dir")
     ap.add_argument("--out")
+    ap.add_argument("--compare", help="another study's folder: its error against runtime drawn beside this one's")
     a = ap.parse_args()
     points = read(os.path.join(a.dir, "mpm_beam_study.csv"), POINTS)
     summary = read(os.path.join(a.dir, "mpm_beam_summary.csv"), SUMMARY)
+    other = read(os.path.join(a.compare, "mpm_beam_summary.csv"), SUMMARY) if a.compare else []
     out = a.out or os.path.join(a.dir, "mpm_beam_study.png")
     fig, (ax, ax2) = plt.subplots(1, 2, figsize=(11, 4.2))
     top = max(p["bbar"] for p in points) * 1.05
@@ -89,6 +94,14 @@ def main():
     with open(os.path.join(a.dir, "mpm_beam_study.csv"), encoding="utf-8", newline="") as f:
         raw = list(csv.DictReader(f))
     model = raw[0].get("model", "plane-strain")
+    frame = raw[0].get("frame", "updated")
+    if other:
+        with open(os.path.join(a.compare, "mpm_beam_summary.csv"), encoding="utf-8", newline="") as f:
+            other_frame = (list(csv.DictReader(f)) or [{}])[0].get("frame", "updated")
+        ax2.plot([s["seconds"] for s in summary], [s["mape_pct"] for s in summary], "-", color="0.6", lw=1,
+                 label=f"{frame}-Lagrangian (above)")
+        ax2.plot([s["seconds"] for s in other], [s["mape_pct"] for s in other], "s--", color="0.3", mfc="none",
+                 label=f"{other_frame}-Lagrangian, same resolutions")
     shown = set()
     for r, p in zip(raw, points):
         if r.get("experiment") and p["bbar"] not in shown:
@@ -97,7 +110,7 @@ def main():
                     label="Zhao et al., experiment" if len(shown) == 1 else None)
     ax.set_xlabel("B̄ = 12 (L/t)² Br B / (μ0 E')")
     ax.set_ylabel("tip deflection δ/L")
-    ax.set_title(f"Zhao beam, field antiparallel to Br ({model})")
+    ax.set_title(f"Zhao beam, field antiparallel to Br ({model}, {frame}-Lagrangian)")
     ax.legend(fontsize=7)
     ax2.axhline(6.1, color="grey", ls="--", lw=1, label="thesis: 6.1 % (vs experiment)")
     ax2.set_xscale("log")

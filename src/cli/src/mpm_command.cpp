@@ -31,6 +31,12 @@ void MpmCommand::attach(CLI::App& app, CLI::App& study) {
       ->capture_default_str()
       ->check(CLI::IsMember({"plane-strain", "plane-stress", "3d"}));
   m_study
+      ->add_option("--frame", m_study_frame,
+                   "updated (particles carry F; the thesis's) or total (F from the reference grid: "
+                   "total-Lagrangian, for bodies that bend but do not flow)")
+      ->capture_default_str()
+      ->check(CLI::IsMember({"updated", "total"}));
+  m_study
       ->add_option("--fields", m_study_fields,
                    "elastica: 7-25 mT, all past buckling; experiment: Zhao et al.'s 5, 7, 10, 15, 25, 40 mT")
       ->capture_default_str()
@@ -78,12 +84,14 @@ int MpmCommand::run_scene() {
 
 int MpmCommand::run_study() {
   const int jobs = m_jobs > 0 ? m_jobs : static_cast<int>(std::max(1u, std::thread::hardware_concurrency()));
-  std::cerr << "magvine study mpm-beam: " << m_study_model << ", " << m_study_fields << " fields, on " << jobs
+  std::cerr << "magvine study mpm-beam: " << m_study_model << ", " << m_study_frame << " frame, " << m_study_fields
+            << " fields, on " << jobs
             << " threads\n";
   studies::MpmBeamStudyOptions options;
   options.model = m_study_model == "plane-stress" ? studies::ZhaoModel::kPlaneStress
                   : m_study_model == "3d"         ? studies::ZhaoModel::k3D
                                                   : studies::ZhaoModel::kPlaneStrain;
+  options.total_lagrangian = m_study_frame == "total";
   if (m_study_fields == "experiment") options.fields = studies::zhao_experiment_fields();
   if (!m_study_resolutions.empty()) {
     options.resolutions.clear();

@@ -26,6 +26,7 @@ class MpmCommand {
   std::string m_study_out;
   int m_jobs = 0;
   std::string m_study_model = "plane-strain";
+  std::string m_study_frame = "updated";
   std::string m_study_fields = "elastica";
   std::vector<std::string> m_study_resolutions;
 };

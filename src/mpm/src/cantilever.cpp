@@ -103,7 +103,7 @@ SettleResult settle(const MpmModel<D>& model, MpmState<D>& state, MpmWorkspace<D
       r.newton += counted.newton;
       r.factorizations += counted.factorizations;
     } else if (o.total_lagrangian) {
-      r.status = tl_step<D>(model, grid, field(state.time), state, r.time_step);
+      r.status = tl_step<D>(model, grid, field(state.time), state, tl_ws, r.time_step);
     } else {
       r.status = step(model, field(state.time), state, ws, r.time_step);
     }

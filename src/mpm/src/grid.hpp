@@ -147,6 +147,11 @@ struct StepContext {
 template <int D>
 StepStatus prepare_grid(StepContext<D>& c, const AppliedField& field);
 
+/// Ensures the field box (ws.field_*) covers the grid box (ws.lo, ws.n) with a margin and matches the field's version;
+/// evaluates B and ∇B at the new nodes, in parallel.
+template <int D>
+void refresh_field(const AppliedField& field, double dx, MpmWorkspace<D>& ws);
+
 /// P2G of every particle (mass, momentum with the affine part, the stresses unless `c.stress` is false, the node
 /// moments in a non-uniform field), in parallel: the even slabs, then the odd ones, so no two threads write one node.
 template <int D>

@@ -49,32 +49,6 @@ void apply_boundary(VecD<D>& v, const VecD<D>& n, Boundary kind, double mu) {
   v = vt;
 }
 
-/// Ensures the field box covers the grid box and matches the field's version; evaluates new nodes in parallel.
-template <int D>
-void refresh_field(const AppliedField& field, double dx, MpmWorkspace<D>& ws) {
-  bool covers = ws.field_valid && ws.field_version == field.version;
-  for (int a = 0; covers && a < D; ++a) {
-    covers = ws.lo[a] >= ws.field_lo[a] && ws.lo[a] + ws.n[a] <= ws.field_lo[a] + ws.field_n[a];
-  }
-  if (covers) return;
-  constexpr std::int64_t kMargin = 8;  // cells of slack so a moving body does not re-evaluate every step
-  ws.field_lo = ws.lo.array() - kMargin;
-  ws.field_n = ws.n.array() + 2 * kMargin;
-  const std::int64_t total = ws.field_n.prod();
-  ws.field_b.resize(static_cast<std::size_t>(total));
-  ws.field_g.resize(static_cast<std::size_t>(total));
-#pragma omp parallel for schedule(static) if (total > kParallelMin)
-  for (std::int64_t k = 0; k < total; ++k) {
-    const Index<D> i = box_node<D>(k, ws.field_lo, ws.field_n);
-    const VecD<D> x = i.template cast<double>() * dx;
-    const magnetics::FieldSample s = field.sample(to3<D>(x));
-    ws.field_b[static_cast<std::size_t>(k)] = from3<D>(s.b);
-    ws.field_g[static_cast<std::size_t>(k)] = s.g.template topLeftCorner<D, D>();
-  }
-  ws.field_version = field.version;
-  ws.field_valid = true;
-}
-
 /// Ensures each sampled obstacle's samples cover the grid box (with a margin, so that a moving body does not sample
 /// every step); samples the new box in parallel. The obstacles are fixed: samples stay valid for the model's life.
 template <int D>
@@ -537,6 +511,32 @@ void update_plane(const StepContext<D>& c, std::int64_t i0, double damp) {
 namespace detail {
 
 template <int D>
+void refresh_field(const AppliedField& field, double dx, MpmWorkspace<D>& ws) {
+  bool covers = ws.field_valid && ws.field_version == field.version;
+  for (int a = 0; covers && a < D; ++a) {
+    covers = ws.lo[a] >= ws.field_lo[a] && ws.lo[a] + ws.n[a] <= ws.field_lo[a] + ws.field_n[a];
+  }
+  if (covers) return;
+  constexpr std::int64_t kMargin = 8;  // cells of slack so a moving body does not re-evaluate every step
+  ws.field_lo = ws.lo.array() - kMargin;
+  ws.field_n = ws.n.array() + 2 * kMargin;
+  const std::int64_t total = ws.field_n.prod();
+  ws.field_b.resize(static_cast<std::size_t>(total));
+  ws.field_g.resize(static_cast<std::size_t>(total));
+#pragma omp parallel for schedule(static) if (total > kParallelMin)
+  for (std::int64_t k = 0; k < total; ++k) {
+    const Index<D> i = box_node<D>(k, ws.field_lo, ws.field_n);
+    const VecD<D> x = i.template cast<double>() * dx;
+    const magnetics::FieldSample s = field.sample(to3<D>(x));
+    ws.field_b[static_cast<std::size_t>(k)] = from3<D>(s.b);
+    ws.field_g[static_cast<std::size_t>(k)] = s.g.template topLeftCorner<D, D>();
+  }
+  ws.field_version = field.version;
+  ws.field_valid = true;
+}
+
+
+template <int D>
 VecD<D> node_velocity(const StepContext<D>& c, std::size_t k, const Index<D>& i) {
   const double* rec = c.ws.node[k].value;
   const double m = rec[D];
@@ -714,6 +714,8 @@ template const VecD<2>* clamp_velocity<2>(const StepContext<2>&, const VecD<2>&)
 template const VecD<3>* clamp_velocity<3>(const StepContext<3>&, const VecD<3>&);
 template void apply_walls_and_obstacles<2>(const StepContext<2>&, const Index<2>&, const VecD<2>&, VecD<2>&);
 template void apply_walls_and_obstacles<3>(const StepContext<3>&, const Index<3>&, const VecD<3>&, VecD<3>&);
+template void refresh_field<2>(const AppliedField&, double, MpmWorkspace<2>&);
+template void refresh_field<3>(const AppliedField&, double, MpmWorkspace<3>&);
 template StepStatus particle_failure<2>(const MpmState<2>&, std::int64_t, double, double);
 template StepStatus particle_failure<3>(const MpmState<3>&, std::int64_t, double, double);
 template StepStatus failure_of<2>(const StepContext<2>&, std::int64_t);

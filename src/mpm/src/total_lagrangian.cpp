@@ -31,12 +31,33 @@ struct TlWorkspace<D>::Impl {
   std::int64_t unknowns = 0;
   std::vector<MatD<D>> blocks;
   std::vector<unsigned char> coupled;
+  MpmWorkspace<D> euler;  // the node field cache of a general field (sample_field)
   bool analysed = false;
-  bool factored = false;   // `ldlt` holds a factor of some recent step's Hessian
+  bool factored = false;   // the factor below is of some recent step's Hessian
   bool refactor = true;    // the next Newton iteration assembles and factors afresh
   double factor_dt = 0.0;  // the step the factor was made for (another step needs a new one)
   const TlGrid<D>* grid = nullptr;
-  Eigen::SimplicialLDLT<Eigen::SparseMatrix<double>, Eigen::Lower> ldlt;
+  // The factor, in the node order (banded along the box's first axis: little fill for a body long along x) or in AMD's
+  // order (a compact body); the first factorization of a grid tries both and keeps the one with the smaller L.
+  using Natural = Eigen::SimplicialLDLT<Eigen::SparseMatrix<double>, Eigen::Lower, Eigen::NaturalOrdering<int>>;
+  using Amd = Eigen::SimplicialLDLT<Eigen::SparseMatrix<double>, Eigen::Lower, Eigen::AMDOrdering<int>>;
+  std::unique_ptr<Natural> natural = std::make_unique<Natural>();
+  std::unique_ptr<Amd> amd = std::make_unique<Amd>();
+  bool use_amd = false;
+  /// Factors a (its pattern analysed already); the factor's success and whether its D is positive.
+  bool factorize(const Eigen::SparseMatrix<double>& a, bool& indefinite) {
+    const auto run = [&](auto& f) {
+      f.factorize(a);
+      indefinite = f.info() == Eigen::Success && !(f.vectorD().minCoeff() > 0.0);
+      return f.info() == Eigen::Success && !indefinite;
+    };
+    return use_amd ? run(*amd) : run(*natural);
+  }
+  Eigen::VectorXd solve(const Eigen::VectorXd& b) const {
+    if (use_amd) return amd->solve(b);
+    return natural->solve(b);
+  }
+  Eigen::Index rows() const { return use_amd ? amd->rows() : natural->rows(); }
 };
 
 template <int D>
@@ -51,6 +72,7 @@ TlWorkspace<D>& TlWorkspace<D>::operator=(TlWorkspace&&) noexcept = default;
 namespace {
 
 constexpr int kRefactorCg = 12;    // a CG solve longer than this asks for a fresh factor at the next Newton iteration
+constexpr double kForcing = 1e-1;  // CG stops at this times min(0.5, √(|g|/|g0|)) of its first residual
 constexpr double kArmijo = 1e-4;   // sufficient decrease of the line search
 constexpr int kMaxHalvings = 30;   // line-search halvings before Newton gives up
 constexpr int kReach = 5;          // two nodes of one stencil lie at most two apart on each axis
@@ -82,51 +104,64 @@ MatD<D> deformation(const TlGrid<D>& g, const std::vector<VecD<D>>& x, std::size
   return f;
 }
 
-/// Σ_i w_ip y_i.
-template <int D>
-VecD<D> interpolate(const TlGrid<D>& g, const std::vector<VecD<D>>& y, std::size_t p) {
-  VecD<D> s = VecD<D>::Zero();
-  const std::size_t e0 = p * TlGrid<D>::kStencil;
-  for (int k = 0; k < TlGrid<D>::kStencil; ++k) s += g.weight[e0 + k] * y[g.node[e0 + k]];
-  return s;
-}
-
-/// out_i = Σ_(p,s touching i) fn(p, s) for every node with mass (in parallel over nodes: no race, and each sum runs
-/// in the adjacency's fixed order).
+/// out_i = Σ_(p, e touching i) fn(p, e), e = p·kStencil + s, over every particle in order of the reference grid's
+/// slabs (kSlabCells thick along the first axis), the even slabs then the odd ones in parallel: slabs of one colour
+/// never share a node, and each node's sum runs in the same order for any thread count.
 template <int D, class Fn>
-void gather(const TlGrid<D>& g, std::vector<VecD<D>>& out, Fn&& fn) {
-  const auto nodes = static_cast<std::int64_t>(g.rest.size());
-#pragma omp parallel for schedule(static) if (nodes > kParallelMin)
-  for (std::int64_t k = 0; k < nodes; ++k) {
-    const auto u = static_cast<std::size_t>(k);
-    VecD<D> s = VecD<D>::Zero();
-    for (std::uint32_t a = g.adjacency_start[u]; a < g.adjacency_start[u + 1]; ++a) {
-      const std::uint32_t e = g.adjacency[a];
-      s += fn(static_cast<std::size_t>(e / TlGrid<D>::kStencil), static_cast<std::size_t>(e));
+void scatter(const TlGrid<D>& g, std::vector<VecD<D>>& out, Fn&& fn) {
+  std::fill(out.begin(), out.end(), VecD<D>::Zero());
+  const auto slabs = static_cast<std::int64_t>(g.slab_start.size()) - 1;
+  for (std::int64_t colour = 0; colour < 2; ++colour) {
+#pragma omp parallel for schedule(dynamic, 1) if (g.particles > static_cast <std::size_t>(kParallelMin))
+    for (std::int64_t sl = colour; sl < slabs; sl += 2) {
+      for (std::uint32_t i = g.slab_start[static_cast<std::size_t>(sl)];
+           i < g.slab_start[static_cast<std::size_t>(sl) + 1]; ++i) {
+        const std::size_t p = g.slab_order[i];
+        const std::size_t e0 = p * TlGrid<D>::kStencil;
+        for (int k = 0; k < TlGrid<D>::kStencil; ++k) out[g.node[e0 + k]] += fn(p, e0 + k);
+      }
     }
-    out[u] = s;
   }
 }
 
-/// B and ∇B at each magnetic particle (zero elsewhere) [T, T/m].
+/// B and ∇B at each magnetic particle (zero elsewhere) [T, T/m]. A general field is sampled once per field version at
+/// the nodes of a fixed Eulerian lattice of the grid's spacing (implicit.cpp's and mpm.cpp's node field cache, in
+/// `euler`) and interpolated to the particles with the quadratic B-spline, as the updated-Lagrangian step does.
 template <int D>
 void sample_field(const MpmModel<D>& model, const AppliedField& field, const MpmState<D>& state,
-                  std::vector<VecD<D>>& b, std::vector<MatD<D>>& g) {
+                  MpmWorkspace<D>& euler, std::vector<VecD<D>>& b, std::vector<MatD<D>>& g) {
   const std::size_t np = model.size();
   b.assign(np, VecD<D>::Zero());
   g.assign(np, MatD<D>::Zero());
   if (field.kind == AppliedField::Kind::kNone) return;
+  const double inv_dx = 1.0 / model.cell;
+  if (field.kind == AppliedField::Kind::kGeneral) {
+    Index<D> lo = Index<D>::Constant(std::numeric_limits<std::int64_t>::max());
+    Index<D> hi = Index<D>::Constant(std::numeric_limits<std::int64_t>::min());
+    for (const VecD<D>& x : state.x) {
+      const Stencil<D> st(x, inv_dx);
+      lo = lo.cwiseMin(st.base);
+      hi = hi.cwiseMax(st.base);
+    }
+    euler.lo = lo;
+    euler.n = hi - lo + Index<D>::Constant(3);
+    refresh_field<D>(field, model.cell, euler);
+  }
+  const Index<D> stride = field.kind == AppliedField::Kind::kGeneral ? strides<D>(euler.field_n) : Index<D>::Zero();
 #pragma omp parallel for schedule(static) if (np > static_cast <std::size_t>(kParallelMin))
   for (std::int64_t pp = 0; pp < static_cast<std::int64_t>(np); ++pp) {
     const auto p = static_cast<std::size_t>(pp);
     if (!(model.remanence[p].squaredNorm() > 0.0)) continue;
     if (field.kind == AppliedField::Kind::kUniform) {
       b[p] = from3<D>(field.uniform);
-    } else {
-      const magnetics::FieldSample s = field.sample(to3<D>(state.x[p]));
-      b[p] = from3<D>(s.b);
-      g[p] = s.g.template topLeftCorner<D, D>();
+      continue;
     }
+    const Stencil<D> st(state.x[p], inv_dx);
+    for_nodes<D>(st, linear<D>(st.base, euler.field_lo, euler.field_n), stride,
+                 [&](std::int64_t k, double w, int, int, int) {
+                   b[p] += w * euler.field_b[static_cast<std::size_t>(k)];
+                   g[p] += w * euler.field_g[static_cast<std::size_t>(k)];
+                 });
   }
 }
 
@@ -138,7 +173,8 @@ VecD<D> particle_pull(const MpmModel<D>& model, std::size_t p, const MatD<D>& f,
       grad_b, magnetics::hard_magnetic_moment<D>(VecD<D>(f * model.remanence[p]), model.volume[p]));
 }
 
-/// Each particle's x, v, F and C (= Ḟ F⁻¹) from the nodes, and the smallest failing particle (or kNoFailure).
+/// Each particle's x, v and F from the nodes (one pass over its stencil), and the smallest failing particle (or
+/// kNoFailure). C, the updated-Lagrangian step's affine field, is left as it is: nothing here reads it.
 template <int D>
 std::int64_t finish_particles(const MpmModel<D>& model, const TlGrid<D>& g, MpmState<D>& state, double dt) {
   const auto np = static_cast<std::int64_t>(g.particles);
@@ -146,20 +182,24 @@ std::int64_t finish_particles(const MpmModel<D>& model, const TlGrid<D>& g, MpmS
 #pragma omp parallel for schedule(static) reduction(min : bad) if (np > kParallelMin)
   for (std::int64_t pp = 0; pp < np; ++pp) {
     const auto p = static_cast<std::size_t>(pp);
-    state.x[p] = interpolate<D>(g, state.grid_x, p);
-    state.v[p] = interpolate<D>(g, state.grid_v, p);
-    const MatD<D> f = deformation<D>(g, state.grid_x, p);
+    VecD<D> x = VecD<D>::Zero(), v = VecD<D>::Zero();
+    MatD<D> f = MatD<D>::Zero();
+    const std::size_t e0 = p * TlGrid<D>::kStencil;
+    for (int s = 0; s < TlGrid<D>::kStencil; ++s) {
+      const std::uint32_t k = g.node[e0 + s];
+      x += g.weight[e0 + s] * state.grid_x[k];
+      v += g.weight[e0 + s] * state.grid_v[k];
+      f += state.grid_x[k] * g.gradient[e0 + s].transpose();
+    }
+    state.x[p] = x;
+    state.v[p] = v;
     state.f[p] = f;
     const double j = f.determinant();
     const bool fails = !(j > 0.0 && j < kMaxJ) || !state.x[p].allFinite() || !state.v[p].allFinite() ||
                        state.v[p].norm() * dt > kMaxCellsPerStep * g.cell ||
                        (state.x[p].array() < model.domain_min.array()).any() ||
                        (state.x[p].array() > model.domain_max.array()).any();
-    if (fails) {
-      bad = std::min(bad, pp);
-      continue;
-    }
-    state.c[p] = deformation<D>(g, state.grid_v, p) * f.inverse();
+    if (fails) bad = std::min(bad, pp);
   }
   return bad;
 }
@@ -217,7 +257,7 @@ class TlSolver {
         if (solved) ++stats.factorizations;
       }
       if (!solved) {
-        const long cg = conjugate_gradient(std::min(0.5, std::sqrt(rhs / std::max(rhs0, 1e-300))) * 1e-2);
+        const long cg = conjugate_gradient(std::min(0.5, std::sqrt(rhs / std::max(rhs0, 1e-300))) * kForcing);
         stats.cg += cg;
         if (cg > kRefactorCg) m_s.refactor = true;
       }
@@ -279,7 +319,7 @@ class TlSolver {
     m_s.magnetic.assign(m_np, MatD<D>::Zero());
     std::vector<VecD<D>>& b = m_s.field;
     std::vector<MatD<D>> grad_b;
-    sample_field<D>(m_model, field, m_state, b, grad_b);
+    sample_field<D>(m_model, field, m_state, m_s.euler, b, grad_b);
     std::vector<VecD<D>> pull(m_np, VecD<D>::Zero());
     for (std::size_t p = 0; p < m_np; ++p) {
       if (!(m_model.remanence[p].squaredNorm() > 0.0)) continue;
@@ -287,7 +327,7 @@ class TlSolver {
       pull[p] = particle_pull<D>(m_model, p, m_state.f[p], grad_b[p]);
     }
     std::vector<VecD<D>> force(n);
-    gather<D>(m_grid, force, [&](std::size_t p, std::size_t e) { return VecD<D>(m_grid.weight[e] * pull[p]); });
+    scatter<D>(m_grid, force, [&](std::size_t p, std::size_t e) { return VecD<D>(m_grid.weight[e] * pull[p]); });
     for (std::size_t u = 0; u < n; ++u) {
       const double m = m_grid.mass[u];
       if (!(m > 0.0)) continue;
@@ -372,7 +412,7 @@ class TlSolver {
 
   /// out_i = Σ_p S_p ∇_X w_ip (S_p = m_s.stress[p]).
   void scatter_stress(std::vector<VecD<D>>& out) {
-    gather<D>(m_grid, out,
+    scatter<D>(m_grid, out,
               [&](std::size_t p, std::size_t e) { return VecD<D>(m_s.stress[p] * m_grid.gradient[e]); });
   }
 
@@ -487,14 +527,26 @@ class TlSolver {
       }
     }
     a.makeCompressed();
-    if (!m_s.analysed) {
-      m_s.ldlt.analyzePattern(a);
+    m_s.factored = false;
+    if (!m_s.analysed) {  // both orderings once; keep the one whose factor is smaller
+      m_s.natural = std::make_unique<typename Impl::Natural>();
+      m_s.amd = std::make_unique<typename Impl::Amd>();
+      m_s.natural->analyzePattern(a);
+      m_s.amd->analyzePattern(a);
+      m_s.natural->factorize(a);
+      m_s.amd->factorize(a);
+      const auto size = [](const auto& f) {
+        return f.info() == Eigen::Success ? f.matrixL().nestedExpression().nonZeros()
+                                          : std::numeric_limits<Eigen::Index>::max();
+      };
+      m_s.use_amd = size(*m_s.amd) < size(*m_s.natural);
+      if (m_s.use_amd)
+        m_s.natural = std::make_unique<typename Impl::Natural>();
+      else
+        m_s.amd = std::make_unique<typename Impl::Amd>();
       m_s.analysed = true;
     }
-    m_s.ldlt.factorize(a);
-    m_s.factored = false;
-    m_indefinite = m_s.ldlt.info() == Eigen::Success && !(m_s.ldlt.vectorD().minCoeff() > 0.0);
-    if (m_s.ldlt.info() != Eigen::Success || m_indefinite) return false;
+    if (!m_s.factorize(a, m_indefinite)) return false;
     m_s.factored = true;
     m_s.refactor = false;
     m_s.factor_dt = m_dt;
@@ -511,11 +563,11 @@ class TlSolver {
       for (std::size_t k = 0; k < n; ++k) z[k] = m_s.diag[k].cwiseProduct(r[k]);
       return;
     }
-    Eigen::VectorXd rhs(m_s.ldlt.rows());
+    Eigen::VectorXd rhs(m_s.rows());
     for (std::size_t k = 0; k < n; ++k) {
       if (m_s.index[k] >= 0) rhs.template segment<D>(m_s.index[k] * D) = r[k];
     }
-    const Eigen::VectorXd x = m_s.ldlt.solve(rhs);
+    const Eigen::VectorXd x = m_s.solve(rhs);
     for (std::size_t k = 0; k < n; ++k)
       z[k] = m_s.index[k] >= 0 ? VecD<D>(x.template segment<D>(m_s.index[k] * D)) : VecD<D>::Zero();
   }
@@ -523,7 +575,7 @@ class TlSolver {
   /// The inverse diagonal of H at the current tangents.
   void build_jacobi() {
     std::vector<VecD<D>> d(static_cast<std::size_t>(m_nodes));
-    gather<D>(m_grid, d, [&](std::size_t p, std::size_t e) {
+    scatter<D>(m_grid, d, [&](std::size_t p, std::size_t e) {
       const VecD<D>& g = m_grid.gradient[e];
       const auto& t = m_s.tangent[p];
       VecD<D> out;
@@ -645,7 +697,6 @@ TlGrid<D> make_tl_grid(const MpmModel<D>& model, MpmState<D>& state) {
   g.node.resize(g.particles * kS);
   g.weight.resize(g.particles * kS);
   g.gradient.resize(g.particles * kS);
-  std::vector<std::uint32_t> touches(nodes + 1, 0);
   for (std::size_t p = 0; p < g.particles; ++p) {
     const Stencil<D> st(state.x[p], inv_dx);
     std::array<std::array<double, 3>, D> w, dw;
@@ -675,13 +726,19 @@ TlGrid<D> make_tl_grid(const MpmModel<D>& model, MpmState<D>& state) {
           g.weight[e] = weight;
           g.gradient[e] = grad;
           g.mass[k] += weight * model.mass[p];
-          ++touches[k + 1];
         }
   }
-  for (std::size_t k = 0; k < nodes; ++k) touches[k + 1] += touches[k];
-  g.adjacency_start = touches;
-  g.adjacency.resize(g.particles * kS);
-  for (std::size_t e = 0; e < g.particles * kS; ++e) g.adjacency[touches[g.node[e]]++] = static_cast<std::uint32_t>(e);
+  // The particles bucketed into slabs of kSlabCells cells along the first axis by their stencil's base (scatter).
+  const auto slab_of = [&](std::size_t p) {
+    return static_cast<std::size_t>((Stencil<D>(state.x[p], inv_dx).base[0] - g.lo[0]) / kSlabCells);
+  };
+  const std::size_t slabs = static_cast<std::size_t>(g.n[0] / kSlabCells) + 1;
+  g.slab_start.assign(slabs + 1, 0);
+  for (std::size_t p = 0; p < g.particles; ++p) ++g.slab_start[slab_of(p) + 1];
+  for (std::size_t sl = 0; sl < slabs; ++sl) g.slab_start[sl + 1] += g.slab_start[sl];
+  std::vector<std::uint32_t> fill(g.slab_start.begin(), g.slab_start.end() - 1);
+  g.slab_order.resize(g.particles);
+  for (std::size_t p = 0; p < g.particles; ++p) g.slab_order[fill[slab_of(p)]++] = static_cast<std::uint32_t>(p);
   g.clamp.assign(nodes, -1);
   for (std::size_t k = 0; k < nodes; ++k) {
     for (std::size_t c = 0; c < model.clamps.size() && g.clamp[k] < 0; ++c) {
@@ -706,16 +763,16 @@ TlGrid<D> make_tl_grid(const MpmModel<D>& model, MpmState<D>& state) {
 
 template <int D>
 StepStatus tl_step(const MpmModel<D>& model, const TlGrid<D>& grid, const AppliedField& field, MpmState<D>& state,
-                   double dt) {
+                   TlWorkspace<D>& ws, double dt) {
   check_state<D>(grid, state);
   const std::size_t np = grid.particles;
   std::vector<VecD<D>> b, pull(np, VecD<D>::Zero());
   std::vector<MatD<D>> grad_b, stress(np);
-  sample_field<D>(model, field, state, b, grad_b);
+  sample_field<D>(model, field, state, ws.impl->euler, b, grad_b);
 #pragma omp parallel for schedule(static) if (np > static_cast <std::size_t>(kParallelMin))
   for (std::int64_t pp = 0; pp < static_cast<std::int64_t>(np); ++pp) {
     const auto p = static_cast<std::size_t>(pp);
-    const MatD<D> f = deformation<D>(grid, state.grid_x, p);
+    const MatD<D>& f = state.f[p];  // F of the node positions, as the last step (or make_tl_grid) left it
     MatD<D> piola = elastic_stress<D>(model.materials[model.material[p]], f, model.plane);
     if (model.remanence[p].squaredNorm() > 0.0) {
       piola += magnetics::hard_magnetic_piola_stress<D>(b[p], model.remanence[p]);  // eq 3.13
@@ -724,7 +781,7 @@ StepStatus tl_step(const MpmModel<D>& model, const TlGrid<D>& grid, const Applie
     stress[p] = model.volume[p] * piola;
   }
   std::vector<VecD<D>> force(grid.rest.size());
-  gather<D>(grid, force, [&](std::size_t p, std::size_t e) {
+  scatter<D>(grid, force, [&](std::size_t p, std::size_t e) {
     return VecD<D>(grid.weight[e] * pull[p] - stress[p] * grid.gradient[e]);
   });
   const double damp = 1.0 / (1.0 + model.damping * dt);
@@ -765,8 +822,10 @@ template struct TlWorkspace<2>;
 template struct TlWorkspace<3>;
 template TlGrid<2> make_tl_grid<2>(const MpmModel<2>&, MpmState<2>&);
 template TlGrid<3> make_tl_grid<3>(const MpmModel<3>&, MpmState<3>&);
-template StepStatus tl_step<2>(const MpmModel<2>&, const TlGrid<2>&, const AppliedField&, MpmState<2>&, double);
-template StepStatus tl_step<3>(const MpmModel<3>&, const TlGrid<3>&, const AppliedField&, MpmState<3>&, double);
+template StepStatus tl_step<2>(const MpmModel<2>&, const TlGrid<2>&, const AppliedField&, MpmState<2>&,
+                               TlWorkspace<2>&, double);
+template StepStatus tl_step<3>(const MpmModel<3>&, const TlGrid<3>&, const AppliedField&, MpmState<3>&,
+                               TlWorkspace<3>&, double);
 template StepStatus tl_implicit_step<2>(const MpmModel<2>&, const TlGrid<2>&, const AppliedField&, MpmState<2>&,
                                         TlWorkspace<2>&, double, const ImplicitSettings&, ImplicitStats*);
 template StepStatus tl_implicit_step<3>(const MpmModel<3>&, const TlGrid<3>&, const AppliedField&, MpmState<3>&,

@@ -39,8 +39,8 @@ struct TlGrid {
   std::vector<std::uint32_t> node;                   ///< per particle, its kStencil nodes (p·kStencil + s)
   std::vector<double> weight;                        ///< w_ip, the same layout
   std::vector<VecD<D>> gradient;                     ///< ∇_X w_ip [1/m], the same layout
-  std::vector<std::uint32_t> adjacency_start;        ///< per node, its entries' range in `adjacency`
-  std::vector<std::uint32_t> adjacency;              ///< the entries (p·kStencil + s) that touch each node
+  std::vector<std::uint32_t> slab_start;             ///< particles by slab (4 cells along x): slab s's range in
+  std::vector<std::uint32_t> slab_order;             ///< slab_order, which lists particle indices
   std::size_t particles = 0;
 };
 
@@ -50,16 +50,8 @@ struct TlGrid {
 template <int D>
 TlGrid<D> make_tl_grid(const MpmModel<D>& model, MpmState<D>& state);
 
-/// One explicit (symplectic Euler) total-Lagrangian step of length dt [s]: node forces from the particles' stresses,
-/// v_i ← (v_i + Δt (f_i/m_i + g)) / (1 + cΔt) (the damping of eq 3.17), the clamps' velocities, x_i ← x_i + Δt v_i,
-/// then each particle's x, v and F from the nodes. Fails on a non-finite, inverted or exploded particle, one that
-/// leaves the domain, or moves more than a cell in the step.
-template <int D>
-StepStatus tl_step(const MpmModel<D>& model, const TlGrid<D>& grid, const AppliedField& field, MpmState<D>& state,
-                   double dt);
-
-/// The implicit step's solver state that persists between steps (the Hessian's pattern and its factor, reused while
-/// it preconditions well). Opaque.
+/// What the steps keep between calls: a general field's node cache, and the implicit step's Hessian pattern and the
+/// factor it reuses while that preconditions well. Opaque.
 template <int D>
 struct TlWorkspace {
   TlWorkspace();
@@ -69,6 +61,14 @@ struct TlWorkspace {
   struct Impl;
   std::unique_ptr<Impl> impl;
 };
+
+/// One explicit (symplectic Euler) total-Lagrangian step of length dt [s]: node forces from the particles' stresses,
+/// v_i ← (v_i + Δt (f_i/m_i + g)) / (1 + cΔt) (the damping of eq 3.17), the clamps' velocities, x_i ← x_i + Δt v_i,
+/// then each particle's x, v and F from the nodes (C, the updated-Lagrangian step's affine field, is not used). Fails
+/// on a non-finite, inverted or exploded particle, one that leaves the domain, or moves more than a cell in the step.
+template <int D>
+StepStatus tl_step(const MpmModel<D>& model, const TlGrid<D>& grid, const AppliedField& field, MpmState<D>& state,
+                   TlWorkspace<D>& ws, double dt);
 
 /// One implicit (backward Euler) total-Lagrangian step of length dt [s]: the free node velocities v minimise
 ///   E(v) = Σ_i m_i (½ (1 + cΔt) |v_i|² − v_i · v*_i) + Σ_p V0 [ψ(F̂_p) + ψ_mag(F̂_p)],  F̂_p = Σ_i (x_i + Δt v_i) ∇_X w_ipᵀ,

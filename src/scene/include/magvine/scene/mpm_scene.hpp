@@ -47,6 +47,7 @@ struct MpmScene {
   double time_step = 0.0;               ///< [s]
   double stable_step = 0.0;             ///< the explicit step's bound courant·δx/c_P [s]
   bool implicit = false;                ///< implicit steps (mpm::implicit_step), halved where one fails
+  bool total_lagrangian = false;        ///< mpm.frame: total — the total-Lagrangian steps (mpm/total_lagrangian.hpp)
   mpm::ImplicitSettings newton;         ///< for implicit steps
   double duration = 0.0;                ///< [s]
   double settle_window = 0.0;           ///< > 0: stop once every probe moved less than settle_tolerance over this [s]

@@ -47,6 +47,7 @@ std::vector<double> zhao_experiment_fields();
 /// One Zhao-beam run.
 struct ZhaoPoint {
   ZhaoModel model = ZhaoModel::kPlaneStrain;
+  bool total_lagrangian = false;  ///< the total-Lagrangian step (mpm/total_lagrangian.hpp), else updated-Lagrangian
   int cells = 0;             ///< grid cells through the thickness
   int particles_per_cell = 0;  ///< per axis
   std::size_t particles = 0;
@@ -62,7 +63,8 @@ struct ZhaoPoint {
 
 /// Runs the beam at one resolution and field (single-threaded, to rest or 1.5 s simulated). The reference is the
 /// elastica with zhao_reference_modulus.
-ZhaoPoint run_zhao_beam(int cells, int particles_per_cell, double field, ZhaoModel model = ZhaoModel::kPlaneStrain);
+ZhaoPoint run_zhao_beam(int cells, int particles_per_cell, double field, ZhaoModel model = ZhaoModel::kPlaneStrain,
+                        bool total_lagrangian = false);
 
 /// The fields of the study [T]: past the buckling field, up to a tip turned ~175°.
 std::vector<double> zhao_study_fields();
@@ -71,6 +73,7 @@ std::vector<double> zhao_study_fields();
 /// axis).
 struct MpmBeamStudyOptions {
   ZhaoModel model = ZhaoModel::kPlaneStrain;
+  bool total_lagrangian = false;                     ///< --frame total
   std::vector<double> fields = zhao_study_fields();  ///< [T]
   std::vector<std::pair<int, int>> resolutions = {{3, 2}, {3, 3}, {3, 4}, {4, 4}, {5, 4}};
 };
