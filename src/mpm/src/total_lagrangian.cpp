@@ -5,6 +5,7 @@
 #include <Eigen/Eigenvalues>
 #include <Eigen/SparseCholesky>
 #include <algorithm>
+#include <atomic>
 #include <cmath>
 #include <limits>
 #include <string>
@@ -36,7 +37,7 @@ struct TlWorkspace<D>::Impl {
   bool factored = false;   // the factor below is of some recent step's Hessian
   bool refactor = true;    // the next Newton iteration assembles and factors afresh
   double factor_dt = 0.0;  // the step the factor was made for (another step needs a new one)
-  const TlGrid<D>* grid = nullptr;
+  std::uint64_t grid = 0;  // the TlGrid::id the pattern and factor belong to (0: none)
   // The factor, in the node order (banded along the box's first axis: little fill for a body long along x) or in AMD's
   // order (a compact body); the first factorization of a grid tries both and keeps the one with the smaller L.
   using Natural = Eigen::SimplicialLDLT<Eigen::SparseMatrix<double>, Eigen::Lower, Eigen::NaturalOrdering<int>>;
@@ -205,10 +206,12 @@ std::int64_t finish_particles(const MpmModel<D>& model, const TlGrid<D>& g, MpmS
 }
 
 template <int D>
-void check_state(const TlGrid<D>& g, const MpmState<D>& state) {
-  if (state.grid_x.size() != g.rest.size() || state.grid_v.size() != g.rest.size() || state.x.size() != g.particles) {
-    throw std::logic_error("total-Lagrangian step: the state was not prepared by make_tl_grid for this grid");
+void check_state(const MpmModel<D>& model, const TlGrid<D>& g, const MpmState<D>& state, double dt) {
+  if (state.grid_x.size() != g.rest.size() || state.grid_v.size() != g.rest.size() || state.x.size() != g.particles ||
+      state.v.size() != g.particles || state.f.size() != g.particles || model.size() != g.particles) {
+    throw std::logic_error("total-Lagrangian step: the state was not prepared by make_tl_grid for this grid and model");
   }
+  if (!(dt > 0.0 && std::isfinite(dt))) throw std::logic_error("total-Lagrangian step: dt must be positive and finite");
 }
 
 /// The implicit step's Newton solve (the same scheme as implicit.cpp's, on the reference grid).
@@ -233,6 +236,7 @@ class TlSolver {
 
   StepStatus solve(const AppliedField& field, ImplicitStats& stats) {
     setup(field);
+    if (std::none_of(m_s.unknown.begin(), m_s.unknown.end(), [](unsigned char u) { return u != 0; })) return {};
     double energy = energy_at(m_s.v);
     if (!std::isfinite(energy)) {
       for (std::int64_t k = 0; k < m_nodes; ++k) {
@@ -307,6 +311,13 @@ class TlSolver {
 
  private:
   void setup(const AppliedField& field) {
+    if (m_s.grid != m_grid.id) {  // another grid: its pattern and factor start afresh
+      m_s.grid = m_grid.id;
+      m_s.index.clear();
+      m_s.analysed = false;
+      m_s.factored = false;
+      m_s.refactor = true;
+    }
     const auto n = static_cast<std::size_t>(m_nodes);
     for (auto* vec :
          {&m_s.target, &m_s.v, &m_s.trial, &m_s.grad, &m_s.dir, &m_s.res, &m_s.pre, &m_s.conj, &m_s.hconj, &m_s.diag}) {
@@ -443,16 +454,13 @@ class TlSolver {
 
   /// The unknowns' numbering and the pattern of coupled slots, once per grid (neither changes with the body's motion).
   bool prepare_pattern() {
-    if (m_s.grid == &m_grid && !m_s.index.empty()) return m_s.unknowns * D <= kMaxDirectUnknowns;
-    m_s.grid = &m_grid;
-    m_s.analysed = false;
-    m_s.factored = false;
+    if (!m_s.index.empty()) return m_s.unknowns > 0 && m_s.unknowns * D <= kMaxDirectUnknowns;
     m_s.index.assign(static_cast<std::size_t>(m_nodes), -1);
     m_s.unknowns = 0;
     for (std::int64_t k = 0; k < m_nodes; ++k) {
       if (m_s.unknown[static_cast<std::size_t>(k)]) m_s.index[static_cast<std::size_t>(k)] = m_s.unknowns++;
     }
-    if (m_s.unknowns * D > kMaxDirectUnknowns) return false;
+    if (m_s.unknowns == 0 || m_s.unknowns * D > kMaxDirectUnknowns) return false;
     m_s.coupled.assign(static_cast<std::size_t>(m_s.unknowns * kOffsets), 0);
     for (std::size_t p = 0; p < m_np; ++p) {
       const std::size_t e0 = p * kStencil;
@@ -671,7 +679,14 @@ TlGrid<D> make_tl_grid(const MpmModel<D>& model, MpmState<D>& state) {
                      "'): use the updated-Lagrangian solver");
   }
   constexpr int kS = TlGrid<D>::kStencil;
+  if (model.size() == 0) throw InputError("total-Lagrangian MPM: the model has no particles");
+  if (!(model.cell > 0.0 && std::isfinite(model.cell))) throw InputError("total-Lagrangian MPM: the cell must be > 0");
+  if (state.x.size() != model.size() || state.v.size() != model.size()) {
+    throw std::logic_error("make_tl_grid: the state's particles do not match the model's");
+  }
+  static std::atomic<std::uint64_t> next_id{1};
   TlGrid<D> g;
+  g.id = next_id++;
   g.cell = model.cell;
   g.particles = model.size();
   const double inv_dx = 1.0 / model.cell;
@@ -679,7 +694,9 @@ TlGrid<D> make_tl_grid(const MpmModel<D>& model, MpmState<D>& state) {
   Index<D> lo = Index<D>::Constant(std::numeric_limits<std::int64_t>::max());
   Index<D> hi = Index<D>::Constant(std::numeric_limits<std::int64_t>::min());
   for (const VecD<D>& x : state.x) {
-    if (!x.allFinite()) throw InputError("total-Lagrangian MPM: a particle's position is not finite");
+    if (!x.allFinite() || (x.array() < model.domain_min.array()).any() || (x.array() > model.domain_max.array()).any()) {
+      throw InputError("total-Lagrangian MPM: a particle lies outside the domain (or is not finite)");
+    }
     const Stencil<D> st(x, inv_dx);
     lo = lo.cwiseMin(st.base);
     hi = hi.cwiseMax(st.base + Index<D>::Constant(2));
@@ -688,6 +705,10 @@ TlGrid<D> make_tl_grid(const MpmModel<D>& model, MpmState<D>& state) {
   g.n = hi - lo + Index<D>::Ones();
   std::int64_t count = 1;
   for (int a = 0; a < D; ++a) count *= g.n[a];
+  if (count > std::int64_t{1} << 31) {
+    throw InputError("total-Lagrangian MPM: the body's reference grid would have " + std::to_string(count) +
+                     " nodes (at most 2^31): enlarge the cell");
+  }
   const auto nodes = static_cast<std::size_t>(count);
   g.rest.resize(nodes);
   for (std::size_t k = 0; k < nodes; ++k) {
@@ -728,6 +749,12 @@ TlGrid<D> make_tl_grid(const MpmModel<D>& model, MpmState<D>& state) {
           g.mass[k] += weight * model.mass[p];
         }
   }
+  // A node only grazed by stencils (weight ~ε², from a particle at round-off from a cell's edge) would carry a mass
+  // and a stiffness of order ε² and a velocity Newton cannot resolve: it is left out (massless, never moved).
+  const double heaviest = *std::max_element(g.mass.begin(), g.mass.end());
+  for (double& m : g.mass) {
+    if (m < 1e-12 * heaviest) m = 0.0;
+  }
   // The particles bucketed into slabs of kSlabCells cells along the first axis by their stencil's base (scatter).
   const auto slab_of = [&](std::size_t p) {
     return static_cast<std::size_t>((Stencil<D>(state.x[p], inv_dx).base[0] - g.lo[0]) / kSlabCells);
@@ -764,7 +791,7 @@ TlGrid<D> make_tl_grid(const MpmModel<D>& model, MpmState<D>& state) {
 template <int D>
 StepStatus tl_step(const MpmModel<D>& model, const TlGrid<D>& grid, const AppliedField& field, MpmState<D>& state,
                    TlWorkspace<D>& ws, double dt) {
-  check_state<D>(grid, state);
+  check_state<D>(model, grid, state, dt);
   const std::size_t np = grid.particles;
   std::vector<VecD<D>> b, pull(np, VecD<D>::Zero());
   std::vector<MatD<D>> grad_b, stress(np);
@@ -805,7 +832,7 @@ template <int D>
 StepStatus tl_implicit_step(const MpmModel<D>& model, const TlGrid<D>& grid, const AppliedField& field,
                             MpmState<D>& state, TlWorkspace<D>& ws, double dt, const ImplicitSettings& settings,
                             ImplicitStats* stats) {
-  check_state<D>(grid, state);
+  check_state<D>(model, grid, state, dt);
   ImplicitStats local;
   ImplicitStats& counted = stats ? *stats : local;
   counted = {};

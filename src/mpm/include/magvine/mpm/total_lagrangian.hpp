@@ -42,6 +42,7 @@ struct TlGrid {
   std::vector<std::uint32_t> slab_start;             ///< particles by slab (4 cells along x): slab s's range in
   std::vector<std::uint32_t> slab_order;             ///< slab_order, which lists particle indices
   std::size_t particles = 0;
+  std::uint64_t id = 0;  ///< unique per make_tl_grid call: a workspace's cached pattern belongs to one grid
 };
 
 /// Builds the reference grid from the particles' current positions (taken as the reference, undeformed) and sets the
