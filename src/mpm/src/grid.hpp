@@ -3,6 +3,7 @@
 // share — stencils, the grid box and its slabs, the particle transfers, the grid nodes' boundary conditions.
 
 #include <algorithm>
+#include <cmath>
 #include <cstdint>
 #include <limits>
 #include <vector>
@@ -32,6 +33,71 @@ double ordered_sum(std::int64_t n, Fn&& f) {
   double total = 0.0;
   for (double s : part) total += s;
   return total;
+}
+
+/// Σ_k a_k · b_k over node vectors (ordered_sum: deterministic for any thread count).
+template <int D>
+double node_dot(const std::vector<VecD<D>>& a, const std::vector<VecD<D>>& b) {
+  return ordered_sum(static_cast<std::int64_t>(a.size()),
+                     [&](std::int64_t k) { return a[static_cast<std::size_t>(k)].dot(b[static_cast<std::size_t>(k)]); });
+}
+
+/// out = a + s b over node vectors (out may alias a).
+template <int D>
+void node_axpy(const std::vector<VecD<D>>& a, double s, const std::vector<VecD<D>>& b, std::vector<VecD<D>>& out) {
+  const auto n = static_cast<std::int64_t>(a.size());
+#pragma omp parallel for schedule(static) if (n > kParallelMin)
+  for (std::int64_t k = 0; k < n; ++k) {
+    const auto u = static_cast<std::size_t>(k);
+    out[u] = a[u] + s * b[u];
+  }
+}
+
+/// The largest |a_k|.
+template <int D>
+double node_max_norm(const std::vector<VecD<D>>& a) {
+  double m = 0.0;
+  for (const VecD<D>& x : a) m = std::max(m, x.norm());
+  return m;
+}
+
+/// The implicit steps' inexact Newton direction: x ≈ −H⁻¹ grad by conjugate gradients preconditioned by
+/// `precondition(r, z)` (z = M⁻¹ r), with `hessian_times(p, q)` (q = H p), to a relative residual `eta` or `max_it`
+/// iterations; stops at negative curvature (then the preconditioned steepest descent if it came first). r, z, p, q
+/// are scratch of grad's size. Returns the iterations.
+template <int D, class HessianTimes, class Precondition>
+long preconditioned_cg(const std::vector<VecD<D>>& grad, double eta, long max_it, HessianTimes&& hessian_times,
+                       Precondition&& precondition, std::vector<VecD<D>>& x, std::vector<VecD<D>>& r,
+                       std::vector<VecD<D>>& z, std::vector<VecD<D>>& p, std::vector<VecD<D>>& q) {
+  const std::size_t n = grad.size();
+  for (std::size_t k = 0; k < n; ++k) {
+    x[k].setZero();
+    r[k] = -grad[k];
+  }
+  precondition(r, z);
+  p = z;
+  double rz = node_dot<D>(r, z);
+  const double r0 = std::sqrt(node_dot<D>(r, r));
+  long it = 0;
+  while (it < max_it) {
+    ++it;
+    hessian_times(p, q);
+    const double pq = node_dot<D>(p, q);
+    if (!(pq > 0.0)) {  // negative curvature: keep what CG has, or descend along the preconditioned gradient
+      if (it == 1) x = z;
+      break;
+    }
+    const double a = rz / pq;
+    node_axpy<D>(x, a, p, x);
+    node_axpy<D>(r, -a, q, r);
+    if (std::sqrt(node_dot<D>(r, r)) <= eta * r0) break;
+    precondition(r, z);
+    const double rz_next = node_dot<D>(r, z);
+    const double beta = rz_next / rz;
+    rz = rz_next;
+    for (std::size_t k = 0; k < n; ++k) p[k] = z[k] + beta * p[k];
+  }
+  return it;
 }
 
 template <int D>

@@ -431,64 +431,17 @@ class Solver {
       z[k] = m_index[k] >= 0 ? VecD<D>(x.segment<D>(m_index[k] * D)) : VecD<D>::Zero();
   }
 
-  /// dir ≈ −H⁻¹ grad by preconditioned CG to a relative residual `eta`; stops at negative curvature (then the
-  /// preconditioned steepest descent if it came first). Returns the iterations.
   long conjugate_gradient(double eta) {
-    auto& x = m_s.dir;
-    auto& r = m_s.res;
-    auto& z = m_s.pre;
-    auto& p = m_s.conj;
-    auto& q = m_s.hconj;
-    const auto n = static_cast<std::size_t>(m_nodes);
-    for (std::size_t k = 0; k < n; ++k) {
-      x[k].setZero();
-      r[k] = -m_s.grad[k];
-    }
-    precondition(r, z);
-    p = z;
-    double rz = dot(r, z);
-    const double r0 = std::sqrt(dot(r, r));
-    long it = 0;
-    while (it < m_settings.max_cg) {
-      ++it;
-      hessian_times(p, q);
-      const double pq = dot(p, q);
-      if (!(pq > 0.0)) {  // negative curvature: keep what CG has, or descend along the preconditioned gradient
-        if (it == 1) x = z;
-        break;
-      }
-      const double a = rz / pq;
-      axpy(x, a, p, x);
-      axpy(r, -a, q, r);
-      if (std::sqrt(dot(r, r)) <= eta * r0) break;
-      precondition(r, z);
-      const double rz_next = dot(r, z);
-      const double beta = rz_next / rz;
-      rz = rz_next;
-      for (std::size_t k = 0; k < n; ++k) p[k] = z[k] + beta * p[k];
-    }
-    return it;
+    return preconditioned_cg<D>(
+        m_s.grad, eta, m_settings.max_cg, [&](const auto& x, auto& out) { hessian_times(x, out); },
+        [&](const auto& r, auto& z) { precondition(r, z); }, m_s.dir, m_s.res, m_s.pre, m_s.conj, m_s.hconj);
   }
 
-  double dot(const std::vector<VecD<D>>& a, const std::vector<VecD<D>>& b) const {
-    return ordered_sum(
-        m_nodes, [&](std::int64_t k) { return a[static_cast<std::size_t>(k)].dot(b[static_cast<std::size_t>(k)]); });
-  }
-
-  /// out = a + s b (out may alias a).
+  double dot(const std::vector<VecD<D>>& a, const std::vector<VecD<D>>& b) const { return node_dot<D>(a, b); }
   void axpy(const std::vector<VecD<D>>& a, double s, const std::vector<VecD<D>>& b, std::vector<VecD<D>>& out) const {
-#pragma omp parallel for schedule(static) if (m_nodes > kParallelMin)
-    for (std::int64_t k = 0; k < m_nodes; ++k) {
-      const auto u = static_cast<std::size_t>(k);
-      out[u] = a[u] + s * b[u];
-    }
+    node_axpy<D>(a, s, b, out);
   }
-
-  double max_norm(const std::vector<VecD<D>>& a) const {
-    double m = 0.0;
-    for (const VecD<D>& x : a) m = std::max(m, x.norm());
-    return m;
-  }
+  double max_norm(const std::vector<VecD<D>>& a) const { return node_max_norm<D>(a); }
 
   StepContext<D>& m_c;
   Scratch& m_s;

@@ -604,56 +604,16 @@ class TlSolver {
   }
 
   long conjugate_gradient(double eta) {
-    auto& x = m_s.dir;
-    auto& r = m_s.res;
-    auto& z = m_s.pre;
-    auto& p = m_s.conj;
-    auto& q = m_s.hconj;
-    const auto n = static_cast<std::size_t>(m_nodes);
-    for (std::size_t k = 0; k < n; ++k) {
-      x[k].setZero();
-      r[k] = -m_s.grad[k];
-    }
-    precondition(r, z);
-    p = z;
-    double rz = dot(r, z);
-    const double r0 = std::sqrt(dot(r, r));
-    long it = 0;
-    while (it < m_settings.max_cg) {
-      ++it;
-      hessian_times(p, q);
-      const double pq = dot(p, q);
-      if (!(pq > 0.0)) {
-        if (it == 1) x = z;
-        break;
-      }
-      const double a = rz / pq;
-      axpy(x, a, p, x);
-      axpy(r, -a, q, r);
-      if (std::sqrt(dot(r, r)) <= eta * r0) break;
-      precondition(r, z);
-      const double rz_next = dot(r, z);
-      const double beta = rz_next / rz;
-      rz = rz_next;
-      for (std::size_t k = 0; k < n; ++k) p[k] = z[k] + beta * p[k];
-    }
-    return it;
+    return preconditioned_cg<D>(
+        m_s.grad, eta, m_settings.max_cg, [&](const auto& x, auto& out) { hessian_times(x, out); },
+        [&](const auto& r, auto& z) { precondition(r, z); }, m_s.dir, m_s.res, m_s.pre, m_s.conj, m_s.hconj);
   }
 
-  double dot(const std::vector<VecD<D>>& a, const std::vector<VecD<D>>& b) const {
-    return ordered_sum(
-        m_nodes, [&](std::int64_t k) { return a[static_cast<std::size_t>(k)].dot(b[static_cast<std::size_t>(k)]); });
-  }
-
+  double dot(const std::vector<VecD<D>>& a, const std::vector<VecD<D>>& b) const { return node_dot<D>(a, b); }
   void axpy(const std::vector<VecD<D>>& a, double s, const std::vector<VecD<D>>& b, std::vector<VecD<D>>& out) const {
-    for (std::size_t u = 0; u < a.size(); ++u) out[u] = a[u] + s * b[u];
+    node_axpy<D>(a, s, b, out);
   }
-
-  double max_norm(const std::vector<VecD<D>>& a) const {
-    double m = 0.0;
-    for (const VecD<D>& x : a) m = std::max(m, x.norm());
-    return m;
-  }
+  double max_norm(const std::vector<VecD<D>>& a) const { return node_max_norm<D>(a); }
 
   const MpmModel<D>& m_model;
   const TlGrid<D>& m_grid;
