@@ -8,6 +8,8 @@
 #include <limits>
 #include <vector>
 
+#include <Eigen/Eigenvalues>
+
 #include "magvine/mpm/mpm.hpp"
 
 namespace magvine::mpm::detail {
@@ -98,6 +100,44 @@ long preconditioned_cg(const std::vector<VecD<D>>& grad, double eta, long max_it
     for (std::size_t k = 0; k < n; ++k) p[k] = z[k] + beta * p[k];
   }
   return it;
+}
+
+/// Backtracking (Armijo) line search of the implicit steps from v along dir: α = 1, ½, ¼, … (at most 30 halvings)
+/// until E(v + α dir) ≤ E(v) + 1e-4 α min(slope, 0) + 1e-13 magnitude() (E's round-off: near the solution the decrease
+/// is below what E can resolve). Leaves the last trial point in `trial` and its energy in `found`; returns α, or 0 when
+/// no step decreased E.
+template <int D, class Energy, class Magnitude>
+double backtracking_line_search(const std::vector<VecD<D>>& v, const std::vector<VecD<D>>& dir, double energy,
+                                double slope, Energy&& energy_at, Magnitude&& magnitude, std::vector<VecD<D>>& trial,
+                                double& found) {
+  constexpr double kArmijo = 1e-4;
+  constexpr int kMaxHalvings = 30;
+  double alpha = 1.0;
+  for (int h = 0; h < kMaxHalvings; ++h, alpha *= 0.5) {
+    node_axpy<D>(v, alpha, dir, trial);
+    found = energy_at(trial);
+    if (found <= energy + kArmijo * alpha * std::min(slope, 0.0) + 1e-13 * magnitude()) return alpha;
+  }
+  return 0.0;
+}
+
+/// The tangent ∂P/∂F of elastic_stress at F, column by column (the implicit steps' Hessian); with `project`, its
+/// negative eigenvalues set to zero (projected Newton: a compressed Neo-Hookean's tangent is indefinite).
+template <int D>
+Eigen::Matrix<double, D * D, D * D> stress_tangent(const Material& mat, const MatD<D>& f, Plane plane, bool project) {
+  Eigen::Matrix<double, D * D, D * D> t;
+  for (int col = 0; col < D * D; ++col) {
+    MatD<D> unit = MatD<D>::Zero();
+    unit.data()[col] = 1.0;
+    const MatD<D> dp = elastic_stress_differential<D>(mat, f, unit, plane);
+    t.col(col) = Eigen::Map<const Eigen::Matrix<double, D * D, 1>>(dp.data());
+  }
+  if (!project) return t;
+  const Eigen::SelfAdjointEigenSolver<Eigen::Matrix<double, D * D, D * D>> eig(0.5 * (t + t.transpose()));
+  if (eig.eigenvalues().minCoeff() < 0.0) {
+    t = eig.eigenvectors() * eig.eigenvalues().cwiseMax(0.0).asDiagonal() * eig.eigenvectors().transpose();
+  }
+  return t;
 }
 
 template <int D>

@@ -1,6 +1,5 @@
 // The implicit MLS-MPM step (mpm.hpp: implicit_step): Newton on the incremental potential of the grid velocities.
 
-#include <Eigen/Eigenvalues>
 #include <Eigen/SparseCholesky>
 #include <algorithm>
 #include <cmath>
@@ -15,8 +14,6 @@ namespace magvine::mpm {
 using namespace detail;  // NOLINT(google-build-using-namespace): the module's own internals (grid.hpp)
 namespace {
 
-constexpr double kArmijo = 1e-4;       // sufficient decrease of the line search
-constexpr int kMaxHalvings = 30;       // line-search halvings before Newton gives up
 // Scalar unknowns (D per free node) up to which the Hessian is assembled and factored (a sparse LDLᵀ); beyond,
 // matrix-free CG. The assembly keeps a D×D block per node and neighbour within two nodes (125 in 3D: 9 KB a node),
 // ~120 MB at the bound, and the factor's fill-in comes on top (11 907 unknowns in 3D: 6.1 M entries, 1.3–1.45 s a
@@ -88,20 +85,11 @@ class Solver {
         stats.correction = dmax * m_c.dt / m_c.dx;
         return {};
       }
-      const double slope = dot(m_s.grad, m_s.dir);
-      double alpha = 1.0;
-      double trial_energy = std::numeric_limits<double>::infinity();
-      // Armijo's decrease, less E's round-off (its terms' magnitudes times 1e-13): near the solution the decrease is
-      // below what E can resolve, and a correction that does not raise E beyond round-off is taken.
-      const auto decreases = [&](double e, double a) {
-        return e <= energy + kArmijo * a * std::min(slope, 0.0) + 1e-13 * m_magnitude;
-      };
-      for (int h = 0; h < kMaxHalvings; ++h, alpha *= 0.5) {
-        axpy(m_s.v, alpha, m_s.dir, m_s.trial);
-        trial_energy = energy_at(m_s.trial);
-        if (decreases(trial_energy, alpha)) break;
-      }
-      if (!decreases(trial_energy, alpha)) {
+      double trial_energy = 0.0;
+      const double alpha = backtracking_line_search<D>(
+          m_s.v, m_s.dir, energy, dot(m_s.grad, m_s.dir), [&](const auto& v) { return energy_at(v); },
+          [&] { return m_magnitude; }, m_s.trial, trial_energy);
+      if (!(alpha > 0.0)) {
         return {false, "the implicit step's line search found no decrease (correction " +
                            std::to_string(dmax * m_c.dt / m_c.dx) + " cells): take a smaller time step"};
       }
@@ -265,18 +253,7 @@ class Solver {
       // indefinite (a compressed Neo-Hookean's tangent is), each tangent's negative eigenvalues are set to zero: the
       // Hessian stays positive definite and the factor gives a descent direction (projected Newton; the gradient is
       // exact either way).
-      auto& t = m_s.tangent[p];
-      for (int col = 0; col < D * D; ++col) {
-        MatD<D> unit = MatD<D>::Zero();
-        unit.data()[col] = 1.0;
-        const MatD<D> dp = elastic_stress_differential<D>(mat, f, unit, c.model.plane);
-        t.col(col) = Eigen::Map<const Eigen::Matrix<double, D * D, 1>>(dp.data());
-      }
-      if (!m_project) continue;
-      const Eigen::SelfAdjointEigenSolver<Eigen::Matrix<double, D * D, D * D>> eig(0.5 * (t + t.transpose()));
-      if (eig.eigenvalues().minCoeff() < 0.0) {
-        t = eig.eigenvectors() * eig.eigenvalues().cwiseMax(0.0).asDiagonal() * eig.eigenvectors().transpose();
-      }
+      m_s.tangent[p] = stress_tangent<D>(mat, f, c.model.plane, m_project);
     }
     scatter_stress(g);
     return ordered_sum(m_nodes, [&](std::int64_t k) {

@@ -2,7 +2,6 @@
 
 #include "magvine/mpm/total_lagrangian.hpp"
 
-#include <Eigen/Eigenvalues>
 #include <Eigen/SparseCholesky>
 #include <algorithm>
 #include <atomic>
@@ -74,8 +73,6 @@ namespace {
 
 constexpr int kRefactorCg = 12;    // a CG solve longer than this asks for a fresh factor at the next Newton iteration
 constexpr double kForcing = 1e-1;  // CG stops at this times min(0.5, √(|g|/|g0|)) of its first residual
-constexpr double kArmijo = 1e-4;   // sufficient decrease of the line search
-constexpr int kMaxHalvings = 30;   // line-search halvings before Newton gives up
 constexpr int kReach = 5;          // two nodes of one stencil lie at most two apart on each axis
 // Scalar unknowns up to which the Hessian is assembled and factored; beyond, Jacobi-preconditioned CG (as implicit.cpp).
 constexpr std::int64_t kMaxDirectUnknowns = 40000;
@@ -271,18 +268,11 @@ class TlSolver {
         stats.correction = dmax * m_dt / m_grid.cell;
         return {};
       }
-      const double slope = dot(m_s.grad, m_s.dir);
-      double alpha = 1.0;
-      double trial_energy = std::numeric_limits<double>::infinity();
-      const auto decreases = [&](double e, double a) {
-        return e <= energy + kArmijo * a * std::min(slope, 0.0) + 1e-13 * m_magnitude;
-      };
-      for (int h = 0; h < kMaxHalvings; ++h, alpha *= 0.5) {
-        axpy(m_s.v, alpha, m_s.dir, m_s.trial);
-        trial_energy = energy_at(m_s.trial);
-        if (decreases(trial_energy, alpha)) break;
-      }
-      if (!decreases(trial_energy, alpha)) {
+      double trial_energy = 0.0;
+      const double alpha = backtracking_line_search<D>(
+          m_s.v, m_s.dir, energy, dot(m_s.grad, m_s.dir), [&](const auto& v) { return energy_at(v); },
+          [&] { return m_magnitude; }, m_s.trial, trial_energy);
+      if (!(alpha > 0.0)) {
         m_s.refactor = true;
         return {false, "the implicit step's line search found no decrease (correction " +
                            std::to_string(dmax * m_dt / m_grid.cell) + " cells): take a smaller time step"};
@@ -396,18 +386,7 @@ class TlSolver {
       const Material& mat = m_model.materials[m_model.material[p]];
       const MatD<D>& f = m_s.f_trial[p];
       m_s.stress[p] = (m_dt * m_model.volume[p]) * (elastic_stress<D>(mat, f, m_model.plane) + m_s.magnetic[p]);
-      auto& t = m_s.tangent[p];
-      for (int col = 0; col < D * D; ++col) {
-        MatD<D> unit = MatD<D>::Zero();
-        unit.data()[col] = 1.0;
-        const MatD<D> dp = elastic_stress_differential<D>(mat, f, unit, m_model.plane);
-        t.col(col) = Eigen::Map<const Eigen::Matrix<double, D * D, 1>>(dp.data());
-      }
-      if (!m_project) continue;
-      const Eigen::SelfAdjointEigenSolver<Eigen::Matrix<double, D * D, D * D>> eig(0.5 * (t + t.transpose()));
-      if (eig.eigenvalues().minCoeff() < 0.0) {
-        t = eig.eigenvectors() * eig.eigenvalues().cwiseMax(0.0).asDiagonal() * eig.eigenvectors().transpose();
-      }
+      m_s.tangent[p] = stress_tangent<D>(mat, f, m_model.plane, m_project);
     }
     scatter_stress(g);
     return ordered_sum(m_nodes, [&](std::int64_t k) {
