@@ -348,6 +348,9 @@ TEST(MpmScene, BadScenesNameTheKey) {
                      "obstacles:\n  - {shape: sphere, centre: [0, 0, 0], radius: 5}\n")
                 .find("mpm.frame: total takes no obstacles yet"),
             std::string::npos);
+  std::string walled = with("max: [12, 12, 150]}\n  settle", "max: [12, 12, 150], walls: slip}\n  settle");
+  walled.replace(walled.find("  damping: 400"), 14, "  damping: 400\n  frame: total");
+  EXPECT_NE(error_of(walled).find("mpm.domain.walls: is for frame: updated"), std::string::npos);
   EXPECT_TRUE(parse_mpm_scene(with("  damping: 400", "  damping: 400\n  frame: total"), "s.yaml").total_lagrangian);
   EXPECT_FALSE(parse_mpm_scene(ok, "s.yaml").total_lagrangian);
   const MpmScene implicit = parse_mpm_scene(with("  damping: 400", "  damping: 400\n  step: implicit"), "s.yaml");

@@ -400,6 +400,10 @@ MpmScene parse_mpm_scene(const std::string& text, const std::string& label, cons
     cells *= (dmax[a] - dmin[a]) / cell;
   }
   if (cells > kMaxNodes) m.fail("cell", "gives more than 2e8 grid cells over the domain (is the unit right?)");
+  if (sc.total_lagrangian && domain.has("walls")) {
+    domain.fail("walls", "is for frame: updated (in frame: total the domain only bounds the body: a particle leaving "
+                         "it ends the run)");
+  }
   const mpm::Boundary walls = domain.has("walls") ? boundary_of(domain, "walls") : mpm::Boundary::kSticky;
   const double wall_mu = friction_of(domain, walls);
   if (m.has("settle")) {
