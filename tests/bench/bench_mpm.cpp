@@ -12,6 +12,8 @@
 #include <benchmark/benchmark.h>
 #include <omp.h>
 
+#include <utility>
+
 #include "magvine/mpm/cantilever.hpp"
 
 namespace {
@@ -106,18 +108,13 @@ void BM_StiffCatheterSettle(benchmark::State& state) {
 }  // namespace
 
 BENCHMARK(BM_StiffCatheterSettle)
-    ->Args({2, 0, 0})
-    ->Args({2, 10, 0})
-    ->Args({2, 100, 0})
-    ->Args({3, 0, 0})
-    ->Args({3, 10, 0})
-    ->Args({3, 50, 0})
-    ->Args({2, 0, 1})
-    ->Args({2, 10, 1})
-    ->Args({2, 100, 1})
-    ->Args({3, 0, 1})
-    ->Args({3, 10, 1})
-    ->Args({3, 50, 1})
+    ->Apply([](benchmark::internal::Benchmark* b) {  // per frame and dimension: explicit, 10×, and 100× (2D) or 50× (3D)
+      for (int frame : {0, 1}) {
+        for (const auto& [dim, large] : {std::pair{2, 100}, std::pair{3, 50}}) {
+          for (int ratio : {0, 10, large}) b->Args({dim, ratio, frame});
+        }
+      }
+    })
     ->Iterations(1)
     ->Unit(benchmark::kSecond)
     ->UseRealTime();

@@ -12,9 +12,14 @@
 #include "magvine/mpm/cantilever.hpp"
 #include "magvine/mpm/mpm.hpp"
 #include "magvine/mpm/sampling.hpp"
+#include "mpm_test_bodies.hpp"
 
 namespace magvine::mpm {
 namespace {
+
+using test_bodies::across;
+using test_bodies::small_block;
+using test_bodies::stiff_catheter;
 
 TEST(MpmImplicit, TheStressDifferentialIsTheDerivativeOfTheStress) {
   // Against a central difference of elastic_stress at h = 1e-6 (truncation ~1e-12 relative, round-off ~1e-10 of the
@@ -57,16 +62,6 @@ TEST(MpmImplicit, TheStressDifferentialIsTheDerivativeOfTheStress) {
       check(f2, Plane::kStress);
     }
   }
-}
-
-/// A small soft block (4 × 2 × 2 mm, G 100 kPa, K 20 G) built as a cantilever (its clamp may be dropped).
-CantileverSpec small_block() {
-  CantileverSpec s;
-  s.length = 0.004;
-  s.thickness = 0.002;
-  s.width = 0.002;
-  s.material = {1e5, 2e6, 1000.0};
-  return s;
 }
 
 TEST(MpmImplicit, FreeFallIsExactIn2DAnd3D) {
@@ -124,28 +119,6 @@ TEST(MpmImplicit, AnIndefiniteHessianIsProjectedAndStillFactored) {
   };
   run(std::integral_constant<int, 2>{});
   run(std::integral_constant<int, 3>{});
-}
-
-/// A stiff magnetic catheter in plane strain: E ≈ 3 MPa (G = 1 MPa, K = 20 G), 1 mm thick, 10 mm long, 4 cells
-/// through its thickness, B̃r = 0.1 T along it, in 20 mT across it (B̄ = Br B A L²/(μ0 E I) ≈ 0.65 with E the plane
-/// strain modulus: a large deflection), damped near critically for its first bending mode.
-CantileverSpec stiff_catheter() {
-  CantileverSpec s;
-  s.length = 0.01;
-  s.thickness = 0.001;
-  s.cells_through_thickness = 4;
-  s.particles_per_cell = 2;
-  s.material = {1e6, 2e7, 1100.0};
-  s.remanence = Vec3(0.1, 0, 0);
-  s.damping = 1000.0;
-  return s;
-}
-
-AppliedField across() {
-  AppliedField f;
-  f.kind = AppliedField::Kind::kUniform;
-  f.uniform = Vec3(0, 0.02, 0);
-  return f;
 }
 
 TEST(MpmImplicit, AtTheExplicitStepItFollowsTheExplicitPath) {

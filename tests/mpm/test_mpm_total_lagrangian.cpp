@@ -14,21 +14,15 @@
 #include "magvine/mpm/cantilever.hpp"
 #include "magvine/mpm/total_lagrangian.hpp"
 #include "magvine/robot/elastica.hpp"
+#include "mpm_test_bodies.hpp"
 
 namespace magvine::mpm {
 namespace {
 
-CantileverSpec stiff_catheter();
-CantileverSpec stiff_catheter_spec() { return stiff_catheter(); }
+using test_bodies::across;
+using test_bodies::small_block;
+using test_bodies::stiff_catheter;
 
-CantileverSpec small_block() {
-  CantileverSpec s;
-  s.length = 0.004;
-  s.thickness = 0.002;
-  s.width = 0.002;
-  s.material = {1e5, 2e6, 1000.0};
-  return s;
-}
 
 TEST(MpmTotalLagrangian, TheReferenceGridIsExactAtRest) {
   // Quadratic B-splines reproduce linear fields: Σ_i X_i ∇w_ipᵀ = I and Σ_i w_ip = 1, so every particle starts with
@@ -99,7 +93,7 @@ TEST(MpmTotalLagrangian, FreeFallIsExactExplicitAndImplicit) {
 TEST(MpmTotalLagrangian, AWorkspaceServesAnotherGridAndAFullyClampedBody) {
   // The implicit step's pattern and factor belong to one grid: handed a workspace used on a larger grid, a smaller
   // body still falls exactly (its own pattern, no stale index); a body clamped everywhere has no unknowns and stays.
-  Cantilever<2> big = make_cantilever<2>(stiff_catheter_spec());
+  Cantilever<2> big = make_cantilever<2>(stiff_catheter());
   const TlGrid<2> g_big = make_tl_grid<2>(big.model, big.state);
   TlWorkspace<2> ws;
   for (int k = 0; k < 3; ++k) {
@@ -128,27 +122,6 @@ TEST(MpmTotalLagrangian, ObstaclesAreRefused) {
   o.name = "wall";
   c.model.obstacles.push_back(o);
   EXPECT_THROW(make_tl_grid<2>(c.model, c.state), InputError);
-}
-
-/// The stiff catheter of test_mpm_implicit (plane strain, E ≈ 3 MPa, 10 × 1 mm, 4 cells through, B̃r 0.1 T along it,
-/// damped near critically) in a field `b` across it.
-CantileverSpec stiff_catheter() {
-  CantileverSpec s;
-  s.length = 0.01;
-  s.thickness = 0.001;
-  s.cells_through_thickness = 4;
-  s.particles_per_cell = 2;
-  s.material = {1e6, 2e7, 1100.0};
-  s.remanence = Vec3(0.1, 0, 0);
-  s.damping = 1000.0;
-  return s;
-}
-
-AppliedField across(double b) {
-  AppliedField f;
-  f.kind = AppliedField::Kind::kUniform;
-  f.uniform = Vec3(0, b, 0);
-  return f;
 }
 
 /// The planar elastica of the same catheter (plane-strain bending stiffness E/(1 − ν²) I, axial magnetisation): its

@@ -63,6 +63,21 @@ double node_max_norm(const std::vector<VecD<D>>& a) {
   return m;
 }
 
+/// z = A⁻¹ r for node vectors through a sparse factor over the unknown nodes: node k's D entries sit at index[k]·D
+/// (index −1: not an unknown, z_k = 0). `solver` is any Eigen sparse solver with rows() and solve().
+template <int D, class Solver>
+void solve_on_unknowns(const Solver& solver, const std::vector<std::int64_t>& index, const std::vector<VecD<D>>& r,
+                       std::vector<VecD<D>>& z) {
+  Eigen::VectorXd rhs(solver.rows());
+  for (std::size_t k = 0; k < r.size(); ++k) {
+    if (index[k] >= 0) rhs.template segment<D>(index[k] * D) = r[k];
+  }
+  const Eigen::VectorXd x = solver.solve(rhs);
+  for (std::size_t k = 0; k < r.size(); ++k) {
+    z[k] = index[k] >= 0 ? VecD<D>(x.template segment<D>(index[k] * D)) : VecD<D>::Zero();
+  }
+}
+
 /// The implicit steps' inexact Newton direction: x ≈ −H⁻¹ grad by conjugate gradients preconditioned by
 /// `precondition(r, z)` (z = M⁻¹ r), with `hessian_times(p, q)` (q = H p), to a relative residual `eta` or `max_it`
 /// iterations; stops at negative curvature (then the preconditioned steepest descent if it came first). r, z, p, q

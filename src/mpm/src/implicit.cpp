@@ -79,15 +79,15 @@ class Solver {
       } else {
         stats.cg += conjugate_gradient(std::min(0.5, std::sqrt(rhs / std::max(rhs0, 1e-300))) * 1e-2);
       }
-      const double dmax = max_norm(m_s.dir);
+      const double dmax = node_max_norm<D>(m_s.dir);
       if (dmax <= limit) {  // the correction is below the tolerance: take it whole and stop
-        axpy(m_s.v, 1.0, m_s.dir, m_s.v);
+        node_axpy<D>(m_s.v, 1.0, m_s.dir, m_s.v);
         stats.correction = dmax * m_c.dt / m_c.dx;
         return {};
       }
       double trial_energy = 0.0;
       const double alpha = backtracking_line_search<D>(
-          m_s.v, m_s.dir, energy, dot(m_s.grad, m_s.dir), [&](const auto& v) { return energy_at(v); },
+          m_s.v, m_s.dir, energy, node_dot<D>(m_s.grad, m_s.dir), [&](const auto& v) { return energy_at(v); },
           [&] { return m_magnitude; }, m_s.trial, trial_energy);
       if (!(alpha > 0.0)) {
         return {false, "the implicit step's line search found no decrease (correction " +
@@ -377,16 +377,8 @@ class Solver {
     m_ldlt.compute(a);
     m_indefinite = m_ldlt.info() == Eigen::Success && !(m_ldlt.vectorD().minCoeff() > 0.0);
     if (m_ldlt.info() != Eigen::Success || m_indefinite) return false;
-    Eigen::VectorXd rhs(n_dof);
-    for (std::int64_t k = 0; k < m_nodes; ++k) {
-      const std::int64_t u = index[static_cast<std::size_t>(k)];
-      if (u >= 0) rhs.segment<D>(u * D) = -m_s.grad[static_cast<std::size_t>(k)];
-    }
-    const Eigen::VectorXd x = m_ldlt.solve(rhs);
-    for (std::int64_t k = 0; k < m_nodes; ++k) {
-      const std::int64_t u = index[static_cast<std::size_t>(k)];
-      m_s.dir[static_cast<std::size_t>(k)] = u >= 0 ? VecD<D>(x.segment<D>(u * D)) : VecD<D>::Zero();
-    }
+    solve_on_unknowns<D>(m_ldlt, index, m_s.grad, m_s.dir);
+    for (auto& d : m_s.dir) d = -d;
     m_factored = true;
     return true;
   }
@@ -399,13 +391,7 @@ class Solver {
       for (std::size_t k = 0; k < n; ++k) z[k] = m_s.diag[k].cwiseProduct(r[k]);
       return;
     }
-    Eigen::VectorXd rhs(m_ldlt.rows());
-    for (std::size_t k = 0; k < n; ++k) {
-      if (m_index[k] >= 0) rhs.segment<D>(m_index[k] * D) = r[k];
-    }
-    const Eigen::VectorXd x = m_ldlt.solve(rhs);
-    for (std::size_t k = 0; k < n; ++k)
-      z[k] = m_index[k] >= 0 ? VecD<D>(x.segment<D>(m_index[k] * D)) : VecD<D>::Zero();
+    solve_on_unknowns<D>(m_ldlt, m_index, r, z);
   }
 
   long conjugate_gradient(double eta) {
@@ -414,11 +400,6 @@ class Solver {
         [&](const auto& r, auto& z) { precondition(r, z); }, m_s.dir, m_s.res, m_s.pre, m_s.conj, m_s.hconj);
   }
 
-  double dot(const std::vector<VecD<D>>& a, const std::vector<VecD<D>>& b) const { return node_dot<D>(a, b); }
-  void axpy(const std::vector<VecD<D>>& a, double s, const std::vector<VecD<D>>& b, std::vector<VecD<D>>& out) const {
-    node_axpy<D>(a, s, b, out);
-  }
-  double max_norm(const std::vector<VecD<D>>& a) const { return node_max_norm<D>(a); }
 
   StepContext<D>& m_c;
   Scratch& m_s;

@@ -23,7 +23,9 @@ struct TlWorkspace<D>::Impl {
   std::vector<unsigned char> unknown;
   // Per particle: the trial F, a stress-like matrix per pass, B, the magnetic Piola stress, the tangent ∂P/∂F.
   std::vector<MatD<D>> f_trial, stress, magnetic;
-  std::vector<VecD<D>> field;
+  std::vector<VecD<D>> field;           // B at each particle (both steps)
+  std::vector<MatD<D>> field_gradient;  // ∇B at each particle
+  std::vector<VecD<D>> pull, force;     // per particle the gradient force; per node a force sum
   std::vector<Eigen::Matrix<double, D * D, D * D>> tangent;
   // The Hessian: each unknown node's number (−1: fixed or empty), its D×D blocks per unknown and neighbour slot, which
   // slots some particle couples (the pattern, fixed with the reference grid), and the factor.
@@ -53,11 +55,7 @@ struct TlWorkspace<D>::Impl {
     };
     return use_amd ? run(*amd) : run(*natural);
   }
-  Eigen::VectorXd solve(const Eigen::VectorXd& b) const {
-    if (use_amd) return amd->solve(b);
-    return natural->solve(b);
-  }
-  Eigen::Index rows() const { return use_amd ? amd->rows() : natural->rows(); }
+
 };
 
 template <int D>
@@ -262,15 +260,15 @@ class TlSolver {
         stats.cg += cg;
         if (cg > kRefactorCg) m_s.refactor = true;
       }
-      const double dmax = max_norm(m_s.dir);
+      const double dmax = node_max_norm<D>(m_s.dir);
       if (dmax <= limit) {
-        axpy(m_s.v, 1.0, m_s.dir, m_s.v);
+        node_axpy<D>(m_s.v, 1.0, m_s.dir, m_s.v);
         stats.correction = dmax * m_dt / m_grid.cell;
         return {};
       }
       double trial_energy = 0.0;
       const double alpha = backtracking_line_search<D>(
-          m_s.v, m_s.dir, energy, dot(m_s.grad, m_s.dir), [&](const auto& v) { return energy_at(v); },
+          m_s.v, m_s.dir, energy, node_dot<D>(m_s.grad, m_s.dir), [&](const auto& v) { return energy_at(v); },
           [&] { return m_magnitude; }, m_s.trial, trial_energy);
       if (!(alpha > 0.0)) {
         m_s.refactor = true;
@@ -318,16 +316,16 @@ class TlSolver {
     m_s.stress.resize(m_np);
     m_s.tangent.resize(m_np);
     m_s.magnetic.assign(m_np, MatD<D>::Zero());
-    std::vector<VecD<D>>& b = m_s.field;
-    std::vector<MatD<D>> grad_b;
-    sample_field<D>(m_model, field, m_state, m_s.euler, b, grad_b);
-    std::vector<VecD<D>> pull(m_np, VecD<D>::Zero());
+    sample_field<D>(m_model, field, m_state, m_s.euler, m_s.field, m_s.field_gradient);
+    std::vector<VecD<D>>& pull = m_s.pull;
+    pull.assign(m_np, VecD<D>::Zero());
     for (std::size_t p = 0; p < m_np; ++p) {
       if (!(m_model.remanence[p].squaredNorm() > 0.0)) continue;
-      m_s.magnetic[p] = magnetics::hard_magnetic_piola_stress<D>(b[p], m_model.remanence[p]);  // eq 3.13
-      pull[p] = particle_pull<D>(m_model, p, m_state.f[p], grad_b[p]);
+      m_s.magnetic[p] = magnetics::hard_magnetic_piola_stress<D>(m_s.field[p], m_model.remanence[p]);  // eq 3.13
+      pull[p] = particle_pull<D>(m_model, p, m_state.f[p], m_s.field_gradient[p]);
     }
-    std::vector<VecD<D>> force(n);
+    std::vector<VecD<D>>& force = m_s.force;
+    force.resize(n);
     scatter<D>(m_grid, force, [&](std::size_t p, std::size_t e) { return VecD<D>(m_grid.weight[e] * pull[p]); });
     for (std::size_t u = 0; u < n; ++u) {
       const double m = m_grid.mass[u];
@@ -550,13 +548,10 @@ class TlSolver {
       for (std::size_t k = 0; k < n; ++k) z[k] = m_s.diag[k].cwiseProduct(r[k]);
       return;
     }
-    Eigen::VectorXd rhs(m_s.rows());
-    for (std::size_t k = 0; k < n; ++k) {
-      if (m_s.index[k] >= 0) rhs.template segment<D>(m_s.index[k] * D) = r[k];
-    }
-    const Eigen::VectorXd x = m_s.solve(rhs);
-    for (std::size_t k = 0; k < n; ++k)
-      z[k] = m_s.index[k] >= 0 ? VecD<D>(x.template segment<D>(m_s.index[k] * D)) : VecD<D>::Zero();
+    if (m_s.use_amd)
+      solve_on_unknowns<D>(*m_s.amd, m_s.index, r, z);
+    else
+      solve_on_unknowns<D>(*m_s.natural, m_s.index, r, z);
   }
 
   /// The inverse diagonal of H at the current tangents.
@@ -588,11 +583,6 @@ class TlSolver {
         [&](const auto& r, auto& z) { precondition(r, z); }, m_s.dir, m_s.res, m_s.pre, m_s.conj, m_s.hconj);
   }
 
-  double dot(const std::vector<VecD<D>>& a, const std::vector<VecD<D>>& b) const { return node_dot<D>(a, b); }
-  void axpy(const std::vector<VecD<D>>& a, double s, const std::vector<VecD<D>>& b, std::vector<VecD<D>>& out) const {
-    node_axpy<D>(a, s, b, out);
-  }
-  double max_norm(const std::vector<VecD<D>>& a) const { return node_max_norm<D>(a); }
 
   const MpmModel<D>& m_model;
   const TlGrid<D>& m_grid;
@@ -732,9 +722,14 @@ StepStatus tl_step(const MpmModel<D>& model, const TlGrid<D>& grid, const Applie
                    TlWorkspace<D>& ws, double dt) {
   check_state<D>(model, grid, state, dt);
   const std::size_t np = grid.particles;
-  std::vector<VecD<D>> b, pull(np, VecD<D>::Zero());
-  std::vector<MatD<D>> grad_b, stress(np);
-  sample_field<D>(model, field, state, ws.impl->euler, b, grad_b);
+  auto& s = *ws.impl;
+  const std::vector<VecD<D>>& b = s.field;
+  const std::vector<MatD<D>>& grad_b = s.field_gradient;
+  std::vector<VecD<D>>& pull = s.pull;
+  std::vector<MatD<D>>& stress = s.stress;
+  pull.assign(np, VecD<D>::Zero());
+  stress.resize(np);
+  sample_field<D>(model, field, state, s.euler, s.field, s.field_gradient);
 #pragma omp parallel for schedule(static) if (np > static_cast <std::size_t>(kParallelMin))
   for (std::int64_t pp = 0; pp < static_cast<std::int64_t>(np); ++pp) {
     const auto p = static_cast<std::size_t>(pp);
@@ -746,7 +741,8 @@ StepStatus tl_step(const MpmModel<D>& model, const TlGrid<D>& grid, const Applie
     }
     stress[p] = model.volume[p] * piola;
   }
-  std::vector<VecD<D>> force(grid.rest.size());
+  std::vector<VecD<D>>& force = s.force;
+  force.resize(grid.rest.size());
   scatter<D>(grid, force, [&](std::size_t p, std::size_t e) {
     return VecD<D>(grid.weight[e] * pull[p] - stress[p] * grid.gradient[e]);
   });
