@@ -41,6 +41,12 @@ void MpmCommand::attach(CLI::App& app, CLI::App& study) {
                    "elastica: 7-25 mT, all past buckling; experiment: Zhao et al.'s 5, 7, 10, 15, 25, 40 mT")
       ->capture_default_str()
       ->check(CLI::IsMember({"elastica", "experiment"}));
+  m_study->add_option("--field", m_study_field_mt, "a field to run [mT], instead of --fields; repeat for several")
+      ->check(CLI::Range(0.1, 1000.0));
+  m_study
+      ->add_option("--implicit", m_study_implicit,
+                   "implicit steps of R explicit stable steps (Newton on the incremental potential; default: explicit)")
+      ->check(CLI::Range(1.0, 1000.0));
   m_study->add_option("--resolution", m_study_resolutions,
                       "CxP: C cells through the thickness, P particles per cell per axis; repeat for several "
                       "(default: 3x2 3x3 3x4 4x4 5x4)");
@@ -84,15 +90,30 @@ int MpmCommand::run_scene() {
 
 int MpmCommand::run_study() {
   const int jobs = m_jobs > 0 ? m_jobs : static_cast<int>(std::max(1u, std::thread::hardware_concurrency()));
-  std::cerr << "magvine study mpm-beam: " << m_study_model << ", " << m_study_frame << " frame, " << m_study_fields
-            << " fields, on " << jobs
-            << " threads\n";
+  std::cerr << "magvine study mpm-beam: " << m_study_model << ", " << m_study_frame << " frame, ";
+  if (m_study_field_mt.empty()) {
+    std::cerr << m_study_fields << " fields, ";
+  } else {
+    for (double b : m_study_field_mt) std::cerr << b << ' ';
+    std::cerr << "mT, ";
+  }
+  if (m_study_implicit > 0.0) {
+    std::cerr << "implicit steps of " << m_study_implicit << " explicit ones";
+  } else {
+    std::cerr << "explicit steps";
+  }
+  std::cerr << ", on " << jobs << " threads\n";
   studies::MpmBeamStudyOptions options;
   options.model = m_study_model == "plane-stress" ? studies::ZhaoModel::kPlaneStress
                   : m_study_model == "3d"         ? studies::ZhaoModel::k3D
                                                   : studies::ZhaoModel::kPlaneStrain;
   options.total_lagrangian = m_study_frame == "total";
   if (m_study_fields == "experiment") options.fields = studies::zhao_experiment_fields();
+  if (!m_study_field_mt.empty()) {
+    options.fields.clear();
+    for (double b : m_study_field_mt) options.fields.push_back(b * kMtToT);
+  }
+  options.step_ratio = m_study_implicit;
   if (!m_study_resolutions.empty()) {
     options.resolutions.clear();
     for (const std::string& r : m_study_resolutions) {
@@ -108,7 +129,8 @@ int MpmCommand::run_study() {
   studies::run_mpm_beam_study(m_study_out, jobs, options, [](const studies::ZhaoPoint& p) {
     std::fprintf(stderr, "  %s, %d cells x %d particles/cell, %4.1f mT: delta/L %.4f (elastica %.4f) in %.1f s%s\n",
                  studies::zhao_model_name(p.model), p.cells, p.particles_per_cell, p.field * 1e3, p.deflection,
-                 p.reference, p.seconds, p.ok ? (p.settled ? "" : " NOT at rest") : " FAILED");
+                 p.reference, p.seconds,
+                 p.ok ? (p.settled ? "" : " NOT at rest") : (" FAILED: " + p.failure).c_str());
   });
   std::cerr << "magvine study mpm-beam: " << m_study_out << "/mpm_beam_study.csv, mpm_beam_summary.csv\n";
   return 0;

@@ -29,6 +29,8 @@ class MpmCommand {
   std::string m_study_frame = "updated";
   std::string m_study_fields = "elastica";
   std::vector<std::string> m_study_resolutions;
+  std::vector<double> m_study_field_mt;
+  double m_study_implicit = 0.0;
 };
 
 }  // namespace magvine::cli

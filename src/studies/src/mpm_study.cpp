@@ -83,6 +83,10 @@ ZhaoPoint settle_zhao_beam(const mpm::CantileverSpec& spec, double field, ZhaoPo
   o.window = 0.02;
   o.tolerance = kRestTolerance * kLength;
   o.total_lagrangian = p.total_lagrangian;
+  if (p.step_ratio > 0.0) {
+    o.implicit = true;
+    o.time_step = p.step_ratio * beam.model.stable_step(o.courant);
+  }
   mpm::MpmWorkspace<D> ws;
   const Stopwatch clock;
   const mpm::SettleResult r = mpm::settle<D>(
@@ -96,15 +100,18 @@ ZhaoPoint settle_zhao_beam(const mpm::CantileverSpec& spec, double field, ZhaoPo
       beam.tip, o);
   p.seconds = clock.seconds();
   p.ok = r.status.ok;
+  p.failure = r.status.cause;
   p.settled = r.settled;
   p.steps = r.steps;
+  p.newton = r.newton;
+  p.cg = r.cg;
   p.deflection = std::abs(mpm::mean_position(beam.state, beam.tip).y()) / kLength;
   return p;
 }
 
 }  // namespace
 
-ZhaoPoint run_zhao_beam(int cells, int ppc, double field, ZhaoModel model, bool total_lagrangian) {
+ZhaoPoint run_zhao_beam(int cells, int ppc, double field, ZhaoModel model, bool total_lagrangian, double step_ratio) {
   mpm::CantileverSpec spec;
   spec.length = kLength;
   spec.thickness = kThickness;
@@ -118,6 +125,7 @@ ZhaoPoint run_zhao_beam(int cells, int ppc, double field, ZhaoModel model, bool 
   ZhaoPoint p;
   p.model = model;
   p.total_lagrangian = total_lagrangian;
+  p.step_ratio = step_ratio;
   p.cells = cells;
   p.particles_per_cell = ppc;
   p.field = field;
@@ -141,9 +149,13 @@ void run_mpm_beam_study(const std::filesystem::path& dir, int jobs, const MpmBea
   std::vector<ZhaoPoint> points(todo.size());
   std::atomic<std::size_t> next{0};
   std::mutex report;
+  const int threads = std::max(1, jobs);
+  const int cores = static_cast<int>(std::max(1u, std::thread::hardware_concurrency()));
   auto worker = [&] {
+    mpm::set_step_threads(std::max(1, cores / threads));  // each beam its share of the cores
     for (std::size_t i = next++; i < todo.size(); i = next++) {
-      points[i] = run_zhao_beam(todo[i].cells, todo[i].ppc, todo[i].field, options.model, options.total_lagrangian);
+      points[i] = run_zhao_beam(todo[i].cells, todo[i].ppc, todo[i].field, options.model, options.total_lagrangian,
+                                options.step_ratio);
       if (progress) {
         const std::lock_guard lock(report);
         progress(points[i]);
@@ -151,15 +163,15 @@ void run_mpm_beam_study(const std::filesystem::path& dir, int jobs, const MpmBea
     }
   };
   std::vector<std::thread> pool;
-  for (int t = 0; t < std::max(1, jobs); ++t) pool.emplace_back(worker);
+  for (int t = 0; t < threads; ++t) pool.emplace_back(worker);
   for (std::thread& t : pool) t.join();
 
   std::ostringstream csv, summary;
   csv.precision(8);
   summary.precision(8);
   csv << "model,frame,cells,particles_per_cell,particles,field_mT,bbar,reference,deflection,abs_error_pct,experiment,settled,"
-         "ok,steps,seconds\n";
-  summary << "model,frame,cells,particles_per_cell,particles,mape_pct,seconds,all_settled\n";
+         "ok,steps,seconds,step_ratio,newton,cg,failure\n";
+  summary << "model,frame,cells,particles_per_cell,particles,mape_pct,seconds,all_settled,step_ratio\n";
   for (const auto& [cells, ppc] : options.resolutions) {
     double sum = 0.0, seconds = 0.0;
     int n = 0, buckled = 0;
@@ -175,7 +187,8 @@ void run_mpm_beam_study(const std::filesystem::path& dir, int jobs, const MpmBea
       if (has_reference) csv << err;
       csv << ',';
       if (at_5mt) csv << kZhaoExperiment5mT;
-      csv << ',' << p.settled << ',' << p.ok << ',' << p.steps << ',' << p.seconds << '\n';
+      csv << ',' << p.settled << ',' << p.ok << ',' << p.steps << ',' << p.seconds << ',' << p.step_ratio << ',' << p.newton << ','
+          << p.cg << ",\"" << p.failure << "\"\n";
       if (has_reference) {
         sum += err;
         ++buckled;
@@ -187,7 +200,7 @@ void run_mpm_beam_study(const std::filesystem::path& dir, int jobs, const MpmBea
     }
     summary << zhao_model_name(options.model) << ',' << (options.total_lagrangian ? "total" : "updated") << ','
             << cells << ',' << ppc << ',' << particles << ','
-            << (buckled > 0 ? sum / buckled : 0.0) << ',' << seconds << ',' << settled << '\n';
+            << (buckled > 0 ? sum / buckled : 0.0) << ',' << seconds << ',' << settled << ',' << options.step_ratio << '\n';
   }
   write_file_atomically(dir / "mpm_beam_study.csv", csv.str());
   write_file_atomically(dir / "mpm_beam_summary.csv", summary.str());

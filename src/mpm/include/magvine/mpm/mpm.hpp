@@ -197,6 +197,11 @@ struct StepStatus {
   std::string cause;  ///< e.g. "particle 12 left the domain", "NaN velocity", "J = -0.2 (inverted element)"
 };
 
+/// How many threads (OpenMP) the calling thread's MPM steps spread over; n ≤ 0, or OMP_NUM_THREADS set, leaves the
+/// default (every core, or OMP_NUM_THREADS). Callers that run several bodies at once on their own threads give each a share of the cores:
+/// otherwise every body's team wants every core, and the teams spin against each other.
+void set_step_threads(int n);
+
 /// One explicit MLS-MPM step of length dt [s]. On failure the state holds the failed step and status names the cause
 /// (non-finite values, an inverted or exploded element, a particle leaving the domain, or moving more than a cell).
 template <int D>

@@ -9,6 +9,7 @@
 #include <cstddef>
 #include <filesystem>
 #include <functional>
+#include <string>
 #include <utility>
 #include <vector>
 
@@ -48,6 +49,7 @@ std::vector<double> zhao_experiment_fields();
 struct ZhaoPoint {
   ZhaoModel model = ZhaoModel::kPlaneStrain;
   bool total_lagrangian = false;  ///< the total-Lagrangian step (mpm/total_lagrangian.hpp), else updated-Lagrangian
+  double step_ratio = 0.0;   ///< implicit steps of this many explicit stable steps; 0: explicit steps
   int cells = 0;             ///< grid cells through the thickness
   int particles_per_cell = 0;  ///< per axis
   std::size_t particles = 0;
@@ -57,14 +59,18 @@ struct ZhaoPoint {
   double deflection = 0.0;   ///< δ/L, MPM (|tip y| / L)
   bool settled = false;
   bool ok = true;
+  std::string failure;       ///< why the run stopped, when !ok
   long steps = 0;
+  long newton = 0;           ///< implicit steps: Newton iterations over the run
+  long cg = 0;               ///< implicit steps: conjugate-gradient iterations over the run
   double seconds = 0.0;      ///< wall time of this run
 };
 
 /// Runs the beam at one resolution and field (single-threaded, to rest or 1.5 s simulated). The reference is the
-/// elastica with zhao_reference_modulus.
+/// elastica with zhao_reference_modulus. step_ratio > 0: implicit steps (mpm/implicit.hpp, total_lagrangian.hpp) of
+/// step_ratio times the explicit stable step.
 ZhaoPoint run_zhao_beam(int cells, int particles_per_cell, double field, ZhaoModel model = ZhaoModel::kPlaneStrain,
-                        bool total_lagrangian = false);
+                        bool total_lagrangian = false, double step_ratio = 0.0);
 
 /// The fields of the study [T]: past the buckling field, up to a tip turned ~175°.
 std::vector<double> zhao_study_fields();
@@ -74,13 +80,14 @@ std::vector<double> zhao_study_fields();
 struct MpmBeamStudyOptions {
   ZhaoModel model = ZhaoModel::kPlaneStrain;
   bool total_lagrangian = false;                     ///< --frame total
+  double step_ratio = 0.0;                           ///< --implicit R: implicit steps of R explicit steps; 0: explicit
   std::vector<double> fields = zhao_study_fields();  ///< [T]
   std::vector<std::pair<int, int>> resolutions = {{3, 2}, {3, 3}, {3, 4}, {4, 4}, {5, 4}};
 };
 
 /// Writes `dir/mpm_beam_study.csv` (one row per run; the experiment's δ/L where known) and `dir/mpm_beam_summary.csv`
 /// (per resolution: particles, MAPE against the elastica, total runtime) for tools/plot_mpm_study.py, atomically.
-/// Runs `jobs` beams at a time.
+/// Runs `jobs` beams at a time, each on its share of the cores (mpm::set_step_threads).
 void run_mpm_beam_study(const std::filesystem::path& dir, int jobs, const MpmBeamStudyOptions& options = {},
                         const std::function<void(const ZhaoPoint&)>& progress = {});
 
