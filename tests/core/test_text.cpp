@@ -20,5 +20,12 @@ TEST(Text, ClosestMatchSuggestsTheIntendedKey) {
   EXPECT_EQ(closest_match("lenght", keys), "length");
 }
 
+TEST(Text, CsvQuotedKeepsCommasAndQuotesInOneField) {
+  // RFC 4180: the field in double quotes, an inner quote doubled.
+  EXPECT_EQ(csv_quoted(""), "\"\"");
+  EXPECT_EQ(csv_quoted("blocked, 3 mm"), "\"blocked, 3 mm\"");
+  EXPECT_EQ(csv_quoted("the \"lag\" did not settle"), "\"the \"\"lag\"\" did not settle\"");
+}
+
 }  // namespace
 }  // namespace magvine

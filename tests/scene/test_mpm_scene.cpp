@@ -223,20 +223,27 @@ TEST(MpmScene, TheZhaoBeamBucklesAsTheElasticaPredicts) {
 
 TEST(MpmScene, TheStudysImplicitBeamRestsWhereItsExplicitOneDoes) {
   // `study mpm-beam --implicit R`: the same beam, total-Lagrangian frame, plane stress, 10 mT, explicit and at 50
-  // explicit steps per step. Both rest at stationary points of one energy, so they must agree to the rest test's
-  // resolution (1e-4 L over 20 ms: 2e-4 of δ/L allows both ends of it); the implicit one in at least 10 times fewer
-  // steps (issue 34's criterion), and both within the 3 × 2 resolution's 2 % of the elastica (docs/validation.md).
+  // explicit steps per step. Both rest at stationary points of one energy, so they differ only by what the rest test
+  // leaves: it stops when the tip moved < 1e-4 L over 20 ms, and with the beam's decay (≈ 70 /s, damping 140 /s) the
+  // distance still to go can be ~1.3e-4 L per run, so 5e-4 of δ/L bounds the pair. The implicit run needs at least 10
+  // times fewer steps (issue 34's criterion). Measured 2026-12-07: 0.73660 both (128 930 and 2559 steps); the elastica
+  // with E 0.74534, −1.2 %; 3 % bounds the 3 × 2 resolution's error (plane strain's mean at 3 × 2: 1.4 %,
+  // docs/validation.md).
+  constexpr double kRestSpread = 5e-4;
+  constexpr double kResolutionError = 0.03;
   const studies::ZhaoPoint e = studies::run_zhao_beam(3, 2, 10e-3, studies::ZhaoModel::kPlaneStress, true);
   const studies::ZhaoPoint i = studies::run_zhao_beam(3, 2, 10e-3, studies::ZhaoModel::kPlaneStress, true, 50.0);
-  std::printf("Zhao beam, plane stress, 10 mT: explicit %.5f in %ld steps (%.1f s), implicit x50 %.5f in %ld steps "
+  std::printf("Zhao beam, plane stress, 10 mT: explicit %.5f in %ld steps (%.1f s), implicit x%.0f %.5f in %ld steps "
               "(%ld Newton, %ld CG; %.1f s), elastica %.5f\n",
-              e.deflection, e.steps, e.seconds, i.deflection, i.steps, i.newton, i.cg, i.seconds, e.reference);
-  ASSERT_TRUE(e.ok && i.ok);
+              e.deflection, e.steps, e.seconds, i.step_ratio, i.deflection, i.steps, i.newton, i.cg, i.seconds,
+              e.reference);
+  ASSERT_TRUE(e.ok) << e.failure;
+  ASSERT_TRUE(i.ok) << i.failure;
   EXPECT_TRUE(e.settled && i.settled);
-  EXPECT_NEAR(i.deflection, e.deflection, 2e-4);
+  EXPECT_NEAR(i.deflection, e.deflection, kRestSpread);
   EXPECT_LE(10 * i.steps, e.steps);
   EXPECT_GT(i.newton, 0);
-  EXPECT_NEAR(e.deflection / e.reference, 1.0, 0.02);
+  EXPECT_NEAR(e.deflection / e.reference, 1.0, kResolutionError);
 }
 
 TEST(MpmScene, StiffAndSoftBeamsRunStablyWithTheAutomaticStep) {

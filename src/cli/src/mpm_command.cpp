@@ -36,16 +36,19 @@ void MpmCommand::attach(CLI::App& app, CLI::App& study) {
                    "total-Lagrangian, for bodies that bend but do not flow)")
       ->capture_default_str()
       ->check(CLI::IsMember({"updated", "total"}));
-  m_study
-      ->add_option("--fields", m_study_fields,
-                   "elastica: 7-25 mT, all past buckling; experiment: Zhao et al.'s 5, 7, 10, 15, 25, 40 mT")
-      ->capture_default_str()
-      ->check(CLI::IsMember({"elastica", "experiment"}));
+  CLI::Option* fields =
+      m_study
+          ->add_option("--fields", m_study_fields,
+                       "elastica: 7-25 mT, all past buckling; experiment: Zhao et al.'s 5, 7, 10, 15, 25, 40 mT")
+          ->capture_default_str()
+          ->check(CLI::IsMember({"elastica", "experiment"}));
   m_study->add_option("--field", m_study_field_mt, "a field to run [mT], instead of --fields; repeat for several")
-      ->check(CLI::Range(0.1, 1000.0));
+      ->check(CLI::Range(0.1, 1000.0))
+      ->excludes(fields);
   m_study
       ->add_option("--implicit", m_study_implicit,
-                   "implicit steps of R explicit stable steps (Newton on the incremental potential; default: explicit)")
+                   "implicit steps of R explicit stable steps (Newton on the incremental potential; at most a quarter "
+                   "of the 1 ms kick; default: explicit)")
       ->check(CLI::Range(1.0, 1000.0));
   m_study->add_option("--resolution", m_study_resolutions,
                       "CxP: C cells through the thickness, P particles per cell per axis; repeat for several "

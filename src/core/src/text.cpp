@@ -49,4 +49,13 @@ void append_csv_row(std::string& s, std::span<const double> values) {
   s += '\n';
 }
 
+std::string csv_quoted(std::string_view text) {
+  std::string q = "\"";
+  for (const char c : text) {
+    if (c == '"') q += '"';
+    q += c;
+  }
+  return q + '"';
+}
+
 }  // namespace magvine

@@ -8,7 +8,6 @@
 #include <atomic>
 #include <bit>
 #include <cmath>
-#include <cstdlib>
 #include <cstring>
 #include <limits>
 
@@ -108,9 +107,7 @@ void refresh_obstacles(const MpmModel<D>& model, double dx, MpmWorkspace<D>& ws)
 
 }  // namespace
 
-void set_step_threads(int n) {
-  if (n > 0 && std::getenv("OMP_NUM_THREADS") == nullptr) omp_set_num_threads(n);
-}
+void share_step_threads(int ways) { omp_set_num_threads(std::max(1, omp_get_max_threads() / std::max(1, ways))); }
 
 double wave_speed(const Material& m) {
   return std::sqrt((m.bulk_modulus + 4.0 / 3.0 * m.shear_modulus) / m.density);

@@ -157,11 +157,6 @@ namespace {
 
 /// trials.csv: every trial, with the reason of each failure.
 void write_trials_csv(std::ostringstream& all, const std::vector<TrialOutcome>& outcomes) {
-  const auto quoted = [](const std::string& text) {
-    std::string q = "\"";
-    for (const char c : text) q += c == '"' ? std::string("\"\"") : std::string(1, c);
-    return q + "\"";
-  };
   all.precision(10);
   all << "target,repeat,seed,success,burst,time_to_target_s,everted_length_m,final_error_m,max_normal_N,"
          "retractions,biopsy,needle_to_nodule_m,slide_back_m,runtime_s,reason\n";
@@ -171,7 +166,7 @@ void write_trials_csv(std::ostringstream& all, const std::vector<TrialOutcome>& 
         << (o.success ? std::to_string(o.time_to_target) : std::string()) << ',' << o.everted_length << ','
         << o.final_error << ',' << o.max_normal << ',' << o.retractions << ','
         << (o.biopsy >= 0 ? std::to_string(o.biopsy) : std::string()) << ',' << number(o.needle_to_nodule) << ','
-        << number(o.slide_back) << ',' << o.runtime_s << ',' << quoted(o.reason) << '\n';
+        << number(o.slide_back) << ',' << o.runtime_s << ',' << csv_quoted(o.reason) << '\n';
   }
 }
 

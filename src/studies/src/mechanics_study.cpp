@@ -10,6 +10,7 @@
 
 #include "magvine/core/atomic_file.hpp"
 #include "magvine/core/stopwatch.hpp"
+#include "magvine/core/text.hpp"
 #include "magvine/core/units.hpp"
 #include "magvine/magnetics/field_model.hpp"
 #include "magvine/magnetics/magnetisation.hpp"
@@ -99,7 +100,7 @@ void run_rod_convergence_study(const std::filesystem::path& dir) {
       robot::RodSolveReport report;
       const double seconds = time_solve(m, c.field, s, report);
       const double error = ref.converged && report.converged ? (s.tip().head<2>() - ref.tip()).norm() / length : NAN;
-      csv << '"' << c.name << "\"," << edges + 1 << ',' << length / edges << ',' << error << ',' << seconds << ','
+      csv << csv_quoted(c.name) << ',' << edges + 1 << ',' << length / edges << ',' << error << ',' << seconds << ','
           << report.iterations << '\n';
       std::cerr << "  rod " << c.name << ", " << edges + 1 << " nodes: error " << error << " L, " << seconds * 1e3
                 << " ms\n";

@@ -10,6 +10,7 @@
 #include "magvine/core/atomic_file.hpp"
 #include "magvine/core/elliptic.hpp"
 #include "magvine/core/stopwatch.hpp"
+#include "magvine/core/text.hpp"
 #include "magvine/core/units.hpp"
 #include "magvine/mpm/cantilever.hpp"
 
@@ -83,9 +84,11 @@ ZhaoPoint settle_zhao_beam(const mpm::CantileverSpec& spec, double field, ZhaoPo
   o.window = 0.02;
   o.tolerance = kRestTolerance * kLength;
   o.total_lagrangian = p.total_lagrangian;
-  if (p.step_ratio > 0.0) {
+  if (p.step_ratio > 0.0) {  // at most a quarter of the kick, so that it lasts as the protocol says
     o.implicit = true;
-    o.time_step = p.step_ratio * beam.model.stable_step(o.courant);
+    const double bound = beam.model.stable_step(o.courant);
+    o.time_step = std::min(p.step_ratio * bound, 0.25 * kKickTime);
+    p.step_ratio = o.time_step / bound;
   }
   mpm::MpmWorkspace<D> ws;
   const Stopwatch clock;
@@ -150,9 +153,8 @@ void run_mpm_beam_study(const std::filesystem::path& dir, int jobs, const MpmBea
   std::atomic<std::size_t> next{0};
   std::mutex report;
   const int threads = std::max(1, jobs);
-  const int cores = static_cast<int>(std::max(1u, std::thread::hardware_concurrency()));
   auto worker = [&] {
-    mpm::set_step_threads(std::max(1, cores / threads));  // each beam its share of the cores
+    mpm::share_step_threads(threads);  // each beam its share of the cores
     for (std::size_t i = next++; i < todo.size(); i = next++) {
       points[i] = run_zhao_beam(todo[i].cells, todo[i].ppc, todo[i].field, options.model, options.total_lagrangian,
                                 options.step_ratio);
@@ -187,8 +189,8 @@ void run_mpm_beam_study(const std::filesystem::path& dir, int jobs, const MpmBea
       if (has_reference) csv << err;
       csv << ',';
       if (at_5mt) csv << kZhaoExperiment5mT;
-      csv << ',' << p.settled << ',' << p.ok << ',' << p.steps << ',' << p.seconds << ',' << p.step_ratio << ',' << p.newton << ','
-          << p.cg << ",\"" << p.failure << "\"\n";
+      csv << ',' << p.settled << ',' << p.ok << ',' << p.steps << ',' << p.seconds << ',' << p.step_ratio << ','
+          << p.newton << ',' << p.cg << ',' << csv_quoted(p.failure) << '\n';
       if (has_reference) {
         sum += err;
         ++buckled;
@@ -200,7 +202,8 @@ void run_mpm_beam_study(const std::filesystem::path& dir, int jobs, const MpmBea
     }
     summary << zhao_model_name(options.model) << ',' << (options.total_lagrangian ? "total" : "updated") << ','
             << cells << ',' << ppc << ',' << particles << ','
-            << (buckled > 0 ? sum / buckled : 0.0) << ',' << seconds << ',' << settled << ',' << options.step_ratio << '\n';
+            << (buckled > 0 ? sum / buckled : 0.0) << ',' << seconds << ',' << settled << ',' << options.step_ratio
+            << '\n';
   }
   write_file_atomically(dir / "mpm_beam_study.csv", csv.str());
   write_file_atomically(dir / "mpm_beam_summary.csv", summary.str());

@@ -18,6 +18,8 @@ std::string closest_match(std::string_view word, std::span<const std::string_vie
 void append_number(std::string& s, double v);
 /// Appends `values` comma-separated (shortest round-trip form) and a newline.
 void append_csv_row(std::string& s, std::span<const double> values);
+/// `text` as one CSV field: in double quotes, each quote doubled (RFC 4180), so commas and quotes stay inside it.
+std::string csv_quoted(std::string_view text);
 
 /// printf into a string, any length (numbers with units in events and messages: printf_string("%.1f mm", x)).
 template <typename... Args>

@@ -197,10 +197,10 @@ struct StepStatus {
   std::string cause;  ///< e.g. "particle 12 left the domain", "NaN velocity", "J = -0.2 (inverted element)"
 };
 
-/// How many threads (OpenMP) the calling thread's MPM steps spread over; n ≤ 0, or OMP_NUM_THREADS set, leaves the
-/// default (every core, or OMP_NUM_THREADS). Callers that run several bodies at once on their own threads give each a share of the cores:
-/// otherwise every body's team wants every core, and the teams spin against each other.
-void set_step_threads(int n);
+/// Gives the calling thread's MPM steps a 1/ways share of the OpenMP threads (the cores this process may use, or
+/// OMP_NUM_THREADS), at least one. For callers that run several bodies at once on their own threads: otherwise every
+/// body's team wants every core, and the teams spin against each other.
+void share_step_threads(int ways);
 
 /// One explicit MLS-MPM step of length dt [s]. On failure the state holds the failed step and status names the cause
 /// (non-finite values, an inverted or exploded element, a particle leaving the domain, or moving more than a cell).

@@ -49,7 +49,7 @@ std::vector<double> zhao_experiment_fields();
 struct ZhaoPoint {
   ZhaoModel model = ZhaoModel::kPlaneStrain;
   bool total_lagrangian = false;  ///< the total-Lagrangian step (mpm/total_lagrangian.hpp), else updated-Lagrangian
-  double step_ratio = 0.0;   ///< implicit steps of this many explicit stable steps; 0: explicit steps
+  double step_ratio = 0.0;   ///< implicit steps of this many explicit stable steps (as taken); 0: explicit steps
   int cells = 0;             ///< grid cells through the thickness
   int particles_per_cell = 0;  ///< per axis
   std::size_t particles = 0;
@@ -66,9 +66,10 @@ struct ZhaoPoint {
   double seconds = 0.0;      ///< wall time of this run
 };
 
-/// Runs the beam at one resolution and field (single-threaded, to rest or 1.5 s simulated). The reference is the
-/// elastica with zhao_reference_modulus. step_ratio > 0: implicit steps (mpm/implicit.hpp, total_lagrangian.hpp) of
-/// step_ratio times the explicit stable step.
+/// Runs the beam at one resolution and field (on the calling thread's OpenMP threads, to rest or 1.5 s simulated).
+/// The reference is the elastica with zhao_reference_modulus. step_ratio > 0: implicit steps (mpm/implicit.hpp,
+/// total_lagrangian.hpp) of step_ratio times the explicit stable step, at most a quarter of the 1 ms kick (the point
+/// records the ratio taken).
 ZhaoPoint run_zhao_beam(int cells, int particles_per_cell, double field, ZhaoModel model = ZhaoModel::kPlaneStrain,
                         bool total_lagrangian = false, double step_ratio = 0.0);
 
@@ -87,7 +88,7 @@ struct MpmBeamStudyOptions {
 
 /// Writes `dir/mpm_beam_study.csv` (one row per run; the experiment's δ/L where known) and `dir/mpm_beam_summary.csv`
 /// (per resolution: particles, MAPE against the elastica, total runtime) for tools/plot_mpm_study.py, atomically.
-/// Runs `jobs` beams at a time, each on its share of the cores (mpm::set_step_threads).
+/// Runs `jobs` beams at a time, each on its share of the OpenMP threads (mpm::share_step_threads).
 void run_mpm_beam_study(const std::filesystem::path& dir, int jobs, const MpmBeamStudyOptions& options = {},
                         const std::function<void(const ZhaoPoint&)>& progress = {});
 
