@@ -2,14 +2,14 @@
 """How much the Zhao beam's own weight moves its deflection: the antiparallel cantilever elastica with gravity along
 the beam (docs/validation.md, "Zhao beam: plane strain, plane stress or 3D").
 
-    θ'' = −B̄ sin θ + s γ (1 − ξ) sin θ,   θ(0) = 0, θ'(1) = 0,   δ/L = ∫₀¹ sin θ dξ
+    θ'' = −B̄ sin θ + σ γ (1 − ξ) sin θ,   θ(0) = 0, θ'(1) = 0,   δ/L = ∫₀¹ sin θ dξ
 
 B̄ = 12 (L/t)² Br B / (μ0 E) is the magnetic load (antiparallel field: Euler's elastica under an axial dead load,
 notes §9) and γ = ρ g A L³ / (E I) = 12 ρ g L³ / (E t²) the weight, carried as an axial force q (L − s) by the section
-at s: s = +1 for a beam hanging from its clamp (the weight pulls it straight), −1 for one standing on it, 0 without
-gravity (the closed form: studies::antiparallel_elastica_deflection). Solved by shooting on θ'(0) for the first
+at arc length s: σ = +1 for a beam hanging from its clamp (the weight pulls it straight), −1 for one standing on it,
+0 without gravity (the closed form: studies::antiparallel_elastica_deflection). Solved by shooting on θ'(0) for the first
 mode (θ monotone; the largest root: higher modes start slower), with scipy's RK45 at rtol 1e-10, δ/L integrated
-as a third unknown. The beam's data are the study's (L 17.2 mm, t 0.84 mm,
+as a third state of the ODE. The beam's data are the study's (L 17.2 mm, t 0.84 mm,
 G 303 kPa, K = 20 G, Br 0.143 T, ρ 2000 kg/m³ assumed), E or E/(1 − ν²) as the bending modulus.
 
 Usage: /usr/bin/python3 tools/zhao_gravity_elastica.py [--density RHO] [--csv FILE]
