@@ -46,16 +46,19 @@ struct TlWorkspace<D>::Impl {
   std::unique_ptr<Natural> natural = std::make_unique<Natural>();
   std::unique_ptr<Amd> amd = std::make_unique<Amd>();
   bool use_amd = false;
+  /// f applied to the factor in use (the one place that chooses between the two orderings).
+  template <typename F>
+  decltype(auto) with_factor(F&& f) {
+    return use_amd ? f(*amd) : f(*natural);
+  }
   /// Factors a (its pattern analysed already); the factor's success and whether its D is positive.
   bool factorize(const Eigen::SparseMatrix<double>& a, bool& indefinite) {
-    const auto run = [&](auto& f) {
+    return with_factor([&](auto& f) {
       f.factorize(a);
       indefinite = f.info() == Eigen::Success && !(f.vectorD().minCoeff() > 0.0);
       return f.info() == Eigen::Success && !indefinite;
-    };
-    return use_amd ? run(*amd) : run(*natural);
+    });
   }
-
 };
 
 template <int D>
@@ -548,10 +551,7 @@ class TlSolver {
       for (std::size_t k = 0; k < n; ++k) z[k] = m_s.diag[k].cwiseProduct(r[k]);
       return;
     }
-    if (m_s.use_amd)
-      solve_on_unknowns<D>(*m_s.amd, m_s.index, r, z);
-    else
-      solve_on_unknowns<D>(*m_s.natural, m_s.index, r, z);
+    m_s.with_factor([&](const auto& f) { solve_on_unknowns<D>(f, m_s.index, r, z); });
   }
 
   /// The inverse diagonal of H at the current tangents.
@@ -582,7 +582,6 @@ class TlSolver {
         m_s.grad, eta, m_settings.max_cg, [&](const auto& x, auto& out) { hessian_times(x, out); },
         [&](const auto& r, auto& z) { precondition(r, z); }, m_s.dir, m_s.res, m_s.pre, m_s.conj, m_s.hconj);
   }
-
 
   const MpmModel<D>& m_model;
   const TlGrid<D>& m_grid;
