@@ -7,6 +7,7 @@
 
 #include <algorithm>
 #include <cmath>
+#include <cstdint>
 #include <filesystem>
 #include <iostream>
 #include <limits>
@@ -14,6 +15,7 @@
 #include <string>
 #include <vector>
 
+#include "magvine/anatomy/airway_graph.hpp"
 #include "magvine/anatomy/breathing.hpp"
 #include "magvine/core/error.hpp"
 #include "magvine/core/units.hpp"
@@ -107,6 +109,58 @@ TEST(CameraGuidance, APlacementDoesNotReadTheTipsPosition) {
   EXPECT_EQ(blind.guidance().back().chosen, -1);
   EXPECT_NEAR((blind.guidance().back().line - last).norm(), 0.0, 1e-12);
   EXPECT_TRUE(blind.pose().position.allFinite());
+}
+
+TEST(CameraGuidance, OpeningsThatAllLookLikeTheSiblingsPullIntoThePlannedChild) {
+  // 5 mm before the plan's first junction (the trachea's end; 0-0 planned, 0-1 its sibling), within the 20 mm
+  // window. Two openings seen, both on the sibling's side (what a tip that has just entered the planned child sees
+  // with its lens still along the parent): the planned child is out of view, so the magnet pulls along it, as for
+  // one such opening. Pulling towards the nearer of the two took a tip entered in the planned child back across
+  // the junction (seed 0 with breathing, 0-1-1-0 repeat 2, docs/experiments.md). An opening on the planned side is
+  // taken as seen.
+  const ExperimentScene scene = parse_experiment_scene(scene_text(), kScene.string(), kScene.parent_path());
+  const anatomy::AirwayGraph& graph = *scene.anatomy->graph;
+  const std::vector<int> plan = anatomy::path_from_root(graph, scene.navigator->target_branch);
+  ASSERT_GE(plan.size(), 2u);
+  const anatomy::AirwayBranch& root = graph.branches[static_cast<std::size_t>(plan[0])];
+  ASSERT_EQ(root.children.size(), 2u);
+  // A child's direction as the plan's junction holds it: from its first point to the point `lead` into it.
+  const auto into = [&](int branch) {
+    std::vector<Vec3> line;
+    for (const std::uint32_t n : graph.branches[static_cast<std::size_t>(branch)].nodes)
+      line.push_back(graph.nodes[n].position);
+    return Vec3((point_at_arc_length(line, scene.navigator->lead) - line.front()).normalized());
+  };
+  const int sibling_id = root.children[0] == plan[1] ? root.children[1] : root.children[0];
+  const Vec3 planned = into(plan[1]);
+  const Vec3 sibling = into(sibling_id);
+  const Vec3 across = (planned - sibling).normalized();
+  ASSERT_GT(planned.dot(sibling), 0.0);  // two children splitting at less than a right angle
+
+  NavigatorController probe(scene);
+  const double base = arc_length_of_nearest(probe.path(), scene.base_position);
+  const double length = anatomy::path_length(graph, plan[0]) - base - 5e-3;
+  const Mat3 frame = scene.base_frame;
+  std::vector<RunEvent> events;
+  const auto placed = [&](std::vector<SeenLumen> seen) {
+    NavigatorController nav(scene);
+    nav.use_camera([seen] { return seen; });
+    nav.place(1.0, Vec3::Zero(), frame, length, events);
+    EXPECT_EQ(nav.guidance().size(), 1u);
+    return nav.guidance().back();
+  };
+  // Both on the sibling's side: the one tilted towards the planned child still lies nearer the sibling.
+  const GuidanceSample away = placed({{(sibling + 0.1 * across).normalized(), 0.01},
+                                      {(sibling - 0.1 * across).normalized(), 0.02}});
+  EXPECT_EQ(away.junction, 0);
+  EXPECT_EQ(away.lumens, 2);
+  EXPECT_EQ(away.chosen, -1);
+  EXPECT_NEAR((away.line - planned).norm(), 0.0, 1e-12);  // the scene's magnet line has no lateral share
+  // One on each side: the planned side's opening, its own ray.
+  const Vec3 seen_planned = (planned + 0.1 * across).normalized();
+  const GuidanceSample toward = placed({{(sibling + 0.1 * across).normalized(), 0.01}, {seen_planned, 0.02}});
+  EXPECT_EQ(toward.chosen, 1);
+  EXPECT_NEAR((toward.line - seen_planned).norm(), 0.0, 1e-12);
 }
 
 TEST(CameraGuidance, TheTipCameraSeesTheAirwayWhereBreathingHasMovedIt) {

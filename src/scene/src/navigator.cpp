@@ -483,10 +483,12 @@ void NavigatorController::place_by_camera(double t, const Mat3& tip_frame, doubl
       g.chosen = static_cast<int>(k);
     }
   }
-  // The one opening seen at a junction looks like a sibling's: the planned child is out of view, so the magnet
-  // pulls the way the plan goes into it. Nothing seen (the lens on the wall): along the plan ahead.
+  // Every opening seen at a junction looks like a sibling's (one or several): the planned child is out of view, so
+  // the magnet pulls the way the plan goes into it. The nearest of the sibling's openings would pull a tip that has
+  // just entered the planned child, its lens still along the parent, back across the junction (traced in
+  // docs/experiments.md, camera guidance). Nothing seen (the lens on the wall): along the plan ahead.
   Vec3 u = ahead;
-  if (g.chosen >= 0 && !(at_junction && seen.size() == 1 && best < 0.0)) {
+  if (g.chosen >= 0 && !(at_junction && best < 0.0)) {
     u = seen[static_cast<std::size_t>(g.chosen)].direction;
   } else if (at_junction) {
     u = planned;
