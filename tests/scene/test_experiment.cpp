@@ -1349,6 +1349,29 @@ TEST(Experiment, TheNavigatorReachesGenerationFourInAPatientsCtAirwayWithTheExtr
   expect_reaches(scene, scene.navigator->target, "ct patient");
 }
 
+TEST(Experiment, ATautPathDropsAWiggleInsideItsClearanceAndCutsABendOnlyAsFarAsItsClearance) {
+  // taut_path (camera guidance's dead reckoning): a 0.5 mm wiggle in a straight line with 1 mm of clearance
+  // everywhere goes, the line straight and its length the chord (evenly spaced points, each within its clearance of
+  // where it was); with no clearance nothing moves; a right-angle corner with 0.2 mm of clearance, its neighbours
+  // with none, moves 0.2 mm along the bisector towards the inside (the middle of its neighbours lies 3.5 mm away).
+  const double mm = 1e-3;
+  const std::vector<Vec3> wiggle{Vec3(0, 0, 0), Vec3(mm, 0, 0), Vec3(2 * mm, 0.5 * mm, 0), Vec3(3 * mm, 0, 0),
+                                 Vec3(4 * mm, 0, 0)};
+  const std::vector<Vec3> straight = taut_path(wiggle, std::vector<double>(wiggle.size(), mm));
+  double length = 0.0;
+  for (std::size_t i = 0; i < straight.size(); ++i) {
+    EXPECT_NEAR((straight[i] - Vec3(i * mm, 0, 0)).norm(), 0.0, 1e-5) << i;  // the sweeps stop under 1 µm a sweep
+    if (i > 0) length += (straight[i] - straight[i - 1]).norm();
+  }
+  EXPECT_NEAR(length, 4 * mm, 1e-8);
+  EXPECT_EQ(taut_path(wiggle, std::vector<double>(wiggle.size(), 0.0)), wiggle);
+  const std::vector<Vec3> bend{Vec3(0, 0, 0), Vec3(5 * mm, 0, 0), Vec3(10 * mm, 0, 0), Vec3(10 * mm, 5 * mm, 0),
+                               Vec3(10 * mm, 10 * mm, 0)};
+  const std::vector<Vec3> cut = taut_path(bend, {0.0, 0.0, 0.2 * mm, 0.0, 0.0});
+  EXPECT_NEAR((cut[2] - (bend[2] + 0.2 * mm * Vec3(-1, 1, 0).normalized())).norm(), 0.0, 1e-15);
+  for (const std::size_t i : {0u, 1u, 3u, 4u}) EXPECT_EQ(cut[i], bend[i]);
+}
+
 TEST(Experiment, ANavigatorTargetGivenAsAPointSnapsToTheNearestBranchAndTheMetricsUseTheGraph) {
   // Issue 8: a target by point. 3 mm off the centreline of branch 0-0-1 of the tree: the navigator plans to 0-0-1
   // and succeeds within 1.5 radii of the snapped point; metrics.json then carries the graph's metrics.

@@ -2,6 +2,7 @@
 
 #include <algorithm>
 #include <cmath>
+#include <iterator>
 #include <limits>
 #include <span>
 
@@ -40,6 +41,34 @@ std::vector<Vec3> planned_path(const anatomy::AirwayGraph& graph, int branch) {
       path.push_back(graph.nodes[br.nodes[k]].position);
   }
   return path;
+}
+
+std::vector<double> planned_radii(const anatomy::AirwayGraph& graph, int branch) {
+  std::vector<double> radii;
+  for (const int b : anatomy::path_from_root(graph, branch)) {
+    const anatomy::AirwayBranch& br = graph.branches[static_cast<std::size_t>(b)];
+    for (std::size_t k = radii.empty() ? 0 : 1; k < br.nodes.size(); ++k)
+      radii.push_back(graph.nodes[br.nodes[k]].radius);
+  }
+  return radii;
+}
+
+std::vector<Vec3> taut_path(const std::vector<Vec3>& path, const std::vector<double>& clearance, int max_sweeps) {
+  std::vector<Vec3> p = path;
+  if (p.size() < 3) return p;
+  constexpr double kStill = 1e-6;  // [m]
+  for (int sweep = 0; sweep < max_sweeps; ++sweep) {
+    double moved = 0.0;
+    for (std::size_t i = 1; i + 1 < p.size(); ++i) {
+      const Vec3 off = 0.5 * (p[i - 1] + p[i + 1]) - path[i];
+      const double r = std::max(0.0, clearance[i]);
+      const Vec3 q = path[i] + (off.norm() > r ? Vec3(off * (r / off.norm())) : off);
+      moved = std::max(moved, (q - p[i]).norm());
+      p[i] = q;
+    }
+    if (moved < kStill) break;
+  }
+  return p;
 }
 
 double path_progress(const std::vector<Vec3>& path, const Vec3& target, const Vec3& tip) {
@@ -362,8 +391,14 @@ bool NavigatorController::keep_clear(const Vec3& tip) {
 void NavigatorController::use_camera(std::function<std::vector<SeenLumen>()> look) {
   m_look = std::move(look);
   const anatomy::AirwayGraph& graph = *m_scene.anatomy->graph;
-  m_base_arc = arc_length_of_nearest(m_path, m_scene.base_position);
-  if (m_scene.breathing) m_path_amplitudes = anatomy::breathing_amplitudes(*m_scene.breathing, m_path);
+  // The dead reckoning's path: the plan drawn taut in its lumen, a vine's radius clear of the wall (the vine does
+  // not follow the skeleton's wiggles inside a wide lumen; in the patients' graphs these make a branch's centreline
+  // up to twice its chord).
+  std::vector<double> clearance = planned_radii(graph, m_nav.target_branch);
+  for (double& c : clearance) c = std::max(0.0, c - m_scene.vine.radius);
+  m_reckon = taut_path(m_path, clearance);
+  m_base_arc = arc_length_of_nearest(m_reckon, m_scene.base_position);
+  if (m_scene.breathing) m_reckon_amplitudes = anatomy::breathing_amplitudes(*m_scene.breathing, m_reckon);
   airway_at(m_airway_time);
   // The plan's junctions, from the pre-operative graph: where each plan branch ends along the joined path, and the
   // points `lead` into the planned child and into its siblings.
@@ -396,30 +431,30 @@ Vec3 NavigatorController::moved(const Vec3& x) const {
 
 void NavigatorController::airway_at(double time) {
   m_airway_time = time;
-  // The plan as the airway is now, once per time (estimated_arc reads it several times a step).
+  // The dead reckoning's path as the airway is now, once per time (estimated_arc reads it several times a step).
   if (!m_look || !m_scene.breathing) return;
-  anatomy::breathing_vertices(*m_scene.breathing, m_path, m_path_amplitudes, m_airway_time, m_moved_path);
-  m_moved_base_arc = arc_length_of_nearest(m_moved_path, m_scene.base_position);
+  anatomy::breathing_vertices(*m_scene.breathing, m_reckon, m_reckon_amplitudes, m_airway_time, m_moved_reckon);
+  m_moved_base_arc = arc_length_of_nearest(m_moved_reckon, m_scene.base_position);
 }
 
 double NavigatorController::estimated_arc(double length) const {
-  if (!m_scene.breathing) return m_base_arc + length;
+  // The everted length is measured from the base along the plan drawn taut in its lumen (m_reckon), and the point
+  // there taken back to the plan's arc, segment by segment (the taut path's point i stands for the plan's point i).
   // Breathing stretches the airway between the fixed entry and the lobes (anatomy/breathing.hpp), and the vine lies
-  // along it as it is now: the everted length is measured along the plan moved by the breathing model (known
-  // before the procedure, with the phase from a respiratory sensor), and the point there taken back to the plan's
-  // rest arc, segment by segment.
-  const std::vector<Vec3>& path = m_moved_path;
-  const double s = m_moved_base_arc + length;
-  double along = 0.0;  // along the moved plan [m]
+  // along it as it is now: the taut path moved by the breathing model (known before the procedure, with the phase
+  // from a respiratory sensor).
+  const std::vector<Vec3>& path = m_scene.breathing ? m_moved_reckon : m_reckon;
+  const double s = (m_scene.breathing ? m_moved_base_arc : m_base_arc) + length;
+  double along = 0.0;  // along the dead reckoning's path [m]
   double rest = 0.0;   // the same points' arc along the plan at rest [m]
   for (std::size_t i = 0; i + 1 < path.size(); ++i) {
-    const double l_moved = (path[i + 1] - path[i]).norm();
+    const double l_path = (path[i + 1] - path[i]).norm();
     const double l_rest = (m_path[i + 1] - m_path[i]).norm();
-    if (along + l_moved >= s) return rest + (l_moved > 0.0 ? (s - along) / l_moved * l_rest : 0.0);
-    along += l_moved;
+    if (along + l_path >= s) return rest + (l_path > 0.0 ? (s - along) / l_path * l_rest : 0.0);
+    along += l_path;
     rest += l_rest;
   }
-  return rest + (s - along);  // past the plan's end the excess counts one for one, as without breathing
+  return rest + (s - along);  // past the plan's end the excess counts one for one
 }
 
 int NavigatorController::estimated_branch(double length) const {
@@ -452,11 +487,16 @@ void NavigatorController::place_by_camera(double t, const Mat3& tip_frame, doubl
   const std::vector<SeenLumen> seen = m_look();
   g.lumens = static_cast<int>(seen.size());
   // The choice is about the first junction on the plan not yet passed by more than half the window (the tip may
-  // still see both openings just past it); within the window before it, a lumen scores by how much nearer its ray
-  // is to the planned child than to the nearest sibling (a common error of the orientation cancels). Elsewhere, by
-  // its nearness to the plan's direction ahead.
-  const auto next = std::find_if(m_junctions.begin(), m_junctions.end(),
-                                 [&](const Junction& j) { return j.arc > g.arc - 0.5 * cam.junction_window; });
+  // still see both openings just past it), or by half the way to the plan's next junction where that is shorter (a
+  // short branch: the junction at its end is the one the tip meets next); within the window before it, a lumen
+  // scores by how much nearer its ray is to the planned child than to the nearest sibling (a common error of the
+  // orientation cancels). Elsewhere, by its nearness to the plan's direction ahead.
+  auto next = m_junctions.begin();
+  for (; next != m_junctions.end(); ++next) {
+    double keep = 0.5 * cam.junction_window;
+    if (std::next(next) != m_junctions.end()) keep = std::min(keep, 0.5 * (std::next(next)->arc - next->arc));
+    if (g.arc < next->arc + keep) break;
+  }
   const bool at_junction = next != m_junctions.end() && next->arc - g.arc < cam.junction_window;
   // The plan's direction ahead; past the plan's end (the dead reckoning beyond it), its last segment's. Its
   // directions are the airway's as it is now (the lumens are seen in it), the plan's own at rest.

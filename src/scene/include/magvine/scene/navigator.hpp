@@ -31,6 +31,17 @@ MagnetKeyframe navigate(const Navigator& nav, const std::vector<Vec3>& path, con
 /// The planned path to branch `branch` as one polyline: the centrelines of the branches from the root joined [m].
 std::vector<Vec3> planned_path(const anatomy::AirwayGraph& graph, int branch);
 
+/// The planned path's lumen radius at each point of planned_path(graph, branch) (the graph's node radii) [m].
+std::vector<double> planned_radii(const anatomy::AirwayGraph& graph, int branch);
+
+/// `path` drawn taut inside its lumen: each interior point moved to the middle of its neighbours, kept within
+/// `clearance[i]` of where it was, sweep after sweep until no point moves 1 µm (or `max_sweeps`); the ends stay. It
+/// minimises Σ|p_i+1 − p_i|² under those bounds: a string pulled tight through the balls the lumen leaves a body, so
+/// the centreline's wiggles inside a wide lumen (an airway graph's skeleton at a junction) drop out, and a bend is
+/// cut only as far as the clearance lets the string go. Camera guidance measures its dead reckoning along it.
+std::vector<Vec3> taut_path(const std::vector<Vec3>& path, const std::vector<double>& clearance,
+                            int max_sweeps = 20000);
+
 /// Arc length [m] along a polyline of its nearest point to x.
 double arc_length_of_nearest(const std::vector<Vec3>& path, const Vec3& x);
 /// How far along `path` the tip has got towards the target, 0–1: the arc lengths of their nearest points on it, in
@@ -118,8 +129,8 @@ class NavigatorController {
   bool keep_clear(const Vec3& tip);
   void next_placement_after(double t);
   /// Camera guidance: the tip's arc length along the plan (its rest frame) by dead reckoning: the base's plus the
-  /// everted length, along the plan as the breathing model has moved it at m_airway_time where the airway breathes;
-  /// and the branch of the plan there.
+  /// everted length, along the plan drawn taut in its lumen (as the breathing model has moved it at m_airway_time
+  /// where the airway breathes); and the branch of the plan there.
   double estimated_arc(double length) const;
   int estimated_branch(double length) const;
   /// A rest-frame point where the breathing model has it at m_airway_time (the point itself without breathing).
@@ -177,12 +188,13 @@ class NavigatorController {
   int m_recovery_used = 0;
   // Camera guidance.
   std::function<std::vector<SeenLumen>()> m_look;  ///< set: camera-guided
-  double m_base_arc = 0.0;                         ///< the base's arc length along the plan [m]
+  std::vector<Vec3> m_reckon;                      ///< the dead reckoning's path: m_path drawn taut (taut_path)
+  double m_base_arc = 0.0;                         ///< the base's arc length along m_reckon [m]
   double m_airway_time = 0.0;                      ///< airway_at's [s]
-  std::vector<double> m_path_amplitudes;           ///< breathing amplitudes of the plan's points [m]
-  /// Camera guidance in a breathing airway: the plan moved to m_airway_time, and the base's arc along it [m] (set
+  std::vector<double> m_reckon_amplitudes;         ///< breathing amplitudes of m_reckon's points [m]
+  /// Camera guidance in a breathing airway: m_reckon moved to m_airway_time, and the base's arc along it [m] (set
   /// by airway_at and use_camera, read by estimated_arc).
-  std::vector<Vec3> m_moved_path;
+  std::vector<Vec3> m_moved_reckon;
   double m_moved_base_arc = 0.0;
   /// The plan's junctions: arc length along the plan [m], and the planned child's and its siblings' first points
   /// with the points `lead` into each (rest frame; the directions between them are taken as the airway is at the
