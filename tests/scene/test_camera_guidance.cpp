@@ -159,6 +159,7 @@ TEST(CameraGuidance, OpeningsThatAllLookLikeTheSiblingsPullIntoThePlannedChild) 
     nav.use_camera([seen] { return seen; });
     nav.place(1.0, Vec3::Zero(), frame, length, events);
     EXPECT_EQ(nav.guidance().size(), 1u);
+    EXPECT_NEAR(nav.guidance().back().arc, anatomy::path_length(graph, plan[0]) - 5e-3, 1e-9);  // bisection's reach
     return nav.guidance().back();
   };
   // Both on the sibling's side: the one tilted towards the planned child still lies nearer the sibling.

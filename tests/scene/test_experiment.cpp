@@ -14,6 +14,7 @@
 #include <numeric>
 #include <regex>
 #include <sstream>
+#include <stdexcept>
 #include <string>
 #include <vector>
 
@@ -1370,6 +1371,7 @@ TEST(Experiment, ATautPathDropsAWiggleInsideItsClearanceAndCutsABendOnlyAsFarAsI
   const std::vector<Vec3> cut = taut_path(bend, {0.0, 0.0, 0.2 * mm, 0.0, 0.0});
   EXPECT_NEAR((cut[2] - (bend[2] + 0.2 * mm * Vec3(-1, 1, 0).normalized())).norm(), 0.0, 1e-15);
   for (const std::size_t i : {0u, 1u, 3u, 4u}) EXPECT_EQ(cut[i], bend[i]);
+  EXPECT_THROW(taut_path(bend, {0.0, 0.0}), std::invalid_argument);  // one clearance per point
 }
 
 TEST(Experiment, ANavigatorTargetGivenAsAPointSnapsToTheNearestBranchAndTheMetricsUseTheGraph) {

@@ -5,6 +5,8 @@
 #include <iterator>
 #include <limits>
 #include <span>
+#include <stdexcept>
+#include <string>
 
 #include "experiment_internal.hpp"
 #include "magvine/anatomy/airway_graph.hpp"
@@ -54,6 +56,10 @@ std::vector<double> planned_radii(const anatomy::AirwayGraph& graph, int branch)
 }
 
 std::vector<Vec3> taut_path(const std::vector<Vec3>& path, const std::vector<double>& clearance, int max_sweeps) {
+  if (clearance.size() != path.size()) {
+    throw std::invalid_argument("taut_path: " + std::to_string(clearance.size()) + " clearances for " +
+                                std::to_string(path.size()) + " points");
+  }
   std::vector<Vec3> p = path;
   if (p.size() < 3) return p;
   constexpr double kStill = 1e-6;  // [m]
