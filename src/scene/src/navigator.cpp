@@ -2,6 +2,7 @@
 
 #include <algorithm>
 #include <cmath>
+#include <cstdint>
 #include <iterator>
 #include <limits>
 #include <span>
@@ -35,23 +36,29 @@ double arc_length_of_nearest(const std::vector<Vec3>& path, const Vec3& x) {
   return at;
 }
 
-std::vector<Vec3> planned_path(const anatomy::AirwayGraph& graph, int branch) {
-  std::vector<Vec3> path;
+namespace {
+
+/// The graph's nodes along the planned path to `branch`: the branches from the root joined, each joint node once.
+std::vector<std::uint32_t> plan_nodes(const anatomy::AirwayGraph& graph, int branch) {
+  std::vector<std::uint32_t> nodes;
   for (const int b : anatomy::path_from_root(graph, branch)) {
     const anatomy::AirwayBranch& br = graph.branches[static_cast<std::size_t>(b)];
-    for (std::size_t k = path.empty() ? 0 : 1; k < br.nodes.size(); ++k)
-      path.push_back(graph.nodes[br.nodes[k]].position);
+    for (std::size_t k = nodes.empty() ? 0 : 1; k < br.nodes.size(); ++k) nodes.push_back(br.nodes[k]);
   }
+  return nodes;
+}
+
+}  // namespace
+
+std::vector<Vec3> planned_path(const anatomy::AirwayGraph& graph, int branch) {
+  std::vector<Vec3> path;
+  for (const std::uint32_t n : plan_nodes(graph, branch)) path.push_back(graph.nodes[n].position);
   return path;
 }
 
 std::vector<double> planned_radii(const anatomy::AirwayGraph& graph, int branch) {
   std::vector<double> radii;
-  for (const int b : anatomy::path_from_root(graph, branch)) {
-    const anatomy::AirwayBranch& br = graph.branches[static_cast<std::size_t>(b)];
-    for (std::size_t k = radii.empty() ? 0 : 1; k < br.nodes.size(); ++k)
-      radii.push_back(graph.nodes[br.nodes[k]].radius);
-  }
+  for (const std::uint32_t n : plan_nodes(graph, branch)) radii.push_back(graph.nodes[n].radius);
   return radii;
 }
 
