@@ -5,7 +5,7 @@ repeats with and without breathing, as one table.
 
     /usr/bin/python3 tools/ct_case_study.py SEGMENTATIONS_DIR --out DIR [--magvine BIN] [--repeats 4] [--jobs 2]
         [--patients 1,2,3,4,5] [--diameter 3] [--needle 100] [--max-angle DEG] [--start K|nearest]
-        [--no-breathing] [--guidance oracle|camera] [--figure CASE]
+        [--no-breathing] [--guidance oracle|camera] [--figure CASE[,CASE...]]
 
 SEGMENTATIONS_DIR holds Patient1..5/ (bronchialTree.nii.gz, target.txt), e.g. ../shared/airways/segmentations.
 For each patient and breathing setting it writes DIR/scenes/<case>.yaml (the segmentation imported by the scene,
@@ -21,10 +21,10 @@ pushed it), the largest wall force (median over the runs, and the largest), and 
 sets the planner's largest turn (degrees; the scene's default, 60, otherwise); --start K|nearest stops at the node
 nearest the dataset's start pose K (startK.txt; nearest: the one nearest the nodule) instead of the planner's
 choice; --guidance camera steers by the tip camera and the plan instead of the tip's true position
-(docs/experiments.md, camera guidance). --figure CASE (e.g. patient1) runs that case's scene once, unperturbed, with
-the tip camera filmed, and draws DIR/<case>_frames.png: the tip camera at each branch point on the way (the first
-frame in each new branch) and at the end (the puncture, with the needle drawn beside the lens). A missing input
-gives one line on stderr and exit status 2.
+(docs/experiments.md, camera guidance). --figure CASE[,CASE...] (e.g. patient1) runs each case's scene once,
+unperturbed, with the tip camera filmed, and draws DIR/<case>_frames.png: the tip camera at each branch point on the
+way (the first frame in each new branch) and at the end (the puncture, with the needle drawn beside the lens). A
+missing input gives one line on stderr and exit status 2.
 """
 import argparse
 import csv
@@ -244,7 +244,7 @@ def main():
     p.add_argument("--guidance", choices=["oracle", "camera"], default="oracle",
                    help="the navigator's guidance: the tip's true position, or the tip camera and the plan")
     p.add_argument("--no-breathing", action="store_true")
-    p.add_argument("--figure", default="", help="a case to film and draw (e.g. patient1)")
+    p.add_argument("--figure", default="", help="cases to film and draw, comma-separated (e.g. patient1,patient2)")
     a = p.parse_args()
     if a.start and a.max_angle is not None:
         fail("--max-angle", "a given start (--start) is taken as given: no planner limit applies to it")
@@ -323,11 +323,11 @@ def main():
             for line in filter(None, c.get("failures", "").split("; ")):
                 f.write(f"- {c['case']} {line}\n")
     print(f"ct_case_study: {os.path.join(a.out, 'case_study.md')}")
-    if a.figure:
-        scene = os.path.join(a.out, "scenes", a.figure + ".yaml")
+    for case in filter(None, a.figure.split(",")):
+        scene = os.path.join(a.out, "scenes", case + ".yaml")
         if not os.path.exists(scene):
             fail(scene, "no such case in this study")
-        figure(a.magvine, scene, a.out, a.figure)
+        figure(a.magvine, scene, a.out, case)
 
 
 if __name__ == "__main__":
