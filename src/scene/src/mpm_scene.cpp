@@ -613,19 +613,16 @@ MpmResult run_dim(const MpmScene& sc, const std::function<void(double)>& progres
   double next_frame = frame_every;
   const Stopwatch clock;
   // Explicit steps: a counted loop (summed step lengths would leave a round-off sliver for one more step). Implicit
-  // steps: one that fails (Newton unconverged, a particle over a cell) is taken again from the saved state at half the
-  // step tried, down to time_step/2^kMaxHalvings; after kRegrowAfter good steps the step doubles back.
+  // steps: their length from ImplicitStepLength (a failed step taken again at half the length).
   const long planned = static_cast<long>(std::ceil(sc.duration / sc.time_step - 1e-9));
-  constexpr int kMaxHalvings = 8, kRegrowAfter = 8;
-  int halvings = 0, good = 0;
+  mpm::ImplicitStepLength length(sc.time_step);
   mpm::MpmState<D> saved;
-  double tried = sc.time_step;  // the implicit step last tried (the duration's rest may cut it)
   while (sc.implicit ? state.time < sc.duration - 1e-9 * sc.time_step : r.steps < planned) {
-    double dt = std::min(sc.time_step / std::ldexp(1.0, halvings), sc.duration - state.time);
+    const double dt = sc.implicit ? length.next(sc.duration - state.time)
+                                  : std::min(sc.time_step, sc.duration - state.time);
     if (!(dt > 0.0)) break;
     mpm::StepStatus st;
     if (sc.implicit) {
-      dt = std::min(dt, tried);
       saved = state;
       mpm::ImplicitStats counted;
       st = sc.total_lagrangian
@@ -633,18 +630,10 @@ MpmResult run_dim(const MpmScene& sc, const std::function<void(double)>& progres
                : mpm::implicit_step(model, field_at(state.time), state, ws, dt, sc.newton, &counted);
       r.newton += counted.newton;
       r.cg += counted.cg;
-      if (!st.ok && halvings < kMaxHalvings) {
+      if (length.retry(st.ok, dt)) {
         state = saved;
-        ++halvings;
         ++r.retries;
-        good = 0;
-        tried = 0.5 * dt;
         continue;
-      }
-      tried = sc.time_step;
-      if (st.ok && halvings > 0 && ++good >= kRegrowAfter) {
-        --halvings;
-        good = 0;
       }
     } else {
       st = sc.total_lagrangian ? mpm::tl_step<D>(model, grid, field_at(state.time), state, tl_ws, dt)
@@ -653,7 +642,9 @@ MpmResult run_dim(const MpmScene& sc, const std::function<void(double)>& progres
     ++r.steps;
     if (!st.ok) {
       r.ok = false;
-      r.failure = st.cause + (sc.implicit ? " (after " + std::to_string(kMaxHalvings) + " halvings of the step)" : "");
+      r.failure = st.cause + (sc.implicit ? " (after " + std::to_string(mpm::ImplicitStepLength::kMaxHalvings) +
+                                                " halvings of the step)"
+                                          : "");
       break;
     }
     if (state.time >= next_sample - 1e-12) {

@@ -22,6 +22,8 @@
 /// longest axis: each thread owns a run of whole slabs (an equal share of the particles) for both transfers; P2G does
 /// the even slabs, then the odd ones, so no two threads write one node and the sums do not depend on the thread count.
 
+#include <algorithm>
+#include <cmath>
 #include <cstdint>
 #include <functional>
 #include <memory>
@@ -240,6 +242,47 @@ struct ImplicitStats {
 template <int D>
 StepStatus implicit_step(const MpmModel<D>& model, const AppliedField& field, MpmState<D>& state, MpmWorkspace<D>& ws,
                          double dt, const ImplicitSettings& settings = {}, ImplicitStats* stats = nullptr);
+
+/// The length of a run of implicit steps (implicit_step, tl_implicit_step; scenes and settle): a step that fails
+/// (Newton unconverged, a particle over a cell) is taken again from the state before it at half the length tried,
+/// down to base/2^kMaxHalvings; after kRegrowAfter good steps in a row the length doubles back towards base. The
+/// caller keeps the state before each step and restores it when `retry` says so.
+class ImplicitStepLength {
+ public:
+  static constexpr int kMaxHalvings = 8;
+  static constexpr int kRegrowAfter = 8;
+  explicit ImplicitStepLength(double base) : m_base(base), m_tried(base) {}
+  /// The length to try next with `remaining` time left [s].
+  double next(double remaining) const {
+    return std::min({m_base / std::ldexp(1.0, m_halvings), m_tried, remaining});
+  }
+  /// After a step of length dt that succeeded (`ok`) or failed: true when it is to be taken again (failed, with
+  /// halvings left); false when it stands (a failure then ends the run).
+  bool retry(bool ok, double dt) {
+    if (!ok && m_halvings < kMaxHalvings) {
+      ++m_halvings;
+      ++m_retries;
+      m_good = 0;
+      m_tried = 0.5 * dt;
+      return true;
+    }
+    m_tried = m_base;
+    if (ok && m_halvings > 0 && ++m_good >= kRegrowAfter) {
+      --m_halvings;
+      m_good = 0;
+    }
+    return false;
+  }
+  /// Steps taken again so far.
+  long retries() const { return m_retries; }
+
+ private:
+  double m_base;
+  double m_tried;
+  int m_halvings = 0;
+  int m_good = 0;
+  long m_retries = 0;
+};
 
 /// Kinetic energy Σ ½ m v² [J; J per metre of depth in 2D].
 template <int D>
