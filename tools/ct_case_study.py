@@ -250,6 +250,13 @@ def main():
         fail("--max-angle", "a given start (--start) is taken as given: no planner limit applies to it")
     if not os.access(a.magvine, os.X_OK):
         fail(a.magvine, "not an executable magvine (build it, or give --magvine)")
+    # The cases to film, checked before the trials run: patientN or patientN_breathing of the patients run here.
+    planned = [f"patient{p.strip()}" + suffix for p in a.patients.split(",")
+               for suffix in ([""] if a.no_breathing else ["", "_breathing"])]
+    figures = [c.strip() for c in a.figure.split(",") if c.strip()]
+    for case in figures:
+        if case not in planned:
+            fail("--figure", f"{case} is not a case of this study ({', '.join(planned)})")
     os.makedirs(os.path.join(a.out, "scenes"), exist_ok=True)
     cases = []
     for patient in [int(x) for x in a.patients.split(",")]:
@@ -323,11 +330,8 @@ def main():
             for line in filter(None, c.get("failures", "").split("; ")):
                 f.write(f"- {c['case']} {line}\n")
     print(f"ct_case_study: {os.path.join(a.out, 'case_study.md')}")
-    for case in filter(None, a.figure.split(",")):
-        scene = os.path.join(a.out, "scenes", case + ".yaml")
-        if not os.path.exists(scene):
-            fail(scene, "no such case in this study")
-        figure(a.magvine, scene, a.out, case)
+    for case in figures:
+        figure(a.magvine, os.path.join(a.out, "scenes", case + ".yaml"), a.out, case)
 
 
 if __name__ == "__main__":

@@ -96,6 +96,7 @@ void settle_catheter(benchmark::State& state) {
   state.counters["newton"] = static_cast<double>(r.newton);
   state.counters["cg"] = static_cast<double>(r.cg);
   state.counters["factorizations"] = static_cast<double>(r.factorizations);
+  state.counters["retries"] = static_cast<double>(r.retries);
 }
 
 void BM_StiffCatheterSettle(benchmark::State& state) {

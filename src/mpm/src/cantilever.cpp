@@ -94,23 +94,19 @@ SettleResult settle(const MpmModel<D>& model, MpmState<D>& state, MpmWorkspace<D
   TlGrid<D> grid;
   TlWorkspace<D> tl_ws;
   if (o.total_lagrangian) grid = make_tl_grid<D>(model, state);
-  ImplicitStepLength length(r.time_step);  // implicit steps: a failed one is taken again at half the length
-  MpmState<D> saved;
+  // Implicit steps: a failed one is taken again at half the length (ImplicitStepper).
+  ImplicitStepper<D> implicit(o.total_lagrangian ? &grid : nullptr, r.time_step);
   while (state.time - start < o.max_time) {
     if (o.implicit) {
-      const double dt = length.next(std::numeric_limits<double>::infinity());
-      saved = state;
       ImplicitStats counted;
-      r.status = o.total_lagrangian
-                     ? tl_implicit_step<D>(model, grid, field(state.time), state, tl_ws, dt, o.newton, &counted)
-                     : implicit_step(model, field(state.time), state, ws, dt, o.newton, &counted);
+      r.status = implicit.step(model, field(state.time), state, ws, tl_ws, std::numeric_limits<double>::infinity(),
+                               o.newton, &counted);
       r.cg += counted.cg;
       r.newton += counted.newton;
       r.factorizations += counted.factorizations;
-      if (length.retry(r.status.ok, dt)) {
-        state = saved;
-        ++r.retries;
-        continue;
+      r.retries = implicit.retries();
+      if (!r.status.ok) {
+        r.status.cause += " (after " + std::to_string(ImplicitStepLength::kMaxHalvings) + " halvings of the step)";
       }
     } else if (o.total_lagrangian) {
       r.status = tl_step<D>(model, grid, field(state.time), state, tl_ws, r.time_step);

@@ -779,6 +779,30 @@ StepStatus tl_implicit_step(const MpmModel<D>& model, const TlGrid<D>& grid, con
   return particle_failure<D>(state, bad, dt, grid.cell);
 }
 
+template <int D>
+StepStatus ImplicitStepper<D>::step(const MpmModel<D>& model, const AppliedField& field, MpmState<D>& state,
+                                    MpmWorkspace<D>& ws, TlWorkspace<D>& tl_ws, double remaining,
+                                    const ImplicitSettings& settings, ImplicitStats* stats) {
+  for (;;) {
+    m_dt = m_length.next(remaining);
+    m_saved = state;
+    ImplicitStats counted;
+    const StepStatus st = m_grid != nullptr
+                              ? tl_implicit_step<D>(model, *m_grid, field, state, tl_ws, m_dt, settings, &counted)
+                              : implicit_step(model, field, state, ws, m_dt, settings, &counted);
+    if (stats != nullptr) {
+      stats->newton += counted.newton;
+      stats->cg += counted.cg;
+      stats->factorizations += counted.factorizations;
+      stats->correction = counted.correction;
+    }
+    if (!m_length.record(st.ok, m_dt)) return st;
+    state = m_saved;
+  }
+}
+
+template class ImplicitStepper<2>;
+template class ImplicitStepper<3>;
 template struct TlWorkspace<2>;
 template struct TlWorkspace<3>;
 template TlGrid<2> make_tl_grid<2>(const MpmModel<2>&, MpmState<2>&);

@@ -613,29 +613,21 @@ MpmResult run_dim(const MpmScene& sc, const std::function<void(double)>& progres
   double next_frame = frame_every;
   const Stopwatch clock;
   // Explicit steps: a counted loop (summed step lengths would leave a round-off sliver for one more step). Implicit
-  // steps: their length from ImplicitStepLength (a failed step taken again at half the length).
+  // steps: a failed one is taken again at half the length (ImplicitStepper).
   const long planned = static_cast<long>(std::ceil(sc.duration / sc.time_step - 1e-9));
-  mpm::ImplicitStepLength length(sc.time_step);
-  mpm::MpmState<D> saved;
+  mpm::ImplicitStepper<D> implicit(sc.total_lagrangian ? &grid : nullptr, sc.time_step);
   while (sc.implicit ? state.time < sc.duration - 1e-9 * sc.time_step : r.steps < planned) {
-    const double dt = sc.implicit ? length.next(sc.duration - state.time)
-                                  : std::min(sc.time_step, sc.duration - state.time);
-    if (!(dt > 0.0)) break;
+    const double remaining = sc.duration - state.time;
+    if (!(remaining > 0.0)) break;
     mpm::StepStatus st;
     if (sc.implicit) {
-      saved = state;
       mpm::ImplicitStats counted;
-      st = sc.total_lagrangian
-               ? mpm::tl_implicit_step<D>(model, grid, field_at(state.time), state, tl_ws, dt, sc.newton, &counted)
-               : mpm::implicit_step(model, field_at(state.time), state, ws, dt, sc.newton, &counted);
+      st = implicit.step(model, field_at(state.time), state, ws, tl_ws, remaining, sc.newton, &counted);
       r.newton += counted.newton;
       r.cg += counted.cg;
-      if (length.retry(st.ok, dt)) {
-        state = saved;
-        ++r.retries;
-        continue;
-      }
+      r.retries = implicit.retries();
     } else {
+      const double dt = std::min(sc.time_step, remaining);
       st = sc.total_lagrangian ? mpm::tl_step<D>(model, grid, field_at(state.time), state, tl_ws, dt)
                                : mpm::step(model, field_at(state.time), state, ws, dt);
     }

@@ -108,6 +108,7 @@ ZhaoPoint settle_zhao_beam(const mpm::CantileverSpec& spec, double field, ZhaoPo
   p.steps = r.steps;
   p.newton = r.newton;
   p.cg = r.cg;
+  p.retries = r.retries;
   p.deflection = std::abs(mpm::mean_position(beam.state, beam.tip).y()) / kLength;
   return p;
 }
@@ -172,7 +173,7 @@ void run_mpm_beam_study(const std::filesystem::path& dir, int jobs, const MpmBea
   csv.precision(8);
   summary.precision(8);
   csv << "model,frame,cells,particles_per_cell,particles,field_mT,bbar,reference,deflection,abs_error_pct,experiment,settled,"
-         "ok,steps,seconds,step_ratio,newton,cg,failure\n";
+         "ok,steps,seconds,step_ratio,newton,cg,failure,retries\n";
   summary << "model,frame,cells,particles_per_cell,particles,mape_pct,seconds,all_settled,step_ratio\n";
   for (const auto& [cells, ppc] : options.resolutions) {
     double sum = 0.0, seconds = 0.0;
@@ -190,7 +191,7 @@ void run_mpm_beam_study(const std::filesystem::path& dir, int jobs, const MpmBea
       csv << ',';
       if (at_5mt) csv << kZhaoExperiment5mT;
       csv << ',' << p.settled << ',' << p.ok << ',' << p.steps << ',' << p.seconds << ',' << p.step_ratio << ','
-          << p.newton << ',' << p.cg << ',' << csv_quoted(p.failure) << '\n';
+          << p.newton << ',' << p.cg << ',' << csv_quoted(p.failure) << ',' << p.retries << '\n';
       if (has_reference) {
         sum += err;
         ++buckled;

@@ -243,10 +243,9 @@ template <int D>
 StepStatus implicit_step(const MpmModel<D>& model, const AppliedField& field, MpmState<D>& state, MpmWorkspace<D>& ws,
                          double dt, const ImplicitSettings& settings = {}, ImplicitStats* stats = nullptr);
 
-/// The length of a run of implicit steps (implicit_step, tl_implicit_step; scenes and settle): a step that fails
-/// (Newton unconverged, a particle over a cell) is taken again from the state before it at half the length tried,
-/// down to base/2^kMaxHalvings; after kRegrowAfter good steps in a row the length doubles back towards base. The
-/// caller keeps the state before each step and restores it when `retry` says so.
+/// The length of a run of implicit steps (ImplicitStepper: scenes, settle): a step that fails (Newton unconverged, a
+/// particle over a cell) is taken again from the state before it at half the length tried, down to base/2^kMaxHalvings;
+/// after kRegrowAfter good steps in a row the length doubles back towards base.
 class ImplicitStepLength {
  public:
   static constexpr int kMaxHalvings = 8;
@@ -256,9 +255,9 @@ class ImplicitStepLength {
   double next(double remaining) const {
     return std::min({m_base / std::ldexp(1.0, m_halvings), m_tried, remaining});
   }
-  /// After a step of length dt that succeeded (`ok`) or failed: true when it is to be taken again (failed, with
-  /// halvings left); false when it stands (a failure then ends the run).
-  bool retry(bool ok, double dt) {
+  /// Records a try of length dt that succeeded (`ok`) or failed. Returns whether it is to be taken again (failed, with
+  /// halvings left; the caller restores the state first); otherwise it stands (a failure then ends the run).
+  bool record(bool ok, double dt) {
     if (!ok && m_halvings < kMaxHalvings) {
       ++m_halvings;
       ++m_retries;
@@ -273,7 +272,7 @@ class ImplicitStepLength {
     }
     return false;
   }
-  /// Steps taken again so far.
+  /// Tries taken again so far.
   long retries() const { return m_retries; }
 
  private:

@@ -83,4 +83,30 @@ StepStatus tl_implicit_step(const MpmModel<D>& model, const TlGrid<D>& grid, con
                             MpmState<D>& state, TlWorkspace<D>& ws, double dt, const ImplicitSettings& settings = {},
                             ImplicitStats* stats = nullptr);
 
+/// A run's implicit steps with their length under ImplicitStepLength's control, in the total-Lagrangian frame when
+/// given its reference grid (else the updated frame): `step` takes one step that stands, trying it again from the
+/// state before it at half the length while it fails and halvings are left.
+template <int D>
+class ImplicitStepper {
+ public:
+  /// `grid` (borrowed; null: the updated frame) and the length the steps start from and grow back to [s].
+  ImplicitStepper(const TlGrid<D>* grid, double base) : m_grid(grid), m_length(base) {}
+  /// One step that stands, with `remaining` time left [s] under `field` (the state's time does not change between
+  /// tries). Its status is the last try's: a failure means the halvings are spent, and the state holds that try, as
+  /// the step functions leave it. `stats` (optional) gains every try's counts.
+  StepStatus step(const MpmModel<D>& model, const AppliedField& field, MpmState<D>& state, MpmWorkspace<D>& ws,
+                  TlWorkspace<D>& tl_ws, double remaining, const ImplicitSettings& settings,
+                  ImplicitStats* stats = nullptr);
+  /// The length of the last try [s].
+  double last_length() const { return m_dt; }
+  /// Tries taken again so far.
+  long retries() const { return m_length.retries(); }
+
+ private:
+  const TlGrid<D>* m_grid;
+  ImplicitStepLength m_length;
+  MpmState<D> m_saved;  ///< the state before the try (kept here so that its buffers are reused)
+  double m_dt = 0.0;
+};
+
 }  // namespace magvine::mpm

@@ -49,7 +49,8 @@ std::vector<double> zhao_experiment_fields();
 struct ZhaoPoint {
   ZhaoModel model = ZhaoModel::kPlaneStrain;
   bool total_lagrangian = false;  ///< the total-Lagrangian step (mpm/total_lagrangian.hpp), else updated-Lagrangian
-  double step_ratio = 0.0;   ///< implicit steps of this many explicit stable steps (as taken); 0: explicit steps
+  double step_ratio = 0.0;   ///< implicit steps of this many explicit stable steps (the length they start from and
+                             ///< grow back to, after the kick's cap); 0: explicit steps
   int cells = 0;             ///< grid cells through the thickness
   int particles_per_cell = 0;  ///< per axis
   std::size_t particles = 0;
@@ -63,13 +64,14 @@ struct ZhaoPoint {
   long steps = 0;
   long newton = 0;           ///< implicit steps: Newton iterations over the run
   long cg = 0;               ///< implicit steps: conjugate-gradient iterations over the run
+  long retries = 0;          ///< implicit steps taken again at half the length (mpm::ImplicitStepper)
   double seconds = 0.0;      ///< wall time of this run
 };
 
 /// Runs the beam at one resolution and field (on the calling thread's OpenMP threads, to rest or 1.5 s simulated).
 /// The reference is the elastica with zhao_reference_modulus. step_ratio > 0: implicit steps (mpm/implicit.hpp,
 /// total_lagrangian.hpp) of step_ratio times the explicit stable step, at most a quarter of the 1 ms kick (the point
-/// records the ratio taken).
+/// records that ratio), a failed one taken again at half the length (the point counts them).
 ZhaoPoint run_zhao_beam(int cells, int particles_per_cell, double field, ZhaoModel model = ZhaoModel::kPlaneStrain,
                         bool total_lagrangian = false, double step_ratio = 0.0);
 
