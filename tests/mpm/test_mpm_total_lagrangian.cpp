@@ -148,6 +148,16 @@ double elastica_height(const CantileverSpec& s, double b, double at) {
   return sol.position[k_at].y();
 }
 
+/// The stiff catheter's settling runs: total-Lagrangian steps, at rest once the tip moves < 1e-6 m over 5 ms.
+SettleOptions catheter_rest() {
+  SettleOptions o;
+  o.tolerance = 1e-6;
+  o.window = 0.005;
+  o.max_time = 0.3;
+  o.total_lagrangian = true;
+  return o;
+}
+
 TEST(MpmTotalLagrangian, AStiffCatheterSettlesToOneRestAtAnyStepAndMatchesTheElastica) {
   // Issue 34, item 4: the explicit step (courant 0.4) and the implicit step at 100 times it settle the catheter to the
   // same rest, where the updated-Lagrangian steps stop 12 % apart (test_mpm_implicit): here both are the stationary
@@ -157,11 +167,7 @@ TEST(MpmTotalLagrangian, AStiffCatheterSettlesToOneRestAtAnyStepAndMatchesTheEla
   Cantilever<2> ex = make_cantilever<2>(spec);
   Cantilever<2> im = ex;
   const VecD<2> start = mean_position<2>(ex.state, ex.tip);
-  SettleOptions o;
-  o.tolerance = 1e-6;
-  o.window = 0.005;
-  o.max_time = 0.3;
-  o.total_lagrangian = true;
+  SettleOptions o = catheter_rest();
   MpmWorkspace<2> unused;
   const auto t0 = std::chrono::steady_clock::now();
   const SettleResult r_ex = settle<2>(ex.model, ex.state, unused, [](double) { return across(0.02); }, ex.tip, o);
@@ -234,11 +240,7 @@ TEST(MpmTotalLagrangian, SettleTakesAFailedImplicitStepAgainAtHalfItsLength) {
   const TlGrid<2> grid = make_tl_grid<2>(once.model, once.state);
   TlWorkspace<2> ws_once;
   EXPECT_FALSE(tl_implicit_step<2>(once.model, grid, across(0.02), once.state, ws_once, dt).ok);
-  SettleOptions o;
-  o.tolerance = 1e-6;
-  o.window = 0.005;
-  o.max_time = 0.3;
-  o.total_lagrangian = true;
+  SettleOptions o = catheter_rest();
   MpmWorkspace<2> unused;
   const SettleResult r_ex = settle<2>(ex.model, ex.state, unused, [](double) { return across(0.02); }, ex.tip, o);
   o.implicit = true;
