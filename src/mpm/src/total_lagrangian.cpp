@@ -784,19 +784,19 @@ StepStatus ImplicitStepper<D>::step(const MpmModel<D>& model, const AppliedField
                                     MpmWorkspace<D>& ws, TlWorkspace<D>& tl_ws, double remaining,
                                     const ImplicitSettings& settings, ImplicitStats* stats) {
   for (;;) {
-    m_dt = m_length.next(remaining);
+    const double dt = m_length.next(remaining);
     m_saved = state;
     ImplicitStats counted;
     const StepStatus st = m_grid != nullptr
-                              ? tl_implicit_step<D>(model, *m_grid, field, state, tl_ws, m_dt, settings, &counted)
-                              : implicit_step(model, field, state, ws, m_dt, settings, &counted);
+                              ? tl_implicit_step<D>(model, *m_grid, field, state, tl_ws, dt, settings, &counted)
+                              : implicit_step(model, field, state, ws, dt, settings, &counted);
     if (stats != nullptr) {
       stats->newton += counted.newton;
       stats->cg += counted.cg;
       stats->factorizations += counted.factorizations;
       stats->correction = counted.correction;
     }
-    if (!m_length.record(st.ok, m_dt)) return st;
+    if (!m_length.record(st.ok, dt)) return st;
     state = m_saved;
   }
 }

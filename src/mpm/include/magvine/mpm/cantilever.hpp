@@ -52,7 +52,7 @@ struct SettleOptions {
   double window = 0.02;          ///< rest: the probe moved less than `tolerance` over this long [s]
   double tolerance = 0.0;        ///< [m]
   bool implicit = false;         ///< implicit steps (implicit_step) of `time_step` (0: the explicit bound, as above),
-                                 ///< a failed one taken again at half the length (ImplicitStepLength)
+                                 ///< a failed one taken again at half the length (ImplicitStepper)
   ImplicitSettings newton;       ///< for implicit steps
   /// Total-Lagrangian steps (total_lagrangian.hpp), explicit or implicit as above, on a reference grid made from the
   /// state as it is at the call (so settle an undeformed body).
@@ -79,7 +79,7 @@ struct SettleResult {
   long cg = 0;           ///< implicit steps: conjugate-gradient iterations (Hessian products) over the run
   long newton = 0;       ///< implicit steps: Newton iterations over the run
   long factorizations = 0;  ///< implicit steps: Hessian factorizations over the run
-  long retries = 0;      ///< implicit steps taken again at half the length (ImplicitStepLength)
+  long retries = 0;      ///< implicit steps taken again at half the length (ImplicitStepper)
   double time = 0.0;     ///< simulated [s]
   double time_step = 0.0;
 };

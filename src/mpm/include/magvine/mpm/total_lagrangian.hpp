@@ -97,8 +97,6 @@ class ImplicitStepper {
   StepStatus step(const MpmModel<D>& model, const AppliedField& field, MpmState<D>& state, MpmWorkspace<D>& ws,
                   TlWorkspace<D>& tl_ws, double remaining, const ImplicitSettings& settings,
                   ImplicitStats* stats = nullptr);
-  /// The length of the last try [s].
-  double last_length() const { return m_dt; }
   /// Tries taken again so far.
   long retries() const { return m_length.retries(); }
 
@@ -106,7 +104,6 @@ class ImplicitStepper {
   const TlGrid<D>* m_grid;
   ImplicitStepLength m_length;
   MpmState<D> m_saved;  ///< the state before the try (kept here so that its buffers are reused)
-  double m_dt = 0.0;
 };
 
 }  // namespace magvine::mpm
