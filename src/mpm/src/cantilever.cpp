@@ -105,9 +105,6 @@ SettleResult settle(const MpmModel<D>& model, MpmState<D>& state, MpmWorkspace<D
       r.newton += counted.newton;
       r.factorizations += counted.factorizations;
       r.retries = implicit.retries();
-      if (!r.status.ok) {
-        r.status.cause += " (after " + std::to_string(ImplicitStepLength::kMaxHalvings) + " halvings of the step)";
-      }
     } else if (o.total_lagrangian) {
       r.status = tl_step<D>(model, grid, field(state.time), state, tl_ws, r.time_step);
     } else {

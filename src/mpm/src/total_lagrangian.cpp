@@ -796,7 +796,12 @@ StepStatus ImplicitStepper<D>::step(const MpmModel<D>& model, const AppliedField
       stats->factorizations += counted.factorizations;
       stats->correction = counted.correction;
     }
-    if (!m_length.record(st.ok, dt)) return st;
+    if (!m_length.record(st.ok, dt)) {
+      if (st.ok) return st;
+      StepStatus failed = st;
+      failed.cause += " (after " + std::to_string(ImplicitStepLength::kMaxHalvings) + " halvings of the step)";
+      return failed;
+    }
     state = m_saved;
   }
 }

@@ -634,9 +634,7 @@ MpmResult run_dim(const MpmScene& sc, const std::function<void(double)>& progres
     ++r.steps;
     if (!st.ok) {
       r.ok = false;
-      r.failure = st.cause + (sc.implicit ? " (after " + std::to_string(mpm::ImplicitStepLength::kMaxHalvings) +
-                                                " halvings of the step)"
-                                          : "");
+      r.failure = st.cause;  // an implicit step's says the halvings were spent (ImplicitStepper)
       break;
     }
     if (state.time >= next_sample - 1e-12) {

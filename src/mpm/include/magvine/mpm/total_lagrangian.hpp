@@ -92,8 +92,8 @@ class ImplicitStepper {
   /// `grid` (borrowed; null: the updated frame) and the length the steps start from and grow back to [s].
   ImplicitStepper(const TlGrid<D>* grid, double base) : m_grid(grid), m_length(base) {}
   /// One step that stands, with `remaining` time left [s] under `field` (the state's time does not change between
-  /// tries). Its status is the last try's: a failure means the halvings are spent, and the state holds that try, as
-  /// the step functions leave it. `stats` (optional) gains every try's counts.
+  /// tries). Its status is the last try's: a failure means the halvings are spent (its cause says so), and the state
+  /// holds that try, as the step functions leave it. `stats` (optional) gains every try's counts.
   StepStatus step(const MpmModel<D>& model, const AppliedField& field, MpmState<D>& state, MpmWorkspace<D>& ws,
                   TlWorkspace<D>& tl_ws, double remaining, const ImplicitSettings& settings,
                   ImplicitStats* stats = nullptr);
