@@ -46,6 +46,8 @@ def read_batch(folder):
 
 def agreement(coarse, fine, key):
     common = sorted(set(coarse) & set(fine))
+    if not common:
+        fail("two batches share no trial (the same --targets and --repeats?)")
     d = [abs(coarse[t][key] - fine[t][key]) / fine[t][key] for t in common]
     return sum(x <= TOLERANCE for x in d), len(d), statistics.median(d), max(d)
 
