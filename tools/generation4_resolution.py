@@ -48,7 +48,7 @@ def agreement(coarse, fine, key):
     common = sorted(set(coarse) & set(fine))
     if not common:
         fail("two batches share no trial (the same --targets and --repeats?)")
-    d = [abs(coarse[t][key] - fine[t][key]) / fine[t][key] for t in common]
+    d = [abs(coarse[t][key] - fine[t][key]) / max(fine[t][key], 1e-12) for t in common]
     return sum(x <= TOLERANCE for x in d), len(d), statistics.median(d), max(d)
 
 
@@ -66,13 +66,7 @@ def main():
             batches[(float(edge), float(dt))] = read_batch(folder)
         except ValueError:
             fail(f"{spec}: expected EDGE_MM:DT_MS:DIR")
-    with open(a.csv, "w", newline="") as f:
-        w = csv.writer(f)
-        w.writerow(["edge_mm", "dt_ms", "trial", "success", "failed_steps", *KEYS])
-        for (edge, dt), trials in sorted(batches.items(), key=lambda x: (-x[0][0], -x[0][1])):
-            for t, v in trials.items():
-                w.writerow([edge, dt, t, v["success"], v["failed"], f"{v[KEYS[0]]:.4f}", f"{v[KEYS[1]]:.4f}"])
-    print("| pair | reached | node force within 15 % | line load within 15 % |\n|---|---|---|---|")
+    lines = ["| pair | reached | node force within 15 % | line load within 15 % |", "|---|---|---|---|"]
     pairs = []
     for edge in sorted({e for e, _ in batches}, reverse=True):
         steps = sorted((d for e, d in batches if e == edge), reverse=True)
@@ -86,7 +80,10 @@ def main():
             n, total, median, largest = agreement(batches[c], batches[f], key)
             cells.append(f"{n}/{total} (median {100 * median:.1f} %, largest {100 * largest:.1f} %)")
         reached = f"{sum(v['success'] for v in batches[c].values())}, {sum(v['success'] for v in batches[f].values())}"
-        print(f"| {label} | {reached} | {cells[0]} | {cells[1]} |")
+        lines.append(f"| {label} | {reached} | {cells[0]} | {cells[1]} |")
+    figure_edges = sorted(e for e, d in batches if d == a.dt_ms)
+    if a.png and len(figure_edges) < 2:
+        fail(f"--png: fewer than two edge lengths at dt = {a.dt_ms:g} ms")
     if a.png:
         try:
             import matplotlib
@@ -94,9 +91,15 @@ def main():
             import matplotlib.pyplot as plt
         except ImportError as e:
             fail(f"--png needs matplotlib ({e})")
-        edges = sorted(e for e, d in batches if d == a.dt_ms)
-        if len(edges) < 2:
-            fail(f"--png: fewer than two edge lengths at dt = {a.dt_ms:g} ms")
+    with open(a.csv, "w", newline="") as f:
+        w = csv.writer(f)
+        w.writerow(["edge_mm", "dt_ms", "trial", "success", "failed_steps", *KEYS])
+        for (edge, dt), trials in sorted(batches.items(), key=lambda x: (-x[0][0], -x[0][1])):
+            for t, v in trials.items():
+                w.writerow([edge, dt, t, v["success"], v["failed"], f"{v[KEYS[0]]:.4f}", f"{v[KEYS[1]]:.4f}"])
+    print("\n".join(lines))
+    if a.png:
+        edges = figure_edges
         fig, axes = plt.subplots(1, 2, figsize=(10, 4))
         trials = sorted(batches[(edges[0], a.dt_ms)])
         for ax, key, title in zip(axes, KEYS, ("largest force on a node [N]", "largest line load [N/mm]")):
