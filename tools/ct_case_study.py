@@ -28,11 +28,15 @@ missing input gives one line on stderr and exit status 2.
 """
 import argparse
 import csv
+import functools
 import json
 import os
 import statistics
 import subprocess
 import sys
+
+sys.path.insert(0, os.path.dirname(os.path.abspath(__file__)))
+from tool_errors import input_error  # noqa: E402
 
 import matplotlib
 
@@ -67,9 +71,12 @@ simulation: {{duration: 40, dt: 0.02, gravity: [0, -9.81, 0]}}
 """
 
 
-def fail(path, problem):
-    print(f"ct_case_study: {path}: {problem}", file=sys.stderr)
-    sys.exit(2)
+fail = functools.partial(input_error, "ct_case_study")
+
+
+def case_name(patient, breathing):
+    """A case's folder and scene name: patientN, or patientN_breathing."""
+    return f"patient{patient}" + ("_breathing" if breathing else "")
 
 
 def number(text):
@@ -251,22 +258,26 @@ def main():
     if not os.access(a.magvine, os.X_OK):
         fail(a.magvine, "not an executable magvine (build it, or give --magvine)")
     # The cases to film, checked before the trials run: patientN or patientN_breathing of the patients run here.
-    planned = [f"patient{p.strip()}" + suffix for p in a.patients.split(",")
-               for suffix in ([""] if a.no_breathing else ["", "_breathing"])]
+    try:
+        patients = [int(x) for x in a.patients.split(",")]
+    except ValueError:
+        fail("--patients", f"{a.patients!r} is not a comma list of patient numbers")
+    breathings = [False] if a.no_breathing else [False, True]
+    planned = [case_name(p, b) for p in patients for b in breathings]
     figures = [c.strip() for c in a.figure.split(",") if c.strip()]
     for case in figures:
         if case not in planned:
             fail("--figure", f"{case} is not a case of this study ({', '.join(planned)})")
     os.makedirs(os.path.join(a.out, "scenes"), exist_ok=True)
     cases = []
-    for patient in [int(x) for x in a.patients.split(",")]:
+    for patient in patients:
         folder = os.path.abspath(os.path.join(a.segmentations, f"Patient{patient}"))
         for f in ("bronchialTree.nii.gz", "target.txt"):
             if not os.path.exists(os.path.join(folder, f)):
                 fail(os.path.join(folder, f), "missing")
         start = start_pose(folder, a.start) if a.start else ""
-        for breathing in ([False] if a.no_breathing else [False, True]):
-            case = f"patient{patient}" + ("_breathing" if breathing else "")
+        for breathing in breathings:
+            case = case_name(patient, breathing)
             scene = os.path.join(a.out, "scenes", case + ".yaml")
             with open(scene, "w") as f:
                 f.write(SCENE.format(

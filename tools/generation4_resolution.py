@@ -14,24 +14,26 @@ Usage: /usr/bin/python3 tools/generation4_resolution.py --csv OUT.csv [--png OUT
 """
 import argparse
 import csv
+import functools
 import json
 import os
 import statistics
 import sys
 
+sys.path.insert(0, os.path.dirname(os.path.abspath(__file__)))
+from tool_errors import input_error  # noqa: E402
+
 KEYS = ("max_wall_normal_N", "max_wall_line_load_N_per_mm")
 TOLERANCE = 0.15  # issue 28's resolution item: per-trial peak within 15 % between the two finest settings
 
 
-def fail(message):
-    print(f"generation4_resolution.py: {message}", file=sys.stderr)
-    sys.exit(2)
+fail = functools.partial(input_error, "generation4_resolution")
 
 
 def read_batch(folder):
     runs = os.path.join(folder, "runs")
     if not os.path.isdir(runs):
-        fail(f"{folder}: no runs/ folder (run magvine trials with --keep-runs)")
+        fail(folder, "no runs/ folder (run magvine trials with --keep-runs)")
     out = {}
     for name in sorted(os.listdir(runs)):
         path = os.path.join(runs, name, "metrics.json")
@@ -40,14 +42,14 @@ def read_batch(folder):
                 m = json.load(f)
             out[name] = {k: float(m[k]) for k in KEYS} | {"success": int(m["success"]), "failed": int(m["failed_steps"])}
         except (OSError, ValueError, KeyError) as e:
-            fail(f"{path}: {e}")
+            fail(path, e)
     return out
 
 
 def agreement(coarse, fine, key):
     common = sorted(set(coarse) & set(fine))
     if not common:
-        fail("two batches share no trial (the same --targets and --repeats?)")
+        fail("batches", "two share no trial (the same --targets and --repeats?)")
     d = [abs(coarse[t][key] - fine[t][key]) / max(fine[t][key], 1e-12) for t in common]
     return sum(x <= TOLERANCE for x in d), len(d), statistics.median(d), max(d)
 
@@ -65,7 +67,7 @@ def main():
             edge, dt, folder = spec.split(":", 2)
             batches[(float(edge), float(dt))] = read_batch(folder)
         except ValueError:
-            fail(f"{spec}: expected EDGE_MM:DT_MS:DIR")
+            fail(spec, "expected EDGE_MM:DT_MS:DIR")
     lines = ["| pair | reached | node force within 15 % | line load within 15 % |", "|---|---|---|---|"]
     pairs = []
     for edge in sorted({e for e, _ in batches}, reverse=True):
@@ -83,14 +85,14 @@ def main():
         lines.append(f"| {label} | {reached} | {cells[0]} | {cells[1]} |")
     figure_edges = sorted(e for e, d in batches if d == a.dt_ms)
     if a.png and len(figure_edges) < 2:
-        fail(f"--png: fewer than two edge lengths at dt = {a.dt_ms:g} ms")
+        fail("--png", f"fewer than two edge lengths at dt = {a.dt_ms:g} ms")
     if a.png:
         try:
             import matplotlib
             matplotlib.use("Agg")
             import matplotlib.pyplot as plt
         except ImportError as e:
-            fail(f"--png needs matplotlib ({e})")
+            fail("--png", f"needs matplotlib ({e})")
     with open(a.csv, "w", newline="") as f:
         w = csv.writer(f)
         w.writerow(["edge_mm", "dt_ms", "trial", "success", "failed_steps", *KEYS])

@@ -25,12 +25,14 @@ free end at 30 mm, used for the gap) and the 1D bar's sections are the bundled s
 """
 import argparse
 import csv
+import functools
 import math
 import os
 import re
 import sys
 
 sys.path.insert(0, os.path.dirname(os.path.abspath(__file__)))
+from tool_errors import input_error  # noqa: E402
 try:  # a run's probes.csv as (t_s, tip_z_mm), exit 2 when malformed; it loads matplotlib too
     from plot_mpm_sweeps import run_mpm, tip_track  # noqa: E402
 except ImportError as e:
@@ -150,9 +152,7 @@ def one_dimensional_extension(distance_mm, gravity=9.81, per_mm=20, passes=200):
     return None
 
 
-def fail(path, problem):
-    print(f"mpm_extension_sweep: {path}: {problem}", file=sys.stderr)
-    sys.exit(2)
+fail = functools.partial(input_error, "mpm_extension_sweep")
 
 
 def scene_text(template, distance_mm):

@@ -27,20 +27,22 @@ A missing or malformed input gives one line on stderr, exit status 2 and no CSV 
 import argparse
 import copy
 import csv
+import functools
 import json
 import math
 import os
 import subprocess
 import sys
 
+sys.path.insert(0, os.path.dirname(os.path.abspath(__file__)))
+from tool_errors import input_error  # noqa: E402
+
 MU0 = 4e-7 * math.pi
 # Profile b: the magnetic sections' directions (x, y, z) in the thesis's public code (tentacleF).
 PROFILE_B = {"s2": [-0.81, 0, -0.59], "s4": [-0.26, 0, 0.97], "s6": [-0.77, 0, 0.64], "s8": [-0.94, 0, -0.35]}
 
 
-def fail(path, problem):
-    print(f"mpm_tentacle_sweep: {path}: {problem}", file=sys.stderr)
-    sys.exit(2)
+fail = functools.partial(input_error, "mpm_tentacle_sweep")
 
 
 def robot_sections(scene, path):

@@ -16,11 +16,15 @@ and exit status 2.
 """
 import argparse
 import csv
+import functools
 import glob
 import json
 import os
 import re
 import sys
+
+sys.path.insert(0, os.path.dirname(os.path.abspath(__file__)))
+from tool_errors import input_error  # noqa: E402
 
 import matplotlib
 
@@ -28,9 +32,7 @@ matplotlib.use("Agg")
 import matplotlib.pyplot as plt  # noqa: E402
 
 
-def fail(path, problem):
-    print(f"plot_biopsy_hold: {path}: {problem}", file=sys.stderr)
-    sys.exit(2)
+fail = functools.partial(input_error, "plot_biopsy_hold")
 
 
 def scene_value(path, key):
